@@ -1,0 +1,25 @@
+// A stream of scene objects: readers (OBJ, assimp formats) and the tanker generator produce objects one
+// at a time so that no caller needs the whole scene in RAM.
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include "mktree/scene.h"
+#include "mktree/status.h"
+
+namespace mktree {
+
+class SceneSource {
+ public:
+  virtual ~SceneSource() = default;
+  // Fills `*out` with the next object and returns true; returns false at the end of the stream.
+  // Errors name the file and line. Object ids are assigned by the source: 0-based, in input order,
+  // starting at `first_id` given at construction (so several files continue one numbering).
+  virtual Result<bool> Next(SceneObject* out) = 0;
+};
+
+// Opens `path` by extension: .obj with the streaming OBJ reader; everything else through assimp.
+Result<std::unique_ptr<SceneSource>> OpenSceneFile(const std::string& path, ObjectId first_id = 0);
+
+}  // namespace mktree

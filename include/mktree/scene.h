@@ -1,0 +1,42 @@
+// The scene model: an object is an id (0-based input order), a name and a closed triangle mesh.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "mktree/geometry.h"
+
+namespace mktree {
+
+using ObjectId = uint32_t;
+
+// Triangle mesh: float32 vertices (x, y, z interleaved), uint32 triangles (three vertex indices each).
+struct Mesh {
+  std::vector<float> vertices;       // 3 * vertex_count()
+  std::vector<uint32_t> triangles;   // 3 * triangle_count()
+  size_t vertex_count() const { return vertices.size() / 3; }
+  size_t triangle_count() const { return triangles.size() / 3; }
+  // Bounds of the vertices, computed in double precision. Empty box for an empty mesh.
+  Box3d Bounds() const;
+  // Bytes of the raw (uncompressed) geometry encoding: the two counts, vertices and triangles.
+  uint64_t RawGeometryBytes() const { return 8 + 4 * vertices.size() + 4 * triangles.size(); }
+};
+
+struct SceneObject {
+  ObjectId id = 0;
+  std::string name;
+  Mesh mesh;
+  // The stored AABB: Bounds() rounded outward to float32.
+  Box3f Aabb() const { return RoundOutward(mesh.Bounds()); }
+};
+
+// What the builder keeps in RAM per object: never the geometry.
+struct ObjectRecord {
+  ObjectId id = 0;
+  uint32_t encoded_bytes = 0;   // bytes this object takes in a leaf page (entry header included)
+  Box3f box;
+  uint64_t spill_offset = 0;    // where its encoded geometry lies in the ingest spill file
+};
+
+}  // namespace mktree

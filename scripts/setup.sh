@@ -1,0 +1,34 @@
+#!/usr/bin/env bash
+# Installs every dependency from Debian packages (only what is missing, so it is safe to run twice) and
+# builds mktree into build/. Usage: scripts/setup.sh [--no-build]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+PACKAGES=(
+  build-essential cmake pkg-config
+  libhdf5-dev        # HDF5 page store backend
+  libboost-dev       # Boost.Interprocess (paged-file locks), Boost.Geometry (bench peer)
+  libzstd-dev        # page codec
+  libxxhash-dev      # page checksums (XXH3)
+  libgtest-dev       # tests
+  libassimp-dev      # glTF/PLY/STL/OFF/AC3D/... scene input
+  libcli11-dev       # command line
+  libpng-dev         # mktree render
+  libbenchmark-dev   # bench/
+  libspatialindex-dev libsqlite3-dev  # bench/ peers
+)
+missing=()
+for p in "${PACKAGES[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if ((${#missing[@]})); then
+  echo "setup: installing ${missing[*]}"
+  SUDO=""
+  [ "$(id -u)" -eq 0 ] || SUDO="sudo"
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi
+
+[ "${1:-}" = "--no-build" ] && exit 0
+cmake -S . -B build -DCMAKE_BUILD_TYPE=Release >/dev/null
+cmake --build build -j "$(nproc)"

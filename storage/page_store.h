@@ -1,0 +1,27 @@
+// PageStore: fixed-size pages addressed by index, behind one interface (HDF5, paged file, memory,
+// fault-injecting wrapper). Thread safety: ReadPage may be called from many threads at once;
+// WritePage/Sync only from the single writer, never concurrently with reads.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "mktree/status.h"
+
+namespace mktree {
+
+class PageStore {
+ public:
+  virtual ~PageStore() = default;
+  virtual uint64_t page_bytes() const = 0;
+  virtual uint64_t page_count() const = 0;
+  // Reads page `index` (page_bytes() bytes) into `out`. Error names the store and the page.
+  virtual Status ReadPage(uint64_t index, uint8_t* out) const = 0;
+  // Writes page `index`; pages are written in increasing index order during a build.
+  virtual Status WritePage(uint64_t index, const uint8_t* data) = 0;
+  virtual Status Sync() = 0;
+  // The file (or "memory") the store lives in, for error messages.
+  virtual const std::string& name() const = 0;
+};
+
+}  // namespace mktree

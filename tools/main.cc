@@ -1,0 +1,30 @@
+#include <iostream>
+
+#include "tools/command.h"
+
+namespace mktree::tools {
+
+int Fail(const std::string& message) {
+  std::cerr << "error: " << message << "\n";
+  return 1;
+}
+
+}  // namespace mktree::tools
+
+int main(int argc, char** argv) {
+  using namespace mktree::tools;
+  CLI::App app{"mktree: an out-of-core 3D spatial database built on Multiresolution Kd-trees"};
+  app.require_subcommand(1);
+  CommandRun run;
+  RegisterGenerate(app, &run);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    if (e.get_exit_code() != 0) {
+      std::cerr << "error: " << e.what() << "\n";
+      return 2;
+    }
+    return app.exit(e);
+  }
+  return run ? run() : Fail("no subcommand given");
+}
