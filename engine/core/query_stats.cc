@@ -12,6 +12,7 @@ QueryStats& QueryStats::operator+=(const QueryStats& o) {
   bytes_read += o.bytes_read;
   candidates_tested += o.candidates_tested;
   hits += o.hits;
+  leaves_with_hits += o.leaves_with_hits;
   return *this;
 }
 
@@ -33,6 +34,7 @@ std::string QueryStats::ToJsonMembers() const {
   add("bytes_read", bytes_read);
   add("candidates_tested", candidates_tested);
   add("hits", hits);
+  add("leaves_with_hits", leaves_with_hits);
   return s;
 }
 

@@ -18,6 +18,7 @@ struct QueryStats {
   uint64_t bytes_read = 0;        // bytes read from the store (misses only)
   uint64_t candidates_tested = 0; // objects whose AABB (and geometry in exact mode) was tested
   uint64_t hits = 0;
+  uint64_t leaves_with_hits = 0;  // leaves visited that held at least one answer
 
   void Reset() { *this = QueryStats(); }
   QueryStats& operator+=(const QueryStats& o);
