@@ -1,0 +1,48 @@
+// Streaming reader for Wavefront OBJ scenes.
+//
+// What it reads
+//   - `o NAME` starts an object. `g NAME` starts an object only in a file that has no `o` line at all; in a
+//     file with `o` lines, groups are ignored. Faces before the first `o`/`g` form an unnamed object.
+//     A `g` that repeats an earlier group name starts a new object (a stream cannot merge them).
+//   - `v x y z [w | r g b [a]]`: only x, y, z are used. `f` with every vertex form (`v`, `v/vt`, `v//vn`,
+//     `v/vt/vn`), absolute (1-based) or relative (negative) indices; vt and vn indices are range-checked
+//     and otherwise ignored. Polygons are triangulated as a fan (v0, vi, vi+1).
+//   - Accepted and ignored: comments, blank lines, `vt`, `vn`, `vp`, `l`, `p`, `s`, `usemtl`, `mtllib`, and
+//     the spec's display/render attributes (`lod`, `bevel`, `c_interp`, `d_interp`, `usemap`, `maplib`,
+//     `shadow_obj`, `trace_obj`, `mg`). Lines may end in CRLF; a trailing `\` continues a line.
+//   - Objects without faces are skipped and consume no id. Names: the `o`/`g` name, else "object_<id>".
+//   - Each emitted mesh holds only the vertices its faces use, re-indexed compactly in first-use order.
+//
+// Errors (never a silently wrong scene): every malformed line is an error naming `file:line` and what was
+// wrong: a bad number, too few or too many coordinates, NaN/Inf or out-of-float-range coordinates, an index
+// that is 0 or out of range, a face with fewer than 3 vertices, free-form geometry (`curv`, `surf`, ...,
+// which would otherwise be silently dropped), and any unknown directive. Unknown directives are errors
+// rather than warnings because SceneSource has no warning channel and an unknown keyword means either a
+// non-OBJ file or geometry we would drop; the harmless spec directives are listed above. A last line that
+// fails to parse and lacks its newline is reported as a truncated file.
+//
+// Memory: OBJ vertex indices are global to the file, so the reader keeps the global vertex table
+// (float32 x, y, z: 12 bytes per `v` line) plus the current object's mesh and its re-indexing map. Nothing
+// else grows with the file: the read buffer is fixed (it grows only to hold the longest line).
+//
+// `g` versus `o` is decided lazily: if an `o` line comes before any `g` line, nothing more is needed. Only
+// when a `g` line comes first does the reader scan ahead in the file (a separate read, stopping at the
+// first line that starts with "o") to learn whether the file has `o` lines. Files with only `g` lines are
+// therefore read twice; files written with `o` lines (the common case) are read once.
+//
+// Thread-safety: a source is used by one thread at a time; distinct sources are independent.
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include "engine/scene/scene_source.h"
+
+namespace mktree {
+
+// Opens `path` for streaming. The first object gets id `first_id`, the next first_id + 1, and so on.
+// Fails with NotFound/IOError (naming the file) when the file cannot be opened; parse errors come from
+// Next().
+Result<std::unique_ptr<SceneSource>> OpenObjFile(const std::string& path, ObjectId first_id = 0);
+
+}  // namespace mktree

@@ -1,0 +1,324 @@
+// Streaming OBJ reader: index forms, triangulation, object rules, every error with its line, real files.
+#include "engine/scene/obj_reader.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+namespace mktree {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Writes `content` to a fresh file in a per-test temp dir and returns its path.
+std::string WriteTemp(const std::string& content, const std::string& name = "scene.obj") {
+  const auto* info = testing::UnitTest::GetInstance()->current_test_info();
+  fs::path dir = fs::temp_directory_path() /
+                 ("mktree_obj_" + std::to_string(::getpid()) + "_" + info->test_suite_name() + "_" + info->name());
+  fs::create_directories(dir);
+  fs::path p = dir / name;
+  std::ofstream(p, std::ios::binary) << content;
+  return p.string();
+}
+
+Result<std::vector<SceneObject>> ReadAll(const std::string& path, ObjectId first_id = 0) {
+  auto src = OpenObjFile(path, first_id);
+  if (!src.ok()) return src.status();
+  std::vector<SceneObject> objects;
+  while (true) {
+    SceneObject o;
+    auto more = (*src)->Next(&o);
+    if (!more.ok()) return more.status();
+    if (!*more) return objects;
+    objects.push_back(std::move(o));
+  }
+}
+
+std::vector<SceneObject> ReadOk(const std::string& content, ObjectId first_id = 0) {
+  auto r = ReadAll(WriteTemp(content), first_id);
+  EXPECT_TRUE(r.ok()) << r.status().ToString();
+  return r.ok() ? std::move(r).value() : std::vector<SceneObject>{};
+}
+
+// Expects reading `content` to fail with a message naming "<file>:<line>:" and containing `what`.
+void ExpectError(const std::string& content, int line, const std::string& what) {
+  std::string path = WriteTemp(content);
+  auto r = ReadAll(path);
+  ASSERT_FALSE(r.ok()) << "expected an error at line " << line << " (" << what << ")";
+  const std::string& msg = r.status().message();
+  EXPECT_NE(msg.find(path + ":" + std::to_string(line) + ": "), std::string::npos) << msg;
+  EXPECT_NE(msg.find(what), std::string::npos) << msg;
+}
+
+const char kTriangleVertices[] = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nvn 0 0 1\n";
+
+TEST(ObjReaderTest, EveryIndexFormGivesTheSameTriangle) {
+  for (const char* face : {"f 1 2 3\n", "f 1/1 2/2 3/3\n", "f 1//1 2//1 3//1\n", "f 1/1/1 2/2/1 3/3/1\n",
+                           "f -3/-3/-1 -2/-2/-1 -1/-1/-1\n", "f 1/1 2//1 3\n"}) {
+    auto objs = ReadOk(std::string(kTriangleVertices) + face);
+    ASSERT_EQ(objs.size(), 1u) << face;
+    EXPECT_EQ(objs[0].mesh.vertices, (std::vector<float>{0, 0, 0, 1, 0, 0, 0, 1, 0})) << face;
+    EXPECT_EQ(objs[0].mesh.triangles, (std::vector<uint32_t>{0, 1, 2})) << face;
+  }
+}
+
+TEST(ObjReaderTest, NegativeIndicesAreRelativeToTheVerticesReadSoFar) {
+  auto objs = ReadOk(
+      "v 0 0 0\nv 1 0 0\nv 0 1 0\n"
+      "o a\nf -1 -2 -3\n"
+      "v 5 5 5\n"
+      "o b\nf -1 -2 -3\n");  // -1 is now the fourth vertex
+  ASSERT_EQ(objs.size(), 2u);
+  EXPECT_EQ(objs[0].mesh.vertices, (std::vector<float>{0, 1, 0, 1, 0, 0, 0, 0, 0}));
+  EXPECT_EQ(objs[1].mesh.vertices, (std::vector<float>{5, 5, 5, 0, 1, 0, 1, 0, 0}));
+  EXPECT_EQ(objs[1].mesh.triangles, (std::vector<uint32_t>{0, 1, 2}));
+}
+
+TEST(ObjReaderTest, PolygonsAreTriangulatedAsAFan) {
+  auto objs = ReadOk("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv -1 0.5 0\nf 1 2 3 4\nf 1 2 3 4 5\n");
+  ASSERT_EQ(objs.size(), 1u);
+  EXPECT_EQ(objs[0].mesh.triangles, (std::vector<uint32_t>{0, 1, 2, 0, 2, 3, 0, 1, 2, 0, 2, 3, 0, 3, 4}));
+}
+
+TEST(ObjReaderTest, MeshesKeepOnlyTheirVerticesReindexedInFirstUseOrder) {
+  auto objs = ReadOk(
+      "o first\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 9 9 9\nf 3 1 2\n"
+      "o second\nv 2 0 0\nv 3 0 0\nv 2 1 0\nf 7 5 6 1\n");  // reuses vertex 1 of `first`
+  ASSERT_EQ(objs.size(), 2u);
+  EXPECT_EQ(objs[0].mesh.vertices, (std::vector<float>{0, 1, 0, 0, 0, 0, 1, 0, 0}));
+  EXPECT_EQ(objs[0].mesh.triangles, (std::vector<uint32_t>{0, 1, 2}));
+  EXPECT_EQ(objs[1].mesh.vertices, (std::vector<float>{2, 1, 0, 2, 0, 0, 3, 0, 0, 0, 0, 0}));
+  EXPECT_EQ(objs[1].mesh.triangles, (std::vector<uint32_t>{0, 1, 2, 0, 2, 3}));
+}
+
+TEST(ObjReaderTest, ObjectLinesStartObjectsAndGroupsAreIgnoredThen) {
+  // The `g` comes before any `o`: the reader must still learn that the file has `o` lines.
+  auto objs = ReadOk(
+      "v 0 0 0\nv 1 0 0\nv 0 1 0\n"
+      "g early\nf 1 2 3\n"
+      "o pipe 1\ng part\nf 1 2 3\ng other\nf 3 2 1\n"
+      "o  plate  \nf 1 2 3\n");
+  ASSERT_EQ(objs.size(), 3u);
+  EXPECT_EQ(objs[0].name, "object_0");  // faces before the first `o`
+  EXPECT_EQ(objs[1].name, "pipe 1");
+  EXPECT_EQ(objs[1].mesh.triangle_count(), 2u);
+  EXPECT_EQ(objs[2].name, "plate");
+}
+
+TEST(ObjReaderTest, GroupsStartObjectsWhenTheFileHasNoObjectLines) {
+  auto objs = ReadOk(
+      "v 0 0 0\nv 1 0 0\nv 0 1 0\n"
+      "f 1 2 3\n"
+      "g wall\nf 1 2 3\ng\nf 1 2 3\ng wall\nf 3 2 1\n"
+      "# o commented out\nusemtl o\n");
+  ASSERT_EQ(objs.size(), 4u);
+  EXPECT_EQ(objs[0].name, "object_0");
+  EXPECT_EQ(objs[1].name, "wall");
+  EXPECT_EQ(objs[2].name, "object_2");
+  EXPECT_EQ(objs[3].name, "wall");  // a repeated group is a new object: a stream cannot merge it back
+  for (size_t i = 0; i < objs.size(); ++i) EXPECT_EQ(objs[i].id, i);
+}
+
+TEST(ObjReaderTest, IndentedObjectLineCountsForTheGroupRule) {
+  auto objs = ReadOk("v 0 0 0\nv 1 0 0\nv 0 1 0\ng g1\nf 1 2 3\ng g2\nf 1 2 3\n\t o only\nf 1 2 3\n");
+  ASSERT_EQ(objs.size(), 2u);
+  EXPECT_EQ(objs[0].name, "object_0");
+  EXPECT_EQ(objs[0].mesh.triangle_count(), 2u);
+  EXPECT_EQ(objs[1].name, "only");
+}
+
+TEST(ObjReaderTest, ObjectsWithoutFacesAreSkippedAndConsumeNoId) {
+  auto objs = ReadOk(
+      "o empty1\nv 0 0 0\nv 1 0 0\nv 0 1 0\n"
+      "o solid\nf 1 2 3\n"
+      "o lines_only\nl 1 2\np 3\n"
+      "o\nf 1 2 3\n"
+      "o empty_at_end\n",
+      100);
+  ASSERT_EQ(objs.size(), 2u);
+  EXPECT_EQ(objs[0].id, 100u);
+  EXPECT_EQ(objs[0].name, "solid");
+  EXPECT_EQ(objs[1].id, 101u);
+  EXPECT_EQ(objs[1].name, "object_101");
+}
+
+TEST(ObjReaderTest, EmptyFileAndCommentsOnlyGiveNoObjects) {
+  EXPECT_TRUE(ReadOk("").empty());
+  EXPECT_TRUE(ReadOk("# nothing\n\n   \n").empty());
+}
+
+TEST(ObjReaderTest, AcceptsTheHarmlessDirectivesCrlfAndContinuations) {
+  auto objs = ReadOk(
+      "mtllib scene.mtl\r\n# comment\r\n\r\nv 0 0 0 1\r\nv 1 0 0 0.5 0.5 0.5\r\nv +0 1e0 -0\r\nv 1 1 0\r\n"
+      "vt 0 0\r\nvn 0 0 1\r\nvp 0.5\r\ns off\r\nusemtl steel\r\nlod 1\r\nshadow_obj x.obj\r\n"
+      "o  crlf \r\nf 1 2 \\\r\n  3 4\r\n");
+  ASSERT_EQ(objs.size(), 1u);
+  EXPECT_EQ(objs[0].name, "crlf");
+  EXPECT_EQ(objs[0].mesh.triangles, (std::vector<uint32_t>{0, 1, 2, 0, 2, 3}));
+  EXPECT_EQ(objs[0].mesh.vertices[7], 1.0f);
+}
+
+TEST(ObjReaderTest, LastLineWithoutNewlineIsReadWhenComplete) {
+  auto objs = ReadOk("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3");
+  ASSERT_EQ(objs.size(), 1u);
+  EXPECT_EQ(objs[0].mesh.triangle_count(), 1u);
+}
+
+TEST(ObjReaderTest, CoordinatesAreFloat32WithUnderflowToZero) {
+  auto objs = ReadOk("v 0.1 -1e-50 3.4e38\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  ASSERT_EQ(objs.size(), 1u);
+  EXPECT_EQ(objs[0].mesh.vertices[0], 0.1f);
+  EXPECT_EQ(objs[0].mesh.vertices[1], 0.0f);
+  EXPECT_EQ(objs[0].mesh.vertices[2], 3.4e38f);
+}
+
+TEST(ObjReaderTest, LongLinesGrowTheBuffer) {
+  // One polygon with 300k vertices: a 2+ MB line, longer than the 1 MiB read buffer.
+  std::string s;
+  const int n = 300000;
+  for (int i = 0; i < n; ++i) s.append("v ").append(std::to_string(i)).append(" 0 0\n");
+  s += "o big\nf";
+  for (int i = 1; i <= n; ++i) s.append(" ").append(std::to_string(i));
+  s += "\n";
+  auto objs = ReadOk(s);
+  ASSERT_EQ(objs.size(), 1u);
+  EXPECT_EQ(objs[0].mesh.triangle_count(), static_cast<size_t>(n - 2));
+  EXPECT_EQ(objs[0].mesh.vertex_count(), static_cast<size_t>(n));
+}
+
+const char kThree[] = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";  // lines 1-3
+
+TEST(ObjReaderErrorTest, BadNumbers) {
+  ExpectError(std::string(kThree) + "v 1 x 2\n", 4, "bad number 'x'");
+  ExpectError(std::string(kThree) + "v 1 2.5.3 2\n", 4, "bad number '2.5.3'");
+  ExpectError(std::string(kThree) + "\n\nv 1,0 2 3\n", 6, "bad number '1,0'");
+  ExpectError(std::string(kThree) + "f 1 2 three\n", 4, "bad vertex reference 'three'");
+  ExpectError(std::string(kThree) + "f 1 2 3x\n", 4, "bad vertex reference '3x'");
+  ExpectError(std::string(kThree) + "f 1 2 3/\n", 4, "bad vertex reference '3/'");
+  ExpectError(std::string(kThree) + "f 1 2 3/1/1/1\n", 4, "bad vertex reference '3/1/1/1'");
+  ExpectError(std::string(kThree) + "f 1 2 /3\n", 4, "bad vertex reference '/3'");
+}
+
+TEST(ObjReaderErrorTest, CoordinateCounts) {
+  ExpectError("v 1 2\n", 1, "too few coordinates (2, need x y z)");
+  ExpectError("v\n", 1, "too few coordinates (0");
+  ExpectError("v 1 2 3 4 5 6 7 8\n", 1, "too many values (8");
+}
+
+TEST(ObjReaderErrorTest, NonFiniteAndOutOfRangeCoordinates) {
+  ExpectError(std::string(kThree) + "v nan 0 0\n", 4, "non-finite coordinate 'nan'");
+  ExpectError(std::string(kThree) + "v 0 inf 0\n", 4, "non-finite coordinate 'inf'");
+  ExpectError(std::string(kThree) + "v 0 0 -Infinity\n", 4, "non-finite coordinate '-Infinity'");
+  ExpectError(std::string(kThree) + "v 0 0 1e39\n", 4, "out of float range '1e39'");
+  ExpectError(std::string(kThree) + "v 0 0 -1e400\n", 4, "out of float range '-1e400'");
+}
+
+TEST(ObjReaderErrorTest, IndexZeroAndOutOfRange) {
+  ExpectError(std::string(kThree) + "f 0 1 2\n", 4, "vertex index 0");
+  ExpectError(std::string(kThree) + "f 1 2 4\n", 4, "vertex index 4 out of range (3 defined so far)");
+  ExpectError(std::string(kThree) + "f 1 2 -4\n", 4, "vertex index -4 out of range");
+  // A forward reference to a vertex defined later is out of range too: vertices must precede their use.
+  ExpectError(std::string(kThree) + "f 1 2 4\nv 1 1 1\n", 4, "out of range");
+  ExpectError(std::string(kThree) + "vt 0 0\nf 1/1 2/2 3/1\n", 5, "texture coordinate index 2 out of range");
+  ExpectError(std::string(kThree) + "f 1//1 2//1 3//1\n", 4, "normal index 1 out of range");
+  ExpectError(std::string(kThree) + "vn 0 0 1\nf 1//0 2//1 3//1\n", 5, "normal index 0");
+}
+
+TEST(ObjReaderErrorTest, FacesNeedThreeVertices) {
+  ExpectError(std::string(kThree) + "f 1 2\n", 4, "face: 2 vertices (a face needs at least 3)");
+  ExpectError(std::string(kThree) + "f\n", 4, "face: 0 vertices");
+}
+
+TEST(ObjReaderErrorTest, UnknownAndUnsupportedDirectives) {
+  ExpectError(std::string(kThree) + "vx 1 2 3\n", 4, "unknown directive 'vx'");
+  ExpectError(std::string(kThree) + "\x01\x02garbage\n", 4, "unknown directive");
+  ExpectError(std::string(kThree) + "cstype bspline\n", 4, "free-form geometry ('cstype') is not supported");
+}
+
+TEST(ObjReaderErrorTest, TruncatedLastLine) {
+  ExpectError(std::string(kThree) + "f 1 2 3\nv 1 2", 5, "too few coordinates (2, need x y z) (the file ends inside");
+  ExpectError(std::string(kThree) + "f 1 2", 4, "truncated?");
+  ExpectError(std::string(kThree) + "f 1 2 3\nv 1 2 3e", 5, "bad number '3e'");
+  ExpectError(std::string(kThree) + "f 1 2 \\\n", 4, "truncated?");  // continuation into end of file
+}
+
+TEST(ObjReaderErrorTest, ErrorsAreStickyAndComeAfterTheObjectsBeforeThem) {
+  std::string path = WriteTemp("o a\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\no b\nf 1 2 9\n");
+  auto src = OpenObjFile(path);
+  ASSERT_TRUE(src.ok());
+  SceneObject o;
+  auto r = (*src)->Next(&o);
+  ASSERT_TRUE(r.ok());
+  EXPECT_TRUE(*r);
+  EXPECT_EQ(o.name, "a");
+  r = (*src)->Next(&o);
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.status().message().find(":7: "), std::string::npos) << r.status().message();
+  auto again = (*src)->Next(&o);
+  ASSERT_FALSE(again.ok());
+  EXPECT_EQ(again.status().message(), r.status().message());
+}
+
+TEST(ObjReaderErrorTest, MissingFileAndDirectory) {
+  auto r = OpenObjFile("/nonexistent/dir/scene.obj");
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().code(), Status::Code::kNotFound);
+  EXPECT_NE(r.status().message().find("/nonexistent/dir/scene.obj"), std::string::npos);
+  auto d = OpenObjFile(fs::temp_directory_path().string());
+  ASSERT_FALSE(d.ok());
+  EXPECT_NE(d.status().message().find("not a regular file"), std::string::npos);
+}
+
+// The real scenes: counts from /work/shared/data/README.md (one `o` line per object, every face a
+// triangle in these files). Also checks ids, non-empty names and that every index is in range.
+struct RealFile {
+  const char* path;
+  size_t objects;
+  size_t triangles;
+};
+
+class ObjRealFileTest : public testing::TestWithParam<RealFile> {};
+
+TEST_P(ObjRealFileTest, MatchesTheDataReadme) {
+  const RealFile& f = GetParam();
+  auto src = OpenObjFile(std::string(MKTREE_SHARED_DATA) + "/" + f.path, 7);
+  ASSERT_TRUE(src.ok()) << src.status().ToString();
+  size_t objects = 0, triangles = 0;
+  SceneObject o;
+  while (true) {
+    auto more = (*src)->Next(&o);
+    ASSERT_TRUE(more.ok()) << more.status().ToString();
+    if (!*more) break;
+    EXPECT_EQ(o.id, 7 + objects);
+    ASSERT_FALSE(o.name.empty());
+    ASSERT_GT(o.mesh.triangle_count(), 0u);
+    for (uint32_t i : o.mesh.triangles) ASSERT_LT(i, o.mesh.vertex_count()) << o.name;
+    ASSERT_FALSE(o.Aabb().empty());
+    ++objects;
+    triangles += o.mesh.triangle_count();
+  }
+  EXPECT_EQ(objects, f.objects);
+  EXPECT_EQ(triangles, f.triangles);
+}
+
+INSTANTIATE_TEST_SUITE_P(SharedData, ObjRealFileTest,
+                         testing::Values(RealFile{"buildings/steel_mini_project.obj", 2636, 261069},
+                                         RealFile{"buildings/duplex.obj", 215, 26774},
+                                         RealFile{"city/denhaag_01.obj", 1991, 41183}));
+
+TEST(ObjRealFileNamesTest, NamesComeFromObjectLines) {
+  auto src = OpenObjFile(std::string(MKTREE_SHARED_DATA) + "/buildings/duplex.obj");
+  ASSERT_TRUE(src.ok());
+  SceneObject o;
+  auto more = (*src)->Next(&o);
+  ASSERT_TRUE(more.ok() && *more);
+  EXPECT_EQ(o.name, "IfcSlab_5165");
+  EXPECT_EQ(o.id, 0u);
+}
+
+}  // namespace
+}  // namespace mktree
