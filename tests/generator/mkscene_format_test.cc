@@ -1,0 +1,209 @@
+#include "engine/scene/mkscene_format.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+
+#include "engine/generator/tanker_generator.h"
+#include "generator/mesh_checks.h"
+
+namespace mktree {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::Drain;
+
+class MkSceneFormatTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("mks_test_" + std::to_string(::getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  // Writes `objects` to `path` and returns them.
+  std::vector<SceneObject> WriteTanker(const std::string& path, uint64_t n) {
+    auto source = MakeTankerSource(n, 77);
+    std::vector<SceneObject> objects = Drain(source.get());
+    auto writer = MkSceneWriter::Create(path);
+    EXPECT_TRUE(writer.ok()) << writer.status().ToString();
+    for (const SceneObject& o : objects) EXPECT_TRUE((*writer)->Write(o).ok());
+    EXPECT_TRUE((*writer)->Finish().ok());
+    EXPECT_EQ((*writer)->objects_written(), n);
+    EXPECT_EQ((*writer)->bytes_written(), fs::file_size(path));
+    return objects;
+  }
+
+  static std::string Slurp(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  }
+  static void Spit(const std::string& path, const std::string& bytes) {
+    std::ofstream(path, std::ios::binary | std::ios::trunc).write(bytes.data(), bytes.size());
+  }
+
+  // Reads `path` to the end and returns the first error (ok status if none).
+  static Status ReadAll(const std::string& path, uint64_t* objects = nullptr) {
+    auto source = OpenMkSceneFile(path);
+    if (!source.ok()) return source.status();
+    SceneObject o;
+    uint64_t n = 0;
+    while (true) {
+      Result<bool> more = (*source)->Next(&o);
+      if (!more.ok()) return more.status();
+      if (!*more) break;
+      ++n;
+    }
+    if (objects) *objects = n;
+    return Status::Ok();
+  }
+
+  fs::path dir_;
+};
+
+TEST_F(MkSceneFormatTest, RoundTripIsExact) {
+  const std::string path = dir_ / "scene.mks";
+  const auto written = WriteTanker(path, 700);
+  auto source = OpenMkSceneFile(path, 1000);
+  ASSERT_TRUE(source.ok()) << source.status().ToString();
+  const auto read = Drain(source->get());
+  ASSERT_EQ(read.size(), written.size());
+  for (size_t i = 0; i < read.size(); ++i) {
+    EXPECT_EQ(read[i].id, 1000 + i);
+    EXPECT_EQ(read[i].name, written[i].name);
+    EXPECT_EQ(read[i].mesh.vertices, written[i].mesh.vertices);
+    EXPECT_EQ(read[i].mesh.triangles, written[i].mesh.triangles);
+  }
+  // Deterministic bytes: writing the same scene again gives the same file.
+  WriteTanker(dir_ / "again.mks", 700);
+  EXPECT_EQ(Slurp(path), Slurp(dir_ / "again.mks"));
+}
+
+TEST_F(MkSceneFormatTest, EmptySceneAndUnusualObjects) {
+  const std::string path = dir_ / "odd.mks";
+  auto writer = MkSceneWriter::Create(path);
+  ASSERT_TRUE(writer.ok());
+  SceneObject empty;  // no name, no geometry
+  SceneObject named;
+  named.name = "tri \xc3\xa9";
+  named.mesh.vertices = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+  named.mesh.triangles = {0, 1, 2};
+  ASSERT_TRUE((*writer)->Write(empty).ok());
+  ASSERT_TRUE((*writer)->Write(named).ok());
+  SceneObject bad = named;
+  bad.mesh.triangles = {0, 1, 3};
+  EXPECT_EQ((*writer)->Write(bad).code(), Status::Code::kInvalidArgument);
+  ASSERT_TRUE((*writer)->Finish().ok());
+  auto source = OpenMkSceneFile(path);
+  ASSERT_TRUE(source.ok());
+  const auto read = Drain(source->get());
+  ASSERT_EQ(read.size(), 2u);
+  EXPECT_EQ(read[0].name, "");
+  EXPECT_EQ(read[0].mesh.vertex_count(), 0u);
+  EXPECT_EQ(read[1].name, named.name);
+  EXPECT_EQ(read[1].mesh.triangles, named.mesh.triangles);
+
+  const std::string none = dir_ / "none.mks";
+  auto w2 = MkSceneWriter::Create(none);
+  ASSERT_TRUE(w2.ok());
+  ASSERT_TRUE((*w2)->Finish().ok());
+  uint64_t n = 99;
+  EXPECT_TRUE(ReadAll(none, &n).ok());
+  EXPECT_EQ(n, 0u);
+}
+
+TEST_F(MkSceneFormatTest, FlippedByteIsAChecksumErrorNamingTheObject) {
+  const std::string path = dir_ / "scene.mks";
+  WriteTanker(path, 50);
+  const std::string good = Slurp(path);
+  // Find object 3's record: walk the records by their sizes.
+  size_t offset = 16;
+  for (int i = 0; i < 3; ++i) {
+    uint32_t name_bytes, nv, nt;
+    std::memcpy(&name_bytes, good.data() + offset + 4, 4);
+    std::memcpy(&nv, good.data() + offset + 8 + name_bytes, 4);
+    std::memcpy(&nt, good.data() + offset + 12 + name_bytes, 4);
+    offset += 16 + name_bytes + 12 * nv + 12 * nt + 8;
+  }
+  std::string bad = good;
+  bad[offset + 40] ^= 0x10;  // inside object 3's name or vertices
+  Spit(path, bad);
+  uint64_t read = 0;
+  auto source = OpenMkSceneFile(path);
+  ASSERT_TRUE(source.ok());
+  SceneObject o;
+  for (int i = 0; i < 3; ++i) ASSERT_TRUE(*(*source)->Next(&o)) << i;
+  Result<bool> r = (*source)->Next(&o);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().code(), Status::Code::kCorruption);
+  const std::string msg = r.status().message();
+  EXPECT_NE(msg.find(path), std::string::npos) << msg;
+  EXPECT_NE(msg.find("object 3 (offset " + std::to_string(offset) + ")"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("checksum mismatch"), std::string::npos) << msg;
+  EXPECT_FALSE(ReadAll(path, &read).ok());
+
+  // A flipped byte in the end record, too.
+  bad = good;
+  bad[bad.size() - 12] ^= 1;
+  Spit(path, bad);
+  EXPECT_EQ(ReadAll(path).code(), Status::Code::kCorruption);
+}
+
+TEST_F(MkSceneFormatTest, TruncationAtEveryRecordBoundaryAndInsideIsAnError) {
+  const std::string path = dir_ / "scene.mks";
+  WriteTanker(path, 20);
+  const std::string good = Slurp(path);
+  ASSERT_TRUE(ReadAll(path).ok());
+  for (size_t cut : {good.size() - 1, good.size() - 24, good.size() / 2, size_t{17}, size_t{16}, size_t{10},
+                     size_t{0}}) {
+    Spit(path, good.substr(0, cut));
+    const Status st = ReadAll(path);
+    ASSERT_FALSE(st.ok()) << cut;
+    EXPECT_EQ(st.code(), Status::Code::kCorruption) << st.ToString();
+    EXPECT_NE(st.message().find(path), std::string::npos) << st.ToString();
+    if (cut >= 16) {
+      EXPECT_NE(st.message().find("truncated"), std::string::npos) << st.ToString();
+    }
+  }
+  Spit(path, good + "x");
+  EXPECT_NE(ReadAll(path).message().find("trailing"), std::string::npos);
+}
+
+TEST_F(MkSceneFormatTest, BadMagicVersionAndMissingFile) {
+  const std::string path = dir_ / "scene.mks";
+  WriteTanker(path, 3);
+  std::string bytes = Slurp(path);
+  bytes[0] = 'X';
+  Spit(path, bytes);
+  Status st = ReadAll(path);
+  EXPECT_EQ(st.code(), Status::Code::kCorruption);
+  EXPECT_NE(st.message().find("bad magic"), std::string::npos) << st.ToString();
+  bytes[0] = 'M';
+  bytes[8] = 2;  // version 2
+  Spit(path, bytes);
+  EXPECT_EQ(ReadAll(path).code(), Status::Code::kUnsupported);
+  EXPECT_EQ(ReadAll(dir_ / "missing.mks").code(), Status::Code::kNotFound);
+}
+
+TEST_F(MkSceneFormatTest, UnfinishedWriterLeavesNoFile) {
+  const std::string path = dir_ / "scene.mks";
+  {
+    auto writer = MkSceneWriter::Create(path);
+    ASSERT_TRUE(writer.ok());
+    SceneObject o;
+    o.name = "x";
+    ASSERT_TRUE((*writer)->Write(o).ok());
+    EXPECT_FALSE(fs::exists(path));  // only the temporary exists while writing
+  }
+  EXPECT_TRUE(fs::is_empty(dir_));  // and the destructor removed it
+  EXPECT_FALSE(MkSceneWriter::Create((dir_ / "no_such_dir" / "x.mks").string()).ok());
+}
+
+}  // namespace
+}  // namespace mktree
