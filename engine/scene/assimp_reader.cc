@@ -1,0 +1,177 @@
+#include "engine/scene/assimp_reader.h"
+
+#include <assimp/config.h>
+#include <assimp/postprocess.h>
+#include <assimp/scene.h>
+
+#include <array>
+#include <assimp/Importer.hpp>
+#include <cmath>
+#include <exception>
+#include <filesystem>
+#include <limits>
+#include <system_error>
+#include <utility>
+#include <vector>
+
+namespace mktree {
+namespace {
+
+// Row-major affine transform in double precision (assimp's own matrices are float).
+struct Transform {
+  std::array<std::array<double, 4>, 3> m{{{1, 0, 0, 0}, {0, 1, 0, 0}, {0, 0, 1, 0}}};
+
+  static Transform FromAssimp(const aiMatrix4x4& a) {
+    Transform t;
+    const ai_real* rows[3] = {a[0], a[1], a[2]};
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 4; ++c) t.m[r][c] = rows[r][c];
+    return t;
+  }
+  // this * o (apply o first).
+  Transform Then(const Transform& o) const {
+    Transform t;
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 4; ++c) {
+        double v = m[r][0] * o.m[0][c] + m[r][1] * o.m[1][c] + m[r][2] * o.m[2][c];
+        if (c == 3) v += m[r][3];
+        t.m[r][c] = v;
+      }
+    }
+    return t;
+  }
+  void Apply(const aiVector3D& p, double out[3]) const {
+    for (int r = 0; r < 3; ++r) out[r] = m[r][0] * p.x + m[r][1] * p.y + m[r][2] * p.z + m[r][3];
+  }
+};
+
+bool IsTriangleMesh(const aiMesh& mesh) {
+  // SortByPType leaves one primitive type per mesh (plus the n-gon encoding flag on some importers).
+  constexpr unsigned kDropped = aiPrimitiveType_POINT | aiPrimitiveType_LINE;
+  return mesh.mNumFaces > 0 && (mesh.mPrimitiveTypes & kDropped) == 0 &&
+         (mesh.mPrimitiveTypes & (aiPrimitiveType_TRIANGLE | aiPrimitiveType_POLYGON)) != 0;
+}
+
+class AssimpReader final : public SceneSource {
+ public:
+  AssimpReader(std::string path, std::unique_ptr<Assimp::Importer> importer, const aiScene* scene,
+               ObjectId first_id)
+      : path_(std::move(path)), importer_(std::move(importer)), scene_(scene), next_id_(first_id) {
+    if (scene_->mRootNode != nullptr) stack_.push_back({scene_->mRootNode, Transform::FromAssimp(scene_->mRootNode->mTransformation)});
+  }
+
+  Result<bool> Next(SceneObject* out) override {
+    while (!stack_.empty()) {
+      auto [node, world] = std::move(stack_.back());
+      stack_.pop_back();
+      // Children pushed in reverse so that they pop in file order.
+      for (unsigned i = node->mNumChildren; i-- > 0;) {
+        const aiNode* child = node->mChildren[i];
+        stack_.push_back({child, world.Then(Transform::FromAssimp(child->mTransformation))});
+      }
+      Mesh mesh;
+      MKTREE_RETURN_IF_ERROR(Convert(*node, world, &mesh));
+      if (mesh.triangle_count() == 0) continue;
+      if (next_id_ > std::numeric_limits<ObjectId>::max()) return Status::InvalidArgument(path_ + ": more than 2^32 objects");
+      out->id = static_cast<ObjectId>(next_id_++);
+      out->name = node->mName.length > 0 ? std::string(node->mName.C_Str()) : "object_" + std::to_string(out->id);
+      out->mesh = std::move(mesh);
+      return true;
+    }
+    return false;
+  }
+
+ private:
+  struct Pending {
+    const aiNode* node;
+    Transform world;
+  };
+
+  // Merges the node's triangle meshes into `out`, keeping only vertices that triangles use.
+  Status Convert(const aiNode& node, const Transform& world, Mesh* out) {
+    for (unsigned k = 0; k < node.mNumMeshes; ++k) {
+      if (node.mMeshes[k] >= scene_->mNumMeshes) {
+        return Status::Corruption(path_ + ": node '" + node.mName.C_Str() + "' references a missing mesh");
+      }
+      const aiMesh& mesh = *scene_->mMeshes[node.mMeshes[k]];
+      if (!IsTriangleMesh(mesh)) continue;
+      remap_.assign(mesh.mNumVertices, kUnused);
+      for (unsigned f = 0; f < mesh.mNumFaces; ++f) {
+        const aiFace& face = mesh.mFaces[f];
+        if (face.mNumIndices < 3) continue;  // a stray point/line left in a triangle mesh carries no area
+        local_.clear();
+        for (unsigned j = 0; j < face.mNumIndices; ++j) {
+          unsigned v = face.mIndices[j];
+          if (v >= mesh.mNumVertices) {
+            return Status::Corruption(path_ + ": node '" + node.mName.C_Str() + "': vertex index out of range");
+          }
+          if (remap_[v] == kUnused) {
+            const aiVector3D& p = mesh.mVertices[v];
+            double w[3];
+            world.Apply(p, w);
+            float f3[3] = {static_cast<float>(w[0]), static_cast<float>(w[1]), static_cast<float>(w[2])};
+            if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z) || !std::isfinite(f3[0]) ||
+                !std::isfinite(f3[1]) || !std::isfinite(f3[2])) {
+              return Status::Corruption(path_ + ": node '" + node.mName.C_Str() +
+                                        "': non-finite vertex coordinate (in the file or after its transform)");
+            }
+            remap_[v] = static_cast<uint32_t>(out->vertex_count());
+            out->vertices.insert(out->vertices.end(), f3, f3 + 3);
+          }
+          local_.push_back(remap_[v]);
+        }
+        // Triangulate has already run; a fan only guards an importer that left a polygon behind.
+        for (size_t i = 1; i + 1 < local_.size(); ++i) {
+          out->triangles.insert(out->triangles.end(), {local_[0], local_[i], local_[i + 1]});
+        }
+      }
+    }
+    return Status::Ok();
+  }
+
+  static constexpr uint32_t kUnused = std::numeric_limits<uint32_t>::max();
+
+  const std::string path_;
+  std::unique_ptr<Assimp::Importer> importer_;  // owns scene_
+  const aiScene* scene_;
+  uint64_t next_id_;
+  std::vector<Pending> stack_;     // nodes still to visit, with their world transforms
+  std::vector<uint32_t> remap_;    // scratch: source vertex -> local index
+  std::vector<uint32_t> local_;    // scratch: one face's local indices
+};
+
+}  // namespace
+
+Result<std::unique_ptr<SceneSource>> OpenAssimpFile(const std::string& path, ObjectId first_id) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) return Status::NotFound(path + ": no such file");
+  if (!std::filesystem::is_regular_file(path, ec)) return Status::IOError(path + ": not a regular file");
+
+  auto importer = std::make_unique<Assimp::Importer>();
+  // Only positions matter: removing the other vertex components lets JoinIdenticalVertices merge by
+  // position alone, and drops data we would throw away anyway.
+  importer->SetPropertyInteger(AI_CONFIG_PP_RVC_FLAGS, aiComponent_NORMALS | aiComponent_TANGENTS_AND_BITANGENTS |
+                                                           aiComponent_COLORS | aiComponent_TEXCOORDS |
+                                                           aiComponent_BONEWEIGHTS | aiComponent_ANIMATIONS |
+                                                           aiComponent_TEXTURES | aiComponent_LIGHTS |
+                                                           aiComponent_CAMERAS);
+  importer->SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
+  // No PreTransformVertices / OptimizeMeshes / OptimizeGraph: they would merge objects or bake transforms.
+  constexpr unsigned kFlags = aiProcess_RemoveComponent | aiProcess_Triangulate | aiProcess_SortByPType |
+                              aiProcess_JoinIdenticalVertices | aiProcess_ValidateDataStructure;
+  const aiScene* scene = nullptr;
+  try {
+    scene = importer->ReadFile(path, kFlags);
+  } catch (const std::exception& e) {
+    return Status::Corruption(path + ": assimp: " + e.what());
+  } catch (...) {
+    return Status::Corruption(path + ": assimp: unknown failure");
+  }
+  if (scene == nullptr) return Status::Corruption(path + ": assimp: " + importer->GetErrorString());
+  if ((scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE) != 0) {
+    return Status::Corruption(path + ": assimp: the file was read only partly (incomplete scene)");
+  }
+  return std::unique_ptr<SceneSource>(new AssimpReader(path, std::move(importer), scene, first_id));
+}
+
+}  // namespace mktree

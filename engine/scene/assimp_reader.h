@@ -1,0 +1,40 @@
+// Scene reader for every format the Open Asset Import Library (assimp) reads: glTF/GLB, PLY, STL, OFF,
+// AC3D, FBX, 3DS, Collada, ...
+//
+// What it produces
+//   - One object per node of the node graph that holds triangle geometry, in depth-first pre-order (a
+//     node before its children, children in file order). All triangle meshes a node references are merged
+//     into that node's object: importers split one modelling object into several meshes per material (and
+//     AC3D per back-face-culling flag, SortByPType per primitive type), so the node, not the mesh, is the
+//     object the file's author made. A mesh referenced by several nodes gives one object per node.
+//   - The world transform (the product of the node's and its ancestors' transforms, in double precision)
+//     is applied to the vertices, which are then stored as float32.
+//   - Line and point primitives (e.g. AC3D SURF type 1/2 line surfaces) are dropped; a node left without
+//     triangles gives no object and consumes no id. Polygons are triangulated by assimp (ear clipping,
+//     which omits zero-area ears, so a polygon with collinear vertices may give fewer than n - 2 triangles).
+//   - Each mesh holds only the vertices its triangles use; assimp joins identical positions within a
+//     source mesh (normals, colours and texture coordinates are removed first, so only positions count).
+//   - Names: the node's name, or "object_<id>" when the node has none.
+//
+// Memory: assimp loads the whole file into RAM when the source is opened (the scene stays resident until
+// the source is destroyed); objects are then converted one at a time. Use the OBJ reader for scenes that do
+// not fit in memory.
+//
+// Errors: a missing file is NotFound; a file assimp cannot read (unknown format, malformed) is Corruption
+// carrying assimp's message; a non-finite coordinate (before or after the transform) is Corruption naming
+// the file and the node. Every message names the file.
+//
+// Thread-safety: a source is used by one thread at a time; distinct sources are independent.
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include "engine/scene/scene_source.h"
+
+namespace mktree {
+
+// Loads `path` with assimp. The first object gets id `first_id`, the next first_id + 1, and so on.
+Result<std::unique_ptr<SceneSource>> OpenAssimpFile(const std::string& path, ObjectId first_id = 0);
+
+}  // namespace mktree
