@@ -1,0 +1,81 @@
+#include "storage/file_util.h"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+
+namespace mktree::storage_internal {
+
+std::string ErrnoText(int err) { return std::strerror(err); }
+
+Status PreadFull(int fd, void* buf, size_t n, uint64_t offset, const std::string& name) {
+  auto* p = static_cast<uint8_t*>(buf);
+  size_t done = 0;
+  while (done < n) {
+    const ssize_t r = ::pread(fd, p + done, n - done, static_cast<off_t>(offset + done));
+    if (r < 0) {
+      if (errno == EINTR) continue;
+      return Status::IOError(name + ": read at offset " + std::to_string(offset + done) + ": " + ErrnoText(errno));
+    }
+    if (r == 0)
+      return Status::IOError(name + ": short read at offset " + std::to_string(offset + done) + " (file truncated)");
+    done += static_cast<size_t>(r);
+  }
+  return Status::Ok();
+}
+
+Status PwriteFull(int fd, const void* buf, size_t n, uint64_t offset, const std::string& name) {
+  const auto* p = static_cast<const uint8_t*>(buf);
+  size_t done = 0;
+  while (done < n) {
+    const ssize_t r = ::pwrite(fd, p + done, n - done, static_cast<off_t>(offset + done));
+    if (r < 0) {
+      if (errno == EINTR) continue;
+      return Status::IOError(name + ": write at offset " + std::to_string(offset + done) + ": " + ErrnoText(errno));
+    }
+    done += static_cast<size_t>(r);
+  }
+  return Status::Ok();
+}
+
+Result<uint64_t> FileSize(int fd, const std::string& name) {
+  struct stat st;
+  if (::fstat(fd, &st) != 0) return Status::IOError(name + ": stat: " + ErrnoText(errno));
+  return static_cast<uint64_t>(st.st_size);
+}
+
+Status SyncParentDir(const std::string& path) {
+  const std::filesystem::path parent = std::filesystem::path(path).parent_path();
+  const std::string dir = parent.empty() ? std::string(".") : parent.string();
+  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0) return Status::IOError(dir + ": open directory: " + ErrnoText(errno));
+  const int r = ::fsync(fd);
+  const int err = errno;
+  ::close(fd);
+  if (r != 0) return Status::IOError(dir + ": fsync directory: " + ErrnoText(err));
+  return Status::Ok();
+}
+
+Result<size_t> ReadPrefix(const std::string& path, void* buf, size_t n) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) {
+    const int err = errno;
+    if (err == ENOENT) return Status::NotFound(path + ": no such file");
+    return Status::IOError(path + ": open: " + ErrnoText(err));
+  }
+  size_t done = 0;
+  while (done < n) {
+    const ssize_t r = ::read(fd, static_cast<uint8_t*>(buf) + done, n - done);
+    if (r < 0 && errno == EINTR) continue;
+    if (r <= 0) break;
+    done += static_cast<size_t>(r);
+  }
+  ::close(fd);
+  return done;
+}
+
+}  // namespace mktree::storage_internal

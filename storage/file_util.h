@@ -1,0 +1,22 @@
+// Internal to storage/: POSIX file helpers that return Status and name the file.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "mktree/status.h"
+
+namespace mktree::storage_internal {
+
+std::string ErrnoText(int err);
+// Reads exactly n bytes at `offset` (retrying on EINTR and partial reads); a short read is an IOError
+// that says "truncated".
+Status PreadFull(int fd, void* buf, size_t n, uint64_t offset, const std::string& name);
+Status PwriteFull(int fd, const void* buf, size_t n, uint64_t offset, const std::string& name);
+Result<uint64_t> FileSize(int fd, const std::string& name);
+// fsync of the directory holding `path`, so that a rename in it is durable.
+Status SyncParentDir(const std::string& path);
+// Reads up to n bytes from the start of `path`; returns how many were read.
+Result<size_t> ReadPrefix(const std::string& path, void* buf, size_t n);
+
+}  // namespace mktree::storage_internal

@@ -1,0 +1,93 @@
+// PageCache: an LRU cache of leaf pages between queries and a PageStore. A miss is one page read from
+// the store, i.e. one disk access (DESIGN.md §3).
+//
+// - Capacity is in pages. A pinned page (a live PageHandle) is never evicted; while pages are pinned the
+//   cache may hold more than `capacity` pages, and evicts down to capacity as they are unpinned.
+//   Capacity 0: every lookup of an unpinned page is a miss; a page is held only while pinned.
+// - Eviction is deterministic: the least recently unpinned page goes first.
+// - Counters: lookups == hits + misses always; bytes_read == misses * page_bytes. A lookup that waits for
+//   another thread's in-flight read of the same page counts as a hit (it costs no disk access): concurrent
+//   misses on one page read it once.
+// Thread safety: all methods may be called from many threads at once. Store reads run outside the cache's
+// lock, so misses on different pages proceed in parallel (as far as the store allows).
+#pragma once
+
+#include <condition_variable>
+#include <cstdint>
+#include <list>
+#include <memory>
+#include <mutex>
+#include <unordered_map>
+
+#include "mktree/query_stats.h"
+#include "mktree/status.h"
+#include "storage/page_store.h"
+
+namespace mktree {
+
+class PageCache;
+
+// Pins one cached page while alive. Move-only; unpins in its destructor.
+class PageHandle {
+ public:
+  PageHandle() = default;
+  PageHandle(PageHandle&& o) noexcept;
+  PageHandle& operator=(PageHandle&& o) noexcept;
+  PageHandle(const PageHandle&) = delete;
+  PageHandle& operator=(const PageHandle&) = delete;
+  ~PageHandle();
+
+  const uint8_t* data() const;
+  uint64_t page() const;
+  explicit operator bool() const { return frame_ != nullptr; }
+  void Release();  // unpin now
+
+ private:
+  friend class PageCache;
+  struct Frame;
+  PageHandle(PageCache* cache, std::shared_ptr<void> frame);
+  PageCache* cache_ = nullptr;
+  std::shared_ptr<void> frame_;
+};
+
+class PageCache {
+ public:
+  // REQUIRES: `store` outlives the cache and every handle it hands out.
+  PageCache(const PageStore* store, size_t capacity_pages);
+  ~PageCache();
+  PageCache(const PageCache&) = delete;
+  PageCache& operator=(const PageCache&) = delete;
+
+  // Returns the page pinned. On a miss reads it from the store. Adds to *stats (if non-null):
+  // pages_touched always; cache_hits on a hit; pages_read and bytes_read on a miss.
+  Result<PageHandle> Pin(uint64_t page, QueryStats* stats);
+  // Drops every unpinned page (for cold queries). Counters are kept.
+  void Clear();
+
+  struct Counters {
+    uint64_t lookups = 0, hits = 0, misses = 0, bytes_read = 0;
+  };
+  Counters counters() const;
+  void ResetCounters();
+  size_t capacity() const { return capacity_; }
+  size_t resident_pages() const;  // pages held now, pinned or not
+  size_t pinned_pages() const;
+  const PageStore& store() const { return *store_; }
+
+ private:
+  friend class PageHandle;
+  struct Frame;
+  void Unpin(const std::shared_ptr<Frame>& f);
+  void EvictLocked();
+
+  const PageStore* store_;
+  const size_t capacity_;
+  mutable std::mutex mu_;
+  std::condition_variable loaded_;
+  std::unordered_map<uint64_t, std::shared_ptr<Frame>> frames_;
+  std::list<Frame*> lru_;  // unpinned resident frames, most recently unpinned at the front
+  size_t pinned_ = 0;
+  Counters counters_;
+};
+
+}  // namespace mktree

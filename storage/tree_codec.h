@@ -1,0 +1,72 @@
+// Canonical byte encodings of a store's in-RAM structure (tree arrays, build parameters, codec, object
+// table). The paged file stores these bytes as sections; both backends checksum them (XXH3-64), so a
+// flipped byte in the metadata is detected at open. All little-endian and packed (see
+// docs/store_format.md for the record layouts).
+// Thread safety: pure functions; ObjectTable is a plain value.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "engine/tree/mktree.h"
+#include "mktree/scene.h"
+#include "mktree/status.h"
+#include "storage/object_codec.h"
+
+namespace mktree {
+
+// The object table: for object id i (0-based, dense), its leaf and its name.
+struct ObjectTable {
+  std::vector<uint32_t> leaf;       // leaf index per object
+  std::vector<uint64_t> name_end;   // names of object i are names[name_end[i-1], name_end[i])
+  std::string names;                // all names concatenated
+
+  uint64_t size() const { return leaf.size(); }
+  void Append(uint32_t leaf_index, std::string_view name) {
+    leaf.push_back(leaf_index);
+    names.append(name);
+    name_end.push_back(names.size());
+  }
+  std::string_view name(uint64_t i) const {
+    const uint64_t b = i == 0 ? 0 : name_end[i - 1];
+    return std::string_view(names).substr(b, name_end[i] - b);
+  }
+  bool operator==(const ObjectTable&) const = default;
+};
+
+inline constexpr size_t kNodeRecordBytes = 52;
+inline constexpr size_t kSplitNodeRecordBytes = 16;
+inline constexpr size_t kLeafRecordBytes = 56;
+inline constexpr size_t kParamsRecordBytes = 28;
+
+std::vector<uint8_t> EncodeParams(const BuildParams& p, const CodecOptions& c);
+Status DecodeParams(std::span<const uint8_t> in, BuildParams* p, CodecOptions* c);
+std::vector<uint8_t> EncodeNodes(const std::vector<TreeNode>& nodes);
+Status DecodeNodes(std::span<const uint8_t> in, std::vector<TreeNode>* nodes);
+std::vector<uint8_t> EncodeSplitNodes(const std::vector<SplitNode>& nodes);
+Status DecodeSplitNodes(std::span<const uint8_t> in, std::vector<SplitNode>* nodes);
+std::vector<uint8_t> EncodeLeaves(const std::vector<LeafInfo>& leaves);
+Status DecodeLeaves(std::span<const uint8_t> in, std::vector<LeafInfo>* leaves);
+std::vector<uint8_t> EncodeObjectLeaves(const ObjectTable& t);
+std::vector<uint8_t> EncodeObjectNameEnds(const ObjectTable& t);
+// Rebuilds a table from its three sections; checks their sizes agree.
+Status DecodeObjectTable(std::span<const uint8_t> leaves, std::span<const uint8_t> name_ends,
+                         std::span<const uint8_t> names, ObjectTable* t);
+
+uint64_t Checksum(std::span<const uint8_t> bytes);
+inline uint64_t Checksum(std::string_view s) {
+  return Checksum(std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(s.data()), s.size()));
+}
+
+// Checks that the structure is self-consistent: indices in range, leaf pages within `page_count`, every
+// object in an existing leaf and leaf object counts adding up. `what` names the file in errors.
+Status ValidateStructure(const MKTree& tree, const ObjectTable& objects, uint64_t page_count,
+                         const std::string& what);
+
+// Field-by-field equality of the persisted tree (the structs have no operator==).
+bool SameTree(const MKTree& a, const MKTree& b);
+
+}  // namespace mktree

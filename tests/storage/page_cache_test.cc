@@ -1,0 +1,273 @@
+// PageCache: counters (hits + misses == lookups), LRU order, pinning, capacities 0 and 1, concurrency,
+// and faults from the store (read errors, flipped bytes, short reads) surfacing as errors.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <thread>
+
+#include "storage/leaf_codec.h"
+#include "storage/memory_page_store.h"
+#include "storage/page_cache.h"
+#include "storage_test_util.h"
+
+namespace mktree {
+namespace {
+
+constexpr uint64_t kPage = 4096;
+
+// A store whose page i is filled with byte (i % 251), and that counts reads.
+class CountingStore : public MemoryPageStore {
+ public:
+  explicit CountingStore(uint64_t pages) : MemoryPageStore(kPage, "counting") {
+    std::vector<uint8_t> p(kPage);
+    for (uint64_t i = 0; i < pages; ++i) {
+      std::fill(p.begin(), p.end(), static_cast<uint8_t>(i % 251));
+      EXPECT_TRUE(WritePage(i, p.data()).ok());
+    }
+  }
+  Status ReadPage(uint64_t index, uint8_t* out) const override {
+    ++reads;
+    if (slow) std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    return MemoryPageStore::ReadPage(index, out);
+  }
+  mutable std::atomic<uint64_t> reads{0};
+  bool slow = false;
+};
+
+void ExpectInvariants(const PageCache& c) {
+  const auto k = c.counters();
+  EXPECT_EQ(k.hits + k.misses, k.lookups);
+  EXPECT_EQ(k.bytes_read, k.misses * kPage);
+}
+
+bool Resident(PageCache& c, uint64_t page) {
+  // Pin and see whether it was a hit, without disturbing the counters' invariant.
+  QueryStats s;
+  auto h = c.Pin(page, &s);
+  EXPECT_TRUE(h.ok());
+  return s.cache_hits == 1;
+}
+
+TEST(PageCacheTest, HitsMissesAndStats) {
+  CountingStore store(10);
+  PageCache cache(&store, 4);
+  QueryStats s;
+  {
+    auto a = cache.Pin(3, &s);
+    ASSERT_TRUE(a.ok());
+    EXPECT_EQ(a->data()[0], 3);
+    EXPECT_EQ(a->data()[kPage - 1], 3);
+    EXPECT_EQ(a->page(), 3u);
+  }
+  { ASSERT_TRUE(cache.Pin(3, &s).ok()); }
+  { ASSERT_TRUE(cache.Pin(4, &s).ok()); }
+  EXPECT_EQ(s.pages_touched, 3u);
+  EXPECT_EQ(s.pages_read, 2u);
+  EXPECT_EQ(s.cache_hits, 1u);
+  EXPECT_EQ(s.bytes_read, 2 * kPage);
+  EXPECT_EQ(s.cache_hits + s.pages_read, s.pages_touched);
+  const auto k = cache.counters();
+  EXPECT_EQ(k.lookups, 3u);
+  EXPECT_EQ(k.hits, 1u);
+  EXPECT_EQ(k.misses, 2u);
+  EXPECT_EQ(store.reads.load(), 2u);
+  ExpectInvariants(cache);
+  EXPECT_TRUE(cache.Pin(1, nullptr).ok());  // stats optional
+  ExpectInvariants(cache);
+}
+
+TEST(PageCacheTest, EvictsLeastRecentlyUsedDeterministically) {
+  CountingStore store(10);
+  PageCache cache(&store, 3);
+  for (uint64_t p : {0, 1, 2}) ASSERT_TRUE(cache.Pin(p, nullptr).ok());
+  ASSERT_TRUE(cache.Pin(0, nullptr).ok());  // 0 becomes most recent: order (old->new) 1, 2, 0
+  ASSERT_TRUE(cache.Pin(3, nullptr).ok());  // evicts 1
+  EXPECT_EQ(cache.resident_pages(), 3u);
+  EXPECT_TRUE(Resident(cache, 2));  // order now 0, 3, 2
+  EXPECT_TRUE(Resident(cache, 0));  // 3, 2, 0
+  EXPECT_TRUE(Resident(cache, 3));  // 2, 0, 3
+  EXPECT_FALSE(Resident(cache, 1));  // miss: evicts 2 -> 0, 3, 1
+  EXPECT_FALSE(Resident(cache, 2));  // evicts 0 -> 3, 1, 2
+  EXPECT_TRUE(Resident(cache, 3));
+  EXPECT_FALSE(Resident(cache, 0));
+  ExpectInvariants(cache);
+
+  // The same sequence on a fresh cache produces the same counters (no randomness).
+  PageCache again(&store, 3);
+  for (uint64_t p : {0, 1, 2, 0, 3, 2, 0, 3, 1, 2, 3, 0}) ASSERT_TRUE(again.Pin(p, nullptr).ok());
+  EXPECT_EQ(again.counters().hits, cache.counters().hits);
+  EXPECT_EQ(again.counters().misses, cache.counters().misses);
+}
+
+TEST(PageCacheTest, PinnedPagesAreNeverEvicted) {
+  CountingStore store(10);
+  PageCache cache(&store, 2);
+  auto a = cache.Pin(0, nullptr);
+  auto b = cache.Pin(1, nullptr);
+  auto c = cache.Pin(2, nullptr);  // over capacity while pinned
+  ASSERT_TRUE(a.ok() && b.ok() && c.ok());
+  EXPECT_EQ(cache.resident_pages(), 3u);
+  EXPECT_EQ(cache.pinned_pages(), 3u);
+  {
+    auto a2 = cache.Pin(0, nullptr);  // a second pin of the same page is a hit
+    ASSERT_TRUE(a2.ok());
+    EXPECT_EQ(a2->data(), a->data());
+  }
+  EXPECT_EQ(cache.pinned_pages(), 3u);
+  EXPECT_EQ(a->data()[0], 0);
+  cache.Clear();  // drops nothing pinned
+  EXPECT_EQ(cache.resident_pages(), 3u);
+  a.value().Release();  // unpinned and over capacity: evicted at once
+  EXPECT_EQ(cache.resident_pages(), 2u);
+  EXPECT_EQ(b->data()[5], 1);
+  EXPECT_EQ(c->data()[5], 2);
+  PageHandle moved = std::move(b.value());
+  EXPECT_FALSE(b.value());
+  EXPECT_EQ(moved.data()[0], 1);
+  moved = PageHandle();  // move-assign releases
+  EXPECT_EQ(cache.pinned_pages(), 1u);
+  cache.Clear();
+  EXPECT_EQ(cache.resident_pages(), 1u);  // only the pinned page 2
+  ExpectInvariants(cache);
+}
+
+TEST(PageCacheTest, CapacityZeroHoldsPagesOnlyWhilePinned) {
+  CountingStore store(4);
+  PageCache cache(&store, 0);
+  for (int i = 0; i < 5; ++i) ASSERT_TRUE(cache.Pin(1, nullptr).ok());
+  EXPECT_EQ(cache.counters().misses, 5u);
+  EXPECT_EQ(cache.counters().hits, 0u);
+  EXPECT_EQ(cache.resident_pages(), 0u);
+  {
+    auto h = cache.Pin(2, nullptr);
+    auto h2 = cache.Pin(2, nullptr);  // pinned, so still there: a hit
+    EXPECT_EQ(cache.resident_pages(), 1u);
+    EXPECT_EQ(cache.counters().hits, 1u);
+  }
+  EXPECT_EQ(cache.resident_pages(), 0u);
+  ExpectInvariants(cache);
+}
+
+TEST(PageCacheTest, CapacityOne) {
+  CountingStore store(4);
+  PageCache cache(&store, 1);
+  for (uint64_t p : {0, 0, 1, 1, 0, 0}) ASSERT_TRUE(cache.Pin(p, nullptr).ok());
+  EXPECT_EQ(cache.counters().misses, 3u);
+  EXPECT_EQ(cache.counters().hits, 3u);
+  EXPECT_EQ(cache.resident_pages(), 1u);
+  ExpectInvariants(cache);
+}
+
+TEST(PageCacheTest, ReadErrorsAreReportedAndRetried) {
+  CountingStore base(4);
+  FaultyPageStore faulty(&base);
+  PageCache cache(&faulty, 4);
+  faulty.FailNthRead(2);
+  EXPECT_TRUE(cache.Pin(0, nullptr).ok());
+  auto bad = cache.Pin(1, nullptr);
+  ASSERT_FALSE(bad.ok());
+  EXPECT_EQ(bad.status().code(), Status::Code::kIOError);
+  EXPECT_NE(bad.status().message().find("page 1"), std::string::npos);
+  EXPECT_EQ(cache.resident_pages(), 1u);  // the failed page is not cached
+  EXPECT_EQ(cache.pinned_pages(), 0u);
+  auto good = cache.Pin(1, nullptr);  // a later lookup reads again
+  ASSERT_TRUE(good.ok());
+  EXPECT_EQ(good->data()[0], 1);
+  ExpectInvariants(cache);
+  EXPECT_FALSE(cache.Pin(99, nullptr).ok());  // out of range
+  ExpectInvariants(cache);
+}
+
+TEST(PageCacheTest, FlippedBytesAndShortReadsAreCorruptionNotWrongAnswers) {
+  MemoryPageStore mem(12288, "mem.mkt");
+  testing::BuiltStore built;
+  auto objects = testing::MakeObjects(200, 4);
+  ASSERT_TRUE(testing::BuildTestStore(objects, {}, BuildParams(), &mem, &built).ok());
+  FaultyPageStore faulty(&mem);
+  const LeafInfo& leaf = built.tree.leaves[1];
+  auto parse = [&](PageCache& cache) -> Status {
+    std::vector<PageHandle> hs;
+    std::vector<const uint8_t*> ptrs;
+    for (uint32_t i = 0; i < leaf.page_count; ++i) {
+      auto h = cache.Pin(leaf.first_page + i, nullptr);
+      if (!h.ok()) return h.status();
+      ptrs.push_back(h->data());
+      hs.push_back(std::move(h).value());
+    }
+    return LeafView::Parse(faulty.name(), 1, leaf.first_page, ptrs, mem.page_bytes(), true).status();
+  };
+  {
+    PageCache cache(&faulty, 8);
+    EXPECT_TRUE(parse(cache).ok());
+  }
+  faulty.FlipByte(leaf.first_page, 5000, 0x04);
+  {
+    PageCache cache(&faulty, 8);
+    Status st = parse(cache);
+    EXPECT_EQ(st.code(), Status::Code::kCorruption);
+    EXPECT_NE(st.message().find("mem.mkt: page " + std::to_string(leaf.first_page)), std::string::npos)
+        << st.message();
+  }
+  faulty.ClearFaults();
+  faulty.ShortRead(leaf.first_page, 100);
+  {
+    PageCache cache(&faulty, 8);
+    EXPECT_EQ(parse(cache).code(), Status::Code::kCorruption);
+  }
+}
+
+TEST(PageCacheTest, ConcurrentPinsReadEachPageOnceAndKeepCountersExact) {
+  CountingStore store(64);
+  store.slow = true;  // widen the window in which threads miss on the same page
+  PageCache cache(&store, 64);
+  constexpr int kThreads = 8;
+  std::vector<std::thread> threads;
+  std::atomic<int> wrong{0};
+  std::vector<QueryStats> stats(kThreads);
+  for (int t = 0; t < kThreads; ++t)
+    threads.emplace_back([&, t] {
+      for (int round = 0; round < 3; ++round)
+        for (uint64_t p = 0; p < 64; ++p) {
+          auto h = cache.Pin(p, &stats[t]);
+          if (!h.ok() || h->data()[100] != p % 251) ++wrong;
+        }
+    });
+  for (auto& th : threads) th.join();
+  EXPECT_EQ(wrong.load(), 0);
+  EXPECT_EQ(store.reads.load(), 64u);  // each page read once although all threads missed on it
+  const auto k = cache.counters();
+  EXPECT_EQ(k.lookups, uint64_t{kThreads} * 3 * 64);
+  EXPECT_EQ(k.misses, 64u);
+  ExpectInvariants(cache);
+  QueryStats sum;
+  for (const auto& s : stats) sum += s;
+  EXPECT_EQ(sum.pages_touched, k.lookups);
+  EXPECT_EQ(sum.pages_read, k.misses);
+  EXPECT_EQ(sum.cache_hits, k.hits);
+}
+
+TEST(PageCacheTest, ConcurrentPinsUnderEvictionPressure) {
+  CountingStore store(50);
+  PageCache cache(&store, 5);
+  std::vector<std::thread> threads;
+  std::atomic<int> wrong{0};
+  for (int t = 0; t < 6; ++t)
+    threads.emplace_back([&, t] {
+      std::mt19937 g(t);
+      for (int i = 0; i < 3000; ++i) {
+        const uint64_t a = g() % 50, b = g() % 50;
+        auto ha = cache.Pin(a, nullptr);
+        auto hb = cache.Pin(b, nullptr);
+        if (!ha.ok() || !hb.ok() || ha->data()[7] != a % 251 || hb->data()[4000] != b % 251) ++wrong;
+      }
+    });
+  for (auto& th : threads) th.join();
+  EXPECT_EQ(wrong.load(), 0);
+  EXPECT_EQ(cache.pinned_pages(), 0u);
+  EXPECT_LE(cache.resident_pages(), 5u);
+  ExpectInvariants(cache);
+  EXPECT_EQ(store.reads.load(), cache.counters().misses);
+}
+
+}  // namespace
+}  // namespace mktree
