@@ -1,0 +1,118 @@
+#include "engine/tree/mktree.h"
+
+namespace mktree {
+namespace {
+
+constexpr uint8_t kLeftBit = 1;
+constexpr uint8_t kRightBit = 2;
+
+// Sides a point in the slab may find objects of: the label of the SplitTree cell holding it. A point on a
+// cut goes up: every object containing it meets both closed cells, so either cell's label allows it.
+uint8_t PointSides(const MKTree& t, const TreeNode& n, const Vec3d& p, QueryStats* stats) {
+  if (n.split_root == kNoIndex) return kLeftBit | kRightBit;  // no SplitTree: the slab is shared
+  uint32_t s = n.split_root;
+  for (;;) {
+    const SplitNode& sn = t.split_nodes[s];
+    ++stats->split_nodes_visited;
+    if (sn.is_cell()) return static_cast<uint8_t>(sn.label);
+    s = p[sn.axis] < static_cast<double>(sn.cut) ? sn.child[0] : sn.child[1];
+  }
+}
+
+// Union of the labels of the cells a box meets (cells are closed), stopping once both sides are found.
+uint8_t BoxSides(const MKTree& t, const TreeNode& n, const Box3d& q, QueryStats* stats) {
+  if (n.split_root == kNoIndex) return kLeftBit | kRightBit;
+  uint8_t sides = 0;
+  uint32_t stack[64];
+  int top = 0;
+  stack[top++] = n.split_root;
+  while (top > 0 && sides != (kLeftBit | kRightBit)) {
+    const SplitNode& sn = t.split_nodes[stack[--top]];
+    ++stats->split_nodes_visited;
+    if (sn.is_cell()) {
+      sides |= static_cast<uint8_t>(sn.label);
+      continue;
+    }
+    const double cut = sn.cut;
+    // A SplitTree has at most split_tree_node_budget nodes, but guard the fixed stack regardless.
+    if (top + 2 > 64) return kLeftBit | kRightBit;
+    if (q.max[sn.axis] >= cut) stack[top++] = sn.child[1];
+    if (q.min[sn.axis] <= cut) stack[top++] = sn.child[0];
+  }
+  return sides;
+}
+
+}  // namespace
+
+void MKTree::RoutePoint(const Vec3d& p, std::vector<uint32_t>* leaves_out, QueryStats* stats) const {
+  QueryStats local;
+  if (stats == nullptr) stats = &local;
+  if (nodes.empty() || !nodes[0].box.Contains(p)) return;
+  std::vector<uint32_t> stack{0};
+  while (!stack.empty()) {
+    const TreeNode& n = nodes[stack.back()];
+    stack.pop_back();
+    if (n.is_leaf()) {
+      ++stats->leaves_visited;
+      leaves_out->push_back(n.leaf);
+      continue;
+    }
+    ++stats->internal_nodes_visited;
+    const double pw = p[n.axis];
+    uint8_t sides;
+    if (n.a >= n.b) {
+      sides = kLeftBit | kRightBit;  // disjoint children: their boxes decide
+    } else if (pw < n.a) {
+      sides = kLeftBit;
+    } else if (pw > n.b) {
+      sides = kRightBit;
+    } else {
+      sides = PointSides(*this, n, p, stats);
+    }
+    // Right pushed first so that leaves come out in DFS (= leaf index) order.
+    if ((sides & kRightBit) && nodes[n.child[1]].box.Contains(p)) stack.push_back(n.child[1]);
+    if ((sides & kLeftBit) && nodes[n.child[0]].box.Contains(p)) stack.push_back(n.child[0]);
+  }
+}
+
+void MKTree::RouteBox(const Box3d& q, std::vector<uint32_t>* leaves_out, QueryStats* stats) const {
+  QueryStats local;
+  if (stats == nullptr) stats = &local;
+  if (nodes.empty() || q.empty() || !nodes[0].box.Intersects(q)) return;
+  std::vector<uint32_t> stack{0};
+  while (!stack.empty()) {
+    const TreeNode& n = nodes[stack.back()];
+    stack.pop_back();
+    if (n.is_leaf()) {
+      ++stats->leaves_visited;
+      leaves_out->push_back(n.leaf);
+      continue;
+    }
+    ++stats->internal_nodes_visited;
+    const TreeNode& left = nodes[n.child[0]];
+    const TreeNode& right = nodes[n.child[1]];
+    const bool meets_left = left.box.Intersects(q);
+    const bool meets_right = right.box.Intersects(q);
+    uint8_t sides = 0;
+    if (n.a >= n.b) {
+      sides = kLeftBit | kRightBit;
+    } else if (meets_left || meets_right) {
+      const int w = n.axis;
+      // Beyond the slab only one side lives: below a only Sn1, above b only Sn2.
+      if (q.min[w] < n.a) sides |= kLeftBit;
+      if (q.max[w] > n.b) sides |= kRightBit;
+      const bool meets_slab = q.max[w] >= n.a && q.min[w] <= n.b;
+      const uint8_t wanted = (meets_left ? kLeftBit : 0) | (meets_right ? kRightBit : 0);
+      if (meets_slab && (sides & wanted) != wanted) sides |= BoxSides(*this, n, q, stats);
+    }
+    if ((sides & kRightBit) && meets_right) stack.push_back(n.child[1]);
+    if ((sides & kLeftBit) && meets_left) stack.push_back(n.child[0]);
+  }
+}
+
+uint64_t MKTree::MemoryBytes() const {
+  return nodes.capacity() * sizeof(TreeNode) + split_nodes.capacity() * sizeof(SplitNode) +
+         leaves.capacity() * sizeof(LeafInfo);
+}
+
+}  // namespace mktree

@@ -1,0 +1,453 @@
+#include "engine/tree/mktree_builder.h"
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <cmath>
+#include <limits>
+#include <string>
+#include <thread>
+
+#include "engine/tree/split_tree_builder.h"
+#include "storage/leaf_format.h"
+
+namespace mktree {
+namespace {
+
+constexpr uint32_t kDepthGuard = 100;
+constexpr double kGuardBalance = 0.25;
+
+// Float -> uint32 whose unsigned order is the float order (for the radix sort).
+inline uint32_t SortableBits(float f) {
+  const uint32_t u = std::bit_cast<uint32_t>(f);
+  return (u & 0x80000000u) ? ~u : (u | 0x80000000u);
+}
+
+// Object indices sorted by one key (axis, min or max), stable (ties by index): an LSD radix sort on
+// (key, index) pairs, 3 passes of 11/11/10 bits, far faster than an indirect comparison sort at 10M.
+void SortByKey(const std::vector<ObjectRecord>& rec, int axis, bool use_max, std::vector<uint64_t>* a,
+               std::vector<uint64_t>* b, std::vector<uint32_t>* out) {
+  const size_t n = rec.size();
+  a->resize(n);
+  b->resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    const float k = use_max ? rec[i].box.max[axis] : rec[i].box.min[axis];
+    (*a)[i] = (uint64_t{SortableBits(k)} << 32) | i;
+  }
+  constexpr int kShift[3] = {32, 43, 54};
+  constexpr int kBits[3] = {11, 11, 10};
+  for (int pass = 0; pass < 3; ++pass) {
+    const uint64_t mask = (uint64_t{1} << kBits[pass]) - 1;
+    std::vector<size_t> count(mask + 2, 0);
+    for (uint64_t v : *a) ++count[((v >> kShift[pass]) & mask) + 1];
+    for (size_t i = 1; i < count.size(); ++i) count[i] += count[i - 1];
+    for (uint64_t v : *a) (*b)[count[(v >> kShift[pass]) & mask]++] = v;
+    a->swap(*b);
+  }
+  out->resize(n);
+  for (size_t i = 0; i < n; ++i) (*out)[i] = static_cast<uint32_t>((*a)[i]);
+}
+
+struct Shared {
+  const std::vector<ObjectRecord>& rec;
+  BuildParams params;
+  BuildTuning tuning;
+  // lists[2*w + key]: the objects of every node, each node's range sorted by min_w (key 0) / max_w (key 1).
+  std::array<std::vector<uint32_t>, 6> lists;
+  std::vector<uint8_t> side;  // per object: 0 = Sn1, 1 = Sn2 at the node being split
+};
+
+// What one builder produces for a subtree; indices are local to it until merged.
+struct SubtreeOut {
+  std::vector<TreeNode> nodes;
+  std::vector<SplitNode> split_nodes;
+  std::vector<LeafInfo> leaves;
+  std::vector<uint64_t> leaf_begin;  // position of the leaf's first object in the lists
+  std::vector<uint32_t> overlap;     // |Sm| per node
+};
+
+struct Task {
+  uint32_t lo = 0, hi = 0;
+  uint32_t depth = 0;
+  uint32_t parent = kNoIndex;  // local node index of the parent, kNoIndex for a subtree root
+  int slot = 0;
+  uint64_t bytes = 0;          // sum of encoded_bytes of the objects
+};
+
+struct Candidate {
+  int list = -1;  // 2*w + key
+  uint32_t k = 0;
+  float a = 0, b = 0;
+  uint32_t sm = 0;
+  uint32_t primary = 0;  // sm, or 0 when within the fill slack of the minimum
+  uint32_t waste = 0;
+  double slab = 0;
+  uint32_t imbalance = 0;
+  bool BetterThan(const Candidate& o) const {
+    if (o.list < 0) return true;
+    if (primary != o.primary) return primary < o.primary;
+    if (waste != o.waste) return waste < o.waste;
+    if (sm != o.sm) return sm < o.sm;
+    if (slab != o.slab) return slab < o.slab;
+    return imbalance < o.imbalance;
+  }
+};
+
+class SubtreeBuilder {
+ public:
+  explicit SubtreeBuilder(Shared* s) : s_(*s), rec_(s->rec), mem_page_(s->params.mem_page()) {}
+
+  // Builds the whole subtree of `root` into `out`.
+  void Run(const Task& root, SubtreeOut* out) {
+    std::vector<Task> stack{root};
+    Task kids[2];
+    while (!stack.empty()) {
+      const Task t = stack.back();
+      stack.pop_back();
+      if (ProcessNode(t, out, kids)) {
+        stack.push_back(kids[1]);
+        stack.push_back(kids[0]);  // left next: it becomes node n+1 (DFS preorder)
+      }
+    }
+  }
+
+  // Appends the node of `t` to `out`; returns true with its two child tasks when it is internal.
+  bool ProcessNode(const Task& t, SubtreeOut* out, Task kids[2]) {
+    const uint32_t n = t.hi - t.lo;
+    const uint32_t me = static_cast<uint32_t>(out->nodes.size());
+    if (t.parent != kNoIndex) out->nodes[t.parent].child[t.slot] = me;
+    TreeNode node;
+    for (int w = 0; w < 3; ++w) {
+      node.box.min[w] = rec_[s_.lists[2 * w][t.lo]].box.min[w];
+      node.box.max[w] = rec_[s_.lists[2 * w + 1][t.hi - 1]].box.max[w];
+    }
+    node.depth = static_cast<uint8_t>(std::min<uint32_t>(t.depth, 255));
+    if (n == 1 || FitsInOnePage(t.bytes, mem_page_)) {
+      node.leaf = static_cast<uint32_t>(out->leaves.size());
+      LeafInfo leaf;
+      leaf.box = node.box;
+      leaf.node = me;
+      leaf.object_count = n;
+      leaf.payload_bytes = LeafPayloadBytes(t.bytes);
+      leaf.page_count = static_cast<uint32_t>(PagesForLeaf(t.bytes, mem_page_));
+      out->leaves.push_back(leaf);
+      out->leaf_begin.push_back(t.lo);
+      out->nodes.push_back(node);
+      out->overlap.push_back(0);
+      return false;
+    }
+
+    const double r = t.depth >= kDepthGuard ? std::max(s_.params.balance_r, kGuardBalance) : s_.params.balance_r;
+    int64_t k_lo = std::max<int64_t>(1, static_cast<int64_t>(std::ceil(r * n - 1e-9)));
+    int64_t k_hi = std::min<int64_t>(n - 1, static_cast<int64_t>(std::floor((1 - r) * n + 1e-9)));
+    if (k_lo > k_hi) k_lo = k_hi = std::clamp<int64_t>(n / 2, 1, n - 1);  // r near 0.5 and tiny n
+    const Candidate best = ChooseSplit(t, static_cast<uint32_t>(k_lo), static_cast<uint32_t>(k_hi));
+    const int w = best.list / 2;
+    node.axis = static_cast<uint8_t>(w);
+
+    const std::vector<uint32_t>& chosen = s_.lists[best.list];
+    for (uint32_t i = 0; i < n; ++i) s_.side[chosen[t.lo + i]] = i < best.k ? 0 : 1;
+
+    // Objects meeting the closed slab: they decide the SplitTree, and the free ones among them may move.
+    std::vector<SplitNode> split;
+    overlap_ids_.clear();
+    if (best.a < best.b) {
+      items_.clear();
+      for (uint32_t i = t.lo; i < t.hi; ++i) {
+        const uint32_t idx = s_.lists[2 * w][i];
+        const Box3f& bx = rec_[idx].box;
+        if (bx.min[w] > best.b) break;  // sorted by min_w
+        if (bx.max[w] < best.a) continue;
+        SplitItem it;
+        it.box = bx;
+        it.box.min[w] = std::max(bx.min[w], best.a);
+        it.box.max[w] = std::min(bx.max[w], best.b);
+        it.default_side = s_.side[idx];
+        it.side = bx.min[w] < best.a ? SplitItem::kLeft : (bx.max[w] > best.b ? SplitItem::kRight : SplitItem::kFree);
+        items_.push_back(it);
+        overlap_ids_.push_back(idx);
+      }
+      if (s_.params.split_tree_node_budget > 0) {
+        Box3f q = node.box;
+        q.min[w] = best.a;
+        q.max[w] = best.b;
+        BalanceWindow window{best.k, k_lo, k_hi};
+        BuildSplitTree(q, &items_, s_.params.split_tree_node_budget, &window, &split);
+        for (size_t i = 0; i < items_.size(); ++i) s_.side[overlap_ids_[i]] = items_[i].side;
+      }
+    }
+
+    // Stable in-place partition of the six lists by side, keeping each half sorted by its key.
+    uint64_t left_bytes = 0;
+    uint32_t n1 = 0;
+    tmp_.resize(n);
+    for (int l = 0; l < 6; ++l) {
+      std::vector<uint32_t>& v = s_.lists[l];
+      uint32_t wpos = t.lo, tpos = 0;
+      for (uint32_t i = t.lo; i < t.hi; ++i) {
+        const uint32_t idx = v[i];
+        if (s_.side[idx] == 0) {
+          v[wpos++] = idx;
+          if (l == 0) left_bytes += rec_[idx].encoded_bytes;
+        } else {
+          tmp_[tpos++] = idx;
+        }
+      }
+      std::copy(tmp_.begin(), tmp_.begin() + tpos, v.begin() + wpos);
+      n1 = wpos - t.lo;
+    }
+    // The stored planes are those of the final children (free objects may have narrowed the slab).
+    node.a = rec_[s_.lists[2 * w][t.lo + n1]].box.min[w];
+    node.b = rec_[s_.lists[2 * w + 1][t.lo + n1 - 1]].box.max[w];
+    uint32_t sm = 0;
+    if (node.a < node.b) {
+      for (uint32_t idx : overlap_ids_) {
+        const Box3f& bx = rec_[idx].box;
+        sm += bx.max[w] > node.a && bx.min[w] < node.b;
+      }
+      if (!split.empty()) {
+        const uint32_t base = static_cast<uint32_t>(out->split_nodes.size());
+        node.split_root = base;
+        for (SplitNode sn : split) {
+          if (!sn.is_cell()) {
+            sn.child[0] += base;
+            sn.child[1] += base;
+          }
+          out->split_nodes.push_back(sn);
+        }
+      }
+    }
+    out->nodes.push_back(node);
+    out->overlap.push_back(sm);
+    kids[0] = Task{t.lo, t.lo + n1, t.depth + 1, me, 0, left_bytes};
+    kids[1] = Task{t.lo + n1, t.hi, t.depth + 1, me, 1, t.bytes - left_bytes};
+    return true;
+  }
+
+ private:
+  uint64_t Pages(uint64_t bytes) const { return PagesForLeaf(bytes, mem_page_); }
+
+  Candidate ChooseSplit(const Task& t, uint32_t k_lo, uint32_t k_hi) {
+    const uint64_t pages = Pages(t.bytes);
+    const bool fill_aware = s_.tuning.fill_aware && pages <= s_.tuning.fill_aware_pages;
+    Candidate best;
+    uint32_t sm_min = std::numeric_limits<uint32_t>::max();
+    if (fill_aware) {  // first pass: the minimal |Sm|, to know which candidates are within the slack
+      for (int w = 0; w < 3; ++w) Sweep(t, w, k_lo, k_hi, false, 0, &best, &sm_min);
+      best = Candidate();
+    }
+    for (int w = 0; w < 3; ++w) Sweep(t, w, k_lo, k_hi, fill_aware, sm_min, &best, nullptr);
+    return best;
+  }
+
+  // Evaluates the candidates of both keys of axis w. In O(n) after the gathers: along either order,
+  // a(k) and b(k) never decrease, so |Sm| = #(min_w < b) - #(max_w <= a) is counted with two cursors
+  // moving forward over the sorted min_w and max_w arrays.
+  void Sweep(const Task& t, int w, uint32_t k_lo, uint32_t k_hi, bool fill_aware, uint32_t sm_min,
+             Candidate* best, uint32_t* sm_min_out) {
+    const uint32_t n = t.hi - t.lo;
+    const std::vector<uint32_t>& by_min = s_.lists[2 * w];
+    const std::vector<uint32_t>& by_max = s_.lists[2 * w + 1];
+    sorted_min_.resize(n);
+    prefix_max_.resize(n);
+    sorted_max_.resize(n);
+    suffix_min_.resize(n);
+    float run = -std::numeric_limits<float>::infinity();
+    for (uint32_t i = 0; i < n; ++i) {
+      const Box3f& bx = rec_[by_min[t.lo + i]].box;
+      sorted_min_[i] = bx.min[w];
+      run = std::max(run, bx.max[w]);
+      prefix_max_[i] = run;
+    }
+    for (uint32_t i = 0; i < n; ++i) {
+      const Box3f& bx = rec_[by_max[t.lo + i]].box;
+      sorted_max_[i] = bx.max[w];
+      suffix_min_[i] = bx.min[w];
+    }
+    for (uint32_t i = n - 1; i-- > 0;) suffix_min_[i] = std::min(suffix_min_[i], suffix_min_[i + 1]);
+    const uint64_t total_pages = Pages(t.bytes);
+
+    for (int key = 0; key < 2; ++key) {
+      const std::vector<uint32_t>& order = key == 0 ? by_min : by_max;
+      uint32_t pa = 0, pb = 0;  // #(max_w <= a), #(min_w < b)
+      uint64_t left_bytes = 0;
+      for (uint32_t k = 1; k <= k_hi; ++k) {
+        if (fill_aware) left_bytes += rec_[order[t.lo + k - 1]].encoded_bytes;
+        if (k < k_lo) continue;
+        const float a = key == 0 ? sorted_min_[k] : suffix_min_[k];
+        const float b = key == 0 ? prefix_max_[k - 1] : sorted_max_[k - 1];
+        uint32_t sm = 0;
+        if (a < b) {
+          while (pa < n && sorted_max_[pa] <= a) ++pa;
+          while (pb < n && sorted_min_[pb] < b) ++pb;
+          sm = pb - pa;
+        }
+        if (sm_min_out != nullptr) {
+          *sm_min_out = std::min(*sm_min_out, sm);
+          continue;
+        }
+        Candidate c;
+        c.list = 2 * w + key;
+        c.k = k;
+        c.a = a;
+        c.b = b;
+        c.sm = sm;
+        c.primary = sm;
+        if (fill_aware) {
+          if (sm <= sm_min + s_.tuning.fill_sm_slack) c.primary = 0;
+          c.waste = static_cast<uint32_t>(Pages(left_bytes) + Pages(t.bytes - left_bytes) - total_pages);
+        }
+        c.slab = std::max(0.0, double{b} - double{a});
+        c.imbalance = static_cast<uint32_t>(std::abs(2 * int64_t{k} - int64_t{n}));
+        if (c.BetterThan(*best)) *best = c;
+      }
+    }
+  }
+
+  Shared& s_;
+  const std::vector<ObjectRecord>& rec_;
+  const uint64_t mem_page_;
+  std::vector<float> sorted_min_, prefix_max_, sorted_max_, suffix_min_;
+  std::vector<uint32_t> tmp_;
+  std::vector<SplitItem> items_;
+  std::vector<uint32_t> overlap_ids_;
+};
+
+// Appends `sub` (built with local indices) to `dst`, shifting every index.
+void Append(SubtreeOut&& sub, SubtreeOut* dst) {
+  const uint32_t node_base = static_cast<uint32_t>(dst->nodes.size());
+  const uint32_t split_base = static_cast<uint32_t>(dst->split_nodes.size());
+  const uint32_t leaf_base = static_cast<uint32_t>(dst->leaves.size());
+  for (TreeNode nd : sub.nodes) {
+    if (nd.is_leaf()) {
+      nd.leaf += leaf_base;
+    } else {
+      nd.child[0] += node_base;
+      nd.child[1] += node_base;
+      if (nd.split_root != kNoIndex) nd.split_root += split_base;
+    }
+    dst->nodes.push_back(nd);
+  }
+  for (SplitNode sn : sub.split_nodes) {
+    if (!sn.is_cell()) {
+      sn.child[0] += split_base;
+      sn.child[1] += split_base;
+    }
+    dst->split_nodes.push_back(sn);
+  }
+  for (LeafInfo lf : sub.leaves) {
+    lf.node += node_base;
+    dst->leaves.push_back(lf);
+  }
+  dst->leaf_begin.insert(dst->leaf_begin.end(), sub.leaf_begin.begin(), sub.leaf_begin.end());
+  dst->overlap.insert(dst->overlap.end(), sub.overlap.begin(), sub.overlap.end());
+}
+
+std::string Describe(const ObjectRecord& r) { return "object " + std::to_string(r.id); }
+
+Status Validate(const std::vector<ObjectRecord>& records, const BuildParams& params) {
+  if (!(params.balance_r >= 0 && params.balance_r < 0.5))
+    return Status::InvalidArgument("balance ratio r = " + std::to_string(params.balance_r) +
+                                   " outside [0, 0.5)");
+  if (params.block_size == 0 || params.blocks_per_page == 0 ||
+      params.mem_page() <= kPageHeaderBytes + kLeafHeaderBytes)
+    return Status::InvalidArgument("page of " + std::to_string(params.mem_page()) +
+                                   " bytes is not larger than its headers (" +
+                                   std::to_string(kPageHeaderBytes + kLeafHeaderBytes) + " bytes)");
+  if (records.size() >= kNoIndex) return Status::InvalidArgument("too many objects for 32-bit indices");
+  ObjectId max_id = 0;
+  for (const ObjectRecord& r : records) {
+    for (int i = 0; i < 3; ++i) {
+      if (!std::isfinite(r.box.min[i]) || !std::isfinite(r.box.max[i]))
+        return Status::InvalidArgument(Describe(r) + ": bounding box is not finite");
+      if (r.box.min[i] > r.box.max[i])
+        return Status::InvalidArgument(Describe(r) + ": bounding box has min > max on axis " + std::to_string(i));
+    }
+    max_id = std::max(max_id, r.id);
+  }
+  // Duplicate ids: a bitmap when ids are dense (the normal 0-based case), else a sorted copy.
+  if (uint64_t{max_id} <= 64 * uint64_t{records.size()}) {
+    std::vector<uint64_t> seen(max_id / 64 + 1, 0);
+    for (const ObjectRecord& r : records) {
+      uint64_t& word = seen[r.id / 64];
+      const uint64_t bit = uint64_t{1} << (r.id % 64);
+      if (word & bit) return Status::InvalidArgument(Describe(r) + ": duplicate object id");
+      word |= bit;
+    }
+  } else {
+    std::vector<ObjectId> ids;
+    ids.reserve(records.size());
+    for (const ObjectRecord& r : records) ids.push_back(r.id);
+    std::sort(ids.begin(), ids.end());
+    auto dup = std::adjacent_find(ids.begin(), ids.end());
+    if (dup != ids.end()) return Status::InvalidArgument("object " + std::to_string(*dup) + ": duplicate object id");
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+Result<BuildResult> BuildMKTree(std::vector<ObjectRecord> records, const BuildParams& params,
+                                const BuildTuning& tuning) {
+  MKTREE_RETURN_IF_ERROR(Validate(records, params));
+  BuildResult result;
+  result.tree.params = params;
+  result.leaf_offsets.push_back(0);
+  const uint32_t n = static_cast<uint32_t>(records.size());
+  if (n == 0) {
+    result.stats = ComputeTreeStats(result.tree, 0, {});
+    return result;
+  }
+
+  Shared shared{records, params, tuning, {}, {}};
+  {
+    std::vector<uint64_t> a, b;
+    for (int l = 0; l < 6; ++l) SortByKey(records, l / 2, l % 2 == 1, &a, &b, &shared.lists[l]);
+  }
+  shared.side.assign(n, 0);
+  uint64_t total_bytes = 0;
+  for (const ObjectRecord& r : records) total_bytes += r.encoded_bytes;
+
+  SubtreeOut out;
+  const Task root{0, n, 0, kNoIndex, 0, total_bytes};
+  if (tuning.threads >= 2) {
+    // Split the root here, then build its two subtrees concurrently: they touch disjoint list ranges and
+    // disjoint objects' side flags.
+    SubtreeBuilder top(&shared);
+    Task kids[2];
+    if (top.ProcessNode(root, &out, kids)) {
+      kids[0].parent = kids[1].parent = kNoIndex;
+      SubtreeOut sub[2];
+      std::thread right([&] { SubtreeBuilder(&shared).Run(kids[1], &sub[1]); });
+      SubtreeBuilder(&shared).Run(kids[0], &sub[0]);
+      right.join();
+      out.nodes[0].child[0] = static_cast<uint32_t>(out.nodes.size());
+      out.nodes[0].child[1] = static_cast<uint32_t>(out.nodes.size() + sub[0].nodes.size());
+      Append(std::move(sub[0]), &out);
+      Append(std::move(sub[1]), &out);
+    }
+  } else {
+    SubtreeBuilder(&shared).Run(root, &out);
+  }
+
+  // Pages in leaf order.
+  uint64_t page = 0;
+  for (LeafInfo& lf : out.leaves) {
+    lf.first_page = page;
+    page += lf.page_count;
+  }
+  // The leaves' ranges of any list hold their objects: list 0 becomes leaf_objects (ids in place).
+  for (int l = 1; l < 6; ++l) std::vector<uint32_t>().swap(shared.lists[l]);
+  std::vector<uint8_t>().swap(shared.side);
+  result.leaf_objects = std::move(shared.lists[0]);
+  for (ObjectId& o : result.leaf_objects) o = records[o].id;
+  result.leaf_offsets = std::move(out.leaf_begin);
+  result.leaf_offsets.push_back(n);
+  result.tree.nodes = std::move(out.nodes);
+  result.tree.split_nodes = std::move(out.split_nodes);
+  result.tree.leaves = std::move(out.leaves);
+  result.stats = ComputeTreeStats(result.tree, n, out.overlap);
+  return result;
+}
+
+}  // namespace mktree

@@ -1,0 +1,204 @@
+// Routing never misses an object: for random (and adversarial: on planes a and b, on cuts, on box faces)
+// queries, every object whose box meets the query must lie in a leaf the routing returns.
+#include <gtest/gtest.h>
+
+#include <random>
+#include <unordered_map>
+
+#include "engine/tree/mktree_builder.h"
+#include "tree/tree_test_util.h"
+
+namespace mktree {
+namespace {
+
+using testing::MakeScene;
+using testing::SceneKind;
+
+struct Fixture {
+  std::vector<ObjectRecord> recs;
+  BuildResult built;
+  std::vector<uint32_t> leaf_of;  // per record
+};
+
+Fixture Build(std::vector<ObjectRecord> recs, const BuildParams& p) {
+  Fixture f;
+  f.recs = std::move(recs);
+  auto r = BuildMKTree(f.recs, p);
+  EXPECT_TRUE(r.ok()) << r.status().ToString();
+  f.built = std::move(r).value();
+  std::unordered_map<ObjectId, size_t> idx;
+  for (size_t i = 0; i < f.recs.size(); ++i) idx[f.recs[i].id] = i;
+  f.leaf_of.assign(f.recs.size(), kNoIndex);
+  for (uint32_t l = 0; l < f.built.tree.leaves.size(); ++l)
+    for (uint64_t k = f.built.leaf_offsets[l]; k < f.built.leaf_offsets[l + 1]; ++k)
+      f.leaf_of[idx[f.built.leaf_objects[k]]] = l;
+  return f;
+}
+
+// Points that stress the closed boundaries: box corners and faces, and points on the planes a and b and
+// on SplitTree cuts, the other coordinates taken from an object near the node.
+std::vector<Vec3d> QueryPoints(const Fixture& f, size_t count, uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::vector<Vec3d> pts;
+  if (f.recs.empty()) return pts;
+  const Box3f& root = f.built.tree.nodes[0].box;
+  auto uni = [&](double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(rng); };
+  auto in_box = [&](const Box3f& b) {
+    Vec3d p;
+    for (int a = 0; a < 3; ++a) {
+      const int mode = static_cast<int>(rng() % 4);
+      p[a] = mode == 0 ? b.min[a] : mode == 1 ? b.max[a] : uni(b.min[a], b.max[a]);
+    }
+    return p;
+  };
+  for (size_t i = 0; i < count; ++i) {
+    const int mode = static_cast<int>(rng() % 4);
+    if (mode == 0) {  // anywhere, slightly beyond the scene too
+      Vec3d p;
+      for (int a = 0; a < 3; ++a) {
+        const double e = double{root.max[a]} - double{root.min[a]};
+        p[a] = uni(root.min[a] - 0.05 * e, root.max[a] + 0.05 * e);
+      }
+      pts.push_back(p);
+    } else if (mode == 1) {  // on an object's corner / face / inside
+      pts.push_back(in_box(f.recs[rng() % f.recs.size()].box));
+    } else {  // on plane a or b (or a SplitTree cut) of a random internal node
+      const auto& nodes = f.built.tree.nodes;
+      const TreeNode& n = nodes[rng() % nodes.size()];
+      Vec3d p = in_box(n.box);
+      if (!n.is_leaf()) {
+        p[n.axis] = (rng() % 2) ? n.a : n.b;
+        if (mode == 3 && n.split_root != kNoIndex) {
+          const SplitNode& s = f.built.tree.split_nodes[n.split_root];
+          if (!s.is_cell()) p[s.axis] = s.cut;
+        }
+      }
+      pts.push_back(p);
+    }
+  }
+  return pts;
+}
+
+void CheckPoints(const Fixture& f, const std::vector<Vec3d>& pts) {
+  std::vector<uint32_t> leaves;
+  std::vector<uint8_t> reached(f.built.tree.leaves.size());
+  for (const Vec3d& p : pts) {
+    leaves.clear();
+    QueryStats st;
+    f.built.tree.RoutePoint(p, &leaves, &st);
+    EXPECT_EQ(st.leaves_visited, leaves.size());
+    for (size_t i = 1; i < leaves.size(); ++i) ASSERT_LT(leaves[i - 1], leaves[i]) << "leaf order / duplicates";
+    std::fill(reached.begin(), reached.end(), 0);
+    for (uint32_t l : leaves) reached[l] = 1;
+    for (size_t i = 0; i < f.recs.size(); ++i) {
+      if (f.recs[i].box.Contains(p)) {
+        ASSERT_TRUE(reached[f.leaf_of[i]]) << "point (" << p.x << "," << p.y << "," << p.z << ") misses object "
+                                           << f.recs[i].id;
+      }
+    }
+  }
+}
+
+void CheckBoxes(const Fixture& f, size_t count, uint64_t seed) {
+  if (f.recs.empty()) return;
+  std::mt19937_64 rng(seed);
+  auto uni = [&](double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(rng); };
+  const Box3f& root = f.built.tree.nodes[0].box;
+  std::vector<uint32_t> leaves;
+  std::vector<uint8_t> reached(f.built.tree.leaves.size());
+  for (size_t i = 0; i < count; ++i) {
+    Box3d q;
+    const int mode = static_cast<int>(rng() % 3);
+    if (mode == 0) {  // an object's own box, or one of its faces (zero thickness)
+      const Box3f& b = f.recs[rng() % f.recs.size()].box;
+      for (int a = 0; a < 3; ++a) {
+        q.min[a] = b.min[a];
+        q.max[a] = b.max[a];
+      }
+      const int face = static_cast<int>(rng() % 7);
+      if (face < 6) {
+        if (face % 2) q.min[face / 2] = q.max[face / 2];
+        else q.max[face / 2] = q.min[face / 2];
+      }
+    } else {  // random boxes of varied size; mode 2: thin slabs through a node's plane
+      for (int a = 0; a < 3; ++a) {
+        const double e = double{root.max[a]} - double{root.min[a]};
+        const double c = uni(root.min[a] - 0.02 * e, root.max[a] + 0.02 * e);
+        const double h = e * std::exp(uni(std::log(1e-4), std::log(0.3)));
+        q.min[a] = c - h;
+        q.max[a] = c + h;
+      }
+      if (mode == 2) {
+        const TreeNode& n = f.built.tree.nodes[rng() % f.built.tree.nodes.size()];
+        if (!n.is_leaf()) q.min[n.axis] = q.max[n.axis] = (rng() % 2) ? n.a : n.b;
+      }
+    }
+    leaves.clear();
+    QueryStats st;
+    f.built.tree.RouteBox(q, &leaves, &st);
+    EXPECT_EQ(st.leaves_visited, leaves.size());
+    for (size_t k = 1; k < leaves.size(); ++k) ASSERT_LT(leaves[k - 1], leaves[k]);
+    std::fill(reached.begin(), reached.end(), 0);
+    for (uint32_t l : leaves) reached[l] = 1;
+    for (size_t k = 0; k < f.recs.size(); ++k) {
+      if (f.recs[k].box.Intersects(q)) {
+        ASSERT_TRUE(reached[f.leaf_of[k]]) << "box misses object " << f.recs[k].id;
+      }
+    }
+  }
+}
+
+struct Case {
+  SceneKind kind;
+  size_t n;
+  double r;
+};
+
+class RoutingTest : public ::testing::TestWithParam<Case> {};
+
+TEST_P(RoutingTest, NeverMissesAnObject) {
+  const Case c = GetParam();
+  BuildParams p;
+  p.balance_r = c.r;
+  Fixture f = Build(MakeScene(c.kind, c.n, 1000 + c.n), p);
+  const size_t queries = c.n >= 10000 ? 150 : 400;
+  CheckPoints(f, QueryPoints(f, queries, 7));
+  CheckBoxes(f, queries, 8);
+}
+
+std::vector<Case> Cases() {
+  std::vector<Case> cs;
+  for (SceneKind k : {SceneKind::kUniform, SceneKind::kClustered, SceneKind::kIdentical, SceneKind::kPlates,
+                      SceneKind::kHuge, SceneKind::kOversized, SceneKind::kShip, SceneKind::kGrid}) {
+    for (size_t n : {1u, 2u, 7u, 300u, 5000u}) cs.push_back({k, n, 0.3});
+    cs.push_back({k, 3000, 0.0});
+    cs.push_back({k, 3000, 0.49});
+  }
+  cs.push_back({SceneKind::kShip, 50000, 0.3});
+  cs.push_back({SceneKind::kUniform, 50000, 0.3});
+  cs.push_back({SceneKind::kGrid, 50000, 0.3});
+  return cs;
+}
+
+INSTANTIATE_TEST_SUITE_P(Scenes, RoutingTest, ::testing::ValuesIn(Cases()), [](const auto& info) {
+  return std::string(testing::Name(info.param.kind)) + "_" + std::to_string(info.param.n) + "_r" +
+         std::to_string(static_cast<int>(info.param.r * 100));
+});
+
+TEST(Routing, StatsCountNodesAndPointsOutsideTheSceneReachNothing) {
+  Fixture f = Build(MakeScene(SceneKind::kUniform, 5000, 4), BuildParams());
+  std::vector<uint32_t> leaves;
+  QueryStats st;
+  f.built.tree.RoutePoint(Vec3d{-1000, 0, 0}, &leaves, &st);
+  EXPECT_TRUE(leaves.empty());
+  EXPECT_EQ(st.leaves_visited, 0u);
+  const Box3f& b = f.recs[10].box;
+  f.built.tree.RoutePoint(Vec3d{b.min[0], b.min[1], b.min[2]}, &leaves, &st);
+  EXPECT_GE(leaves.size(), 1u);
+  EXPECT_GE(st.internal_nodes_visited, f.built.stats.height > 1 ? 1u : 0u);
+  EXPECT_EQ(st.leaves_visited, leaves.size());
+  EXPECT_GT(f.built.tree.MemoryBytes(), 0u);
+}
+
+}  // namespace
+}  // namespace mktree
