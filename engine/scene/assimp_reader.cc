@@ -57,7 +57,8 @@ class AssimpReader final : public SceneSource {
   AssimpReader(std::string path, std::unique_ptr<Assimp::Importer> importer, const aiScene* scene,
                ObjectId first_id)
       : path_(std::move(path)), importer_(std::move(importer)), scene_(scene), next_id_(first_id) {
-    if (scene_->mRootNode != nullptr) stack_.push_back({scene_->mRootNode, Transform::FromAssimp(scene_->mRootNode->mTransformation)});
+    if (scene_->mRootNode != nullptr)
+      stack_.push_back({scene_->mRootNode, Transform::FromAssimp(scene_->mRootNode->mTransformation)});
   }
 
   Result<bool> Next(SceneObject* out) override {
@@ -72,9 +73,11 @@ class AssimpReader final : public SceneSource {
       Mesh mesh;
       MKTREE_RETURN_IF_ERROR(Convert(*node, world, &mesh));
       if (mesh.triangle_count() == 0) continue;
-      if (next_id_ > std::numeric_limits<ObjectId>::max()) return Status::InvalidArgument(path_ + ": more than 2^32 objects");
+      if (next_id_ > std::numeric_limits<ObjectId>::max())
+        return Status::InvalidArgument(path_ + ": more than 2^32 objects");
       out->id = static_cast<ObjectId>(next_id_++);
-      out->name = node->mName.length > 0 ? std::string(node->mName.C_Str()) : "object_" + std::to_string(out->id);
+      out->name =
+          node->mName.length > 0 ? std::string(node->mName.C_Str()) : "object_" + std::to_string(out->id);
       out->mesh = std::move(mesh);
       return true;
     }
@@ -103,7 +106,8 @@ class AssimpReader final : public SceneSource {
         for (unsigned j = 0; j < face.mNumIndices; ++j) {
           unsigned v = face.mIndices[j];
           if (v >= mesh.mNumVertices) {
-            return Status::Corruption(path_ + ": node '" + node.mName.C_Str() + "': vertex index out of range");
+            return Status::Corruption(path_ + ": node '" + node.mName.C_Str() +
+                                      "': vertex index out of range");
           }
           if (remap_[v] == kUnused) {
             const aiVector3D& p = mesh.mVertices[v];
@@ -112,8 +116,9 @@ class AssimpReader final : public SceneSource {
             float f3[3] = {static_cast<float>(w[0]), static_cast<float>(w[1]), static_cast<float>(w[2])};
             if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z) || !std::isfinite(f3[0]) ||
                 !std::isfinite(f3[1]) || !std::isfinite(f3[2])) {
-              return Status::Corruption(path_ + ": node '" + node.mName.C_Str() +
-                                        "': non-finite vertex coordinate (in the file or after its transform)");
+              return Status::Corruption(
+                  path_ + ": node '" + node.mName.C_Str() +
+                  "': non-finite vertex coordinate (in the file or after its transform)");
             }
             remap_[v] = static_cast<uint32_t>(out->vertex_count());
             out->vertices.insert(out->vertices.end(), f3, f3 + 3);
@@ -135,9 +140,9 @@ class AssimpReader final : public SceneSource {
   std::unique_ptr<Assimp::Importer> importer_;  // owns scene_
   const aiScene* scene_;
   uint64_t next_id_;
-  std::vector<Pending> stack_;     // nodes still to visit, with their world transforms
-  std::vector<uint32_t> remap_;    // scratch: source vertex -> local index
-  std::vector<uint32_t> local_;    // scratch: one face's local indices
+  std::vector<Pending> stack_;   // nodes still to visit, with their world transforms
+  std::vector<uint32_t> remap_;  // scratch: source vertex -> local index
+  std::vector<uint32_t> local_;  // scratch: one face's local indices
 };
 
 }  // namespace
@@ -150,11 +155,10 @@ Result<std::unique_ptr<SceneSource>> OpenAssimpFile(const std::string& path, Obj
   auto importer = std::make_unique<Assimp::Importer>();
   // Only positions matter: removing the other vertex components lets JoinIdenticalVertices merge by
   // position alone, and drops data we would throw away anyway.
-  importer->SetPropertyInteger(AI_CONFIG_PP_RVC_FLAGS, aiComponent_NORMALS | aiComponent_TANGENTS_AND_BITANGENTS |
-                                                           aiComponent_COLORS | aiComponent_TEXCOORDS |
-                                                           aiComponent_BONEWEIGHTS | aiComponent_ANIMATIONS |
-                                                           aiComponent_TEXTURES | aiComponent_LIGHTS |
-                                                           aiComponent_CAMERAS);
+  importer->SetPropertyInteger(
+      AI_CONFIG_PP_RVC_FLAGS, aiComponent_NORMALS | aiComponent_TANGENTS_AND_BITANGENTS | aiComponent_COLORS |
+                                  aiComponent_TEXCOORDS | aiComponent_BONEWEIGHTS | aiComponent_ANIMATIONS |
+                                  aiComponent_TEXTURES | aiComponent_LIGHTS | aiComponent_CAMERAS);
   importer->SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
   // No PreTransformVertices / OptimizeMeshes / OptimizeGraph: they would merge objects or bake transforms.
   constexpr unsigned kFlags = aiProcess_RemoveComponent | aiProcess_Triangulate | aiProcess_SortByPType |

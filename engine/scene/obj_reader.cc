@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <cstring>
 #include <limits>
+#include <memory>
 #include <string_view>
 #include <vector>
 
@@ -108,6 +109,26 @@ class VertexIndexMap {
   size_t size_ = 0;
 };
 
+// The global vertex table, in fixed-size blocks: growth never copies the table or needs twice its size,
+// so its footprint stays 12 bytes per vertex (plus at most one partly filled block).
+class VertexTable {
+ public:
+  size_t size() const { return size_; }
+  void Push(const float xyz[3]) {
+    if ((size_ & kBlockMask) == 0) blocks_.push_back(std::make_unique<float[]>(3 * kBlockVertices));
+    std::memcpy(&blocks_.back()[3 * (size_ & kBlockMask)], xyz, 3 * sizeof(float));
+    ++size_;
+  }
+  const float* At(uint32_t v) const { return &blocks_[v >> kBlockShift][3 * (v & kBlockMask)]; }
+
+ private:
+  static constexpr int kBlockShift = 16;
+  static constexpr size_t kBlockVertices = size_t{1} << kBlockShift;
+  static constexpr size_t kBlockMask = kBlockVertices - 1;
+  std::vector<std::unique_ptr<float[]>> blocks_;
+  size_t size_ = 0;
+};
+
 enum class GroupRule { kUnknown, kGroupsStartObjects, kGroupsIgnored };
 
 class ObjReader final : public SceneSource {
@@ -127,8 +148,8 @@ class ObjReader final : public SceneSource {
   Status Fill();
   Status ParseVertex(std::string_view rest);
   Status ParseFace(std::string_view rest);
-  Result<bool> ResolveIndex(std::string_view token, std::string_view digits, uint64_t count,
-                            const char* what, uint32_t* index);
+  Result<bool> ResolveIndex(std::string_view token, std::string_view digits, uint64_t count, const char* what,
+                            uint32_t* index);
   Result<bool> FileHasObjectLines();
   // Ends the current object (emitting it into *out when it has faces) and starts one named `name`.
   Result<bool> StartObject(std::string_view name, SceneObject* out);
@@ -143,12 +164,12 @@ class ObjReader final : public SceneSource {
   std::vector<char> buf_;
   size_t begin_ = 0, end_ = 0;
   bool eof_ = false;
-  uint64_t line_no_ = 0;       // lines consumed so far
-  uint64_t record_line_ = 0;   // line number of the record being parsed
+  uint64_t line_no_ = 0;              // lines consumed so far
+  uint64_t record_line_ = 0;          // line number of the record being parsed
   bool record_unterminated_ = false;  // the record is the last line and has no newline
-  std::string joined_;         // a record spread over lines joined by a trailing backslash
+  std::string joined_;                // a record spread over lines joined by a trailing backslash
 
-  std::vector<float> positions_;  // the global vertex table, xyz per vertex
+  VertexTable positions_;
   uint64_t texcoord_count_ = 0, normal_count_ = 0;
 
   GroupRule group_rule_ = GroupRule::kUnknown;
@@ -277,10 +298,9 @@ Status ObjReader::ParseVertex(std::string_view rest) {
   }
   if (n < 3) return Error("vertex: too few coordinates (" + std::to_string(n) + ", need x y z)");
   if (n > 7) return Error("vertex: too many values (" + std::to_string(n) + ", at most 7)");
-  if (positions_.size() / 3 >= std::numeric_limits<uint32_t>::max() - 1) {
+  if (positions_.size() >= std::numeric_limits<uint32_t>::max() - 1)
     return Error("more than 2^32 - 2 vertices");
-  }
-  positions_.insert(positions_.end(), xyz, xyz + 3);
+  positions_.Push(xyz);
   return Status::Ok();
 }
 
@@ -294,7 +314,8 @@ Result<bool> ObjReader::ResolveIndex(std::string_view token, std::string_view di
   if (b != e && *b == '+') ++b;
   auto [p, ec] = std::from_chars(b, e, i);
   if (ec != std::errc() || p != e) return Error("face: bad vertex reference " + Quote(token));
-  if (i == 0) return Error(std::string("face: ") + what + " index 0 in " + Quote(token) + " (indices start at 1)");
+  if (i == 0)
+    return Error(std::string("face: ") + what + " index 0 in " + Quote(token) + " (indices start at 1)");
   int64_t resolved = i > 0 ? i - 1 : static_cast<int64_t>(count) + i;
   if (resolved < 0 || static_cast<uint64_t>(resolved) >= count) {
     return Error(std::string("face: ") + what + " index " + std::to_string(i) + " out of range (" +
@@ -306,7 +327,7 @@ Result<bool> ObjReader::ResolveIndex(std::string_view token, std::string_view di
 
 Status ObjReader::ParseFace(std::string_view rest) {
   face_.clear();
-  const uint64_t vertex_count = positions_.size() / 3;
+  const uint64_t vertex_count = positions_.size();
   for (std::string_view tok = NextToken(&rest); !tok.empty(); tok = NextToken(&rest)) {
     // v, v/vt, v//vn or v/vt/vn
     std::string_view parts[3];
@@ -336,7 +357,10 @@ Status ObjReader::ParseFace(std::string_view rest) {
     }
     bool inserted = false;
     uint32_t local = local_of_global_.FindOrInsert(v, static_cast<uint32_t>(mesh_.vertex_count()), &inserted);
-    if (inserted) mesh_.vertices.insert(mesh_.vertices.end(), &positions_[3 * size_t{v}], &positions_[3 * size_t{v} + 3]);
+    if (inserted) {
+      const float* p = positions_.At(v);
+      mesh_.vertices.insert(mesh_.vertices.end(), p, p + 3);
+    }
     face_.push_back(local);
   }
   if (face_.size() < 3) {
@@ -403,14 +427,12 @@ Result<bool> ObjReader::Emit(SceneObject* out) {
 }
 
 Result<bool> ObjReader::StartObject(std::string_view name, SceneObject* out) {
+  // Vertices enter an object's mesh only through its faces, so a faceless object left nothing behind.
   bool emitted = false;
   if (mesh_.triangle_count() > 0) {
     auto r = Emit(out);
     if (!r.ok()) return r;
     emitted = true;
-  } else {
-    mesh_ = Mesh();  // a faceless object may still have recorded nothing; start clean
-    local_of_global_.Clear();
   }
   name_.assign(Trim(name));
   return emitted;

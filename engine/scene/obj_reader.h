@@ -40,9 +40,9 @@
 
 namespace mktree {
 
-// Opens `path` for streaming. The first object gets id `first_id`, the next first_id + 1, and so on.
-// Fails with NotFound/IOError (naming the file) when the file cannot be opened; parse errors come from
-// Next().
+// Opens `path` (a regular file) for streaming. The first object gets id `first_id`, the next
+// first_id + 1, and so on. Fails with NotFound or IOError, naming the file, when it cannot be opened.
+// Parse errors come from Next(): Corruption for malformed input, Unsupported for free-form geometry.
 Result<std::unique_ptr<SceneSource>> OpenObjFile(const std::string& path, ObjectId first_id = 0);
 
 }  // namespace mktree

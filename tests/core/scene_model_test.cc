@@ -47,7 +47,13 @@ TEST(RoundOutwardTest, NegativeValuesRoundAwayFromTheBoxInterior) {
 }
 
 TEST(RoundOutwardTest, ExactFloatsAreUnchanged) {
-  const float values[] = {0.0f, 1.0f, -2.5f, 0.125f, 1e30f, -3.0e-20f, std::numeric_limits<float>::max(),
+  const float values[] = {0.0f,
+                          1.0f,
+                          -2.5f,
+                          0.125f,
+                          1e30f,
+                          -3.0e-20f,
+                          std::numeric_limits<float>::max(),
                           std::numeric_limits<float>::denorm_min()};
   for (float v : values) {
     Box3f f = RoundOutward(BoxOf(v, v));

@@ -172,7 +172,8 @@ std::string Gltf(const std::string& buffer_base64) {
   return s;
 }
 const char kTriangleBuffer[] = "AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAABAAIAAAA=";
-const char kNanBuffer[] = "AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAwH8AAAAAAAABAAIAAAA=";  // y of vertex 2 = NaN
+const char kNanBuffer[] =
+    "AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAwH8AAAAAAAABAAIAAAA=";  // y of vertex 2 = NaN
 
 TEST(AssimpReaderTest, WorldTransformIsAccumulatedAlongTheNodePath) {
   auto r = ReadAll(WriteTemp(Gltf(kTriangleBuffer), "scene.gltf"));
@@ -204,7 +205,8 @@ TEST(AssimpReaderTest, NonFiniteCoordinatesAreErrorsNamingTheFile) {
 TEST(AssimpReaderTest, AsciiStlAndPly) {
   auto stl = ReadAll(WriteTemp(
       "solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\n"
-      "facet normal 0 0 1\nouter loop\nvertex 1 0 0\nvertex 1 1 0\nvertex 0 1 0\nendloop\nendfacet\nendsolid t\n",
+      "facet normal 0 0 1\nouter loop\nvertex 1 0 0\nvertex 1 1 0\nvertex 0 1 0\nendloop\nendfacet\nendsolid "
+      "t\n",
       "quad.stl"));
   ASSERT_TRUE(stl.ok()) << stl.status().ToString();
   ASSERT_EQ(stl->size(), 1u);
@@ -213,7 +215,8 @@ TEST(AssimpReaderTest, AsciiStlAndPly) {
 
   auto ply = ReadAll(WriteTemp(
       "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
-      "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n",
+      "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 "
+      "2 3\n",
       "quad.ply"));
   ASSERT_TRUE(ply.ok()) << ply.status().ToString();
   ASSERT_EQ(ply->size(), 1u);
@@ -228,7 +231,8 @@ TEST(AssimpReaderTest, UnreadableFilesAreErrorsNamingTheFile) {
   EXPECT_NE(missing.status().message().find("/nonexistent/scene.glb"), std::string::npos);
 
   for (const char* name : {"garbage.ply", "garbage.glb", "garbage.unknownext", "empty.stl"}) {
-    std::string path = WriteTemp(std::string(name) == "empty.stl" ? "" : "this is not a scene\n\x01\x02", name);
+    std::string path =
+        WriteTemp(std::string(name) == "empty.stl" ? "" : "this is not a scene\n\x01\x02", name);
     auto r = OpenAssimpFile(path);
     ASSERT_FALSE(r.ok()) << name;
     EXPECT_NE(r.status().message().find(path + ": assimp: "), std::string::npos) << r.status().message();
@@ -271,15 +275,13 @@ TEST_P(AssimpRealFileTest, MatchesTheDataReadme) {
 // of the file's lines), so 229 objects have triangles. 99,160 is the polygons' fan count; assimp's ear
 // clipping omits 16 zero-area ears (collinear vertices in the "elev-rail-wire*" rails), giving 99,144.
 // The other AC3D files have no degenerate polygons and match the README exactly.
-INSTANTIATE_TEST_SUITE_P(SharedData, AssimpRealFileTest,
-                         testing::Values(RealFile{"ships/truman.ac", 229, 99144},
-                                         RealFile{"ships/ContainerShip.ac", 29, 2054},
-                                         RealFile{"ships/Freighter.ac", 26, 1573},
-                                         RealFile{"meshes/fandisk.off", 1, 12946},
-                                         RealFile{"meshes/armadillo.off", 1, 52000},
-                                         RealFile{"meshes/3torus.off", 1, 46},
-                                         RealFile{"meshes/gearwheel.bin.stl", 1, 2444},
-                                         RealFile{"meshes/bunny.bin.stl", 1, 69451}));
+INSTANTIATE_TEST_SUITE_P(
+    SharedData, AssimpRealFileTest,
+    testing::Values(RealFile{"ships/truman.ac", 229, 99144}, RealFile{"ships/ContainerShip.ac", 29, 2054},
+                    RealFile{"ships/Freighter.ac", 26, 1573}, RealFile{"meshes/fandisk.off", 1, 12946},
+                    RealFile{"meshes/armadillo.off", 1, 52000}, RealFile{"meshes/3torus.off", 1, 46},
+                    RealFile{"meshes/gearwheel.bin.stl", 1, 2444},
+                    RealFile{"meshes/bunny.bin.stl", 1, 69451}));
 
 }  // namespace
 }  // namespace mktree

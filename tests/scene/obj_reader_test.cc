@@ -17,8 +17,8 @@ namespace fs = std::filesystem;
 // Writes `content` to a fresh file in a per-test temp dir and returns its path.
 std::string WriteTemp(const std::string& content, const std::string& name = "scene.obj") {
   const auto* info = testing::UnitTest::GetInstance()->current_test_info();
-  fs::path dir = fs::temp_directory_path() /
-                 ("mktree_obj_" + std::to_string(::getpid()) + "_" + info->test_suite_name() + "_" + info->name());
+  fs::path dir = fs::temp_directory_path() / ("mktree_obj_" + std::to_string(::getpid()) + "_" +
+                                              info->test_suite_name() + "_" + info->name());
   fs::create_directories(dir);
   fs::path p = dir / name;
   std::ofstream(p, std::ios::binary) << content;
@@ -240,7 +240,8 @@ TEST(ObjReaderErrorTest, UnknownAndUnsupportedDirectives) {
 }
 
 TEST(ObjReaderErrorTest, TruncatedLastLine) {
-  ExpectError(std::string(kThree) + "f 1 2 3\nv 1 2", 5, "too few coordinates (2, need x y z) (the file ends inside");
+  ExpectError(std::string(kThree) + "f 1 2 3\nv 1 2", 5,
+              "too few coordinates (2, need x y z) (the file ends inside");
   ExpectError(std::string(kThree) + "f 1 2", 4, "truncated?");
   ExpectError(std::string(kThree) + "f 1 2 3\nv 1 2 3e", 5, "bad number '3e'");
   ExpectError(std::string(kThree) + "f 1 2 \\\n", 4, "truncated?");  // continuation into end of file
