@@ -2,9 +2,10 @@
 // same point, so a triangle soup (binary STL, one vertex per corner) is judged like its welded form.
 // Triangles with two equal corners (after welding) have no area and are ignored.
 //
-// Cost: O(V log V + T log T) (two sorts), about 10 ms for 50k triangles. Cheap enough for ingest, where
-// the result should be stored per object; at query time pass it to SolidClassifier instead of
-// recomputing it.
+// Cost: O(V log V + T log T) (four sorts): measured 23 ms for armadillo (52k triangles), 12 ms for
+// fandisk (13k), 22 us for 200 triangles. Cheap at ingest, where the result should be stored per
+// object; at query time pass it to SolidClassifier (SolidClassifierOptions::edges): recomputing it
+// costs ~50 brute-force point queries.
 //
 // Thread-safety: pure functions.
 #pragma once

@@ -20,7 +20,7 @@
 //   holes it is the solid a user sees, with the holes "patched" smoothly (a point in the bunny's body has
 //   w ~ 1, a point outside w ~ 0); an open sheet (a single plate face) encloses nothing (|w| < 1/2 off
 //   the sheet) so only contact with the surface counts. |w| rather than w makes inverted orientation
-//   irrelevant. Cost: one atan2 per triangle per query, no acceleration.
+//   irrelevant. Cost: one atan2 per triangle per query, no acceleration (bunny, 69k triangles: ~5 ms).
 //
 // Surface contact (both methods): a point within `tolerance()` of a triangle is on the surface and
 //   therefore inside (closed solid). tolerance = 1e-9 x bounding-box diagonal + 4 ulp(largest
@@ -96,7 +96,9 @@ class SolidClassifier {
   std::vector<uint32_t> cell_tris_;
 };
 
-// Grid pays off when expected_queries >= this (measured: build ~ this many brute-force queries).
+// Grid pays off when expected_queries >= this. Measured (Release, one core): building the grid costs
+// 6 brute-force parity queries on armadillo (2.9 ms vs 0.45 ms) and 20 on fandisk (1.1 ms vs 56 us);
+// a grid query then costs ~0.5 us instead.
 inline constexpr size_t kGridBreakEven = 8;
 // Below this many triangles a brute-force query is as fast as a grid lookup.
 inline constexpr size_t kGridMinTriangles = 256;
