@@ -16,7 +16,7 @@ namespace {
 
 struct GenerateOptions {
   std::string kind;
-  uint64_t objects = 0;
+  int64_t objects = 0;  // signed so that a negative count is reported as such, not wrapped
   uint64_t seed = 1;
   std::string output;
 };
@@ -28,9 +28,12 @@ bool EndsWith(const std::string& s, const std::string& suffix) {
 struct ClassTally {
   uint64_t pipes = 0, plates = 0, equipment = 0;
   void Count(const std::string& name) {
-    if (name.starts_with("pipe_")) ++pipes;
-    else if (name.starts_with("plate_")) ++plates;
-    else ++equipment;
+    if (name.starts_with("pipe_"))
+      ++pipes;
+    else if (name.starts_with("plate_"))
+      ++plates;
+    else
+      ++equipment;
   }
 };
 
@@ -57,13 +60,13 @@ Result<uint64_t> GenerateInto(const std::string& path, SceneSource* source, Clas
 }
 
 int RunGenerate(const GenerateOptions& opt) {
-  if (opt.objects == 0) return Fail("--objects must be at least 1");
-  if (opt.objects > (uint64_t{1} << 32)) return Fail("--objects must be at most 2^32 (object ids are 32-bit)");
+  if (opt.objects <= 0) return Fail("--objects must be at least 1");
+  if (opt.objects > (int64_t{1} << 32)) return Fail("--objects must be at most 2^32 (object ids are 32-bit)");
   const bool obj = EndsWith(opt.output, ".obj"), mks = EndsWith(opt.output, ".mks");
   if (!obj && !mks) return Fail(opt.output + ": unknown scene extension (use .obj or .mks)");
 
   const auto start = std::chrono::steady_clock::now();
-  std::unique_ptr<SceneSource> source = MakeTankerSource(opt.objects, opt.seed);
+  std::unique_ptr<SceneSource> source = MakeTankerSource(static_cast<uint64_t>(opt.objects), opt.seed);
   ClassTally tally;
   Result<uint64_t> bytes = obj ? GenerateInto<ObjWriter>(opt.output, source.get(), &tally)
                                : GenerateInto<MkSceneWriter>(opt.output, source.get(), &tally);
@@ -88,9 +91,12 @@ int RunGenerate(const GenerateOptions& opt) {
 void RegisterGenerate(CLI::App& app, CommandRun* run) {
   auto opt = std::make_shared<GenerateOptions>();
   CLI::App* cmd = app.add_subcommand("generate", "Generate a synthetic scene (the tanker) as .obj or .mks");
-  cmd->add_option("kind", opt->kind, "Scene kind (only 'tanker')")->required()->check(CLI::IsMember({"tanker"}));
+  cmd->add_option("kind", opt->kind, "Scene kind (only 'tanker')")
+      ->required()
+      ->check(CLI::IsMember({"tanker"}));
   cmd->add_option("--objects", opt->objects, "Number of objects N (>= 1)")->required();
-  cmd->add_option("--seed", opt->seed, "Random seed: the same seed gives the same file")->capture_default_str();
+  cmd->add_option("--seed", opt->seed, "Random seed: the same seed gives the same file")
+      ->capture_default_str();
   cmd->add_option("-o,--output", opt->output, "Output scene: SCENE.obj or SCENE.mks")->required();
   cmd->callback([opt, run] { *run = [opt] { return RunGenerate(*opt); }; });
 }

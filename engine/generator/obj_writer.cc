@@ -30,7 +30,8 @@ Result<std::unique_ptr<ObjWriter>> ObjWriter::Create(const std::string& path) {
   if (fd < 0) return Status::IOError(path + ": cannot create file: " + ErrnoText());
   (void)::fchmod(fd, 0644);  // mkstemp makes it 0600; a scene is an ordinary file
   auto writer = std::unique_ptr<ObjWriter>(new ObjWriter(path, temp, fd));
-  static constexpr char kHeader[] = "# mktree scene (Wavefront OBJ): one `o` per object, relative face indices\n";
+  static constexpr char kHeader[] =
+      "# mktree scene (Wavefront OBJ): one `o` per object, relative face indices\n";
   writer->buffer_.insert(writer->buffer_.end(), kHeader, kHeader + sizeof(kHeader) - 1);
   return writer;
 }
@@ -62,7 +63,8 @@ Status ObjWriter::Write(const SceneObject& object) {
   const Mesh& mesh = object.mesh;
   const size_t nv = mesh.vertex_count();
   if (object.name.find_first_of("\r\n") != std::string::npos)
-    return Status::InvalidArgument(path_ + ": object " + std::to_string(object.id) + ": name has a line break");
+    return Status::InvalidArgument(path_ + ": object " + std::to_string(object.id) +
+                                   ": name has a line break");
   for (uint32_t t : mesh.triangles)
     if (t >= nv)
       return Status::InvalidArgument(path_ + ": object " + std::to_string(object.id) + " (" + object.name +

@@ -46,8 +46,8 @@ void CosSin(double theta, double* c, double* s) {
   const double x2 = theta * theta;
   double cs = 1.0, sn = 1.0;
   for (int k = 30; k >= 2; k -= 2) {
-    cs = 1.0 - x2 / (k * (k - 1)) * cs;      // 1 - x^2/2! (1 - x^2/(4*3) (...))
-    sn = 1.0 - x2 / ((k + 1) * k) * sn;      // 1 - x^2/3! (1 - x^2/(5*4) (...))
+    cs = 1.0 - x2 / (k * (k - 1)) * cs;  // 1 - x^2/2! (1 - x^2/(4*3) (...))
+    sn = 1.0 - x2 / ((k + 1) * k) * sn;  // 1 - x^2/3! (1 - x^2/(5*4) (...))
   }
   *c = cs;
   *s = theta * sn;
@@ -76,26 +76,30 @@ void AddBox(Mesh* m, const double lo[3], const double hi[3]) {
     const double p[3] = {(i & 1) ? hi[0] : lo[0], (i & 2) ? hi[1] : lo[1], (i & 4) ? hi[2] : lo[2]};
     AddVertex(m, p);
   }
-  static constexpr uint32_t kFaces[12][3] = {{0, 4, 6}, {0, 6, 2}, {1, 3, 7}, {1, 7, 5}, {0, 1, 5}, {0, 5, 4},
-                                             {2, 6, 7}, {2, 7, 3}, {0, 2, 3}, {0, 3, 1}, {4, 5, 7}, {4, 7, 6}};
+  static constexpr uint32_t kFaces[12][3] = {{0, 4, 6}, {0, 6, 2}, {1, 3, 7}, {1, 7, 5},
+                                             {0, 1, 5}, {0, 5, 4}, {2, 6, 7}, {2, 7, 3},
+                                             {0, 2, 3}, {0, 3, 1}, {4, 5, 7}, {4, 7, 6}};
   for (const auto& f : kFaces) AddTriangle(m, base + f[0], base + f[1], base + f[2]);
 }
 
-// Right prism of `sides` sides around an axis parallel to `axis`, from s0 to s1 along it, its centre at
-// (cp, cq) in the two other axes p = axis+1, q = axis+2 (cyclic, so p x q = axis). Caps are fans.
+constexpr int kMaxSides = 32;
+
+// Right prism of `sides` sides (3 <= sides <= kMaxSides) around an axis parallel to `axis`, from s0 to s1
+// along it, its centre at (cp, cq) in the two other axes p = axis+1, q = axis+2 (cyclic, so p x q = axis).
+// Caps are fans.
 void AddPrism(Mesh* m, int axis, double cp, double cq, double radius, double s0, double s1, int sides,
               double phase) {
   const int p = (axis + 1) % 3, q = (axis + 2) % 3;
   const uint32_t base = static_cast<uint32_t>(m->vertex_count());
   const uint32_t n = static_cast<uint32_t>(sides);
+  double ring[kMaxSides][2];  // the unit circle, computed once for both ends
+  for (int k = 0; k < sides; ++k) CosSin(phase + 2 * kPi * k / sides, &ring[k][0], &ring[k][1]);
   for (int end = 0; end < 2; ++end) {
     for (int k = 0; k < sides; ++k) {
-      double c, s;
-      CosSin(phase + 2 * kPi * k / sides, &c, &s);
       double v[3];
       v[axis] = end ? s1 : s0;
-      v[p] = cp + radius * c;
-      v[q] = cq + radius * s;
+      v[p] = cp + radius * ring[k][0];
+      v[q] = cq + radius * ring[k][1];
       AddVertex(m, v);
     }
   }
@@ -112,8 +116,8 @@ void AddPrism(Mesh* m, int axis, double cp, double cq, double radius, double s0,
 }
 
 // ---- Layout --------------------------------------------------------------------------------------------
-uint64_t PlatesAmongFirst(uint64_t m) { return (3 * m + 5) / 10; }   // round(0.3 m)
-uint64_t EquipmentAmongFirst(uint64_t m) { return (m + 5) / 10; }    // round(0.1 m)
+uint64_t PlatesAmongFirst(uint64_t m) { return (3 * m + 5) / 10; }  // round(0.3 m)
+uint64_t EquipmentAmongFirst(uint64_t m) { return (m + 5) / 10; }   // round(0.1 m)
 
 // The compartment grid for a scene of `objects` objects: nx * ny * nz cells in the hull's proportions.
 struct Grid {
@@ -149,9 +153,9 @@ void TileGrid(uint64_t count, double w, double h, uint64_t* gx, uint64_t* gy) {
 // Everything about one compartment that its objects share.
 struct Compartment {
   uint64_t index = 0;
-  double lo[3] = {}, hi[3] = {};     // the cell between bulkheads and decks
+  double lo[3] = {}, hi[3] = {};        // the cell between bulkheads and decks
   double in_lo[3] = {}, in_hi[3] = {};  // its free interior, clear of deck plates and bulkhead panels
-  uint64_t count = 0;                 // objects in it: plates first, then pipes, then equipment
+  uint64_t count = 0;                   // objects in it: plates first, then pipes, then equipment
   uint64_t plates = 0, pipes = 0, equipment = 0;
   uint64_t deck = 0, wall_x = 0, wall_y = 0, stiffeners = 0;
   uint64_t deck_g[2] = {1, 1}, wall_x_g[2] = {1, 1}, wall_y_g[2] = {1, 1};
@@ -159,8 +163,8 @@ struct Compartment {
   uint32_t rack_size = 1, cluster_size = 1;
 };
 
-constexpr double kMaxDeck = 0.03;     // deck plates are at most this thick
-constexpr double kPlateGap = 0.001;   // between neighbouring tiles, so plates do not share faces
+constexpr double kMaxDeck = 0.03;    // deck plates are at most this thick
+constexpr double kPlateGap = 0.001;  // between neighbouring tiles, so plates do not share faces
 
 class TankerSource final : public SceneSource {
  public:
@@ -203,7 +207,8 @@ class TankerSource final : public SceneSource {
     k.index = c;
     local_ = 0;
     if (c >= grid_.count()) return;
-    const uint64_t iz = c % grid_.n[2], iy = (c / grid_.n[2]) % grid_.n[1], ix = c / (grid_.n[2] * grid_.n[1]);
+    const uint64_t iz = c % grid_.n[2], iy = (c / grid_.n[2]) % grid_.n[1],
+                   ix = c / (grid_.n[2] * grid_.n[1]);
     const uint64_t idx[3] = {ix, iy, iz};
     for (int d = 0; d < 3; ++d) {
       const double span = kHullMax[d] - kHullMin[d];
@@ -277,7 +282,8 @@ class TankerSource final : public SceneSource {
       lo[0] = k.lo[0];
       hi[0] = k.lo[0] + wt;
     } else if ((i -= k.wall_x) < k.wall_y) {  // longitudinal bulkhead panel on the port wall
-      Tile(i, k.wall_y_g, k.lo[0] + wt + kPlateGap, k.hi[0], wall_z0, wall_z1, &lo[0], &hi[0], &lo[2], &hi[2]);
+      Tile(i, k.wall_y_g, k.lo[0] + wt + kPlateGap, k.hi[0], wall_z0, wall_z1, &lo[0], &hi[0], &lo[2],
+           &hi[2]);
       lo[1] = k.lo[1];
       hi[1] = k.lo[1] + wt;
     } else {  // stiffeners: even ones are deck longitudinals under the deck above, odd ones vertical
@@ -319,7 +325,8 @@ class TankerSource final : public SceneSource {
     const int sides = 8 + static_cast<int>(rack.Below(9));
     const double phase = rack.Uniform() * 2 * kPi / sides;
     const double pitch = 1.2 * std::min(0.5, 1.15 * d) + 0.04;
-    const double ext_p = k.in_hi[p] - k.in_lo[p], ext_q = k.in_hi[q] - k.in_lo[q], ext_a = k.in_hi[a] - k.in_lo[a];
+    const double ext_p = k.in_hi[p] - k.in_lo[p], ext_q = k.in_hi[q] - k.in_lo[q],
+                 ext_a = k.in_hi[a] - k.in_lo[a];
     const uint64_t per_row =
         std::clamp<uint64_t>(static_cast<uint64_t>(std::max(0.0, ext_p / pitch)), 1, k.rack_size);
     const uint64_t layers = (k.rack_size + per_row - 1) / per_row;
@@ -329,8 +336,8 @@ class TankerSource final : public SceneSource {
         k.in_lo[q] + pitch / 2 + rack.Uniform() * std::max(0.0, ext_q - static_cast<double>(layers) * pitch);
     // Length: most racks stay in the cell; long runs go through the bulkheads, up to 40 m.
     const bool long_run = rack.Uniform() < 0.35;
-    const double length = long_run ? rack.Uniform(std::min(ext_a, 40.0), 40.0)
-                                   : rack.Uniform(0.3, std::min(40.0, ext_a));
+    const double length =
+        long_run ? rack.Uniform(std::min(ext_a, 40.0), 40.0) : rack.Uniform(0.3, std::min(40.0, ext_a));
     const double start = k.in_lo[a] + rack.Uniform() * std::max(0.0, ext_a - length);
     const double end = std::max(start + std::min(0.3, ext_a), std::min(start + length, kHullMax[a] - 0.1));
 
@@ -354,7 +361,8 @@ class TankerSource final : public SceneSource {
     Rng cluster(seed_, kCluster, k.index, c);
     const int row_axis = static_cast<int>(cluster.Below(2));  // pumps in a row along x or along y
     const double pitch = size_max + 0.2;
-    const double centre[2] = {cluster.Uniform(k.in_lo[0], k.in_hi[0]), cluster.Uniform(k.in_lo[1], k.in_hi[1])};
+    const double centre[2] = {cluster.Uniform(k.in_lo[0], k.in_hi[0]),
+                              cluster.Uniform(k.in_lo[1], k.in_hi[1])};
 
     Rng item(seed_, kEquipment, k.index, i);
     const double kind = item.Uniform();

@@ -39,7 +39,8 @@ template <typename T>
 void Append(std::vector<uint8_t>* out, T v) {
   v = ToLittle(v);
   const size_t at = out->size();
-  out->resize(at + sizeof(T));  // resize + memcpy: vector::insert here trips a GCC 12 -Warray-bounds false positive
+  out->resize(
+      at + sizeof(T));  // resize + memcpy: vector::insert here trips a GCC 12 -Warray-bounds false positive
   std::memcpy(out->data() + at, &v, sizeof(T));
 }
 
@@ -79,7 +80,11 @@ void LoadArray(const uint8_t* p, size_t count, std::vector<T>* out) {
 class MkSceneSource final : public SceneSource {
  public:
   MkSceneSource(std::string path, std::FILE* file, uint64_t file_size, ObjectId first_id)
-      : path_(std::move(path)), file_(file), file_size_(file_size), first_id_(first_id), offset_(kHeaderBytes) {}
+      : path_(std::move(path)),
+        file_(file),
+        file_size_(file_size),
+        first_id_(first_id),
+        offset_(kHeaderBytes) {}
   ~MkSceneSource() override { std::fclose(file_); }
 
   Result<bool> Next(SceneObject* out) override {
@@ -100,12 +105,14 @@ class MkSceneSource final : public SceneSource {
   Status Read(size_t n) {
     const uint64_t have = offset_ + record_.size();
     if (n > file_size_ - have)
-      return Corrupt("truncated: record needs " + std::to_string(n) + " bytes at offset " +
-                     std::to_string(have) + ", file has " + std::to_string(file_size_ - have) + " left");
+      return Corrupt("truncated (or a corrupt length): record needs " + std::to_string(n) +
+                     " bytes at offset " + std::to_string(have) + ", file has " +
+                     std::to_string(file_size_ - have) + " left");
     const size_t at = record_.size();
     record_.resize(at + n);
     if (n && std::fread(record_.data() + at, 1, n, file_) != n) {
-      if (std::ferror(file_)) return Status::IOError(path_ + ": read failed at offset " + std::to_string(have));
+      if (std::ferror(file_))
+        return Status::IOError(path_ + ": read failed at offset " + std::to_string(have));
       return Corrupt("truncated: unexpected end of file at offset " + std::to_string(have));
     }
     return Status::Ok();
@@ -125,7 +132,8 @@ class MkSceneSource final : public SceneSource {
         return Corrupt("end record says " + std::to_string(count) + " objects, file holds " +
                        std::to_string(objects_));
       if (offset_ + kEndBytes != file_size_)
-        return Corrupt(std::to_string(file_size_ - offset_ - kEndBytes) + " trailing bytes after the end record");
+        return Corrupt(std::to_string(file_size_ - offset_ - kEndBytes) +
+                       " trailing bytes after the end record");
       done_ = true;
       return false;
     }
@@ -164,8 +172,8 @@ class MkSceneSource final : public SceneSource {
   std::FILE* const file_;
   const uint64_t file_size_;
   const ObjectId first_id_;
-  uint64_t offset_;        // file offset of the current record
-  uint64_t objects_ = 0;   // records read so far
+  uint64_t offset_;       // file offset of the current record
+  uint64_t objects_ = 0;  // records read so far
   bool done_ = false;
   bool failed_ = false;
   std::vector<uint8_t> record_;
@@ -189,7 +197,8 @@ Result<std::unique_ptr<SceneSource>> OpenMkSceneFile(const std::string& path, Ob
   const size_t got = std::fread(header, 1, kHeaderBytes, f);
   Status bad;
   if (got < kHeaderBytes) {
-    bad = Status::Corruption(path + ": not an .mks scene: truncated header (" + std::to_string(got) + " bytes)");
+    bad = Status::Corruption(path + ": not an .mks scene: truncated header (" + std::to_string(got) +
+                             " bytes)");
   } else if (std::memcmp(header, kMagic, sizeof(kMagic)) != 0) {
     bad = Status::Corruption(path + ": not an .mks scene: bad magic");
   } else if (const uint32_t version = Load<uint32_t>(header + 8); version != kVersion) {
@@ -244,11 +253,12 @@ Status MkSceneWriter::Write(const SceneObject& object) {
   const Mesh& mesh = object.mesh;
   const size_t nv = mesh.vertex_count(), nt = mesh.triangle_count();
   auto what = [&] { return path_ + ": object " + std::to_string(objects_) + " (" + object.name + "): "; };
-  if (object.name.size() > UINT32_MAX || nv > UINT32_MAX || nt > UINT32_MAX || mesh.vertices.size() != 3 * nv ||
-      mesh.triangles.size() != 3 * nt)
+  if (object.name.size() > UINT32_MAX || nv > UINT32_MAX || nt > UINT32_MAX ||
+      mesh.vertices.size() != 3 * nv || mesh.triangles.size() != 3 * nt)
     return Status::InvalidArgument(what() + "too large or malformed for .mks");
   for (uint32_t t : mesh.triangles)
-    if (t >= nv) return Status::InvalidArgument(what() + "triangle index " + std::to_string(t) + " out of range");
+    if (t >= nv)
+      return Status::InvalidArgument(what() + "triangle index " + std::to_string(t) + " out of range");
   record_.clear();
   Append<uint32_t>(&record_, kObjectTag);
   Append<uint32_t>(&record_, static_cast<uint32_t>(object.name.size()));

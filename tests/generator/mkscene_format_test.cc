@@ -160,8 +160,8 @@ TEST_F(MkSceneFormatTest, TruncationAtEveryRecordBoundaryAndInsideIsAnError) {
   WriteTanker(path, 20);
   const std::string good = Slurp(path);
   ASSERT_TRUE(ReadAll(path).ok());
-  for (size_t cut : {good.size() - 1, good.size() - 24, good.size() / 2, size_t{17}, size_t{16}, size_t{10},
-                     size_t{0}}) {
+  for (size_t cut :
+       {good.size() - 1, good.size() - 24, good.size() / 2, size_t{17}, size_t{16}, size_t{10}, size_t{0}}) {
     Spit(path, good.substr(0, cut));
     const Status st = ReadAll(path);
     ASSERT_FALSE(st.ok()) << cut;

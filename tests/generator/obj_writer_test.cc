@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "engine/generator/tanker_generator.h"
+#include "engine/scene/obj_reader.h"
 #include "generator/mesh_checks.h"
 
 namespace mktree {
@@ -92,6 +93,30 @@ TEST_F(ObjWriterTest, OutputParsesBackToTheSameScene) {
     EXPECT_EQ(parsed[i].name, objects[i].name);
     EXPECT_EQ(parsed[i].mesh.vertices, objects[i].mesh.vertices) << i;  // to_chars round-trips floats
     EXPECT_EQ(parsed[i].mesh.triangles, objects[i].mesh.triangles) << i;
+  }
+}
+
+// Through the project's OBJ reader, which re-indexes each mesh in first-use order: compare each triangle's
+// corner coordinates, in order.
+TEST_F(ObjWriterTest, RoundTripThroughOpenObjFile) {
+  const std::string path = dir_ / "scene.obj";
+  const auto objects = WriteTanker(path, 800, 13);
+  auto source = OpenObjFile(path, 40);
+  ASSERT_TRUE(source.ok()) << source.status().ToString();
+  const auto read = Drain(source->get());
+  ASSERT_EQ(read.size(), objects.size());
+  auto corner = [](const Mesh& m, size_t t, int c, int d) {
+    return m.vertices[3 * m.triangles[3 * t + c] + d];
+  };
+  for (size_t i = 0; i < read.size(); ++i) {
+    EXPECT_EQ(read[i].id, 40 + i);
+    EXPECT_EQ(read[i].name, objects[i].name);
+    ASSERT_EQ(read[i].mesh.triangle_count(), objects[i].mesh.triangle_count()) << i;
+    EXPECT_EQ(read[i].mesh.vertex_count(), objects[i].mesh.vertex_count()) << i;  // every vertex is used
+    for (size_t t = 0; t < read[i].mesh.triangle_count(); ++t)
+      for (int c = 0; c < 3; ++c)
+        for (int d = 0; d < 3; ++d)
+          ASSERT_EQ(corner(read[i].mesh, t, c, d), corner(objects[i].mesh, t, c, d));
   }
 }
 
