@@ -25,7 +25,8 @@ std::vector<uint32_t> WeldByPosition(const Mesh& mesh) {
   for (size_t r = 0; r < n; ++r) {
     const uint32_t i = order[r];
     const bool same_as_prev = r > 0 && v[3 * i] == v[3 * order[r - 1]] &&
-                              v[3 * i + 1] == v[3 * order[r - 1] + 1] && v[3 * i + 2] == v[3 * order[r - 1] + 2];
+                              v[3 * i + 1] == v[3 * order[r - 1] + 1] &&
+                              v[3 * i + 2] == v[3 * order[r - 1] + 2];
     canon[i] = same_as_prev ? canon[order[r - 1]] : i;
   }
   return canon;

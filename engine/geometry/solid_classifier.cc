@@ -96,13 +96,14 @@ double PointTriangleDistanceSquared(const Vec3d& p, const Vec3d& a, const Vec3d&
   // which are within 1e-10 x their length of every point of them.
   if (nn > 1e-20 * l2 * l2) {
     const Vec3d ap = Sub(p, a);
-    if (Dot(Cross(ab, ap), n) >= 0 && Dot(Cross(bc, Sub(p, b)), n) >= 0 && Dot(Cross(ca, Sub(p, c)), n) >= 0) {
+    if (Dot(Cross(ab, ap), n) >= 0 && Dot(Cross(bc, Sub(p, b)), n) >= 0 &&
+        Dot(Cross(ca, Sub(p, c)), n) >= 0) {
       const double d = Dot(ap, n);
       return d * d / nn;
     }
   }
-  return std::min({SegmentDistanceSquared(p, a, b), SegmentDistanceSquared(p, b, c),
-                   SegmentDistanceSquared(p, c, a)});
+  return std::min(
+      {SegmentDistanceSquared(p, a, b), SegmentDistanceSquared(p, b, c), SegmentDistanceSquared(p, c, a)});
 }
 
 double WindingNumber(const Mesh& mesh, const Vec3d& p) {
@@ -178,7 +179,8 @@ void SolidClassifier::BuildGrid() {
   for (size_t i = 0; i < n; ++i) {
     const CellRange& r = ranges[i];
     for (int y = r.y0; y <= r.y1; ++y)
-      for (int z = r.z0; z <= r.z1; ++z) cell_tris_[fill[static_cast<size_t>(y) * nz_ + z]++] = static_cast<uint32_t>(i);
+      for (int z = r.z0; z <= r.z1; ++z)
+        cell_tris_[fill[static_cast<size_t>(y) * nz_ + z]++] = static_cast<uint32_t>(i);
   }
 }
 
@@ -195,9 +197,13 @@ bool SolidClassifier::ParityContains(const Vec3d& p) const {
   auto visit = [&](size_t i) {  // false: stop, p is on the surface
     const uint32_t* t = tris + 3 * i;
     switch (CastAlongX(v + 3 * size_t{t[0]}, v + 3 * size_t{t[1]}, v + 3 * size_t{t[2]}, p, tol_, tol2)) {
-      case RayHit::kSurface: return false;
-      case RayHit::kCross: inside = !inside; break;
-      case RayHit::kMiss: break;
+      case RayHit::kSurface:
+        return false;
+      case RayHit::kCross:
+        inside = !inside;
+        break;
+      case RayHit::kMiss:
+        break;
     }
     return true;
   };

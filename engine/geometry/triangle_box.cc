@@ -17,8 +17,8 @@ bool Separates(const double axis[3], const double v[3][3], const double lo[3], c
     const double p = axis[k] * lo[k], q = axis[k] * hi[k];
     box_lo += std::min(p, q);
     box_hi += std::max(p, q);
-    const double m = std::max({std::fabs(lo[k]), std::fabs(hi[k]), std::fabs(v[0][k]), std::fabs(v[1][k]),
-                               std::fabs(v[2][k])});
+    const double m = std::max(
+        {std::fabs(lo[k]), std::fabs(hi[k]), std::fabs(v[0][k]), std::fabs(v[1][k]), std::fabs(v[2][k])});
     scale += std::fabs(axis[k]) * m;
   }
   double tri_lo = 0, tri_hi = 0;

@@ -70,7 +70,8 @@ TEST(ExactPredicatesTest, Orient3dMatchesIntegerArithmeticNearDegeneracy) {
     const int64_t u[3] = {step(rng), step(rng), step(rng)};
     const int64_t v[3] = {step(rng), step(rng), step(rng)};
     int64_t b[3], c[3], d[3];
-    const int64_t s1 = mult(rng), t1 = mult(rng), s2 = mult(rng), t2 = mult(rng), s3 = mult(rng), t3 = mult(rng);
+    const int64_t s1 = mult(rng), t1 = mult(rng), s2 = mult(rng), t2 = mult(rng), s3 = mult(rng),
+                  t3 = mult(rng);
     for (int k = 0; k < 3; ++k) {
       b[k] = a[k] + s1 * u[k] + t1 * v[k];
       c[k] = a[k] + s2 * u[k] + t2 * v[k];
@@ -78,7 +79,8 @@ TEST(ExactPredicatesTest, Orient3dMatchesIntegerArithmeticNearDegeneracy) {
     }
     const int want = Orient3dRef(a, b, c, d);
     double da[3], db[3], dc[3], dd[3];
-    for (int k = 0; k < 3; ++k) da[k] = a[k] * kScale, db[k] = b[k] * kScale, dc[k] = c[k] * kScale, dd[k] = d[k] * kScale;
+    for (int k = 0; k < 3; ++k)
+      da[k] = a[k] * kScale, db[k] = b[k] * kScale, dc[k] = c[k] * kScale, dd[k] = d[k] * kScale;
     ASSERT_EQ(Orient3dSign(da, db, dc, dd), want) << "iteration " << it;
     double ad[3], bd[3], cd[3];
     for (int k = 0; k < 3; ++k) ad[k] = da[k] - dd[k], bd[k] = db[k] - dd[k], cd[k] = dc[k] - dd[k];

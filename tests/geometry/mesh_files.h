@@ -24,7 +24,8 @@ inline Result<Mesh> ReadOff(const std::string& path) {
   if (!in) return Status::IOError(path + ": cannot open");
   std::string magic;
   size_t nv = 0, nf = 0, ne = 0;
-  if (!(in >> magic >> nv >> nf >> ne) || magic != "OFF") return Status::Corruption(path + ": bad OFF header");
+  if (!(in >> magic >> nv >> nf >> ne) || magic != "OFF")
+    return Status::Corruption(path + ": bad OFF header");
   Mesh m;
   m.vertices.resize(3 * nv);
   for (float& x : m.vertices)

@@ -74,7 +74,8 @@ TEST_P(ClosedMeshTest, PointsOnAndNearTheSurface) {
   for (int it = 0; it < 60; ++it) {
     const uint32_t* t = &m.triangles[3 * pick(rng)];
     const Vec3d a = VertexOf(m, t[0]), b = VertexOf(m, t[1]), c = VertexOf(m, t[2]);
-    Vec3d n{(b.y - a.y) * (c.z - a.z) - (b.z - a.z) * (c.y - a.y), (b.z - a.z) * (c.x - a.x) - (b.x - a.x) * (c.z - a.z),
+    Vec3d n{(b.y - a.y) * (c.z - a.z) - (b.z - a.z) * (c.y - a.y),
+            (b.z - a.z) * (c.x - a.x) - (b.x - a.x) * (c.z - a.z),
             (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x)};
     const double len = std::sqrt(n.x * n.x + n.y * n.y + n.z * n.z);
     if (len == 0) continue;
@@ -185,7 +186,8 @@ TEST(OpenBunnyTest, SurfaceFarOutsideNearSurfaceAndDeepInside) {
     const Vec3d g{(a.x + b.x + c.x) / 3, (a.y + b.y + c.y) / 3, (a.z + b.z + c.z) / 3};
     ASSERT_TRUE(sc.Contains(g));
     ASSERT_TRUE(sc.Contains(a));
-    Vec3d n{(b.y - a.y) * (c.z - a.z) - (b.z - a.z) * (c.y - a.y), (b.z - a.z) * (c.x - a.x) - (b.x - a.x) * (c.z - a.z),
+    Vec3d n{(b.y - a.y) * (c.z - a.z) - (b.z - a.z) * (c.y - a.y),
+            (b.z - a.z) * (c.x - a.x) - (b.x - a.x) * (c.z - a.z),
             (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x)};
     const double len = std::sqrt(n.x * n.x + n.y * n.y + n.z * n.z);
     if (len == 0) continue;

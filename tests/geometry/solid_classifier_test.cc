@@ -53,7 +53,9 @@ void CheckCube(const Vec3d& lo, double size) {
   const Mesh m = BoxMesh(lo, hi);
   const SolidClassifier sc(m);
   ASSERT_EQ(sc.method(), SolidClassifier::Method::kRayParity);
-  auto at = [&](double u, double v, double w) { return Vec3d{lo.x + u * size, lo.y + v * size, lo.z + w * size}; };
+  auto at = [&](double u, double v, double w) {
+    return Vec3d{lo.x + u * size, lo.y + v * size, lo.z + w * size};
+  };
   EXPECT_TRUE(sc.Contains(at(0.5, 0.5, 0.5)));
   EXPECT_FALSE(sc.Contains(at(1.5, 0.5, 0.5)));
   EXPECT_FALSE(sc.Contains(at(-0.5, 0.5, 0.5)));  // its +x ray runs through the whole cube
@@ -130,9 +132,11 @@ TEST(SolidClassifierTest, ConvexSphereAgainstHalfSpaces) {
     bool inside = true, near = false;
     for (size_t t = 0; t < m.triangle_count(); ++t) {
       const uint32_t* i = &m.triangles[3 * t];
-      const Vec3d a = testing::VertexOf(m, i[0]), b = testing::VertexOf(m, i[1]), c = testing::VertexOf(m, i[2]);
+      const Vec3d a = testing::VertexOf(m, i[0]), b = testing::VertexOf(m, i[1]),
+                  c = testing::VertexOf(m, i[2]);
       const Vec3d e1{b.x - a.x, b.y - a.y, b.z - a.z}, e2{c.x - a.x, c.y - a.y, c.z - a.z};
-      const Vec3d n = Normalized({e1.y * e2.z - e1.z * e2.y, e1.z * e2.x - e1.x * e2.z, e1.x * e2.y - e1.y * e2.x});
+      const Vec3d n =
+          Normalized({e1.y * e2.z - e1.z * e2.y, e1.z * e2.x - e1.x * e2.z, e1.x * e2.y - e1.y * e2.x});
       const double d = n.x * (p.x - a.x) + n.y * (p.y - a.y) + n.z * (p.z - a.z);
       if (std::fabs(d) < 1e-9) near = true;
       if (d > 0) inside = false;
@@ -243,8 +247,8 @@ TEST(SolidClassifierTest, OpenMeshesUseTheWindingNumber) {
   EXPECT_TRUE(sc.Contains({0.5, 0.5, 0.1}));
   EXPECT_FALSE(sc.Contains({0.5, 0.5, 2}));
   EXPECT_FALSE(sc.Contains({2, 0.5, 0.5}));
-  EXPECT_TRUE(sc.Contains({0.5, 0.5, 0}));    // on the bottom
-  EXPECT_TRUE(sc.Contains({1, 1, 1}));        // on the rim
+  EXPECT_TRUE(sc.Contains({0.5, 0.5, 0}));  // on the bottom
+  EXPECT_TRUE(sc.Contains({1, 1, 1}));      // on the rim
   EXPECT_FALSE(sc.Contains({1 + 1e-6, 0.5, 0.5}));
   EXPECT_TRUE(sc.Contains({1 - 1e-6, 0.5, 0.5}));
 
@@ -263,7 +267,8 @@ TEST(SolidClassifierTest, OpenMeshesUseTheWindingNumber) {
 
   // Inverted orientation does not matter (|w|).
   Mesh inverted = BoxMesh({0, 0, 0}, {1, 1, 1});
-  for (size_t t = 0; t < inverted.triangles.size(); t += 3) std::swap(inverted.triangles[t], inverted.triangles[t + 1]);
+  for (size_t t = 0; t < inverted.triangles.size(); t += 3)
+    std::swap(inverted.triangles[t], inverted.triangles[t + 1]);
   inverted.triangles.resize(inverted.triangles.size() - 6);
   const SolidClassifier si(inverted);
   EXPECT_TRUE(si.Contains({0.5, 0.5, 0.5}));

@@ -16,7 +16,8 @@
 namespace mktree::testing {
 
 inline uint32_t AddVertex(Mesh* m, double x, double y, double z) {
-  m->vertices.insert(m->vertices.end(), {static_cast<float>(x), static_cast<float>(y), static_cast<float>(z)});
+  m->vertices.insert(m->vertices.end(),
+                     {static_cast<float>(x), static_cast<float>(y), static_cast<float>(z)});
   return static_cast<uint32_t>(m->vertex_count() - 1);
 }
 
@@ -28,7 +29,8 @@ inline Vec3d VertexOf(const Mesh& m, uint32_t i) {
 inline Mesh BoxMesh(const Vec3d& lo, const Vec3d& hi) {
   Mesh m;
   for (int i = 0; i < 8; ++i) AddVertex(&m, i & 1 ? hi.x : lo.x, i & 2 ? hi.y : lo.y, i & 4 ? hi.z : lo.z);
-  const uint32_t quads[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
+  const uint32_t quads[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4},
+                                {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
   for (const auto& q : quads) m.triangles.insert(m.triangles.end(), {q[0], q[1], q[2], q[0], q[2], q[3]});
   return m;
 }
@@ -60,8 +62,8 @@ inline Mesh UvSphereMesh(int bands, int segments, double r) {
     m.triangles.insert(m.triangles.end(), {north, ring(1, s), ring(1, s + 1)});
     m.triangles.insert(m.triangles.end(), {south, ring(bands - 1, s + 1), ring(bands - 1, s)});
     for (int b = 1; b + 1 < bands; ++b)
-      m.triangles.insert(m.triangles.end(),
-                         {ring(b, s), ring(b + 1, s), ring(b + 1, s + 1), ring(b, s), ring(b + 1, s + 1), ring(b, s + 1)});
+      m.triangles.insert(m.triangles.end(), {ring(b, s), ring(b + 1, s), ring(b + 1, s + 1), ring(b, s),
+                                             ring(b + 1, s + 1), ring(b, s + 1)});
   }
   return m;
 }
@@ -118,7 +120,8 @@ inline double SurfaceDistance(const Mesh& m, const Vec3d& p) {
   double best = INFINITY;
   for (size_t t = 0; t < m.triangle_count(); ++t) {
     const uint32_t* i = &m.triangles[3 * t];
-    best = std::min(best, PointTriangleDistanceSquared(p, VertexOf(m, i[0]), VertexOf(m, i[1]), VertexOf(m, i[2])));
+    best = std::min(best,
+                    PointTriangleDistanceSquared(p, VertexOf(m, i[0]), VertexOf(m, i[1]), VertexOf(m, i[2])));
   }
   return std::sqrt(best);
 }

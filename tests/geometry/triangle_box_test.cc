@@ -57,10 +57,12 @@ TEST(TriangleBoxTest, AgreesWithClippingOnRandomCasesAwayFromDegeneracy) {
     const Box3d box = MakeBox(x, y, z, x + size(rng), y + size(rng), z + size(rng));
     // Away from degeneracy: the answer does not change when the box grows or shrinks by 1e-9.
     const double d = 1e-9;
-    const bool inner = ClipReference(a, b, c, MakeBox(box.min[0] + d, box.min[1] + d, box.min[2] + d,
-                                                       box.max[0] - d, box.max[1] - d, box.max[2] - d));
-    const bool outer = ClipReference(a, b, c, MakeBox(box.min[0] - d, box.min[1] - d, box.min[2] - d,
-                                                       box.max[0] + d, box.max[1] + d, box.max[2] + d));
+    const bool inner = ClipReference(a, b, c,
+                                     MakeBox(box.min[0] + d, box.min[1] + d, box.min[2] + d, box.max[0] - d,
+                                             box.max[1] - d, box.max[2] - d));
+    const bool outer = ClipReference(a, b, c,
+                                     MakeBox(box.min[0] - d, box.min[1] - d, box.min[2] - d, box.max[0] + d,
+                                             box.max[1] + d, box.max[2] + d));
     if (inner != outer) continue;
     ASSERT_EQ(TriangleMeetsBox(a, b, c, box), inner) << "iteration " << it;
     (inner ? meets : misses)++;
@@ -94,7 +96,8 @@ TEST(TriangleBoxTest, TouchingIsMeetingAndAHairAwayIsNot) {
   EXPECT_TRUE(TriangleMeetsBox({-10, -10, 0.5}, {10, -10, 0.5}, {0, 10, 0.5}, box));
   // Box entirely inside a flat triangle? Impossible for a thick box; a flat box in its plane works.
   EXPECT_TRUE(TriangleMeetsBox({-10, -10, 0.5}, {10, -10, 0.5}, {0, 10, 0.5}, MakeBox(0, 0, 0.5, 1, 1, 0.5)));
-  EXPECT_FALSE(TriangleMeetsBox({-10, -10, 0.5}, {10, -10, 0.5}, {0, 10, 0.5}, MakeBox(0, 0, 0.6, 1, 1, 0.6)));
+  EXPECT_FALSE(
+      TriangleMeetsBox({-10, -10, 0.5}, {10, -10, 0.5}, {0, 10, 0.5}, MakeBox(0, 0, 0.6, 1, 1, 0.6)));
 }
 
 TEST(TriangleBoxTest, DegenerateTrianglesAndBoxes) {
@@ -115,7 +118,8 @@ TEST(TriangleBoxTest, DegenerateTrianglesAndBoxes) {
   EXPECT_FALSE(TriangleMeetsBox(a, b, c, MakeBox(0.5, 0.5, 0.6, 0.5, 0.5, 0.6)));
   // Empty and unbounded boxes.
   EXPECT_FALSE(TriangleMeetsBox(a, b, c, Box3d{}));
-  EXPECT_TRUE(TriangleMeetsBox(a, b, c, MakeBox(-INFINITY, -INFINITY, -INFINITY, INFINITY, INFINITY, INFINITY)));
+  EXPECT_TRUE(
+      TriangleMeetsBox(a, b, c, MakeBox(-INFINITY, -INFINITY, -INFINITY, INFINITY, INFINITY, INFINITY)));
   EXPECT_FALSE(TriangleMeetsBox(a, b, c, MakeBox(-INFINITY, -INFINITY, 3, INFINITY, INFINITY, INFINITY)));
 }
 
