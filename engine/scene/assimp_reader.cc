@@ -159,7 +159,9 @@ Result<std::unique_ptr<SceneSource>> OpenAssimpFile(const std::string& path, Obj
       AI_CONFIG_PP_RVC_FLAGS, aiComponent_NORMALS | aiComponent_TANGENTS_AND_BITANGENTS | aiComponent_COLORS |
                                   aiComponent_TEXCOORDS | aiComponent_BONEWEIGHTS | aiComponent_ANIMATIONS |
                                   aiComponent_TEXTURES | aiComponent_LIGHTS | aiComponent_CAMERAS);
-  importer->SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
+  // Line and point meshes are skipped in Convert() rather than removed by SortByPType
+  // (AI_CONFIG_PP_SBP_REMOVE): removal fails a file that holds only lines ("No meshes remaining"), where
+  // the right answer, as for an OBJ file of `l` lines, is a scene without objects.
   // No PreTransformVertices / OptimizeMeshes / OptimizeGraph: they would merge objects or bake transforms.
   constexpr unsigned kFlags = aiProcess_RemoveComponent | aiProcess_Triangulate | aiProcess_SortByPType |
                               aiProcess_JoinIdenticalVertices | aiProcess_ValidateDataStructure;

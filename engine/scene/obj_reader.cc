@@ -115,7 +115,8 @@ class VertexTable {
  public:
   size_t size() const { return size_; }
   void Push(const float xyz[3]) {
-    if ((size_ & kBlockMask) == 0) blocks_.push_back(std::make_unique<float[]>(3 * kBlockVertices));
+    if ((size_ & kBlockMask) == 0)
+      blocks_.emplace_back(new float[3 * kBlockVertices]);  // uninitialised: filled by Push
     std::memcpy(&blocks_.back()[3 * (size_ & kBlockMask)], xyz, 3 * sizeof(float));
     ++size_;
   }
@@ -134,7 +135,7 @@ enum class GroupRule { kUnknown, kGroupsStartObjects, kGroupsIgnored };
 class ObjReader final : public SceneSource {
  public:
   ObjReader(std::string path, int fd, ObjectId first_id)
-      : path_(std::move(path)), fd_(fd), next_id_(first_id), buf_(kReadBufferBytes) {}
+      : path_(std::move(path)), fd_(fd), next_id_(first_id), buf_(new char[kReadBufferBytes]) {}
   ~ObjReader() override { ::close(fd_); }
   ObjReader(const ObjReader&) = delete;
   ObjReader& operator=(const ObjReader&) = delete;
@@ -160,8 +161,9 @@ class ObjReader final : public SceneSource {
   const int fd_;
   uint64_t next_id_;
 
-  // Read buffer: bytes [begin_, end_) are unread.
-  std::vector<char> buf_;
+  // Read buffer (uninitialised; grows only to hold the longest line): bytes [begin_, end_) are unread.
+  std::unique_ptr<char[]> buf_;
+  size_t capacity_ = kReadBufferBytes;
   size_t begin_ = 0, end_ = 0;
   bool eof_ = false;
   uint64_t line_no_ = 0;              // lines consumed so far
@@ -190,13 +192,18 @@ Status ObjReader::Error(const std::string& what) const {
 
 Status ObjReader::Fill() {
   if (begin_ > 0) {
-    std::memmove(buf_.data(), buf_.data() + begin_, end_ - begin_);
+    std::memmove(buf_.get(), buf_.get() + begin_, end_ - begin_);
     end_ -= begin_;
     begin_ = 0;
   }
-  if (end_ == buf_.size()) buf_.resize(buf_.size() * 2);  // a line longer than the buffer
+  if (end_ == capacity_) {  // a line longer than the buffer
+    std::unique_ptr<char[]> bigger(new char[2 * capacity_]);
+    std::memcpy(bigger.get(), buf_.get(), end_);
+    buf_ = std::move(bigger);
+    capacity_ *= 2;
+  }
   while (true) {
-    ssize_t n = ::read(fd_, buf_.data() + end_, buf_.size() - end_);
+    ssize_t n = ::read(fd_, buf_.get() + end_, capacity_ - end_);
     if (n < 0 && errno == EINTR) continue;
     if (n < 0) return Status::IOError(Errno(path_));
     if (n == 0) eof_ = true;
@@ -213,15 +220,15 @@ Result<bool> ObjReader::NextRecord(std::string_view* line) {
     std::string_view raw;
     const char* nl = nullptr;
     while (true) {
-      nl = static_cast<const char*>(std::memchr(buf_.data() + begin_, '\n', end_ - begin_));
+      nl = static_cast<const char*>(std::memchr(buf_.get() + begin_, '\n', end_ - begin_));
       if (nl != nullptr || eof_) break;
       MKTREE_RETURN_IF_ERROR(Fill());
     }
     if (nl != nullptr) {
-      raw = std::string_view(buf_.data() + begin_, nl - (buf_.data() + begin_));
-      begin_ = nl - buf_.data() + 1;
+      raw = std::string_view(buf_.get() + begin_, nl - (buf_.get() + begin_));
+      begin_ = nl - buf_.get() + 1;
     } else if (begin_ < end_) {
-      raw = std::string_view(buf_.data() + begin_, end_ - begin_);
+      raw = std::string_view(buf_.get() + begin_, end_ - begin_);
       begin_ = end_;
       record_unterminated_ = true;
     } else if (continued) {
@@ -377,11 +384,11 @@ Status ObjReader::ParseFace(std::string_view rest) {
 Result<bool> ObjReader::FileHasObjectLines() {
   int fd = ::open(path_.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) return Status::IOError(Errno(path_));
-  std::vector<char> buf(kReadBufferBytes);
+  std::unique_ptr<char[]> buf(new char[kReadBufferBytes]);
   enum { kLineStart, kSawO, kInLine } state = kLineStart;
   bool found = false;
   while (!found) {
-    ssize_t n = ::read(fd, buf.data(), buf.size());
+    ssize_t n = ::read(fd, buf.get(), kReadBufferBytes);
     if (n < 0 && errno == EINTR) continue;
     if (n < 0) {
       Status st = Status::IOError(Errno(path_));
@@ -392,7 +399,7 @@ Result<bool> ObjReader::FileHasObjectLines() {
       found = state == kSawO;
       break;
     }
-    const char* p = buf.data();
+    const char* p = buf.get();
     const char* end = p + n;
     while (p < end && !found) {
       char c = *p;

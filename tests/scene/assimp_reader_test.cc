@@ -136,6 +136,18 @@ TEST(AssimpReaderTest, AcObjectsWithTrianglesBecomeObjectsInNodeOrder) {
   EXPECT_EQ(b.max, (std::array<double, 3>{1, 1, 1}));
 }
 
+TEST(AssimpReaderTest, AFileOfLinesOnlyGivesNoObjects) {
+  std::string ac = kNestedAc;
+  // Keep only the world and the "wire" object.
+  std::string lines_only =
+      ac.substr(0, ac.find("OBJECT world")) + "OBJECT world\nkids 1\n" +
+      ac.substr(ac.find("OBJECT poly\nname \"wire\""),
+                ac.find("OBJECT poly\nname \"two_materials\"") - ac.find("OBJECT poly\nname \"wire\""));
+  auto r = ReadAll(WriteTemp(lines_only, "wire.ac"));
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_TRUE(r->empty());
+}
+
 // One triangle (0,0,0) (1,0,0) (0,1,0) in a buffer, used by three nodes:
 //   "parent" (translate 10,0,0; quarter turn about z) > "child" (translate 0,5,0) -> mesh 0
 //   "scaled" (scale 2) -> mesh 0 again (an instance: a second object)
