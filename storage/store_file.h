@@ -111,7 +111,6 @@ class StoreReader {
   StoreReader() = default;  // use Open
 
  private:
-  friend struct StoreReaderAccess;
   std::string path_;
   std::unique_ptr<PageStore> pages_;
   StoreOptions options_;
