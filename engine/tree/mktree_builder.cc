@@ -172,7 +172,7 @@ class SubtreeBuilder {
         q.min[w] = best.a;
         q.max[w] = best.b;
         BalanceWindow window{best.k, k_lo, k_hi};
-        BuildSplitTree(q, &items_, s_.params.split_tree_node_budget, &window, &split);
+        BuildSplitTree(q, &items_, s_.params.split_tree_node_budget, &window, &split, s_.tuning.split_min_gain);
         for (size_t i = 0; i < items_.size(); ++i) s_.side[overlap_ids_[i]] = items_[i].side;
       }
     }

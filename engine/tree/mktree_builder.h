@@ -44,6 +44,9 @@ struct BuildTuning {
   bool fill_aware = true;
   uint32_t fill_aware_pages = 4;
   uint32_t fill_sm_slack = 1;
+  // A SplitTree cut is made only when it saves at least this share of the routing cost of a point spread
+  // over the overlap region Q (see split_tree_builder.h): it keeps SplitTrees to the cuts that matter.
+  double split_min_gain = 0.01;
   // Threads used (1 or 2): with 2, the two subtrees of the root are built concurrently.
   int threads = 2;
 };

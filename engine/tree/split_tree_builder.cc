@@ -1,6 +1,9 @@
 #include "engine/tree/split_tree_builder.h"
 
 #include <algorithm>
+#include <bit>
+#include <cmath>
+#include <limits>
 #include <queue>
 
 namespace mktree {
@@ -8,196 +11,242 @@ namespace {
 
 constexpr uint8_t kLeftBit = 1, kRightBit = 2;
 
+inline uint8_t SideBit(uint8_t side) { return side == SplitItem::kLeft ? kLeftBit : side == SplitItem::kRight ? kRightBit : 0; }
+
 struct Cell {
   Box3f region;
   std::vector<uint32_t> items;  // items whose clipped box meets the closed region
-  uint32_t left = 0, right = 0; // fixed items of each side
   uint32_t node = 0;            // its SplitNode in `out`
-  uint32_t mixing() const { return std::min(left, right); }
+  uint8_t label = 0;            // sides of the resolved items meeting it
 };
 
 struct Cut {
   int axis = -1;
   float pos = 0;
-  uint32_t cost = 0;
-  double off_center = 0;
+  double gain = 0;
 };
 
-// count of values <= c (le) or < c (lt) in a sorted array, with a pointer that only moves forward.
-struct Cursor {
-  const std::vector<float>* v;
-  size_t i = 0;
-  size_t Le(float c) {
-    while (i < v->size() && (*v)[i] <= c) ++i;
-    return i;
+// Routing cost model: a point of Q in a cell is sent to popcount(label) children. A cell's cost is its
+// share of Q's volume times that count; a cut's gain is how much it lowers the cost. (Axes along which Q
+// is flat are left out of the volume, so flat regions still compare by area.)
+class CostModel {
+ public:
+  explicit CostModel(const Box3f& q) {
+    for (int u = 0; u < 3; ++u) inv_extent_[u] = q.max[u] > q.min[u] ? 1.0 / (double{q.max[u]} - q.min[u]) : 0;
   }
-  size_t Lt(float c) {
-    while (i < v->size() && (*v)[i] < c) ++i;
-    return i;
+  double Volume(const Box3f& b) const {
+    double v = 1;
+    for (int u = 0; u < 3; ++u)
+      if (inv_extent_[u] > 0) v *= (double{b.max[u]} - b.min[u]) * inv_extent_[u];
+    return v;
   }
+
+ private:
+  double inv_extent_[3];
 };
 
-// The cut of `cell` leaving the fewest items on its wrong side; cost = mixing of the cell if none helps.
-Cut BestCut(const Cell& cell, const std::vector<SplitItem>& items) {
+// The best cut of a cell: the label of the part below a cut c has L iff some L item has min <= c, and
+// the part above has L iff some L item has max >= c, so the cost only changes just past the extremes of
+// each side's items; the candidates are the floats just outside them.
+Cut BestCut(const Cell& cell, const std::vector<SplitItem>& items, const CostModel& cm) {
   Cut best;
-  best.cost = cell.mixing();
-  std::vector<float> lmin, lmax, rmin, rmax, fmin, fmax, all;
+  const double vol = cm.Volume(cell.region);
+  if (vol <= 0 || cell.label == 0) return best;
+  const int cost_now = std::popcount(cell.label);
+  constexpr float kInf = std::numeric_limits<float>::infinity();
+  float lo_of[2][3], hi_of[2][3];  // [side][axis] extremes of resolved items within the cell
+  for (int s = 0; s < 2; ++s)
+    for (int u = 0; u < 3; ++u) lo_of[s][u] = kInf, hi_of[s][u] = -kInf;
+  for (uint32_t i : cell.items) {
+    const SplitItem& it = items[i];
+    if (it.side == SplitItem::kFree) continue;
+    for (int u = 0; u < 3; ++u) {
+      lo_of[it.side][u] = std::min(lo_of[it.side][u], std::max(it.box.min[u], cell.region.min[u]));
+      hi_of[it.side][u] = std::max(hi_of[it.side][u], std::min(it.box.max[u], cell.region.max[u]));
+    }
+  }
   for (int u = 0; u < 3; ++u) {
     const float lo = cell.region.min[u], hi = cell.region.max[u];
     if (!(lo < hi)) continue;
-    lmin.clear(); lmax.clear(); rmin.clear(); rmax.clear(); fmin.clear(); fmax.clear(); all.clear();
-    for (uint32_t i : cell.items) {
-      const SplitItem& it = items[i];
-      const float mn = std::max(it.box.min[u], lo), mx = std::min(it.box.max[u], hi);
-      auto& vmin = it.side == SplitItem::kLeft ? lmin : (it.side == SplitItem::kRight ? rmin : fmin);
-      auto& vmax = it.side == SplitItem::kLeft ? lmax : (it.side == SplitItem::kRight ? rmax : fmax);
-      vmin.push_back(mn);
-      vmax.push_back(mx);
-      all.push_back(mn);
-      all.push_back(mx);
+    float cand[4];
+    int nc = 0;
+    for (int s = 0; s < 2; ++s) {
+      if (lo_of[s][u] == kInf) continue;
+      cand[nc++] = std::nextafter(lo_of[s][u], -kInf);
+      cand[nc++] = std::nextafter(hi_of[s][u], kInf);
     }
-    for (auto* v : {&lmin, &lmax, &rmin, &rmax, &fmin, &fmax, &all}) std::sort(v->begin(), v->end());
-    all.erase(std::unique(all.begin(), all.end()), all.end());
-    Cursor c_lmin{&lmin}, c_rmin{&rmin}, c_fmin{&fmin}, c_lmax{&lmax}, c_rmax{&rmax}, c_fmax{&fmax};
-    const double center = 0.5 * (double{lo} + double{hi}), extent = double{hi} - double{lo};
-    for (size_t g = 0; g + 1 < all.size(); ++g) {
-      // One cut per gap between consecutive endpoints covers every distinct way to split the items.
-      const float c = static_cast<float>(0.5 * (double{all[g]} + double{all[g + 1]}));
+    for (int k = 0; k < nc; ++k) {
+      const float c = cand[k];
       if (!(c > lo && c < hi)) continue;
-      // Closed cells: the lower cell gets items with min <= c, the upper one items with max >= c.
-      const size_t l_low = c_lmin.Le(c), r_low = c_rmin.Le(c), f_low = c_fmin.Le(c);
-      const size_t l_high = lmax.size() - c_lmax.Lt(c), r_high = rmax.size() - c_rmax.Lt(c);
-      const size_t f_both = f_low - c_fmax.Lt(c);  // free items with min <= c <= max
-      const uint32_t cost = static_cast<uint32_t>(std::min(r_low + l_high, l_low + r_high) + f_both);
-      const double off = std::abs(double{c} - center) / extent;
-      if (cost < best.cost || (cost == best.cost && best.axis >= 0 && off < best.off_center)) {
-        best = Cut{u, c, cost, off};
+      int below = 0, above = 0;
+      for (int s = 0; s < 2; ++s) {
+        if (lo_of[s][u] == kInf) continue;
+        below += lo_of[s][u] <= c;
+        above += hi_of[s][u] >= c;
       }
+      const double f = (double{c} - lo) / (double{hi} - lo);
+      const double gain = vol * (cost_now - (f * below + (1 - f) * above));
+      if (gain > best.gain) best = Cut{u, c, gain};
     }
   }
   return best;
 }
 
-}  // namespace
-
-void BuildSplitTree(const Box3f& q, std::vector<SplitItem>* items_ptr, uint32_t budget, BalanceWindow* window,
-                    std::vector<SplitNode>* out) {
-  std::vector<SplitItem>& items = *items_ptr;
-  out->clear();
-  std::vector<Cell> cells(1);
-  cells[0].region = q;
-  cells[0].items.resize(items.size());
-  for (uint32_t i = 0; i < items.size(); ++i) {
-    cells[0].items[i] = i;
-    cells[0].left += items[i].side == SplitItem::kLeft;
-    cells[0].right += items[i].side == SplitItem::kRight;
+class Builder {
+ public:
+  Builder(const Box3f& q, std::vector<SplitItem>* items, uint32_t budget, std::vector<SplitNode>* out)
+      : items_(*items), budget_(budget), out_(*out), cm_(q) {
+    out_.clear();
+    cells_.resize(1);
+    cells_[0].region = q;
+    cells_[0].items.resize(items_.size());
+    for (uint32_t i = 0; i < items_.size(); ++i) {
+      cells_[0].items[i] = i;
+      cells_[0].label |= SideBit(items_[i].side);
+    }
+    out_.push_back(SplitNode{});
+    node_cell_.push_back(0);
+    leaves_.push_back(0);
   }
-  out->push_back(SplitNode{});
 
-  // Best-first: the most mixed cell is cut first, so a small budget goes where it helps most.
-  auto less_mixed = [&](uint32_t x, uint32_t y) { return cells[x].mixing() < cells[y].mixing(); };
-  std::priority_queue<uint32_t, std::vector<uint32_t>, decltype(less_mixed)> open(less_mixed);
-  open.push(0);
-  std::vector<uint32_t> terminal;
-  while (!open.empty()) {
-    const uint32_t ci = open.top();
-    open.pop();
-    if (cells[ci].mixing() == 0 || out->size() + 2 > budget) {
-      terminal.push_back(ci);
-      continue;
+  // Best-first: cut the cell with the largest gain until the budget is spent or no cut gains at least
+  // `min_gain` (a share of Q's volume): small gains are not worth 32 bytes of RAM per cut.
+  void Refine(uint32_t node_limit, double min_gain) {
+    node_limit = std::min(node_limit, budget_);
+    using Entry = std::pair<double, uint32_t>;  // (gain, cell)
+    std::priority_queue<Entry> open;
+    std::vector<Cut> cut_of(cells_.size());
+    auto consider = [&](uint32_t ci) {
+      if (cut_of.size() <= ci) cut_of.resize(ci + 1);
+      cut_of[ci] = BestCut(cells_[ci], items_, cm_);
+      if (cut_of[ci].axis >= 0 && cut_of[ci].gain >= min_gain) open.push({cut_of[ci].gain, ci});
+    };
+    for (uint32_t ci : leaves_) consider(ci);
+    while (!open.empty() && out_.size() + 2 <= node_limit) {
+      const uint32_t ci = open.top().second;
+      open.pop();
+      const auto [lower, upper] = Split(ci, cut_of[ci]);
+      consider(lower);
+      consider(upper);
     }
-    const Cut cut = BestCut(cells[ci], items);
-    if (cut.axis < 0) {
-      terminal.push_back(ci);
-      continue;
-    }
-    Cell lower, upper;
-    lower.region = upper.region = cells[ci].region;
-    lower.region.max[cut.axis] = cut.pos;
-    upper.region.min[cut.axis] = cut.pos;
-    for (uint32_t i : cells[ci].items) {
-      const SplitItem& it = items[i];
-      for (Cell* c : {&lower, &upper}) {
-        if (c == &lower ? it.box.min[cut.axis] <= cut.pos : it.box.max[cut.axis] >= cut.pos) {
-          c->items.push_back(i);
-          c->left += it.side == SplitItem::kLeft;
-          c->right += it.side == SplitItem::kRight;
+  }
+
+  // Free items take the side that adds the least cost (volume of cells that would gain that side), ties
+  // to their default side, within the balance window. Labels are updated as items are placed.
+  void ResolveFree(BalanceWindow* window) {
+    std::vector<uint32_t> met;
+    for (uint32_t i = 0; i < items_.size(); ++i) {
+      SplitItem& it = items_[i];
+      if (it.side != SplitItem::kFree) continue;
+      met.clear();
+      CellsMeeting(it.box, &met);
+      double added[2] = {0, 0};
+      for (uint32_t ci : met) {
+        const double v = cm_.Volume(cells_[ci].region);
+        if (!(cells_[ci].label & kLeftBit)) added[0] += v;
+        if (!(cells_[ci].label & kRightBit)) added[1] += v;
+      }
+      uint8_t want = it.default_side;
+      if (added[0] != added[1]) want = added[0] < added[1] ? SplitItem::kLeft : SplitItem::kRight;
+      if (want != it.default_side) {
+        const int64_t left_after = window->left + (want == SplitItem::kLeft ? 1 : -1);
+        if (left_after >= window->min_left && left_after <= window->max_left) {
+          window->left = left_after;
+        } else {
+          want = it.default_side;
         }
       }
+      it.side = want;
+      for (uint32_t ci : met) cells_[ci].label |= SideBit(want);
     }
-    std::vector<uint32_t>().swap(cells[ci].items);
-    SplitNode& inner = (*out)[cells[ci].node];
-    inner.axis = static_cast<uint8_t>(cut.axis);
-    inner.cut = cut.pos;
-    inner.child[0] = static_cast<uint32_t>(out->size());
-    inner.child[1] = inner.child[0] + 1;
-    lower.node = inner.child[0];
-    upper.node = inner.child[1];
-    out->push_back(SplitNode{});
-    out->push_back(SplitNode{});
-    cells.push_back(std::move(lower));
-    cells.push_back(std::move(upper));
-    open.push(static_cast<uint32_t>(cells.size() - 2));
-    open.push(static_cast<uint32_t>(cells.size() - 1));
   }
 
-  // Free items: the cells each one meets (CSR), and each cell's mask of fixed sides.
-  std::vector<uint8_t> fixed_mask(terminal.size(), 0);
-  std::vector<std::pair<uint32_t, uint32_t>> free_cells;  // (item, terminal cell)
-  for (uint32_t t = 0; t < terminal.size(); ++t) {
-    for (uint32_t i : cells[terminal[t]].items) {
-      const uint8_t s = items[i].side;
-      if (s == SplitItem::kFree) {
-        free_cells.emplace_back(i, t);
-      } else {
-        fixed_mask[t] |= s == SplitItem::kLeft ? kLeftBit : kRightBit;
-      }
+  // Labels from the items each cell holds (all resolved by now): the invariant by construction.
+  void WriteLabels() {
+    for (uint32_t ci : leaves_) {
+      uint8_t label = 0;
+      for (uint32_t i : cells_[ci].items) label |= SideBit(items_[i].side);
+      SplitNode& sn = out_[cells_[ci].node];
+      sn.axis = 3;
+      sn.label = static_cast<CellLabel>(label);
     }
   }
-  std::sort(free_cells.begin(), free_cells.end());
-  // A free item takes the side that makes the fewest one-sided cells BOTH, then the side it joins in the
-  // most cells; items meeting no fixed object keep the SOA's side (the balance the SOA chose).
-  for (size_t f = 0; f < free_cells.size();) {
-    const uint32_t item = free_cells[f].first;
-    uint32_t to_both[2] = {0, 0}, joins[2] = {0, 0};
-    size_t e = f;
-    for (; e < free_cells.size() && free_cells[e].first == item; ++e) {
-      const uint8_t m = fixed_mask[free_cells[e].second];
-      if (m == kRightBit) ++to_both[0];
-      if (m == kLeftBit) ++to_both[1];
-      if (m & kLeftBit) ++joins[0];
-      if (m & kRightBit) ++joins[1];
-    }
-    SplitItem& it = items[item];
-    const uint8_t dflt = it.default_side;
-    uint8_t want = dflt;
-    if (to_both[0] != to_both[1]) {
-      want = to_both[0] < to_both[1] ? SplitItem::kLeft : SplitItem::kRight;
-    } else if (joins[0] != joins[1]) {
-      want = joins[0] > joins[1] ? SplitItem::kLeft : SplitItem::kRight;
-    }
-    if (want != dflt) {
-      const int64_t left_after = window->left + (want == SplitItem::kLeft ? 1 : -1);
-      if (left_after >= window->min_left && left_after <= window->max_left) {
-        window->left = left_after;
-      } else {
-        want = dflt;
-      }
-    }
-    it.side = want;
-    f = e;
-  }
-  // A free item meeting no cell cannot happen (cells cover Q and items lie in Q), but never leave kFree.
-  for (SplitItem& it : items)
-    if (it.side == SplitItem::kFree) it.side = it.default_side;
 
-  for (uint32_t t = 0; t < terminal.size(); ++t) {
-    uint8_t mask = 0;
-    for (uint32_t i : cells[terminal[t]].items) mask |= items[i].side == SplitItem::kLeft ? kLeftBit : kRightBit;
-    SplitNode& cell = (*out)[cells[terminal[t]].node];
-    cell.axis = 3;
-    cell.label = static_cast<CellLabel>(mask);
+ private:
+  std::pair<uint32_t, uint32_t> Split(uint32_t ci, const Cut& cut) {
+    Cell lower, upper;
+    lower.region = upper.region = cells_[ci].region;
+    lower.region.max[cut.axis] = cut.pos;
+    upper.region.min[cut.axis] = cut.pos;
+    // Closed cells: an item touching the cut meets both.
+    for (uint32_t i : cells_[ci].items) {
+      const SplitItem& it = items_[i];
+      if (it.box.min[cut.axis] <= cut.pos) {
+        lower.items.push_back(i);
+        lower.label |= SideBit(it.side);
+      }
+      if (it.box.max[cut.axis] >= cut.pos) {
+        upper.items.push_back(i);
+        upper.label |= SideBit(it.side);
+      }
+    }
+    std::vector<uint32_t>().swap(cells_[ci].items);
+    const uint32_t node = cells_[ci].node;
+    const uint32_t first = static_cast<uint32_t>(out_.size());
+    out_[node].axis = static_cast<uint8_t>(cut.axis);
+    out_[node].cut = cut.pos;
+    out_[node].child[0] = first;
+    out_[node].child[1] = first + 1;
+    out_.push_back(SplitNode{});
+    out_.push_back(SplitNode{});
+    lower.node = first;
+    upper.node = first + 1;
+    const uint32_t lc = static_cast<uint32_t>(cells_.size());
+    cells_.push_back(std::move(lower));
+    cells_.push_back(std::move(upper));
+    node_cell_.push_back(lc);
+    node_cell_.push_back(lc + 1);
+    std::replace(leaves_.begin(), leaves_.end(), ci, lc);
+    leaves_.push_back(lc + 1);
+    return {lc, lc + 1};
   }
+
+  void CellsMeeting(const Box3f& b, std::vector<uint32_t>* met) {
+    stack_.assign(1, 0);
+    while (!stack_.empty()) {
+      const uint32_t n = stack_.back();
+      stack_.pop_back();
+      const SplitNode& sn = out_[n];
+      if (sn.is_cell()) {
+        met->push_back(node_cell_[n]);
+        continue;
+      }
+      if (b.max[sn.axis] >= sn.cut) stack_.push_back(sn.child[1]);
+      if (b.min[sn.axis] <= sn.cut) stack_.push_back(sn.child[0]);
+    }
+  }
+
+  std::vector<SplitItem>& items_;
+  uint32_t budget_;
+  std::vector<SplitNode>& out_;
+  CostModel cm_;
+  std::vector<Cell> cells_;
+  std::vector<uint32_t> leaves_;     // cells that are not cut
+  std::vector<uint32_t> node_cell_;  // SplitNode -> its cell
+  std::vector<uint32_t> stack_;
+};
+
+}  // namespace
+
+void BuildSplitTree(const Box3f& q, std::vector<SplitItem>* items, uint32_t budget, BalanceWindow* window,
+                    std::vector<SplitNode>* out, double min_gain) {
+  Builder b(q, items, std::max<uint32_t>(budget, 1), out);
+  // First carve with the fixed items alone, then place the free items against those cells, then spend
+  // what is left of the budget with every item placed.
+  b.Refine(std::max<uint32_t>(1, budget / 2) | 1, min_gain);
+  b.ResolveFree(window);
+  b.Refine(budget, min_gain);
+  b.WriteLabels();
 }
 
 }  // namespace mktree

@@ -3,12 +3,16 @@
 //
 // Input: the objects whose boxes meet the closed slab a <= w <= b, each clipped to Q, with a side: fixed
 // LEFT (it reaches below a, so it must live in Sn1), fixed RIGHT (it reaches above b), or FREE (entirely in
-// the slab: either child may take it). Cuts (any axis) are chosen best-first on the cell with the most
-// mixing: the cut that leaves the fewest objects on the wrong side of it (fixed objects of the other side,
-// plus free objects it crosses), taken only if that count is below min(#LEFT, #RIGHT) of the cell, which
-// makes every cut strictly reduce the mixing and the construction terminate. Free objects then take the
-// side that turns the fewest fixed-labelled cells into BOTH (else they keep their default side), within
-// a balance window. Cells are closed: an object touching a cut meets both cells.
+// the slab: either child may take it).
+// Cost model: a query point in a cell is routed to as many children as the label names, so a cell costs
+// (its share of Q's volume) x (1 for LEFT/RIGHT, 2 for BOTH, 0 for EMPTY). Cuts (any axis) are taken
+// best-first by the cost they save: EMPTY space is carved off and the two sides are pulled apart. The
+// cost of a side within a cell only changes just past the extremes of that side's boxes, so the best cut
+// of a cell is found in O(items) from 4 candidates per axis.
+// Order: cut with the fixed objects alone (half the budget), then give each free object the side that
+// adds the least cost to the cells it meets (ties: its default side, within a balance window), then
+// spend the rest of the budget with every object placed. Cells are closed: an object touching a cut
+// meets both cells.
 //
 // Invariant: every item whose (clipped) box meets a cell has its final side allowed by the cell's label.
 #pragma once
@@ -36,8 +40,9 @@ struct BalanceWindow {
 };
 
 // Builds the SplitTree of region `q` into `out` (cleared; root at index 0, child indices local to `out`)
-// with at most `budget` nodes (budget >= 1), and resolves every kFree item to kLeft or kRight.
+// with at most `budget` nodes (budget >= 1), and resolves every kFree item to kLeft or kRight. A cut is
+// only made when it lowers the routing cost by at least `min_gain` (a share of Q's volume, see .cc).
 void BuildSplitTree(const Box3f& q, std::vector<SplitItem>* items, uint32_t budget, BalanceWindow* window,
-                    std::vector<SplitNode>* out);
+                    std::vector<SplitNode>* out, double min_gain);
 
 }  // namespace mktree
