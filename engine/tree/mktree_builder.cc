@@ -83,6 +83,8 @@ struct Candidate {
   uint32_t waste = 0;
   double slab = 0;
   uint32_t imbalance = 0;
+  uint64_t left_bytes = 0;  // encoded bytes of Sn1 (known only when fill_aware)
+  bool fill_aware = false;
   bool BetterThan(const Candidate& o) const {
     if (o.list < 0) return true;
     if (primary != o.primary) return primary < o.primary;
@@ -163,6 +165,7 @@ class SubtreeBuilder {
         it.box.min[w] = std::max(bx.min[w], best.a);
         it.box.max[w] = std::min(bx.max[w], best.b);
         it.default_side = s_.side[idx];
+        it.bytes = rec_[idx].encoded_bytes;
         it.side = bx.min[w] < best.a ? SplitItem::kLeft : (bx.max[w] > best.b ? SplitItem::kRight : SplitItem::kFree);
         items_.push_back(it);
         overlap_ids_.push_back(idx);
@@ -171,7 +174,17 @@ class SubtreeBuilder {
         Box3f q = node.box;
         q.min[w] = best.a;
         q.max[w] = best.b;
-        BalanceWindow window{best.k, k_lo, k_hi};
+        BalanceWindow window;
+        window.left = best.k;
+        window.min_left = k_lo;
+        window.max_left = k_hi;
+        window.left_bytes = best.left_bytes;
+        window.total_bytes = t.bytes;
+        if (best.fill_aware) {  // keep the page counts the split was chosen for
+          const uint64_t cap = PagePayloadCapacity(mem_page_);
+          window.max_left_bytes = Pages(best.left_bytes) * cap - kLeafHeaderBytes;
+          window.max_right_bytes = Pages(t.bytes - best.left_bytes) * cap - kLeafHeaderBytes;
+        }
         BuildSplitTree(q, &items_, s_.params.split_tree_node_budget, &window, &split, s_.tuning.split_min_gain);
         for (size_t i = 0; i < items_.size(); ++i) s_.side[overlap_ids_[i]] = items_[i].side;
       }
@@ -272,6 +285,7 @@ class SubtreeBuilder {
       uint32_t pa = 0, pb = 0;  // #(max_w <= a), #(min_w < b)
       uint64_t left_bytes = 0;
       for (uint32_t k = 1; k <= k_hi; ++k) {
+        // Bytes only matter near the leaves (and are a random read per object, so not gathered above).
         if (fill_aware) left_bytes += rec_[order[t.lo + k - 1]].encoded_bytes;
         if (k < k_lo) continue;
         const float a = key == 0 ? sorted_min_[k] : suffix_min_[k];
@@ -294,11 +308,13 @@ class SubtreeBuilder {
         c.sm = sm;
         c.primary = sm;
         if (fill_aware) {
-          if (sm <= sm_min + s_.tuning.fill_sm_slack) c.primary = 0;
+          if (sm <= sm_min + s_.tuning.fill_sm_slack + s_.tuning.fill_sm_slack_rel * sm_min) c.primary = 0;
           c.waste = static_cast<uint32_t>(Pages(left_bytes) + Pages(t.bytes - left_bytes) - total_pages);
         }
         c.slab = std::max(0.0, double{b} - double{a});
         c.imbalance = static_cast<uint32_t>(std::abs(2 * int64_t{k} - int64_t{n}));
+        c.left_bytes = left_bytes;
+        c.fill_aware = fill_aware;
         if (c.BetterThan(*best)) *best = c;
       }
     }

@@ -38,12 +38,16 @@ struct BuildResult {
 
 // Knobs that change the tree's quality but not its contract; defaults are what the benchmarks measured best.
 struct BuildTuning {
-  // Near the leaves (a node of at most `fill_aware_pages` pages of data), prefer among the SOA candidates
-  // whose |Sm| is within `fill_sm_slack` of the minimum the one whose children need the fewest pages
-  // (ceil(D1/C) + ceil(D2/C) closest to ceil(D/C)). Off: plain SOA (|Sm|, slab, balance).
+  // Near the leaves (a node of at most `fill_aware_pages` pages of data), rank the SOA candidates whose
+  // |Sm| is within `fill_sm_slack` + `fill_sm_slack_rel` x minimum first by page waste
+  // (ceil(D1/C) + ceil(D2/C) - ceil(D/C)), then by |Sm|, slab and balance, and keep the page counts when
+  // free objects change side. Off: plain SOA (|Sm|, slab, balance). Measured on the 200k tanker: plain SOA
+  // fills pages to 62 %; slack 1 to 65 %; the default (waste first near the leaves) to 82 %, for 13 % more
+  // leaves visited per random point (2.50 vs 2.22 extra leaves) and 24 % fewer leaves.
   bool fill_aware = true;
   uint32_t fill_aware_pages = 4;
-  uint32_t fill_sm_slack = 1;
+  uint32_t fill_sm_slack = 1u << 30;
+  double fill_sm_slack_rel = 0;
   // A SplitTree cut is made only when it saves at least this share of the routing cost of a point spread
   // over the overlap region Q (see split_tree_builder.h): it keeps SplitTrees to the cuts that matter.
   double split_min_gain = 0.01;

@@ -149,9 +149,12 @@ class Builder {
       uint8_t want = it.default_side;
       if (added[0] != added[1]) want = added[0] < added[1] ? SplitItem::kLeft : SplitItem::kRight;
       if (want != it.default_side) {
-        const int64_t left_after = window->left + (want == SplitItem::kLeft ? 1 : -1);
-        if (left_after >= window->min_left && left_after <= window->max_left) {
+        const bool to_left = want == SplitItem::kLeft;
+        const int64_t left_after = window->left + (to_left ? 1 : -1);
+        const uint64_t bytes_after = to_left ? window->left_bytes + it.bytes : window->left_bytes - it.bytes;
+        if (window->Allows(left_after, bytes_after)) {
           window->left = left_after;
+          window->left_bytes = bytes_after;
         } else {
           want = it.default_side;
         }

@@ -29,14 +29,24 @@ struct SplitItem {
   Box3f box;                 // clipped to Q
   uint8_t side = kFree;      // kLeft, kRight or kFree; the builder replaces kFree by the side it chose
   uint8_t default_side = 0;  // for free items: the SOA candidate's side
+  uint32_t bytes = 0;        // encoded bytes of the object (for the page window)
 };
 
-// How many free items may change side: the count of items on the left (all objects of the node, not only
-// the items) must stay in [min_left, max_left].
+// How many free items may change side: the count of objects on the left (all objects of the node, not
+// only the items) must stay in [min_left, max_left], and the encoded bytes of each side within its limit
+// (so that a split chosen to fill pages keeps its page counts).
 struct BalanceWindow {
   int64_t left = 0;
   int64_t min_left = 0;
   int64_t max_left = 0;
+  uint64_t left_bytes = 0;
+  uint64_t total_bytes = 0;
+  uint64_t max_left_bytes = UINT64_MAX;
+  uint64_t max_right_bytes = UINT64_MAX;
+  bool Allows(int64_t new_left, uint64_t new_left_bytes) const {
+    return new_left >= min_left && new_left <= max_left && new_left_bytes <= max_left_bytes &&
+           total_bytes - new_left_bytes <= max_right_bytes;
+  }
 };
 
 // Builds the SplitTree of region `q` into `out` (cleared; root at index 0, child indices local to `out`)
