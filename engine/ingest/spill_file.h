@@ -1,0 +1,42 @@
+// A temporary append-then-read file for ingest: geometry entries and names are appended while the scene
+// streams in, and read back by offset once the tree is known. The file is unlinked as soon as it is
+// created, so it disappears with its descriptor, even when the process is killed.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "mktree/status.h"
+
+namespace mktree {
+
+class SpillFile {
+ public:
+  ~SpillFile();
+  SpillFile(const SpillFile&) = delete;
+  SpillFile& operator=(const SpillFile&) = delete;
+
+  // Creates a new spill file in `dir` named after `stem`.
+  static Result<std::unique_ptr<SpillFile>> Create(const std::string& dir, const std::string& stem);
+
+  // Appends bytes (buffered); returns the offset they start at.
+  Result<uint64_t> Append(const void* data, uint64_t size);
+  // Flushes what Append buffered; call before reading.
+  Status Flush();
+  // Reads exactly `size` bytes at `offset` (after Flush).
+  Status ReadAt(uint64_t offset, uint64_t size, void* out) const;
+  uint64_t size() const { return size_; }
+  const std::string& path() const { return path_; }
+
+ private:
+  SpillFile(int fd, std::string path) : fd_(fd), path_(std::move(path)) {}
+  int fd_ = -1;
+  std::string path_;
+  std::vector<uint8_t> buffer_;
+  uint64_t size_ = 0;       // bytes appended, buffered or not
+  uint64_t flushed_ = 0;    // bytes on disk
+};
+
+}  // namespace mktree

@@ -1,0 +1,54 @@
+// Ingest: streams scene objects into a finished store with bounded memory (DESIGN.md §3).
+//
+// Only per-object records (ObjectRecord: id, AABB, entry size, spill offset; 40 bytes) and the tree stay
+// in RAM. Each object is encoded once, alone (so leaf sizes are exact), and appended to a spill file;
+// names go to a second spill file. Once the tree is known, leaf pages are assembled from the spill in
+// leaf order, the object table is streamed from the name spill, and the store is committed atomically
+// (temporary name, fsync, rename). On any error the temporary store and the spill files are removed.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "engine/scene/scene_source.h"
+#include "engine/tree/tree_stats.h"
+#include "mktree/status.h"
+#include "storage/store_file.h"
+
+namespace mktree {
+
+// Opens one input, numbering its objects from `first_id` (several inputs continue one numbering).
+using SceneOpener = std::function<Result<std::unique_ptr<SceneSource>>(ObjectId first_id)>;
+
+enum class IngestStage { kRead, kBuildTree, kWritePages, kWriteTable };
+const char* IngestStageName(IngestStage stage);
+
+// Called now and then during each stage; `total` is 0 when unknown (reading a stream).
+using IngestProgress = std::function<void(IngestStage stage, uint64_t done, uint64_t total)>;
+
+struct IngestOptions {
+  StoreOptions store;          // backend, codec, build parameters
+  std::string spill_dir;       // where the spill files go; empty: next to the output store
+  IngestProgress progress;     // optional
+};
+
+struct IngestReport {
+  uint64_t objects = 0;
+  uint64_t triangles = 0;
+  uint64_t raw_geometry_bytes = 0;   // Mesh::RawGeometryBytes summed
+  uint64_t encoded_bytes = 0;        // leaf entry bytes summed (after the codec)
+  uint64_t pages = 0;
+  uint64_t store_bytes = 0;          // size of the finished file
+  double read_seconds = 0, build_seconds = 0, write_seconds = 0, total_seconds = 0;
+  TreeStats tree_stats;
+};
+
+// Reads every input in order, builds the MKtree and writes the store at `store_path`.
+// An empty scene (no object with geometry) is an InvalidArgument error; nothing is left behind.
+Result<IngestReport> BuildStore(const std::vector<SceneOpener>& inputs, const std::string& store_path,
+                                const IngestOptions& options);
+
+}  // namespace mktree

@@ -1,0 +1,97 @@
+// Ingest keeps only per-object records in RAM: a scene whose geometry is ten times a memory budget
+// builds within that budget. The build runs in a child process so that its peak RSS is its own.
+#include <gtest/gtest.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+
+#include "engine/ingest/store_builder.h"
+#include "mktree/database.h"
+
+namespace mktree {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Streams `count` heavy objects (each a closed prism of `sides` sides, ~100 KB of geometry), one at a
+// time, never holding more than the current one.
+class HeavyPrisms final : public SceneSource {
+ public:
+  HeavyPrisms(uint32_t count, int sides, ObjectId first) : count_(count), sides_(sides), next_(first) {}
+  Result<bool> Next(SceneObject* out) override {
+    if (made_ == count_) return false;
+    const double x = (made_ % 40) * 3.0, y = (made_ / 40 % 40) * 3.0, z = (made_ / 1600) * 30.0;
+    Mesh& m = out->mesh;
+    m.vertices.clear();
+    m.triangles.clear();
+    const uint32_t n = static_cast<uint32_t>(sides_);
+    for (int end = 0; end < 2; ++end)
+      for (uint32_t s = 0; s < n; ++s) {
+        // Jittered radius so that the geometry does not compress to nothing.
+        const double r = 1.0 + 0.01 * std::sin(s * 12.9898 + made_ * 78.233);
+        m.vertices.insert(m.vertices.end(), {static_cast<float>(x + r * std::cos(2 * M_PI * s / n)),
+                                             static_cast<float>(y + r * std::sin(2 * M_PI * s / n)),
+                                             static_cast<float>(z + end * 25.0)});
+      }
+    for (uint32_t s = 0; s < n; ++s) {
+      const uint32_t a = s, b = (s + 1) % n;
+      m.triangles.insert(m.triangles.end(), {a, b, b + n, a, b + n, a + n});
+    }
+    for (uint32_t s = 1; s + 1 < n; ++s) {
+      m.triangles.insert(m.triangles.end(), {0, s + 1, s});
+      m.triangles.insert(m.triangles.end(), {n, n + s, n + s + 1});
+    }
+    out->id = next_++;
+    out->name = "heavy_" + std::to_string(made_++);
+    return true;
+  }
+
+ private:
+  uint32_t count_;
+  int sides_;
+  ObjectId next_;
+  uint32_t made_ = 0;
+};
+
+TEST(BoundedMemory, GeometryTenTimesTheBudgetBuildsWithinIt) {
+  constexpr uint64_t kBudget = 48ull << 20;
+  constexpr uint32_t kObjects = 6000;
+  constexpr int kSides = 1200;  // 2400 vertices, 7196 triangles: ~115 KB raw each
+  const uint64_t raw_per_object = 8 + 4 * (3ull * 2 * kSides) + 4 * (3ull * (2 * kSides + 2 * (kSides - 2)));
+  ASSERT_GE(raw_per_object * kObjects, 10 * kBudget);
+
+  const std::string store =
+      (fs::temp_directory_path() / ("mktree_bounded_" + std::to_string(::getpid()) + ".mkt")).string();
+  const pid_t child = ::fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    IngestOptions opts;
+    opts.store.backend = Backend::kPagedFile;
+    auto r = BuildStore({[&](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
+                          return std::unique_ptr<SceneSource>(new HeavyPrisms(kObjects, kSides, first));
+                        }},
+                        store, opts);
+    ::_exit(r.ok() && r->objects == kObjects ? 0 : 3);
+  }
+  int status = 0;
+  struct rusage ru {};
+  ASSERT_EQ(::wait4(child, &status, 0, &ru), child);
+  ASSERT_TRUE(WIFEXITED(status));
+  ASSERT_EQ(WEXITSTATUS(status), 0);
+  const uint64_t peak = static_cast<uint64_t>(ru.ru_maxrss) * 1024;
+  EXPECT_LE(peak, kBudget) << "peak RSS " << (peak >> 20) << " MiB for " << ((raw_per_object * kObjects) >> 20)
+                           << " MiB of geometry";
+  auto db = Database::Open(store);
+  ASSERT_TRUE(db.ok()) << db.status().ToString();
+  EXPECT_EQ((*db)->object_count(), kObjects);
+  std::vector<ObjectId> hits;
+  ASSERT_TRUE((*db)->QueryPoint({0, 0, 12}, QueryMode::kExact, &hits, nullptr).ok());
+  EXPECT_EQ(hits, std::vector<ObjectId>{0});
+  fs::remove(store);
+}
+
+}  // namespace
+}  // namespace mktree
