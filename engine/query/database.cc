@@ -1,0 +1,172 @@
+// Database: routes a query through the in-RAM MKtree and SplitTrees to the leaves it must read, reads
+// those leaves' pages through the LRU cache, and tests each object of those leaves.
+#include "mktree/database.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <thread>
+
+#include "engine/geometry/exact_geometry.h"
+#include "storage/leaf_codec.h"
+#include "storage/object_codec.h"
+#include "storage/page_cache.h"
+#include "storage/store_file.h"
+
+namespace mktree {
+
+namespace {
+
+bool Finite(const Vec3d& p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z); }
+
+class StoreDatabase final : public Database {
+ public:
+  StoreDatabase(std::unique_ptr<StoreReader> reader, const OpenOptions& options)
+      : reader_(std::move(reader)),
+        options_(options),
+        cache_(&reader_->pages(), options.cache_pages) {}
+
+  Status QueryPoint(const Vec3d& p, QueryMode mode, std::vector<ObjectId>* hits,
+                    QueryStats* stats) const override {
+    if (!Finite(p)) return Status::InvalidArgument("point query with a non-finite coordinate");
+    QueryStats local;
+    QueryStats& s = stats ? *stats : local;
+    s.Reset();
+    hits->clear();
+    std::vector<uint32_t> leaves;
+    reader_->tree().RoutePoint(p, &leaves, &s);
+    for (uint32_t leaf : leaves) {
+      MKTREE_RETURN_IF_ERROR(ScanLeaf(leaf, &s, [&](const ObjectEntryView& e) -> Result<bool> {
+        if (!e.box.Contains(p)) return false;
+        if (mode == QueryMode::kAabb) return true;
+        Mesh mesh;
+        MKTREE_RETURN_IF_ERROR(DecodeObjectMesh(e, &mesh));
+        return PointInSolid(mesh, p);
+      }, hits));
+    }
+    return Finish(hits, &s);
+  }
+
+  Status QueryBox(const Box3d& box, QueryMode mode, std::vector<ObjectId>* hits,
+                  QueryStats* stats) const override {
+    for (int i = 0; i < 3; ++i) {
+      if (!std::isfinite(box.min[i]) || !std::isfinite(box.max[i]))
+        return Status::InvalidArgument("box query with a non-finite coordinate");
+      if (box.min[i] > box.max[i]) return Status::InvalidArgument("box query with min > max");
+    }
+    QueryStats local;
+    QueryStats& s = stats ? *stats : local;
+    s.Reset();
+    hits->clear();
+    std::vector<uint32_t> leaves;
+    reader_->tree().RouteBox(box, &leaves, &s);
+    for (uint32_t leaf : leaves) {
+      MKTREE_RETURN_IF_ERROR(ScanLeaf(leaf, &s, [&](const ObjectEntryView& e) -> Result<bool> {
+        if (!e.box.Intersects(box)) return false;
+        if (mode == QueryMode::kAabb) return true;
+        Mesh mesh;
+        MKTREE_RETURN_IF_ERROR(DecodeObjectMesh(e, &mesh));
+        return MeshMeetsBox(mesh, box);
+      }, hits));
+    }
+    return Finish(hits, &s);
+  }
+
+  Status Run(const Query& q, QueryMode mode, QueryResult* out) const override {
+    return q.kind == Query::Kind::kPoint ? QueryPoint(q.point, mode, &out->hits, &out->stats)
+                                         : QueryBox(q.box, mode, &out->hits, &out->stats);
+  }
+
+  Status RunBatch(const std::vector<Query>& queries, QueryMode mode, unsigned threads,
+                  std::vector<QueryResult>* results) const override {
+    results->assign(queries.size(), QueryResult{});
+    if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
+    threads = static_cast<unsigned>(std::min<size_t>(threads, std::max<size_t>(1, queries.size())));
+    std::atomic<size_t> next{0};
+    std::atomic<bool> failed{false};
+    std::vector<Status> errors(threads);
+    auto work = [&](unsigned t) {
+      for (size_t i; !failed && (i = next.fetch_add(1)) < queries.size();) {
+        Status st = Run(queries[i], mode, &(*results)[i]);
+        if (!st.ok()) {
+          errors[t] = Status::InvalidArgument("query " + std::to_string(i) + ": " + st.ToString());
+          failed = true;
+        }
+      }
+    };
+    std::vector<std::thread> pool;
+    for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work, t);
+    work(0);
+    for (auto& th : pool) th.join();
+    for (const Status& st : errors)
+      if (!st.ok()) return st;
+    return Status::Ok();
+  }
+
+  void ClearCache() override { cache_.Clear(); }
+  uint64_t object_count() const override { return reader_->object_count(); }
+  Result<std::string> ObjectName(ObjectId id) const override { return reader_->ObjectName(id); }
+  Box3f bounds() const override {
+    return reader_->tree().empty() ? Box3f{} : reader_->tree().nodes[0].box;
+  }
+  double objects_per_page() const override {
+    const MKTree& t = reader_->tree();
+    uint64_t pages = 0;
+    for (const LeafInfo& l : t.leaves) pages += l.page_count;
+    return pages ? static_cast<double>(reader_->object_count()) / static_cast<double>(pages) : 0.0;
+  }
+  const std::string& stats_json() const override { return reader_->stats_json(); }
+
+ private:
+  // Pins the leaf's pages, verifies and parses them, and tests every object; `test` says whether an
+  // object answers.
+  template <typename Test>
+  Status ScanLeaf(uint32_t leaf, QueryStats* s, Test&& test, std::vector<ObjectId>* hits) const {
+    const MKTree& tree = reader_->tree();
+    const LeafInfo& info = tree.leaves[leaf];
+    std::vector<PageHandle> handles;
+    std::vector<const uint8_t*> pages;
+    handles.reserve(info.page_count);
+    for (uint64_t p = info.first_page; p < info.first_page + info.page_count; ++p) {
+      auto h = cache_.Pin(p, s);
+      if (!h.ok()) return h.status();
+      pages.push_back(h->data());
+      handles.push_back(std::move(*h));
+    }
+    auto view = LeafView::Parse(reader_->pages().name(), leaf, info.first_page, pages, tree.params.mem_page(),
+                                options_.verify_checksums);
+    if (!view.ok()) return view.status();
+    const size_t before = hits->size();
+    for (size_t i = 0; i < view->size(); ++i) {
+      const ObjectEntryView& e = view->entry(i);
+      ++s->candidates_tested;
+      auto answer = test(e);
+      if (!answer.ok()) return answer.status();
+      if (*answer) hits->push_back(e.id);
+    }
+    s->leaves_with_hits += hits->size() > before;
+    return Status::Ok();
+  }
+
+  static Status Finish(std::vector<ObjectId>* hits, QueryStats* s) {
+    std::sort(hits->begin(), hits->end());
+    s->hits = hits->size();
+    return Status::Ok();
+  }
+
+  std::unique_ptr<StoreReader> reader_;
+  OpenOptions options_;
+  mutable PageCache cache_;
+};
+
+}  // namespace
+
+Result<std::unique_ptr<Database>> Database::Open(const std::string& path, const OpenOptions& options) {
+  ReadOptions ro;
+  ro.direct_io = options.direct_io;
+  auto reader = StoreReader::Open(path, ro);
+  if (!reader.ok()) return reader.status();
+  return std::unique_ptr<Database>(new StoreDatabase(std::move(*reader), options));
+}
+
+}  // namespace mktree

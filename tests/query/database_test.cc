@@ -1,0 +1,220 @@
+// Every query kind, in AABB and exact mode, against brute force: random clustered scenes and the real
+// scenes of ../shared/data, both backends, codec on and off, cache sizes 0, 1, small and large.
+#include "mktree/database.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <random>
+
+#include "engine/geometry/exact_geometry.h"
+#include "engine/ingest/store_builder.h"
+#include "engine/scene/vector_scene_source.h"
+#include "query/scene_fixtures.h"
+
+namespace mktree {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string TempPath(const std::string& name) {
+  return (fs::temp_directory_path() / ("mktree_query_" + std::to_string(::getpid()) + "_" + name)).string();
+}
+
+IngestOptions Options(Backend backend, Codec codec, uint32_t block, uint32_t d) {
+  IngestOptions o;
+  o.store.backend = backend;
+  o.store.codec.codec = codec;
+  o.store.params.block_size = block;
+  o.store.params.blocks_per_page = d;
+  return o;
+}
+
+Status Build(const std::vector<SceneObject>& objs, const std::string& path, const IngestOptions& o) {
+  std::vector<SceneOpener> in{[&objs](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
+    return std::unique_ptr<SceneSource>(new VectorSceneSource(&objs, first));
+  }};
+  auto r = BuildStore(in, path, o);
+  return r.ok() ? Status::Ok() : r.status();
+}
+
+std::vector<ObjectId> BrutePoint(const std::vector<SceneObject>& objs, const Vec3d& p, QueryMode mode) {
+  std::vector<ObjectId> out;
+  for (const SceneObject& o : objs) {
+    if (!o.Aabb().Contains(p)) continue;
+    if (mode == QueryMode::kExact && !PointInSolid(o.mesh, p)) continue;
+    out.push_back(o.id);
+  }
+  return out;
+}
+
+std::vector<ObjectId> BruteBox(const std::vector<SceneObject>& objs, const Box3d& b, QueryMode mode) {
+  std::vector<ObjectId> out;
+  for (const SceneObject& o : objs) {
+    if (!o.Aabb().Intersects(b)) continue;
+    if (mode == QueryMode::kExact && !MeshMeetsBox(o.mesh, b)) continue;
+    out.push_back(o.id);
+  }
+  return out;
+}
+
+// Random queries around the scene: points on object corners and inside objects, boxes of mixed sizes.
+std::vector<Query> RandomQueries(const std::vector<SceneObject>& objs, size_t n, uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> unit(0, 1);
+  Box3f all;
+  for (const SceneObject& o : objs) all.Extend(o.Aabb());
+  std::vector<Query> qs;
+  for (size_t i = 0; i < n; ++i) {
+    Vec3d p;
+    const int how = static_cast<int>(i % 4);
+    if (how == 0 || objs.empty()) {
+      for (int a = 0; a < 3; ++a) p[a] = all.min[a] + unit(rng) * (all.max[a] - all.min[a]);
+    } else {
+      const Box3f b = objs[rng() % objs.size()].Aabb();
+      for (int a = 0; a < 3; ++a)
+        p[a] = how == 1 ? (rng() % 2 ? b.min[a] : b.max[a]) : b.min[a] + unit(rng) * (b.max[a] - b.min[a]);
+    }
+    if (i % 2 == 0) {
+      qs.push_back(Query::Point(p));
+    } else {
+      const double side = std::pow(10.0, -2 + 3 * unit(rng)) * (all.max[0] - all.min[0]) / 100;
+      Box3d b;
+      for (int a = 0; a < 3; ++a) {
+        b.min[a] = p[a] - side * unit(rng);
+        b.max[a] = p[a] + side * unit(rng);
+      }
+      qs.push_back(Query::Box(b));
+    }
+  }
+  return qs;
+}
+
+void CheckStats(const QueryResult& r, bool cold) {
+  EXPECT_EQ(r.stats.hits, r.hits.size());
+  EXPECT_LE(r.stats.pages_read, r.stats.pages_touched);
+  EXPECT_EQ(r.stats.cache_hits + r.stats.pages_read, r.stats.pages_touched);
+  if (cold) {
+    EXPECT_EQ(r.stats.pages_read, r.stats.pages_touched);
+  }
+  EXPECT_GE(r.stats.pages_touched, r.stats.leaves_visited);
+  EXPECT_TRUE(std::is_sorted(r.hits.begin(), r.hits.end()));
+}
+
+void CheckAll(const Database& db, const std::vector<SceneObject>& objs, const std::vector<Query>& qs,
+              QueryMode mode, bool cold) {
+  QueryResult r;
+  for (size_t i = 0; i < qs.size(); ++i) {
+    if (cold) const_cast<Database&>(db).ClearCache();
+    ASSERT_TRUE(db.Run(qs[i], mode, &r).ok()) << "query " << i;
+    const auto expected = qs[i].kind == Query::Kind::kPoint ? BrutePoint(objs, qs[i].point, mode)
+                                                            : BruteBox(objs, qs[i].box, mode);
+    ASSERT_EQ(r.hits, expected) << "query " << i << (qs[i].kind == Query::Kind::kPoint ? " point" : " box");
+    CheckStats(r, cold);
+  }
+}
+
+struct Config {
+  Backend backend;
+  Codec codec;
+};
+
+class DatabaseTest : public ::testing::TestWithParam<Config> {};
+
+TEST_P(DatabaseTest, ClusteredSceneMatchesBruteForceAtEveryCacheSize) {
+  const auto objs = testing::ClusteredScene(3000, 42);
+  const std::string path = TempPath("clustered.mkt");
+  ASSERT_TRUE(Build(objs, path, Options(GetParam().backend, GetParam().codec, 1024, 2)).ok());
+  const auto qs = RandomQueries(objs, 400, 7);
+  for (uint64_t cache : {0u, 1u, 16u, 100000u}) {
+    SCOPED_TRACE("cache " + std::to_string(cache));
+    auto db = Database::Open(path, {.cache_pages = cache});
+    ASSERT_TRUE(db.ok()) << db.status().ToString();
+    EXPECT_EQ((*db)->object_count(), objs.size());
+    CheckAll(**db, objs, qs, QueryMode::kAabb, /*cold=*/false);
+    CheckAll(**db, objs, qs, QueryMode::kAabb, /*cold=*/true);
+  }
+  auto db = Database::Open(path, {.cache_pages = 64});
+  ASSERT_TRUE(db.ok());
+  CheckAll(**db, objs, qs, QueryMode::kExact, false);
+  fs::remove(path);
+}
+
+TEST_P(DatabaseTest, BatchFromManyThreadsEqualsSingleQueries) {
+  const auto objs = testing::ClusteredScene(2000, 3);
+  const std::string path = TempPath("batch.mkt");
+  ASSERT_TRUE(Build(objs, path, Options(GetParam().backend, GetParam().codec, 4096, 1)).ok());
+  auto db = Database::Open(path, {.cache_pages = 8});
+  ASSERT_TRUE(db.ok());
+  const auto qs = RandomQueries(objs, 600, 11);
+  std::vector<QueryResult> results;
+  ASSERT_TRUE((*db)->RunBatch(qs, QueryMode::kAabb, 4, &results).ok());
+  ASSERT_EQ(results.size(), qs.size());
+  for (size_t i = 0; i < qs.size(); ++i) {
+    const auto expected = qs[i].kind == Query::Kind::kPoint ? BrutePoint(objs, qs[i].point, QueryMode::kAabb)
+                                                            : BruteBox(objs, qs[i].box, QueryMode::kAabb);
+    EXPECT_EQ(results[i].hits, expected) << i;
+  }
+  fs::remove(path);
+}
+
+TEST_P(DatabaseTest, OversizedObjectsSpanSeveralPages) {
+  // Prisms with many sides are larger than a 1 KiB page: each is a leaf of several pages.
+  std::vector<SceneObject> objs = testing::ClusteredScene(300, 5);
+  for (int i = 0; i < 10; ++i) {
+    SceneObject o;
+    o.name = "big_" + std::to_string(i);
+    o.mesh = testing::PrismMesh(i % 3, 5.0 * i, 3, 1.5, 0, 20, 400);
+    objs.push_back(std::move(o));
+  }
+  for (size_t i = 0; i < objs.size(); ++i) objs[i].id = static_cast<ObjectId>(i);
+  const std::string path = TempPath("big.mkt");
+  ASSERT_TRUE(Build(objs, path, Options(GetParam().backend, Codec::kNone, 1024, 1)).ok());
+  auto db = Database::Open(path, {.cache_pages = 4});
+  ASSERT_TRUE(db.ok());
+  CheckAll(**db, objs, RandomQueries(objs, 200, 9), QueryMode::kAabb, true);
+  CheckAll(**db, objs, RandomQueries(objs, 100, 10), QueryMode::kExact, false);
+  fs::remove(path);
+}
+
+INSTANTIATE_TEST_SUITE_P(Backends, DatabaseTest,
+                         ::testing::Values(Config{Backend::kHdf5, Codec::kZstd}, Config{Backend::kHdf5, Codec::kNone},
+                                           Config{Backend::kPagedFile, Codec::kZstd},
+                                           Config{Backend::kPagedFile, Codec::kNone}),
+                         [](const auto& info) {
+                           return std::string(info.param.backend == Backend::kHdf5 ? "Hdf5" : "PagedFile") +
+                                  (info.param.codec == Codec::kZstd ? "Zstd" : "Raw");
+                         });
+
+TEST(DatabaseErrors, BadQueriesAreRefused) {
+  const auto objs = testing::ClusteredScene(50, 1);
+  const std::string path = TempPath("errors.mkt");
+  ASSERT_TRUE(Build(objs, path, Options(Backend::kPagedFile, Codec::kZstd, 4096, 3)).ok());
+  auto db = Database::Open(path);
+  ASSERT_TRUE(db.ok());
+  std::vector<ObjectId> hits;
+  EXPECT_EQ((*db)->QueryPoint({NAN, 0, 0}, QueryMode::kAabb, &hits, nullptr).code(), Status::Code::kInvalidArgument);
+  Box3d inverted;
+  inverted.min = {1, 1, 1};
+  inverted.max = {0, 2, 2};
+  EXPECT_EQ((*db)->QueryBox(inverted, QueryMode::kAabb, &hits, nullptr).code(), Status::Code::kInvalidArgument);
+  fs::remove(path);
+}
+
+TEST(DatabaseErrors, MissingAndForeignFilesAreRefused) {
+  EXPECT_FALSE(Database::Open(TempPath("does_not_exist.mkt")).ok());
+  const std::string junk = TempPath("junk.mkt");
+  {
+    FILE* f = std::fopen(junk.c_str(), "wb");
+    std::fputs("this is not a store at all, just some text that is long enough to look like a header\n", f);
+    std::fclose(f);
+  }
+  auto db = Database::Open(junk);
+  ASSERT_FALSE(db.ok());
+  EXPECT_NE(db.status().message().find(junk), std::string::npos) << db.status().ToString();
+  fs::remove(junk);
+}
+
+}  // namespace
+}  // namespace mktree
