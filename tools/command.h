@@ -12,6 +12,8 @@ namespace mktree::tools {
 using CommandRun = std::function<int()>;
 
 void RegisterGenerate(CLI::App& app, CommandRun* run);
+// Adds `generate queries` under the `generate` subcommand (call after RegisterGenerate).
+void RegisterGenerateQueries(CLI::App& app, CommandRun* run);
 void RegisterBuild(CLI::App& app, CommandRun* run);
 void RegisterInfo(CLI::App& app, CommandRun* run);
 void RegisterQuery(CLI::App& app, CommandRun* run);

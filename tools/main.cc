@@ -17,6 +17,10 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   CommandRun run;
   RegisterGenerate(app, &run);
+  RegisterGenerateQueries(app, &run);
+  RegisterBuild(app, &run);
+  RegisterInfo(app, &run);
+  RegisterQuery(app, &run);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -1,0 +1,187 @@
+// The mktree command line (DESIGN.md §5): good runs print what the contract says; bad arguments and bad
+// files give one "error: ..." line naming the file (and line), a non-zero exit, and nothing half-written.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct RunResult {
+  int code = -1;
+  std::string out, err;
+};
+
+class CliTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("mktree_cli_" + std::to_string(::getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  std::string P(const std::string& name) const { return (dir_ / name).string(); }
+
+  RunResult Mktree(const std::string& args) const {
+    const std::string out = P("stdout.txt"), err = P("stderr.txt");
+    const std::string cmd = std::string(MKTREE_TOOL) + " " + args + " >" + out + " 2>" + err;
+    RunResult r;
+    const int status = std::system(cmd.c_str());
+    r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    r.out = Slurp(out);
+    r.err = Slurp(err);
+    fs::remove(out);
+    fs::remove(err);
+    return r;
+  }
+
+  static std::string Slurp(const std::string& path) {
+    std::ifstream in(path);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+  }
+
+  void Write(const std::string& name, const std::string& text) const { std::ofstream(P(name)) << text; }
+
+  // Every file in the test folder (to check that nothing half-written is left).
+  std::vector<std::string> Files() const {
+    std::vector<std::string> names;
+    for (const auto& e : fs::directory_iterator(dir_)) names.push_back(e.path().filename().string());
+    std::sort(names.begin(), names.end());
+    return names;
+  }
+
+  fs::path dir_;
+};
+
+const char* kCube =
+    "o cube\n"
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nv 0 0 1\nv 1 0 1\nv 0 1 1\nv 1 1 1\n"
+    "f 1 3 4 2\nf 5 6 8 7\nf 1 2 6 5\nf 3 7 8 4\nf 1 5 7 3\nf 2 4 8 6\n"
+    "o cube2\n"
+    "v 2 0 0\nv 3 0 0\nv 2 1 0\nv 3 1 0\nv 2 0 1\nv 3 0 1\nv 2 1 1\nv 3 1 1\n"
+    "f -8 -6 -5 -7\nf -4 -3 -1 -2\nf -8 -7 -3 -4\nf -6 -2 -1 -5\nf -8 -4 -2 -6\nf -7 -5 -1 -3\n";
+
+TEST_F(CliTest, NoSubcommandIsAnError) {
+  RunResult r = Mktree("");
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("error:"), std::string::npos) << r.err;
+}
+
+TEST_F(CliTest, BuildInfoQueryOnASmallScene) {
+  Write("two.obj", kCube);
+  for (const char* backend : {"hdf5", "pagefile"}) {
+    SCOPED_TRACE(backend);
+    RunResult b = Mktree("build " + P("two.obj") + " -o " + P("two.mkt") + " --backend " + backend + " --quiet");
+    ASSERT_EQ(b.code, 0) << b.err;
+    RunResult info = Mktree("info " + P("two.mkt") + " --json");
+    ASSERT_EQ(info.code, 0) << info.err;
+    EXPECT_NE(info.out.find("\"objects\": 2"), std::string::npos) << info.out;
+    EXPECT_NE(info.out.find(std::string("\"backend\": \"") + backend + "\""), std::string::npos) << info.out;
+    RunResult q = Mktree("query " + P("two.mkt") + " --point 0.5,0.5,0.5 --cold");
+    ASSERT_EQ(q.code, 0) << q.err;
+    EXPECT_NE(q.out.find("{\"query\": 0, \"kind\": \"point\", \"hits\": [0], \"pages_read\": 1"), std::string::npos)
+        << q.out;
+    RunResult qb = Mktree("query " + P("two.mkt") + " --box 0.5,0.5,0.5,2.5,0.6,0.6 --exact");
+    ASSERT_EQ(qb.code, 0) << qb.err;
+    EXPECT_NE(qb.out.find("\"hits\": [0, 1]"), std::string::npos) << qb.out;
+    Write("q.txt", "# a comment\npoint 2.5 0.5 0.5\n\nbox -1 -1 -1 -0.5 -0.5 -0.5  # nothing there\n");
+    RunResult qf = Mktree("query " + P("two.mkt") + " --queries " + P("q.txt"));
+    ASSERT_EQ(qf.code, 0) << qf.err;
+    EXPECT_NE(qf.out.find("{\"query\": 0, \"kind\": \"point\", \"hits\": [1]"), std::string::npos) << qf.out;
+    EXPECT_NE(qf.out.find("{\"query\": 1, \"kind\": \"box\", \"hits\": []"), std::string::npos) << qf.out;
+  }
+}
+
+TEST_F(CliTest, MissingInputLeavesNothing) {
+  RunResult r = Mktree("build " + P("nope.obj") + " -o " + P("out.mkt"));
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("nope.obj"), std::string::npos) << r.err;
+  EXPECT_TRUE(Files().empty());
+}
+
+TEST_F(CliTest, MalformedObjNamesFileAndLineAndLeavesNothing) {
+  Write("bad.obj", "o a\nv 0 0 0\nv 1 0 0\nv 0 1 zero\nf 1 2 3\n");
+  RunResult r = Mktree("build " + P("bad.obj") + " -o " + P("out.mkt"));
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("bad.obj:4"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.rfind("error: ", 0), 0u) << r.err;
+  EXPECT_EQ(Files(), std::vector<std::string>{"bad.obj"});
+}
+
+TEST_F(CliTest, NanCoordinateIsRefused) {
+  Write("nan.obj", "o a\nv 0 0 0\nv 1 0 nan\nv 0 1 0\nf 1 2 3\n");
+  RunResult r = Mktree("build " + P("nan.obj") + " -o " + P("out.mkt"));
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("nan.obj:3"), std::string::npos) << r.err;
+  EXPECT_EQ(Files(), std::vector<std::string>{"nan.obj"});
+}
+
+TEST_F(CliTest, EmptySceneIsRefused) {
+  Write("empty.obj", "# nothing but a comment\nv 0 0 0\n");
+  RunResult r = Mktree("build " + P("empty.obj") + " -o " + P("out.mkt"));
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("empty scene"), std::string::npos) << r.err;
+  EXPECT_EQ(Files(), std::vector<std::string>{"empty.obj"});
+}
+
+TEST_F(CliTest, BadBuildArgumentsAreRefused) {
+  Write("two.obj", kCube);
+  EXPECT_NE(Mktree("build " + P("two.obj") + " -o " + P("o.mkt") + " --backend sqlite").code, 0);
+  EXPECT_NE(Mktree("build " + P("two.obj") + " -o " + P("o.mkt") + " --codec lz4").code, 0);
+  EXPECT_NE(Mktree("build " + P("two.obj") + " -o " + P("o.mkt") + " --r 0.5").code, 0);
+  EXPECT_NE(Mktree("build " + P("two.obj") + " -o " + P("o.mkt") + " --block-size 16").code, 0);
+  EXPECT_NE(Mktree("build " + P("two.obj")).code, 0);  // no -o
+  EXPECT_EQ(Files(), std::vector<std::string>{"two.obj"});
+}
+
+TEST_F(CliTest, BadQueriesNameFileAndLine) {
+  Write("two.obj", kCube);
+  ASSERT_EQ(Mktree("build " + P("two.obj") + " -o " + P("two.mkt") + " --quiet").code, 0);
+  Write("q.txt", "point 1 2 3\nbox 1 2 3 4 5\n");
+  RunResult r = Mktree("query " + P("two.mkt") + " --queries " + P("q.txt"));
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("q.txt:2"), std::string::npos) << r.err;
+  Write("q2.txt", "point 1 nan 3\n");
+  r = Mktree("query " + P("two.mkt") + " --queries " + P("q2.txt"));
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("q2.txt:1"), std::string::npos) << r.err;
+  Write("q3.txt", "sphere 1 2 3 4\n");
+  r = Mktree("query " + P("two.mkt") + " --queries " + P("q3.txt"));
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("q3.txt:1"), std::string::npos) << r.err;
+  EXPECT_NE(Mktree("query " + P("two.mkt") + " --point 1,2").code, 0);
+  EXPECT_NE(Mktree("query " + P("two.mkt") + " --box 1,1,1,0,0,0").code, 0);
+  EXPECT_NE(Mktree("query " + P("two.mkt")).code, 0);
+}
+
+TEST_F(CliTest, TruncatedOrForeignStoreIsRefused) {
+  Write("two.obj", kCube);
+  for (const char* backend : {"hdf5", "pagefile"}) {
+    SCOPED_TRACE(backend);
+    ASSERT_EQ(Mktree("build " + P("two.obj") + " -o " + P("two.mkt") + " --quiet --backend " + backend).code, 0);
+    const auto size = fs::file_size(P("two.mkt"));
+    for (uintmax_t keep : {uintmax_t{0}, uintmax_t{7}, size / 2, size - 1}) {
+      fs::copy_file(P("two.mkt"), P("cut.mkt"), fs::copy_options::overwrite_existing);
+      fs::resize_file(P("cut.mkt"), keep);
+      RunResult info = Mktree("info " + P("cut.mkt"));
+      EXPECT_NE(info.code, 0) << "kept " << keep;
+      EXPECT_NE(info.err.find("cut.mkt"), std::string::npos) << info.err;
+      RunResult q = Mktree("query " + P("cut.mkt") + " --point 0.5,0.5,0.5");
+      EXPECT_NE(q.code, 0) << "kept " << keep;
+    }
+  }
+  RunResult r = Mktree("info " + P("two.obj"));
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("two.obj"), std::string::npos) << r.err;
+}
+
+}  // namespace

@@ -1,0 +1,118 @@
+// mktree build SCENE... -o STORE: ingest scenes and write a store (DESIGN.md §5).
+#include <cstdio>
+#include <filesystem>
+#include <limits>
+
+#include "engine/generator/tanker_generator.h"
+#include "engine/ingest/store_builder.h"
+#include "tools/command.h"
+#include "tools/progress.h"
+
+namespace mktree::tools {
+
+namespace {
+
+struct BuildArgs {
+  std::vector<std::string> inputs;
+  std::string output;
+  std::string backend = "hdf5";
+  std::string codec = "zstd";
+  int zstd_level = 3;
+  uint32_t block_size = 4096;
+  uint32_t blocks_per_page = 3;
+  double r = 0.3;
+  uint32_t split_budget = 64;
+  bool quiet = false;
+};
+
+// "tanker:N[:SEED]" builds straight from the generator, without a scene file.
+Result<SceneOpener> OpenerFor(const std::string& input) {
+  if (input.rfind("tanker:", 0) == 0) {
+    uint64_t n = 0, seed = 1;
+    char extra = 0;
+    const int got = std::sscanf(input.c_str() + 7, "%llu:%llu%c", reinterpret_cast<unsigned long long*>(&n),
+                                reinterpret_cast<unsigned long long*>(&seed), &extra);
+    if (got < 1 || got > 2 || n == 0)
+      return Status::InvalidArgument(input + ": expected tanker:N or tanker:N:SEED with N > 0");
+    return SceneOpener([n, seed](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
+      return MakeTankerSource(n, seed, first);
+    });
+  }
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(input, ec)) return Status::NotFound(input + ": no such file");
+  return SceneOpener([input](ObjectId first) { return OpenSceneFile(input, first); });
+}
+
+int RunBuild(const BuildArgs& a) {
+  IngestOptions opts;
+  if (a.backend == "hdf5") opts.store.backend = Backend::kHdf5;
+  else if (a.backend == "pagefile") opts.store.backend = Backend::kPagedFile;
+  else return Fail("--backend must be hdf5 or pagefile, not '" + a.backend + "'");
+  if (a.codec == "zstd") opts.store.codec.codec = Codec::kZstd;
+  else if (a.codec == "none") opts.store.codec.codec = Codec::kNone;
+  else return Fail("--codec must be zstd or none, not '" + a.codec + "'");
+  opts.store.codec.zstd_level = a.zstd_level;
+  opts.store.params.block_size = a.block_size;
+  opts.store.params.blocks_per_page = a.blocks_per_page;
+  opts.store.params.balance_r = a.r;
+  opts.store.params.split_tree_node_budget = a.split_budget;
+  if (!(a.r >= 0 && a.r < 0.5)) return Fail("--r must be in [0, 0.5)");
+  if (a.block_size < 512 || a.blocks_per_page == 0 ||
+      uint64_t{a.block_size} * a.blocks_per_page > (uint64_t{1} << 30))
+    return Fail("--block-size must be at least 512 and the page (block size x blocks per page) at most 1 GiB");
+
+  std::vector<SceneOpener> openers;
+  for (const std::string& in : a.inputs) {
+    auto opener = OpenerFor(in);
+    if (!opener.ok()) return Fail(opener.status().message());
+    openers.push_back(std::move(*opener));
+  }
+  Progress progress(a.quiet);
+  opts.progress = [&](IngestStage s, uint64_t done, uint64_t total) {
+    progress.Update(IngestStageName(s), done, total);
+  };
+  auto report = BuildStore(openers, a.output, opts);
+  progress.Done();
+  if (!report.ok()) return Fail(report.status().message());
+  const IngestReport& r = *report;
+  if (!a.quiet) {
+    std::printf("built %s: %llu objects, %llu triangles, %llu leaves, %llu pages of %llu B, height %u\n",
+                a.output.c_str(), static_cast<unsigned long long>(r.objects),
+                static_cast<unsigned long long>(r.triangles),
+                static_cast<unsigned long long>(r.tree_stats.leaves), static_cast<unsigned long long>(r.pages),
+                static_cast<unsigned long long>(opts.store.params.mem_page()), r.tree_stats.height);
+    std::printf("store %s (raw geometry %s, encoded %s, ratio %.2f), page fill %.1f%%\n",
+                HumanBytes(r.store_bytes).c_str(), HumanBytes(r.raw_geometry_bytes).c_str(),
+                HumanBytes(r.encoded_bytes).c_str(),
+                r.store_bytes ? static_cast<double>(r.raw_geometry_bytes) / static_cast<double>(r.store_bytes) : 0.0,
+                100.0 * r.tree_stats.mean_page_fill);
+    std::printf("time %.2fs (read %.2fs, tree %.2fs, write %.2fs), %.0f objects/s, peak RSS %s\n",
+                r.total_seconds, r.read_seconds, r.build_seconds, r.write_seconds,
+                static_cast<double>(r.objects) / std::max(r.total_seconds, 1e-9),
+                HumanBytes(PeakRssBytes()).c_str());
+  }
+  return 0;
+}
+
+}  // namespace
+
+void RegisterBuild(CLI::App& app, CommandRun* run) {
+  auto args = std::make_shared<BuildArgs>();
+  CLI::App* cmd = app.add_subcommand("build", "Ingest scenes and build an MKtree store");
+  cmd->add_option("scenes", args->inputs,
+                  "Scene files (.obj streamed; .mks; glTF/GLB/PLY/STL/OFF/AC3D/... via assimp) or tanker:N[:SEED]")
+      ->required();
+  cmd->add_option("-o,--output", args->output, "Store file to write (replaced atomically)")->required();
+  cmd->add_option("--backend", args->backend, "hdf5 or pagefile")->capture_default_str();
+  cmd->add_option("--codec", args->codec, "Page codec: zstd or none")->capture_default_str();
+  cmd->add_option("--zstd-level", args->zstd_level, "zstd compression level")->capture_default_str();
+  cmd->add_option("--block-size", args->block_size, "Disk block size in bytes")->capture_default_str();
+  cmd->add_option("--blocks-per-page", args->blocks_per_page, "d: blocks per leaf page")->capture_default_str();
+  cmd->add_option("--r", args->r, "SOA balance ratio, 0 <= r < 0.5")->capture_default_str();
+  cmd->add_option("--split-budget", args->split_budget, "SplitTree node budget per internal node")
+      ->capture_default_str();
+  cmd->add_flag("-q,--quiet", args->quiet, "No progress and no summary");
+  cmd->callback([run, args] { *run = [args] { return RunBuild(*args); }; });
+}
+
+}  // namespace mktree::tools

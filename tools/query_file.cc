@@ -1,0 +1,90 @@
+#include "tools/query_file.h"
+
+#include <charconv>
+#include <cmath>
+#include <fstream>
+
+namespace mktree::tools {
+
+namespace {
+
+// Splits on spaces/tabs or commas; false if a token is not a finite number.
+bool ParseNumbers(std::string_view text, std::vector<double>* out, std::string* bad) {
+  out->clear();
+  size_t i = 0;
+  while (i < text.size()) {
+    while (i < text.size() && (text[i] == ' ' || text[i] == '\t' || text[i] == ',' || text[i] == '\r')) ++i;
+    if (i >= text.size()) break;
+    size_t j = i;
+    while (j < text.size() && text[j] != ' ' && text[j] != '\t' && text[j] != ',' && text[j] != '\r') ++j;
+    std::string_view tok = text.substr(i, j - i);
+    double v = 0;
+    auto [p, ec] = std::from_chars(tok.data(), tok.data() + tok.size(), v);
+    if (ec != std::errc() || p != tok.data() + tok.size() || !std::isfinite(v)) {
+      *bad = std::string(tok);
+      return false;
+    }
+    out->push_back(v);
+    i = j;
+  }
+  return true;
+}
+
+Result<Query> MakeQuery(const std::string& kind, const std::vector<double>& v, const std::string& where) {
+  if (kind == "point") {
+    if (v.size() != 3) return Status::InvalidArgument(where + ": a point needs 3 numbers, got " + std::to_string(v.size()));
+    return Query::Point(Vec3d{v[0], v[1], v[2]});
+  }
+  if (v.size() != 6) return Status::InvalidArgument(where + ": a box needs 6 numbers, got " + std::to_string(v.size()));
+  Box3d b;
+  for (int i = 0; i < 3; ++i) {
+    b.min[i] = v[i];
+    b.max[i] = v[i + 3];
+    if (b.min[i] > b.max[i]) return Status::InvalidArgument(where + ": box min > max on axis " + std::to_string(i));
+  }
+  return Query::Box(b);
+}
+
+}  // namespace
+
+Result<std::vector<Query>> ReadQueryFile(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) return Status::NotFound(path + ": cannot open query file");
+  std::vector<Query> queries;
+  std::string line;
+  std::vector<double> numbers;
+  for (uint64_t line_no = 1; std::getline(in, line); ++line_no) {
+    const std::string where = path + ":" + std::to_string(line_no);
+    if (auto hash = line.find('#'); hash != std::string::npos) line.resize(hash);
+    size_t s = line.find_first_not_of(" \t\r");
+    if (s == std::string::npos) continue;
+    size_t e = line.find_first_of(" \t", s);
+    const std::string kind = line.substr(s, e == std::string::npos ? std::string::npos : e - s);
+    if (kind != "point" && kind != "box")
+      return Status::InvalidArgument(where + ": unknown query '" + kind + "' (expected point or box)");
+    std::string bad;
+    if (!ParseNumbers(e == std::string::npos ? std::string_view() : std::string_view(line).substr(e), &numbers, &bad))
+      return Status::InvalidArgument(where + ": '" + bad + "' is not a finite number");
+    auto q = MakeQuery(kind, numbers, where);
+    if (!q.ok()) return q.status();
+    queries.push_back(*q);
+  }
+  if (in.bad()) return Status::IOError(path + ": read failed");
+  return queries;
+}
+
+Result<Query> ParsePointArg(const std::string& text) {
+  std::vector<double> v;
+  std::string bad;
+  if (!ParseNumbers(text, &v, &bad)) return Status::InvalidArgument("--point: '" + bad + "' is not a finite number");
+  return MakeQuery("point", v, "--point");
+}
+
+Result<Query> ParseBoxArg(const std::string& text) {
+  std::vector<double> v;
+  std::string bad;
+  if (!ParseNumbers(text, &v, &bad)) return Status::InvalidArgument("--box: '" + bad + "' is not a finite number");
+  return MakeQuery("box", v, "--box");
+}
+
+}  // namespace mktree::tools
