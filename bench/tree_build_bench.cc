@@ -1,8 +1,8 @@
 // tree_build_bench: MKtree construction from in-RAM records, and the routing quality of the result.
 //
 // Workloads (each runs in its own forked process, so that its peak RSS is its own):
-//   tanker_1m        1,000,000 objects of MakeTankerSource(1e6, seed 1), BuildTuning defaults (2 threads)
-//   tanker_1m_1t     the same, one thread
+//   tanker_1m        1,000,000 objects of MakeTankerSource(1e6, seed 1), BuildTuning defaults (1 thread)
+//   tanker_1m_2t     the same, two threads
 //   tanker_1m_soa    the same, plain SOA (no page-fill-aware tie breaking): the fill baseline
 //   tanker_10m       10,000,000 objects of MakeTankerSource(1e7, seed 1)
 //   synthetic_1m     1,000,000 synthetic records (pipes / plates / equipment boxes; no generator)
@@ -182,9 +182,9 @@ void Run(const Workload& w) {
 int main(int argc, char** argv) {
   using mktree::Workload;
   const Workload all[] = {
-      {"tanker_1m", 1000000, true, 2, true},      {"tanker_1m_1t", 1000000, true, 1, true},
-      {"tanker_1m_soa", 1000000, true, 2, false}, {"tanker_10m", 10000000, true, 2, true},
-      {"synthetic_1m", 1000000, false, 2, true},
+      {"tanker_1m", 1000000, true, 1, true},      {"tanker_1m_2t", 1000000, true, 2, true},
+      {"tanker_1m_soa", 1000000, true, 1, false}, {"tanker_10m", 10000000, true, 1, true},
+      {"synthetic_1m", 1000000, false, 1, true},
   };
 #ifndef NDEBUG
   std::printf("WARNING: built without optimisation (NDEBUG not defined); timings are not meaningful\n");

@@ -110,6 +110,9 @@ class SubtreeBuilder {
         stack.push_back(kids[1]);
         stack.push_back(kids[0]);  // left next: it becomes node n+1 (DFS preorder)
       }
+      // The scratch arrays were sized for the root; give the memory back once nodes are much smaller,
+      // so that it does not add to the peak when the SplitTrees have grown.
+      if (!stack.empty()) ShrinkScratch(stack.back().hi - stack.back().lo);
     }
   }
 
@@ -238,6 +241,12 @@ class SubtreeBuilder {
   }
 
  private:
+  void ShrinkScratch(size_t n) {
+    if (tmp_.capacity() < 4 * n + (1u << 16)) return;
+    for (auto* v : {&sorted_min_, &prefix_max_, &sorted_max_, &suffix_min_}) std::vector<float>(n).swap(*v);
+    std::vector<uint32_t>(n).swap(tmp_);
+  }
+
   uint64_t Pages(uint64_t bytes) const { return PagesForLeaf(bytes, mem_page_); }
 
   Candidate ChooseSplit(const Task& t, uint32_t k_lo, uint32_t k_hi) {
