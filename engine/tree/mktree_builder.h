@@ -51,9 +51,9 @@ struct BuildTuning {
   // A SplitTree cut is made only when it saves at least this share of the routing cost of a point spread
   // over the overlap region Q (see split_tree_builder.h): it keeps SplitTrees to the cuts that matter.
   double split_min_gain = 0.01;
-  // Threads used (1 or 2): with 2, the two subtrees of the root are built concurrently. Default 1: on
-  // the shared 2-core bench machine 2 threads gained nothing (2.20 s vs 2.17 s at 1M) and the merge of
-  // the two subtrees' outputs raised the peak from 118 to 169 bytes/object.
+  // Threads used (1 or 2): with 2, the two subtrees of the root are built concurrently. Default 1: on the
+  // shared 2-core bench machine 2 threads took 1.68 s vs 2.33 s at 1M in one run and 2.20 vs 2.17 s in
+  // another, while merging the subtrees' outputs raised the peak from 114 to 159 bytes/object.
   int threads = 1;
 };
 
