@@ -95,7 +95,8 @@ void InverseTransform(const uint8_t* in, size_t vc, size_t nt, Mesh* m) {
 
 }  // namespace
 
-uint32_t EncodeObjectEntry(const SceneObject& obj, const CodecOptions& opts, std::vector<uint8_t>* out) {
+uint32_t EncodeObjectEntry(const SceneObject& obj, const CodecOptions& opts, std::vector<uint8_t>* out,
+                           uint8_t shape_flags) {
   const Mesh& m = obj.mesh;
   const uint64_t raw64 = 4 * uint64_t{m.vertices.size()} + 4 * uint64_t{m.triangles.size()};
   if (raw64 + kObjectEntryHeaderBytes > std::numeric_limits<uint32_t>::max() || m.vertices.size() % 3 != 0 ||
@@ -140,7 +141,8 @@ uint32_t EncodeObjectEntry(const SceneObject& obj, const CodecOptions& opts, std
   }
   p[28] = static_cast<uint8_t>(codec);
   p[29] = transform;
-  Put<uint16_t>(p + 30, 0);
+  p[30] = shape_flags;
+  p[31] = 0;
   Put<uint32_t>(p + 32, static_cast<uint32_t>(m.vertex_count()));
   Put<uint32_t>(p + 36, static_cast<uint32_t>(m.triangle_count()));
   Put<uint32_t>(p + 40, raw);
@@ -165,6 +167,7 @@ Result<ObjectEntryView> ParseObjectEntry(const uint8_t* data, size_t n) {
   }
   const uint8_t codec = data[28];
   e.transform = data[29];
+  e.shape_flags = data[30];
   e.vertex_count = Get<uint32_t>(data + 32);
   e.triangle_count = Get<uint32_t>(data + 36);
   e.raw_bytes = Get<uint32_t>(data + 40);
@@ -174,6 +177,9 @@ Result<ObjectEntryView> ParseObjectEntry(const uint8_t* data, size_t n) {
   e.codec = static_cast<Codec>(codec);
   if (e.transform > 1 || (e.codec == Codec::kNone && e.transform != 0))
     return Status::Corruption(where + "unknown transform " + std::to_string(e.transform));
+  if (e.shape_flags > (kShapeKnown | kShapeEvenEdges | kShapeClosed) ||
+      (e.shape_flags != 0 && !(e.shape_flags & kShapeKnown)))
+    return Status::Corruption(where + "unknown shape flags " + std::to_string(e.shape_flags));
   if (12 * (uint64_t{e.vertex_count} + e.triangle_count) != e.raw_bytes)
     return Status::Corruption(where + "geometry size does not match its counts");
   if (e.codec == Codec::kNone && stored != e.raw_bytes)

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <span>
 
+#include "engine/geometry/mesh_edges.h"
 #include "engine/ingest/spill_file.h"
 #include "engine/tree/mktree_builder.h"
 #include "storage/leaf_codec.h"
@@ -84,7 +85,12 @@ Result<IngestReport> BuildStore(const std::vector<SceneOpener>& inputs, const st
         return Status::InvalidArgument("object " + std::to_string(obj.id) + " ('" + obj.name +
                                        "'): empty or non-finite bounds");
       entry.clear();
-      rec.encoded_bytes = EncodeObjectEntry(obj, options.store.codec, &entry);
+      const EdgeCheck edges = CheckEdges(obj.mesh);
+      const uint8_t shape = kShapeKnown | (edges.even ? kShapeEvenEdges : 0) | (edges.closed ? kShapeClosed : 0);
+      rec.encoded_bytes = EncodeObjectEntry(obj, options.store.codec, &entry, shape);
+      if (rec.encoded_bytes == 0)
+        return Status::InvalidArgument("object " + std::to_string(obj.id) + " ('" + obj.name +
+                                       "'): geometry cannot be encoded (larger than 4 GiB or malformed)");
       auto offset = geometry.Append(entry.data(), entry.size());
       if (!offset.ok()) return offset.status();
       rec.spill_offset = *offset;

@@ -17,6 +17,18 @@ namespace mktree {
 
 namespace {
 
+// The classifier for an entry's mesh, with the edge check ingest stored (computed here for old entries).
+SolidClassifier Classifier(const ObjectEntryView& e, const Mesh& mesh) {
+  SolidClassifierOptions o;
+  if (e.shape_flags & kShapeKnown) {
+    EdgeCheck edges;
+    edges.even = (e.shape_flags & kShapeEvenEdges) != 0;
+    edges.closed = (e.shape_flags & kShapeClosed) != 0;
+    o.edges = edges;
+  }
+  return SolidClassifier(mesh, o);
+}
+
 bool Finite(const Vec3d& p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z); }
 
 class StoreDatabase final : public Database {
@@ -41,7 +53,7 @@ class StoreDatabase final : public Database {
         if (mode == QueryMode::kAabb) return true;
         Mesh mesh;
         MKTREE_RETURN_IF_ERROR(DecodeObjectMesh(e, &mesh));
-        return PointInSolid(mesh, p);
+        return Classifier(e, mesh).Contains(p);
       }, hits));
     }
     return Finish(hits, &s);
@@ -66,7 +78,7 @@ class StoreDatabase final : public Database {
         if (mode == QueryMode::kAabb) return true;
         Mesh mesh;
         MKTREE_RETURN_IF_ERROR(DecodeObjectMesh(e, &mesh));
-        return MeshMeetsBox(mesh, box);
+        return Classifier(e, mesh).MeetsBox(box);
       }, hits));
     }
     return Finish(hits, &s);

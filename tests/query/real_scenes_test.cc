@@ -52,6 +52,11 @@ TEST_P(RealSceneTest, QueriesMatchBruteForce) {
 
   Box3f all;
   for (const SceneObject& o : objs) all.Extend(o.Aabb());
+  // Brute force: one classifier per object, built once (with its grid) for all queries.
+  std::vector<std::unique_ptr<SolidClassifier>> solid;
+  SolidClassifierOptions many;
+  many.expected_queries = 1000;
+  for (const SceneObject& o : objs) solid.push_back(std::make_unique<SolidClassifier>(o.mesh, many));
   std::mt19937_64 rng(2024);
   std::uniform_real_distribution<double> unit(0, 1);
   const int n = GetParam().exact ? 150 : 300;
@@ -71,13 +76,13 @@ TEST_P(RealSceneTest, QueriesMatchBruteForce) {
       ASSERT_TRUE((*db)->QueryPoint(p, mode, &hits, &stats).ok());
       expected.clear();
       for (const SceneObject& o : objs)
-        if (o.Aabb().Contains(p) && (mode == QueryMode::kAabb || PointInSolid(o.mesh, p))) expected.push_back(o.id);
+        if (o.Aabb().Contains(p) && (mode == QueryMode::kAabb || solid[o.id]->Contains(p))) expected.push_back(o.id);
       ASSERT_EQ(hits, expected) << "point " << i;
       EXPECT_EQ(stats.hits, hits.size());
       ASSERT_TRUE((*db)->QueryBox(box, mode, &hits, &stats).ok());
       expected.clear();
       for (const SceneObject& o : objs)
-        if (o.Aabb().Intersects(box) && (mode == QueryMode::kAabb || MeshMeetsBox(o.mesh, box)))
+        if (o.Aabb().Intersects(box) && (mode == QueryMode::kAabb || solid[o.id]->MeetsBox(box)))
           expected.push_back(o.id);
       ASSERT_EQ(hits, expected) << "box " << i;
       EXPECT_EQ(stats.cache_hits + stats.pages_read, stats.pages_touched);

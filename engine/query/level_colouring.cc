@@ -1,0 +1,59 @@
+#include "engine/query/level_colouring.h"
+
+#include <vector>
+
+#include "storage/leaf_codec.h"
+#include "storage/page_cache.h"
+
+namespace mktree {
+
+Rgb GroupColour(LevelGroup g) {
+  switch (g) {
+    case LevelGroup::kSn1: return {40, 90, 230};
+    case LevelGroup::kSn2: return {220, 40, 40};
+    case LevelGroup::kOverlap: return {30, 185, 60};
+    case LevelGroup::kAboveLevel: break;
+  }
+  return {150, 150, 150};
+}
+
+const char* GroupName(LevelGroup g) {
+  switch (g) {
+    case LevelGroup::kSn1: return "Sn1";
+    case LevelGroup::kSn2: return "Sn2";
+    case LevelGroup::kOverlap: return "Sm";
+    case LevelGroup::kAboveLevel: break;
+  }
+  return "above";
+}
+
+Status ForEachObjectAtLevel(const StoreReader& store, int k, const LevelVisitor& visit,
+                            const std::function<void(uint64_t, uint64_t)>& progress) {
+  if (k < 0) return Status::InvalidArgument("level must be >= 0");
+  const MKTree& tree = store.tree();
+  // Capacity 0: a page lives only while pinned, so RAM is one leaf whatever the store size.
+  PageCache cache(&store.pages(), 0);
+  std::vector<PageHandle> handles;
+  std::vector<const uint8_t*> pages;
+  const uint64_t n = tree.leaves.size();
+  for (uint32_t leaf = 0; leaf < n; ++leaf) {
+    const LeafInfo& info = tree.leaves[leaf];
+    handles.clear();
+    pages.clear();
+    for (uint64_t p = info.first_page; p < info.first_page + info.page_count; ++p) {
+      auto h = cache.Pin(p, nullptr);
+      if (!h.ok()) return h.status();
+      pages.push_back(h->data());
+      handles.push_back(std::move(*h));
+    }
+    auto view = LeafView::Parse(store.pages().name(), leaf, info.first_page, pages, tree.params.mem_page(),
+                                /*verify_checksums=*/true);
+    if (!view.ok()) return view.status();
+    for (const ObjectEntryView& e : view->entries())
+      MKTREE_RETURN_IF_ERROR(visit(leaf, e, GroupAtLevel(tree, leaf, e.box, k)));
+    if (progress && (leaf % 256 == 0 || leaf + 1 == n)) progress(leaf + 1, n);
+  }
+  return Status::Ok();
+}
+
+}  // namespace mktree
