@@ -21,6 +21,7 @@ int main(int argc, char** argv) {
   RegisterBuild(app, &run);
   RegisterInfo(app, &run);
   RegisterQuery(app, &run);
+  RegisterExport(app, &run), RegisterRender(app, &run);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

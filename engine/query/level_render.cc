@@ -165,12 +165,17 @@ struct Frame {
 // Depth-buffered, conservative triangle rasterizer over a grid of samples.
 class Rasterizer {
  public:
+  static constexpr uint32_t kNoObject = 0xffffffffu;
   Rasterizer(uint32_t w, uint32_t h)
-      : w_(w), h_(h), depth_(size_t{w} * h, -std::numeric_limits<float>::infinity()), colour_(size_t{w} * h, kBackground) {}
+      : w_(w),
+        h_(h),
+        depth_(size_t{w} * h, -std::numeric_limits<float>::infinity()),
+        colour_(size_t{w} * h, kBackground),
+        object_(size_t{w} * h, kNoObject) {}
 
   // Vertices in sample coordinates (x right, y down) with depth d (larger = nearer).
   void Triangle(double ax, double ay, double ad, double bx, double by, double bd, double cx, double cy, double cd,
-                Rgb c) {
+                Rgb c, uint32_t object) {
     double area = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax);
     if (area == 0 || !std::isfinite(area)) return;  // edge-on: the object's other faces show it
     if (area < 0) {
@@ -205,9 +210,32 @@ class Rasterizer {
         if (d > depth_[i]) {
           depth_[i] = d;
           colour_[i] = c;
+          object_[i] = object;
         }
       }
     }
+  }
+
+  // Outlines every object: a sample whose right or lower neighbour shows another object (or the
+  // background) is darkened on the nearer side, so plates, tiles and pipes read as separate shapes even
+  // where they lie flush and share a colour.
+  void Outline() {
+    auto darken = [&](size_t i) {
+      Rgb& c = colour_[i];
+      c = {static_cast<uint8_t>(c.r * 0.55), static_cast<uint8_t>(c.g * 0.55), static_cast<uint8_t>(c.b * 0.55)};
+    };
+    std::vector<uint8_t> edge(colour_.size(), 0);
+    for (uint32_t y = 0; y < h_; ++y)
+      for (uint32_t x = 0; x < w_; ++x) {
+        const size_t i = size_t{y} * w_ + x;
+        for (const size_t j : {x + 1 < w_ ? i + 1 : i, y + 1 < h_ ? i + w_ : i}) {
+          if (object_[i] == object_[j]) continue;
+          const size_t front = depth_[i] >= depth_[j] ? i : j;
+          if (object_[front] != kNoObject) edge[front] = 1;
+        }
+      }
+    for (size_t i = 0; i < edge.size(); ++i)
+      if (edge[i]) darken(i);
   }
 
   // Averages ss x ss samples into each pixel of `out`.
@@ -233,6 +261,7 @@ class Rasterizer {
   uint32_t w_, h_;
   std::vector<float> depth_;
   std::vector<Rgb> colour_;
+  std::vector<uint32_t> object_;  // id of the object seen at each sample (for outlines)
 };
 
 std::string Count(uint64_t n) { return std::to_string(n); }
@@ -450,7 +479,7 @@ Result<RenderReport> RenderLevel(const StoreReader& store, const std::string& pn
           const Rgb c{static_cast<uint8_t>(base.r * shade), static_cast<uint8_t>(base.g * shade),
                       static_cast<uint8_t>(base.b * shade)};
           raster.Triangle(f.X(f.U(p[0])) * ss, f.Y(f.V(p[0])) * ss, f.D(p[0]), f.X(f.U(p[1])) * ss,
-                          f.Y(f.V(p[1])) * ss, f.D(p[1]), f.X(f.U(p[2])) * ss, f.Y(f.V(p[2])) * ss, f.D(p[2]), c);
+                          f.Y(f.V(p[1])) * ss, f.D(p[1]), f.X(f.U(p[2])) * ss, f.Y(f.V(p[2])) * ss, f.D(p[2]), c, e.id);
           ++report.triangles;
         }
         return Status::Ok();
@@ -459,6 +488,7 @@ Result<RenderReport> RenderLevel(const StoreReader& store, const std::string& pn
   if (!st.ok()) return st;
 
   Picture pic(o.width, o.height);
+  raster.Outline();
   raster.Resolve(ss, &pic);
   if (o.overlay) DrawOverlay(tree, o.level, f, &pic);
   const double bar_len = RoundLength(std::min(150.0, area_w / 4), f.scale);

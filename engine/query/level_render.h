@@ -13,7 +13,7 @@
 //
 // Rendering: 2 x 2 samples per pixel when the picture has at most 4 Mpixels (1 otherwise), averaged;
 // triangles are rasterized conservatively (every sample whose square the triangle touches), so pipes and
-// plates thinner than a sample still show. Memory: the sample buffers (8 bytes a sample) and one leaf.
+// plates thinner than a sample still show. Memory: the sample buffers (13 bytes a sample) and one leaf.
 //
 // Thread safety: RenderLevel only reads `store`.
 #pragma once
