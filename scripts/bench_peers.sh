@@ -8,6 +8,7 @@
 #   --run NAME       report folder bench/results/NAME (default: the date)
 #   --smoke          CI check: a 100k tanker and one small real scene, few queries, report in a temporary
 #                    folder that is removed; fails (non-zero) on any answer mismatch between engines.
+# Builds into $BENCH_BUILD (default build-bench/).
 # Big temporary files go to $BENCH_TMP (default /work/tmp-bench, else a temporary folder); they are removed.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -62,9 +63,10 @@ if [ -z "$py" ] && ((!smoke)); then
     py=/usr/bin/python3
   fi
 fi
-cmake -S . -B build-bench -DCMAKE_BUILD_TYPE=Release >/dev/null
-cmake --build build-bench --target peers_bench -j 2 >/dev/null
-bench=build-bench/bench/peers_bench
+build="${BENCH_BUILD:-build-bench}"  # CI passes the build/ that scripts/test.sh made
+cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release >/dev/null
+cmake --build "$build" --target peers_bench -j 2 >/dev/null
+bench="$build/bench/peers_bench"
 
 cpu=$(grep -m1 'model name' /proc/cpuinfo | sed 's/.*: //')
 ram=$(awk '/MemTotal/ {printf "%.1f GiB", $2 / 1048576}' /proc/meminfo)
