@@ -90,10 +90,10 @@ int RunGenerate(const GenerateOptions& opt) {
 
 void RegisterGenerate(CLI::App& app, CommandRun* run) {
   auto opt = std::make_shared<GenerateOptions>();
-  CLI::App* cmd = app.add_subcommand("generate", "Generate a synthetic scene (the tanker) as .obj or .mks");
-  cmd->add_option("kind", opt->kind, "Scene kind (only 'tanker')")
-      ->required()
-      ->check(CLI::IsMember({"tanker"}));
+  CLI::App* generate = app.add_subcommand("generate", "Generate a synthetic scene or a query file");
+  generate->require_subcommand(1);
+  CLI::App* cmd = generate->add_subcommand("tanker", "The synthetic tanker (DESIGN.md §6) as .obj or .mks");
+  opt->kind = "tanker";
   cmd->add_option("--objects", opt->objects, "Number of objects N (>= 1)")->required();
   cmd->add_option("--seed", opt->seed, "Random seed: the same seed gives the same file")
       ->capture_default_str();
