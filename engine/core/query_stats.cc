@@ -33,7 +33,7 @@ std::string QueryStats::ToJsonMembers() const {
   add("split_nodes_visited", split_nodes_visited);
   add("bytes_read", bytes_read);
   add("candidates_tested", candidates_tested);
-  add("hits", hits);
+  add("hit_count", hits);  // "hits" is the id array in query output
   add("leaves_with_hits", leaves_with_hits);
   return s;
 }
