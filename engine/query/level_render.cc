@@ -27,24 +27,24 @@ const char* RenderViewName(RenderView v) {
   return "?";
 }
 
-Status WriteRgbPng(const std::string& path, uint32_t width, uint32_t height, const std::vector<uint8_t>& rgb) {
+namespace {
+
+// Encodes the image into `out` and commits it.
+Status CommitPng(AtomicOutputFile* out, uint32_t width, uint32_t height, const std::vector<uint8_t>& rgb) {
+  const std::string& path = out->path();
   if (rgb.size() != size_t{3} * width * height) return Status::Internal(path + ": image buffer size mismatch");
-  auto out = AtomicOutputFile::Create(path);
-  if (!out.ok()) return out.status();
   png_image image{};
   image.version = PNG_IMAGE_VERSION;
   image.width = width;
   image.height = height;
   image.format = PNG_FORMAT_RGB;
-  if (!png_image_write_to_stdio(&image, (*out)->file(), 0, rgb.data(), 0, nullptr)) {
+  if (!png_image_write_to_stdio(&image, out->file(), 0, rgb.data(), 0, nullptr)) {
     const std::string why = image.message;
     png_image_free(&image);
     return Status::IOError(path + ": writing the PNG failed: " + why);
   }
-  return (*out)->Commit();
+  return out->Commit();
 }
-
-namespace {
 
 constexpr Rgb kBackground{255, 255, 255};
 
@@ -275,8 +275,14 @@ double RoundLength(double target_px, double scale) {
   return p;
 }
 
+constexpr Rgb kNodeBox{0, 0, 0}, kSlab{0, 100, 30}, kBothCell{255, 150, 0}, kCell{60, 60, 60};
+
+// Hatching: slabs one way, BOTH cells the other, so the objects' colours stay readable underneath.
+bool SlabHatch(int x, int y) { return (x + y) % 7 == 0; }
+bool BothHatch(int x, int y) { return ((x - y) % 5 + 5) % 5 == 0; }
+
 struct LegendItem {
-  enum Kind { kSwatch, kOutline, kTint, kBar, kTitle } kind;
+  enum Kind { kSwatch, kOutline, kSlabHatch, kBothHatch, kBar, kTitle } kind;
   Rgb colour;
   std::string text;
   int bar_px = 0;
@@ -314,8 +320,12 @@ void DrawLegend(Picture* pic, const std::vector<LegendItem>& items, int s, int t
         pic->OutlineRect(x, y - s, x + sw - 1, y + sw - 1 - s, it.colour, 1);
         x += 13 * s;
         break;
-      case LegendItem::kTint:
-        pic->FillRect(x, y - s, x + sw - 1, y + sw - 1 - s, it.colour, 0.45);
+      case LegendItem::kSlabHatch:
+      case LegendItem::kBothHatch:
+        for (int yy = y - s; yy < y + sw - s; ++yy)
+          for (int xx = x; xx < x + sw; ++xx)
+            if (it.kind == LegendItem::kSlabHatch ? SlabHatch(xx, yy) : BothHatch(xx, yy))
+              pic->Blend(xx, yy, it.colour, 1);
         pic->OutlineRect(x, y - s, x + sw - 1, y + sw - 1 - s, it.colour, 1);
         x += 13 * s;
         break;
@@ -332,66 +342,89 @@ void DrawLegend(Picture* pic, const std::vector<LegendItem>& items, int s, int t
   }
 }
 
-constexpr Rgb kNodeBox{0, 0, 0}, kSlab{0, 120, 40}, kBothCell{255, 190, 0}, kCell{90, 90, 90};
-
-// Node boxes at depth k, their overlap slabs and SplitTree cells.
+// Node boxes at depth k, their overlap slabs and SplitTree cells. Regions are first collected in masks
+// and then drawn once, because the boxes overlap in projection (cells stacked along the view axis).
 void DrawOverlay(const MKTree& tree, int k, const Frame& f, Picture* pic) {
+  const int W = static_cast<int>(pic->width()), H = static_cast<int>(pic->height());
+  enum : uint8_t { kInSlab = 1, kInBoth = 2, kCellEdge = 4 };
+  std::vector<uint8_t> mask(size_t(W) * H, 0);
   auto rect = [&](const Box3f& b, int* x0, int* y0, int* x1, int* y1) {
     double a0, b0, a1, b1;
     f.Rect(b, &a0, &b0, &a1, &b1);
     *x0 = static_cast<int>(std::floor(a0)), *y0 = static_cast<int>(std::floor(b0));
     *x1 = std::max(*x0, static_cast<int>(std::ceil(a1)) - 1), *y1 = std::max(*y0, static_cast<int>(std::ceil(b1)) - 1);
   };
-  int x0, y0, x1, y1;
+  auto mark = [&](const Box3f& b, uint8_t bit, bool edge_only) {
+    int x0, y0, x1, y1;
+    rect(b, &x0, &y0, &x1, &y1);
+    for (int y = std::max(y0, 0); y <= std::min(y1, H - 1); ++y)
+      for (int x = std::max(x0, 0); x <= std::min(x1, W - 1); ++x)
+        if (!edge_only || x == x0 || x == x1 || y == y0 || y == y1) mask[size_t(y) * W + x] |= bit;
+  };
+  std::vector<Box3f> slabs;
   for (const TreeNode& n : tree.nodes) {
     if (n.depth != k || n.is_leaf()) continue;
     const int w = n.axis;
     Box3f slab = n.box;
-    slab.min[w] = std::min(n.a, n.b);
-    slab.max[w] = std::max(n.a, n.b);
-    if (n.a < n.b) {
-      rect(slab, &x0, &y0, &x1, &y1);
-      pic->FillRect(x0, y0, x1, y1, kSlab, 0.10);
-      // SplitTree cells inside the slab: BOTH cells are where a query must visit both children.
-      struct Item {
-        uint32_t node;
-        Box3f region;
-      };
-      std::vector<Item> stack;
-      if (n.split_root != kNoIndex) stack.push_back({n.split_root, slab});
-      while (!stack.empty()) {
-        const Item it = stack.back();
-        stack.pop_back();
-        const SplitNode& s = tree.split_nodes[it.node];
-        if (s.is_cell()) {
-          rect(it.region, &x0, &y0, &x1, &y1);
-          if (s.label == CellLabel::kBoth) pic->FillRect(x0, y0, x1, y1, kBothCell, 0.35);
-          pic->OutlineRect(x0, y0, x1, y1, kCell, 0.35);
-          continue;
-        }
-        Box3f lo = it.region, hi = it.region;
-        lo.max[s.axis] = std::min(lo.max[s.axis], s.cut);
-        hi.min[s.axis] = std::max(hi.min[s.axis], s.cut);
-        if (s.child[0] != kNoIndex) stack.push_back({s.child[0], lo});
-        if (s.child[1] != kNoIndex) stack.push_back({s.child[1], hi});
-      }
-      rect(slab, &x0, &y0, &x1, &y1);
-      pic->OutlineRect(x0, y0, x1, y1, kSlab, 0.9);
-    } else {
-      // Disjoint children: the gap between them, drawn as the plane halfway.
+    if (n.a >= n.b) {  // disjoint children: the gap between them, drawn as the plane halfway
       slab.min[w] = slab.max[w] = 0.5f * (n.a + n.b);
-      rect(slab, &x0, &y0, &x1, &y1);
-      pic->OutlineRect(x0, y0, x1, y1, kSlab, 0.9);
+      slabs.push_back(slab);
+      continue;
     }
+    slab.min[w] = n.a;
+    slab.max[w] = n.b;
+    slabs.push_back(slab);
+    mark(slab, kInSlab, false);
+    // SplitTree cells inside the slab: BOTH cells are where a query must visit both children.
+    struct Item {
+      uint32_t node;
+      Box3f region;
+    };
+    std::vector<Item> stack;
+    if (n.split_root != kNoIndex) stack.push_back({n.split_root, slab});
+    while (!stack.empty()) {
+      const Item it = stack.back();
+      stack.pop_back();
+      const SplitNode& sn = tree.split_nodes[it.node];
+      if (sn.is_cell()) {
+        if (sn.label == CellLabel::kBoth) mark(it.region, kInBoth, false);
+        mark(it.region, kCellEdge, true);
+        continue;
+      }
+      Box3f lo = it.region, hi = it.region;
+      lo.max[sn.axis] = std::min(lo.max[sn.axis], sn.cut);
+      hi.min[sn.axis] = std::max(hi.min[sn.axis], sn.cut);
+      if (sn.child[0] != kNoIndex) stack.push_back({sn.child[0], lo});
+      if (sn.child[1] != kNoIndex) stack.push_back({sn.child[1], hi});
+    }
+  }
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) {
+      const uint8_t m = mask[size_t(y) * W + x];
+      if (m & kCellEdge) pic->Blend(x, y, kCell, 0.45);
+      if ((m & kInSlab) && SlabHatch(x, y)) pic->Blend(x, y, kSlab, 0.75);
+      if ((m & kInBoth) && BothHatch(x, y)) pic->Blend(x, y, kBothCell, 0.9);
+    }
+  int x0, y0, x1, y1;
+  for (const Box3f& slab : slabs) {
+    rect(slab, &x0, &y0, &x1, &y1);
+    pic->OutlineRect(x0, y0, x1, y1, kSlab, 1);
   }
   for (const TreeNode& n : tree.nodes) {
     if (n.depth != k) continue;
     rect(n.box, &x0, &y0, &x1, &y1);
-    pic->OutlineRect(x0, y0, x1, y1, kNodeBox, 0.85);
+    pic->OutlineRect(x0, y0, x1, y1, kNodeBox, 1);
+    pic->OutlineRect(x0 + 1, y0 + 1, x1 - 1, y1 - 1, kNodeBox, 1);
   }
 }
 
 }  // namespace
+
+Status WriteRgbPng(const std::string& path, uint32_t width, uint32_t height, const std::vector<uint8_t>& rgb) {
+  auto out = AtomicOutputFile::Create(path);
+  if (!out.ok()) return out.status();
+  return CommitPng(out->get(), width, height, rgb);
+}
 
 Result<RenderReport> RenderLevel(const StoreReader& store, const std::string& png_path, const RenderOptions& o) {
   if (o.level < 0) return Status::InvalidArgument("--level must be >= 0, not " + std::to_string(o.level));
@@ -399,6 +432,9 @@ Result<RenderReport> RenderLevel(const StoreReader& store, const std::string& pn
     return Status::InvalidArgument("--size must be between 64x64 and 16384x16384");
   const MKTree& tree = store.tree();
   if (tree.empty()) return Status::InvalidArgument(store.path() + ": empty store");
+  // Open the output first: an unwritable path fails before any rendering work.
+  auto out = AtomicOutputFile::Create(png_path);
+  if (!out.ok()) return out.status();
   RenderReport report;
   report.samples_per_pixel = uint64_t{o.width} * o.height <= (uint64_t{4} << 20) ? 2 : 1;
   const uint32_t ss = report.samples_per_pixel;
@@ -415,8 +451,8 @@ Result<RenderReport> RenderLevel(const StoreReader& store, const std::string& pn
       items.push_back({LegendItem::kSwatch, GroupColour(static_cast<LevelGroup>(g)), std::string(label[g]) + " " + num(c[g])});
     if (o.overlay) {
       items.push_back({LegendItem::kOutline, kNodeBox, "NODE AT DEPTH " + std::to_string(o.level)});
-      items.push_back({LegendItem::kTint, kSlab, "OVERLAP SLAB"});
-      items.push_back({LegendItem::kTint, kBothCell, "SPLITTREE BOTH CELL"});
+      items.push_back({LegendItem::kSlabHatch, kSlab, "OVERLAP SLAB"});
+      items.push_back({LegendItem::kBothHatch, kBothCell, "SPLITTREE BOTH CELL"});
     }
     char len[32];
     std::snprintf(len, sizeof len, "%g", bar_len);
@@ -495,7 +531,7 @@ Result<RenderReport> RenderLevel(const StoreReader& store, const std::string& pn
   const int bar_px = std::max(2, static_cast<int>(std::lround(bar_len * f.scale)));
   DrawLegend(&pic, legend_items(report.objects, false, bar_px, bar_len), s,
              static_cast<int>(o.height) - margin - legend_h + 4 * s, margin);
-  MKTREE_RETURN_IF_ERROR(WriteRgbPng(png_path, o.width, o.height, pic.rgb()));
+  MKTREE_RETURN_IF_ERROR(CommitPng(out->get(), o.width, o.height, pic.rgb()));
   return report;
 }
 
