@@ -38,13 +38,15 @@ int RunExport(const ExportArgs& a) {
   if (!a.quiet) {
     const ExportReport& r = *report;
     std::printf(
-        "exported %s: level %d %s, %llu objects (Sn1 %llu, Sn2 %llu, Sm %llu, above level %llu), %llu vertices, "
+        "exported %s: level %d %s, %llu objects (Sn1 %llu, Sn2 %llu, Sm %llu, above level %llu), %llu "
+        "vertices, "
         "%llu triangles, %s in %.2f s, peak RSS %s\n",
-        a.output.c_str(), a.level, a.boxes ? "boxes" : "geometry", static_cast<unsigned long long>(r.total_objects()),
-        static_cast<unsigned long long>(r.objects[0]), static_cast<unsigned long long>(r.objects[1]),
-        static_cast<unsigned long long>(r.objects[2]), static_cast<unsigned long long>(r.objects[3]),
-        static_cast<unsigned long long>(r.total_vertices()), static_cast<unsigned long long>(r.total_triangles()),
-        HumanBytes(r.bytes).c_str(), secs, HumanBytes(PeakRssBytes()).c_str());
+        a.output.c_str(), a.level, a.boxes ? "boxes" : "geometry",
+        static_cast<unsigned long long>(r.total_objects()), static_cast<unsigned long long>(r.objects[0]),
+        static_cast<unsigned long long>(r.objects[1]), static_cast<unsigned long long>(r.objects[2]),
+        static_cast<unsigned long long>(r.objects[3]), static_cast<unsigned long long>(r.total_vertices()),
+        static_cast<unsigned long long>(r.total_triangles()), HumanBytes(r.bytes).c_str(), secs,
+        HumanBytes(PeakRssBytes()).c_str());
   }
   return 0;
 }
@@ -54,11 +56,15 @@ int RunExport(const ExportArgs& a) {
 void RegisterExport(CLI::App& app, CommandRun* run) {
   auto args = std::make_shared<ExportArgs>();
   CLI::App* cmd = app.add_subcommand(
-      "export", "Write the level-k colouring as PLY or GLB (blue Sn1, red Sn2, green overlap Sm, grey above level)");
+      "export",
+      "Write the level-k colouring as PLY or GLB (blue Sn1, red Sn2, green overlap Sm, grey above level)");
   cmd->add_option("store", args->store, "Store file")->required();
-  cmd->add_option("--level", args->level, "k: colour each object by its group at its depth-k ancestor")->required();
-  cmd->add_option("-o,--output", args->output, "OUT.ply (binary, vertex colours) or OUT.glb (glTF 2.0)")->required();
-  cmd->add_flag("--boxes", args->boxes, "Each object's AABB (8 vertices, 12 triangles) instead of its geometry");
+  cmd->add_option("--level", args->level, "k: colour each object by its group at its depth-k ancestor")
+      ->required();
+  cmd->add_option("-o,--output", args->output, "OUT.ply (binary, vertex colours) or OUT.glb (glTF 2.0)")
+      ->required();
+  cmd->add_flag("--boxes", args->boxes,
+                "Each object's AABB (8 vertices, 12 triangles) instead of its geometry");
   cmd->add_flag("-q,--quiet", args->quiet, "No progress and no summary");
   cmd->callback([run, args] { *run = [args] { return RunExport(*args); }; });
 }

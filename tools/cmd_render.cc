@@ -48,13 +48,15 @@ int RunRender(const RenderArgs& a) {
   if (!a.quiet) {
     const RenderReport& r = *report;
     std::printf(
-        "rendered %s: %ux%u, level %d, %s view, %llu objects (Sn1 %llu, Sn2 %llu, Sm %llu, above level %llu), "
+        "rendered %s: %ux%u, level %d, %s view, %llu objects (Sn1 %llu, Sn2 %llu, Sm %llu, above level "
+        "%llu), "
         "%llu triangles, %.3g px per unit, in %.2f s, peak RSS %s\n",
         a.output.c_str(), w, h, a.level, a.view.c_str(),
         static_cast<unsigned long long>(r.objects[0] + r.objects[1] + r.objects[2] + r.objects[3]),
         static_cast<unsigned long long>(r.objects[0]), static_cast<unsigned long long>(r.objects[1]),
         static_cast<unsigned long long>(r.objects[2]), static_cast<unsigned long long>(r.objects[3]),
-        static_cast<unsigned long long>(r.triangles), r.pixels_per_metre, secs, HumanBytes(PeakRssBytes()).c_str());
+        static_cast<unsigned long long>(r.triangles), r.pixels_per_metre, secs,
+        HumanBytes(PeakRssBytes()).c_str());
   }
   return 0;
 }
@@ -64,14 +66,17 @@ int RunRender(const RenderArgs& a) {
 void RegisterRender(CLI::App& app, CommandRun* run) {
   auto args = std::make_shared<RenderArgs>();
   CLI::App* cmd = app.add_subcommand(
-      "render", "Draw the level-k colouring as a PNG (blue Sn1, red Sn2, green overlap Sm, grey above level)");
+      "render",
+      "Draw the level-k colouring as a PNG (blue Sn1, red Sn2, green overlap Sm, grey above level)");
   cmd->add_option("store", args->store, "Store file")->required();
-  cmd->add_option("--level", args->level, "k: colour each object by its group at its depth-k ancestor")->required();
+  cmd->add_option("--level", args->level, "k: colour each object by its group at its depth-k ancestor")
+      ->required();
   cmd->add_option("-o,--output", args->output, "OUT.png")->required();
   cmd->add_option("--view", args->view, "top (x right, y up), side (x right, z up) or front (y right, z up)")
       ->capture_default_str();
   cmd->add_option("--size", args->size, "WIDTHxHEIGHT in pixels (64..16384 each)")->capture_default_str();
-  cmd->add_flag("--overlay", args->overlay, "Outline the nodes at depth k, their overlap slabs and SplitTree cells");
+  cmd->add_flag("--overlay", args->overlay,
+                "Outline the nodes at depth k, their overlap slabs and SplitTree cells");
   cmd->add_flag("-q,--quiet", args->quiet, "No progress and no summary");
   cmd->callback([run, args] { *run = [args] { return RunRender(*args); }; });
 }

@@ -31,7 +31,8 @@ AtomicOutputFile::~AtomicOutputFile() {
 }
 
 Status AtomicOutputFile::Write(const void* data, size_t n) {
-  if (n && std::fwrite(data, 1, n, file_.get()) != n) return Status::IOError(path_ + ": write failed: " + Errno());
+  if (n && std::fwrite(data, 1, n, file_.get()) != n)
+    return Status::IOError(path_ + ": write failed: " + Errno());
   return Status::Ok();
 }
 
@@ -40,7 +41,8 @@ Status AtomicOutputFile::Commit() {
     return Status::IOError(path_ + ": write failed: " + Errno());
   if (::fsync(::fileno(file_.get())) != 0) return Status::IOError(path_ + ": fsync failed: " + Errno());
   if (std::fclose(file_.release()) != 0) return Status::IOError(path_ + ": close failed: " + Errno());
-  if (std::rename(temp_.c_str(), path_.c_str()) != 0) return Status::IOError(path_ + ": rename failed: " + Errno());
+  if (std::rename(temp_.c_str(), path_.c_str()) != 0)
+    return Status::IOError(path_ + ": rename failed: " + Errno());
   committed_ = true;
   return Status::Ok();
 }
@@ -52,7 +54,8 @@ Result<FilePtr> OpenSpoolFile(const std::string& near_path) {
   const std::string name =
       (dir / (".mktree_spool." + std::to_string(::getpid()) + "." + std::to_string(counter++))).string();
   FilePtr f(std::fopen(name.c_str(), "w+b"));
-  if (!f) return Status::IOError(near_path + ": cannot create a scratch file in " + dir.string() + ": " + Errno());
+  if (!f)
+    return Status::IOError(near_path + ": cannot create a scratch file in " + dir.string() + ": " + Errno());
   std::remove(name.c_str());  // unlinked: nothing is left behind, however the process ends
   return f;
 }
@@ -63,7 +66,8 @@ Status CopySpool(std::FILE* spool, std::FILE* out, const std::string& out_name) 
   std::vector<char> buf(1 << 20);
   size_t n;
   while ((n = std::fread(buf.data(), 1, buf.size(), spool)) > 0)
-    if (std::fwrite(buf.data(), 1, n, out) != n) return Status::IOError(out_name + ": write failed: " + Errno());
+    if (std::fwrite(buf.data(), 1, n, out) != n)
+      return Status::IOError(out_name + ": write failed: " + Errno());
   if (std::ferror(spool)) return Status::IOError(out_name + ": scratch file read failed: " + Errno());
   return Status::Ok();
 }

@@ -9,20 +9,28 @@ namespace mktree {
 
 Rgb GroupColour(LevelGroup g) {
   switch (g) {
-    case LevelGroup::kSn1: return {40, 90, 230};
-    case LevelGroup::kSn2: return {220, 40, 40};
-    case LevelGroup::kOverlap: return {30, 185, 60};
-    case LevelGroup::kAboveLevel: break;
+    case LevelGroup::kSn1:
+      return {40, 90, 230};
+    case LevelGroup::kSn2:
+      return {220, 40, 40};
+    case LevelGroup::kOverlap:
+      return {30, 185, 60};
+    case LevelGroup::kAboveLevel:
+      break;
   }
   return {150, 150, 150};
 }
 
 const char* GroupName(LevelGroup g) {
   switch (g) {
-    case LevelGroup::kSn1: return "Sn1";
-    case LevelGroup::kSn2: return "Sn2";
-    case LevelGroup::kOverlap: return "Sm";
-    case LevelGroup::kAboveLevel: break;
+    case LevelGroup::kSn1:
+      return "Sn1";
+    case LevelGroup::kSn2:
+      return "Sn2";
+    case LevelGroup::kOverlap:
+      return "Sm";
+    case LevelGroup::kAboveLevel:
+      break;
   }
   return "above";
 }

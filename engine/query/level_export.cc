@@ -13,7 +13,8 @@
 
 namespace mktree {
 
-static_assert(std::endian::native == std::endian::little, "PLY and GLB are written as little-endian raw memory");
+static_assert(std::endian::native == std::endian::little,
+              "PLY and GLB are written as little-endian raw memory");
 
 const uint32_t kBoxTriangles[36] = {0, 2, 3, 0, 3, 1, 4, 5, 7, 4, 7, 6, 0, 1, 5, 0, 5, 4,
                                     2, 6, 7, 2, 7, 3, 0, 4, 6, 0, 6, 2, 1, 3, 7, 1, 7, 5};
@@ -41,11 +42,14 @@ namespace {
 class GeometrySink {
  public:
   virtual ~GeometrySink() = default;
-  virtual Status Add(LevelGroup g, const float* xyz, uint32_t vertices, const uint32_t* tris, uint32_t triangles) = 0;
+  virtual Status Add(LevelGroup g, const float* xyz, uint32_t vertices, const uint32_t* tris,
+                     uint32_t triangles) = 0;
   virtual Status Finish(AtomicOutputFile* out) = 0;
 };
 
-Status SpoolError(const std::string& path) { return Status::IOError(path + ": writing a scratch file failed"); }
+Status SpoolError(const std::string& path) {
+  return Status::IOError(path + ": writing a scratch file failed");
+}
 
 // PLY: vertices stream to the output after a header whose counts are patched at the end; faces (which
 // PLY wants after all vertices) go to a scratch file that is appended.
@@ -55,7 +59,8 @@ class PlySink final : public GeometrySink {
     auto faces = OpenSpoolFile(out->path());
     if (!faces.ok()) return faces.status();
     auto sink = std::unique_ptr<PlySink>(new PlySink(out, std::move(*faces)));
-    std::string h = "ply\nformat binary_little_endian 1.0\ncomment mktree export: level " + std::to_string(level) +
+    std::string h = "ply\nformat binary_little_endian 1.0\ncomment mktree export: level " +
+                    std::to_string(level) +
                     " colouring: blue Sn1 side, red Sn2 side, green overlap set Sm, grey leaf at depth <= " +
                     std::to_string(level) + "\nelement vertex ";
     sink->vertex_count_at_ = h.size();
@@ -158,7 +163,8 @@ class GlbSink final : public GeometrySink {
   Status Add(LevelGroup lg, const float* xyz, uint32_t nv, const uint32_t* tris, uint32_t nt) override {
     Group& g = groups_[GroupIndex(lg)];
     if (g.vertices + nv > std::numeric_limits<uint32_t>::max())
-      return Status::InvalidArgument(path_ + ": more than 2^32 - 1 vertices in one group (glTF uint32 indices)");
+      return Status::InvalidArgument(path_ +
+                                     ": more than 2^32 - 1 vertices in one group (glTF uint32 indices)");
     for (size_t i = 0; i < 3 * size_t{nv}; ++i) {
       g.min[i % 3] = std::min(g.min[i % 3], xyz[i]);
       g.max[i % 3] = std::max(g.max[i % 3], xyz[i]);
@@ -186,27 +192,29 @@ class GlbSink final : public GeometrySink {
       const std::string s = std::to_string(n);
       scene_nodes += sep + s;
       nodes += sep + "{\"name\":\"" + name + "\",\"mesh\":" + s + "}";
-      meshes += sep + "{\"name\":\"" + name + "\",\"primitives\":[{\"attributes\":{\"POSITION\":" +
-                std::to_string(2 * n) + "},\"indices\":" + std::to_string(2 * n + 1) + ",\"material\":" + s +
-                ",\"mode\":4}]}";
+      meshes += sep + "{\"name\":\"" + name +
+                "\",\"primitives\":[{\"attributes\":{\"POSITION\":" + std::to_string(2 * n) +
+                "},\"indices\":" + std::to_string(2 * n + 1) + ",\"material\":" + s + ",\"mode\":4}]}";
       materials += sep + "{\"name\":\"" + name + "\",\"doubleSided\":true,\"pbrMetallicRoughness\":{" +
                    "\"baseColorFactor\":[" + Num(SrgbToLinear(c.r)) + "," + Num(SrgbToLinear(c.g)) + "," +
                    Num(SrgbToLinear(c.b)) + ",1],\"metallicFactor\":0,\"roughnessFactor\":0.8}}";
       const uint64_t pos_bytes = 12 * g.vertices, idx_bytes = 12 * g.triangles;
       views += sep + "{\"buffer\":0,\"byteOffset\":" + std::to_string(offset) +
-               ",\"byteLength\":" + std::to_string(pos_bytes) + ",\"target\":34962},{\"buffer\":0,\"byteOffset\":" +
-               std::to_string(offset + pos_bytes) + ",\"byteLength\":" + std::to_string(idx_bytes) +
-               ",\"target\":34963}";
+               ",\"byteLength\":" + std::to_string(pos_bytes) +
+               ",\"target\":34962},{\"buffer\":0,\"byteOffset\":" + std::to_string(offset + pos_bytes) +
+               ",\"byteLength\":" + std::to_string(idx_bytes) + ",\"target\":34963}";
       offset += pos_bytes + idx_bytes;
-      accessors += sep + "{\"bufferView\":" + std::to_string(2 * n) + ",\"componentType\":5126,\"count\":" +
-                   std::to_string(g.vertices) + ",\"type\":\"VEC3\",\"min\":[" + Num(g.min[0]) + "," +
-                   Num(g.min[1]) + "," + Num(g.min[2]) + "],\"max\":[" + Num(g.max[0]) + "," + Num(g.max[1]) +
-                   "," + Num(g.max[2]) + "]},{\"bufferView\":" + std::to_string(2 * n + 1) +
-                   ",\"componentType\":5125,\"count\":" + std::to_string(3 * g.triangles) + ",\"type\":\"SCALAR\"}";
+      accessors +=
+          sep + "{\"bufferView\":" + std::to_string(2 * n) +
+          ",\"componentType\":5126,\"count\":" + std::to_string(g.vertices) + ",\"type\":\"VEC3\",\"min\":[" +
+          Num(g.min[0]) + "," + Num(g.min[1]) + "," + Num(g.min[2]) + "],\"max\":[" + Num(g.max[0]) + "," +
+          Num(g.max[1]) + "," + Num(g.max[2]) + "]},{\"bufferView\":" + std::to_string(2 * n + 1) +
+          ",\"componentType\":5125,\"count\":" + std::to_string(3 * g.triangles) + ",\"type\":\"SCALAR\"}";
       ++n;
     }
     std::string json = "{\"asset\":{\"version\":\"2.0\",\"generator\":\"mktree export (level " +
-                       std::to_string(level_) + ")\"},\"scene\":0,\"scenes\":[{\"nodes\":[" + scene_nodes + "]}]";
+                       std::to_string(level_) + ")\"},\"scene\":0,\"scenes\":[{\"nodes\":[" + scene_nodes +
+                       "]}]";
     if (n) {
       json += ",\"nodes\":[" + nodes + "],\"meshes\":[" + meshes + "],\"materials\":[" + materials +
               "],\"buffers\":[{\"byteLength\":" + std::to_string(offset) + "}],\"bufferViews\":[" + views +
@@ -217,7 +225,8 @@ class GlbSink final : public GeometrySink {
     // Every piece of the binary chunk is a multiple of 12 bytes, so it needs no padding.
     const uint64_t total = 12 + 8 + json.size() + (n ? 8 + offset : 0);
     if (total > std::numeric_limits<uint32_t>::max())
-      return Status::InvalidArgument(path_ + ": the GLB would exceed 4 GiB (the format's limit); use .ply or --boxes");
+      return Status::InvalidArgument(
+          path_ + ": the GLB would exceed 4 GiB (the format's limit); use .ply or --boxes");
     const uint32_t header[3] = {0x46546C67u, 2, static_cast<uint32_t>(total)};  // "glTF", version 2
     MKTREE_RETURN_IF_ERROR(out->Write(header, sizeof header));
     const uint32_t json_chunk[2] = {static_cast<uint32_t>(json.size()), 0x4E4F534Au};  // "JSON"
@@ -253,8 +262,10 @@ class GlbSink final : public GeometrySink {
 
 }  // namespace
 
-Result<ExportReport> ExportLevel(const StoreReader& store, const std::string& out_path, const ExportOptions& options) {
-  if (options.level < 0) return Status::InvalidArgument("--level must be >= 0, not " + std::to_string(options.level));
+Result<ExportReport> ExportLevel(const StoreReader& store, const std::string& out_path,
+                                 const ExportOptions& options) {
+  if (options.level < 0)
+    return Status::InvalidArgument("--level must be >= 0, not " + std::to_string(options.level));
   auto out = AtomicOutputFile::Create(out_path);
   if (!out.ok()) return out.status();
   std::unique_ptr<GeometrySink> sink;
@@ -282,7 +293,8 @@ Result<ExportReport> ExportLevel(const StoreReader& store, const std::string& ou
           return sink->Add(g, corners, 8, kBoxTriangles, 12);
         }
         MKTREE_RETURN_IF_ERROR(DecodeObjectMesh(e, &mesh));
-        const auto nv = static_cast<uint32_t>(mesh.vertex_count()), nt = static_cast<uint32_t>(mesh.triangle_count());
+        const auto nv = static_cast<uint32_t>(mesh.vertex_count()),
+                   nt = static_cast<uint32_t>(mesh.triangle_count());
         report.vertices[gi] += nv;
         report.triangles[gi] += nt;
         return sink->Add(g, mesh.vertices.data(), nv, mesh.triangles.data(), nt);

@@ -32,25 +32,26 @@ enum class ExportFormat { kPly, kGlb };
 Result<ExportFormat> ExportFormatFor(const std::string& path);
 
 struct ExportOptions {
-  int level = 0;              // k: colour by the group at the depth-k ancestor (>= 0)
+  int level = 0;  // k: colour by the group at the depth-k ancestor (>= 0)
   ExportFormat format = ExportFormat::kPly;
-  bool boxes = false;         // AABBs instead of object geometry
+  bool boxes = false;  // AABBs instead of object geometry
   // Optional: (leaves done, leaves total).
   std::function<void(uint64_t, uint64_t)> progress;
 };
 
 struct ExportReport {
-  GroupCounts objects{};      // per group (GroupIndex)
+  GroupCounts objects{};  // per group (GroupIndex)
   GroupCounts vertices{};
   GroupCounts triangles{};
-  uint64_t bytes = 0;         // size of the written file
+  uint64_t bytes = 0;  // size of the written file
   uint64_t total_objects() const { return objects[0] + objects[1] + objects[2] + objects[3]; }
   uint64_t total_vertices() const { return vertices[0] + vertices[1] + vertices[2] + vertices[3]; }
   uint64_t total_triangles() const { return triangles[0] + triangles[1] + triangles[2] + triangles[3]; }
 };
 
 // Writes the level-`options.level` colouring of `store` to `out_path`.
-Result<ExportReport> ExportLevel(const StoreReader& store, const std::string& out_path, const ExportOptions& options);
+Result<ExportReport> ExportLevel(const StoreReader& store, const std::string& out_path,
+                                 const ExportOptions& options);
 
 // The 8 corners and 12 triangles (outward) of a box, as exported with `boxes`.
 void BoxCorners(const Box3f& box, float out[24]);

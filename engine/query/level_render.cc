@@ -20,9 +20,12 @@ Result<RenderView> ParseRenderView(const std::string& name) {
 
 const char* RenderViewName(RenderView v) {
   switch (v) {
-    case RenderView::kTop: return "top";
-    case RenderView::kSide: return "side";
-    case RenderView::kFront: return "front";
+    case RenderView::kTop:
+      return "top";
+    case RenderView::kSide:
+      return "side";
+    case RenderView::kFront:
+      return "front";
   }
   return "?";
 }
@@ -32,7 +35,8 @@ namespace {
 // Encodes the image into `out` and commits it.
 Status CommitPng(AtomicOutputFile* out, uint32_t width, uint32_t height, const std::vector<uint8_t>& rgb) {
   const std::string& path = out->path();
-  if (rgb.size() != size_t{3} * width * height) return Status::Internal(path + ": image buffer size mismatch");
+  if (rgb.size() != size_t{3} * width * height)
+    return Status::Internal(path + ": image buffer size mismatch");
   png_image image{};
   image.version = PNG_IMAGE_VERSION;
   image.width = width;
@@ -118,7 +122,8 @@ class Picture {
           for (int col = 0; col < 5; ++col)
             if (g->rows[r] & (0x10 >> col))
               FillRect(x + static_cast<int>(i) * 6 * scale + col * scale, y + r * scale,
-                       x + static_cast<int>(i) * 6 * scale + col * scale + scale - 1, y + r * scale + scale - 1, c, 1);
+                       x + static_cast<int>(i) * 6 * scale + col * scale + scale - 1,
+                       y + r * scale + scale - 1, c, 1);
     }
     return TextWidth(s, scale);
   }
@@ -131,14 +136,17 @@ class Picture {
 
 // World axes of the view: right, up, and toward the viewer (see the header).
 struct ViewAxes {
-  int right, up, toward;       // world axis index
+  int right, up, toward;  // world axis index
   double right_sign, toward_sign;
 };
 ViewAxes AxesOf(RenderView v) {
   switch (v) {
-    case RenderView::kTop: return {0, 1, 2, 1, 1};
-    case RenderView::kSide: return {0, 2, 1, 1, -1};
-    case RenderView::kFront: return {1, 2, 0, 1, 1};
+    case RenderView::kTop:
+      return {0, 1, 2, 1, 1};
+    case RenderView::kSide:
+      return {0, 2, 1, 1, -1};
+    case RenderView::kFront:
+      return {1, 2, 0, 1, 1};
   }
   return {0, 1, 2, 1, 1};
 }
@@ -174,8 +182,8 @@ class Rasterizer {
         object_(size_t{w} * h, kNoObject) {}
 
   // Vertices in sample coordinates (x right, y down) with depth d (larger = nearer).
-  void Triangle(double ax, double ay, double ad, double bx, double by, double bd, double cx, double cy, double cd,
-                Rgb c, uint32_t object) {
+  void Triangle(double ax, double ay, double ad, double bx, double by, double bd, double cx, double cy,
+                double cd, Rgb c, uint32_t object) {
     double area = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax);
     if (area == 0 || !std::isfinite(area)) return;  // edge-on: the object's other faces show it
     if (area < 0) {
@@ -184,8 +192,10 @@ class Rasterizer {
     }
     const double minx = std::min({ax, bx, cx}), maxx = std::max({ax, bx, cx});
     const double miny = std::min({ay, by, cy}), maxy = std::max({ay, by, cy});
-    const int x0 = std::max(0, static_cast<int>(std::floor(minx))), x1 = std::min<int>(w_ - 1, static_cast<int>(std::floor(maxx)));
-    const int y0 = std::max(0, static_cast<int>(std::floor(miny))), y1 = std::min<int>(h_ - 1, static_cast<int>(std::floor(maxy)));
+    const int x0 = std::max(0, static_cast<int>(std::floor(minx))),
+              x1 = std::min<int>(w_ - 1, static_cast<int>(std::floor(maxx)));
+    const int y0 = std::max(0, static_cast<int>(std::floor(miny))),
+              y1 = std::min<int>(h_ - 1, static_cast<int>(std::floor(maxy)));
     if (x0 > x1 || y0 > y1) return;
     // Edge e(p) = (q - p0) x (p - p0) for each edge p0 -> q; inside when all three are >= 0. Conservative:
     // accept a sample when the edge passes within its half-sample square (margin = L1 norm of the edge / 2).
@@ -193,9 +203,10 @@ class Rasterizer {
       double ex, ey, px, py, margin;
       double At(double x, double y) const { return ex * (y - py) - ey * (x - px) + margin; }
     };
-    const Edge e[3] = {{cx - bx, cy - by, bx, by, 0.5 * (std::abs(cx - bx) + std::abs(cy - by))},   // weight of a
-                       {ax - cx, ay - cy, cx, cy, 0.5 * (std::abs(ax - cx) + std::abs(ay - cy))},   // weight of b
-                       {bx - ax, by - ay, ax, ay, 0.5 * (std::abs(bx - ax) + std::abs(by - ay))}};  // weight of c
+    const Edge e[3] = {
+        {cx - bx, cy - by, bx, by, 0.5 * (std::abs(cx - bx) + std::abs(cy - by))},   // weight of a
+        {ax - cx, ay - cy, cx, cy, 0.5 * (std::abs(ax - cx) + std::abs(ay - cy))},   // weight of b
+        {bx - ax, by - ay, ax, ay, 0.5 * (std::abs(bx - ax) + std::abs(by - ay))}};  // weight of c
     const double dmin = std::min({ad, bd, cd}), dmax = std::max({ad, bd, cd});
     for (int y = y0; y <= y1; ++y) {
       const double sy = y + 0.5;
@@ -222,7 +233,8 @@ class Rasterizer {
   void Outline() {
     auto darken = [&](size_t i) {
       Rgb& c = colour_[i];
-      c = {static_cast<uint8_t>(c.r * 0.55), static_cast<uint8_t>(c.g * 0.55), static_cast<uint8_t>(c.b * 0.55)};
+      c = {static_cast<uint8_t>(c.r * 0.55), static_cast<uint8_t>(c.g * 0.55),
+           static_cast<uint8_t>(c.b * 0.55)};
     };
     std::vector<uint8_t> edge(colour_.size(), 0);
     for (uint32_t y = 0; y < h_; ++y)
@@ -289,7 +301,9 @@ struct LegendItem {
 };
 
 int ItemWidth(const LegendItem& it, int s) {
-  const int swatch = it.kind == LegendItem::kTitle ? 0 : it.kind == LegendItem::kBar ? it.bar_px + 6 * s : 13 * s;
+  const int swatch = it.kind == LegendItem::kTitle ? 0
+                     : it.kind == LegendItem::kBar ? it.bar_px + 6 * s
+                                                   : 13 * s;
   return swatch + Picture::TextWidth(it.text, s) + 18 * s;
 }
 
@@ -352,7 +366,8 @@ void DrawOverlay(const MKTree& tree, int k, const Frame& f, Picture* pic) {
     double a0, b0, a1, b1;
     f.Rect(b, &a0, &b0, &a1, &b1);
     *x0 = static_cast<int>(std::floor(a0)), *y0 = static_cast<int>(std::floor(b0));
-    *x1 = std::max(*x0, static_cast<int>(std::ceil(a1)) - 1), *y1 = std::max(*y0, static_cast<int>(std::ceil(b1)) - 1);
+    *x1 = std::max(*x0, static_cast<int>(std::ceil(a1)) - 1),
+    *y1 = std::max(*y0, static_cast<int>(std::ceil(b1)) - 1);
   };
   auto mark = [&](const Box3f& b, uint8_t bit, bool edge_only) {
     int x0, y0, x1, y1;
@@ -420,13 +435,15 @@ void DrawOverlay(const MKTree& tree, int k, const Frame& f, Picture* pic) {
 
 }  // namespace
 
-Status WriteRgbPng(const std::string& path, uint32_t width, uint32_t height, const std::vector<uint8_t>& rgb) {
+Status WriteRgbPng(const std::string& path, uint32_t width, uint32_t height,
+                   const std::vector<uint8_t>& rgb) {
   auto out = AtomicOutputFile::Create(path);
   if (!out.ok()) return out.status();
   return CommitPng(out->get(), width, height, rgb);
 }
 
-Result<RenderReport> RenderLevel(const StoreReader& store, const std::string& png_path, const RenderOptions& o) {
+Result<RenderReport> RenderLevel(const StoreReader& store, const std::string& png_path,
+                                 const RenderOptions& o) {
   if (o.level < 0) return Status::InvalidArgument("--level must be >= 0, not " + std::to_string(o.level));
   if (o.width < 64 || o.height < 64 || o.width > 16384 || o.height > 16384)
     return Status::InvalidArgument("--size must be between 64x64 and 16384x16384");
@@ -445,10 +462,13 @@ Result<RenderReport> RenderLevel(const StoreReader& store, const std::string& pn
   auto legend_items = [&](const GroupCounts& c, bool widest, int bar_px, double bar_len) {
     auto num = [&](uint64_t v) { return widest ? std::string(10, '0') : Count(v); };
     std::vector<LegendItem> items;
-    items.push_back({LegendItem::kTitle, {}, "LEVEL " + std::to_string(o.level) + ", " + RenderViewName(o.view) + " VIEW:"});
+    items.push_back({LegendItem::kTitle,
+                     {},
+                     "LEVEL " + std::to_string(o.level) + ", " + RenderViewName(o.view) + " VIEW:"});
     const char* label[kLevelGroups] = {"SN1 SIDE", "SN2 SIDE", "OVERLAP SET SM", "LEAF AT DEPTH <= K"};
     for (int g = 0; g < kLevelGroups; ++g)
-      items.push_back({LegendItem::kSwatch, GroupColour(static_cast<LevelGroup>(g)), std::string(label[g]) + " " + num(c[g])});
+      items.push_back({LegendItem::kSwatch, GroupColour(static_cast<LevelGroup>(g)),
+                       std::string(label[g]) + " " + num(c[g])});
     if (o.overlay) {
       items.push_back({LegendItem::kOutline, kNodeBox, "NODE AT DEPTH " + std::to_string(o.level)});
       items.push_back({LegendItem::kSlabHatch, kSlab, "OVERLAP SLAB"});
@@ -466,7 +486,8 @@ Result<RenderReport> RenderLevel(const StoreReader& store, const std::string& pn
   Frame f;
   f.axes = AxesOf(o.view);
   const Box3f& bounds = tree.nodes[0].box;
-  const double ua = f.axes.right_sign * bounds.min[f.axes.right], ub = f.axes.right_sign * bounds.max[f.axes.right];
+  const double ua = f.axes.right_sign * bounds.min[f.axes.right],
+               ub = f.axes.right_sign * bounds.max[f.axes.right];
   const double u0 = std::min(ua, ub), u1 = std::max(ua, ub);
   const double v0 = bounds.min[f.axes.up], v1 = bounds.max[f.axes.up];
   const double area_w = o.width - 2.0 * margin, area_h = o.height - 2.0 * margin - legend_h;
@@ -479,8 +500,10 @@ Result<RenderReport> RenderLevel(const StoreReader& store, const std::string& pn
   f.ox = margin + (area_w - (u1 - u0) * f.scale) / 2;
   f.oy = margin + (area_h - (v1 - v0) * f.scale) / 2;
   report.pixels_per_metre = f.scale;
-  const double d_lo = std::min(f.axes.toward_sign * bounds.min[f.axes.toward], f.axes.toward_sign * bounds.max[f.axes.toward]);
-  const double d_span = std::max(1e-9, std::abs(double{bounds.max[f.axes.toward]} - bounds.min[f.axes.toward]));
+  const double d_lo = std::min(f.axes.toward_sign * bounds.min[f.axes.toward],
+                               f.axes.toward_sign * bounds.max[f.axes.toward]);
+  const double d_span =
+      std::max(1e-9, std::abs(double{bounds.max[f.axes.toward]} - bounds.min[f.axes.toward]));
 
   // Light from the viewer, a little from the right and the top of the picture: faces of different
   // orientation get different shades, so shapes read.
@@ -504,7 +527,8 @@ Result<RenderReport> RenderLevel(const StoreReader& store, const std::string& pn
           for (int k = 0; k < 3; ++k) p[k] = &mesh.vertices[3 * size_t{mesh.triangles[3 * t + k]}];
           double e1[3], e2[3];
           for (int k = 0; k < 3; ++k) e1[k] = p[1][k] - p[0][k], e2[k] = p[2][k] - p[0][k];
-          const double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+          const double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
+                               e1[0] * e2[1] - e1[1] * e2[0]};
           const double nl = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
           if (nl == 0) continue;
           const double lambert = std::abs(n[0] * light[0] + n[1] * light[1] + n[2] * light[2]) / nl;
@@ -515,7 +539,8 @@ Result<RenderReport> RenderLevel(const StoreReader& store, const std::string& pn
           const Rgb c{static_cast<uint8_t>(base.r * shade), static_cast<uint8_t>(base.g * shade),
                       static_cast<uint8_t>(base.b * shade)};
           raster.Triangle(f.X(f.U(p[0])) * ss, f.Y(f.V(p[0])) * ss, f.D(p[0]), f.X(f.U(p[1])) * ss,
-                          f.Y(f.V(p[1])) * ss, f.D(p[1]), f.X(f.U(p[2])) * ss, f.Y(f.V(p[2])) * ss, f.D(p[2]), c, e.id);
+                          f.Y(f.V(p[1])) * ss, f.D(p[1]), f.X(f.U(p[2])) * ss, f.Y(f.V(p[2])) * ss, f.D(p[2]),
+                          c, e.id);
           ++report.triangles;
         }
         return Status::Ok();

@@ -35,25 +35,26 @@ Result<RenderView> ParseRenderView(const std::string& name);
 const char* RenderViewName(RenderView v);
 
 struct RenderOptions {
-  int level = 0;                 // k (>= 0)
+  int level = 0;  // k (>= 0)
   RenderView view = RenderView::kTop;
-  uint32_t width = 1600;         // pixels, 64..16384
-  uint32_t height = 400;         // pixels, 64..16384
-  bool overlay = false;          // node boxes, overlap slabs and SplitTree cells at depth k
+  uint32_t width = 1600;  // pixels, 64..16384
+  uint32_t height = 400;  // pixels, 64..16384
+  bool overlay = false;   // node boxes, overlap slabs and SplitTree cells at depth k
   // Optional: (leaves done, leaves total).
   std::function<void(uint64_t, uint64_t)> progress;
 };
 
 struct RenderReport {
-  GroupCounts objects{};    // objects drawn per group (GroupIndex)
-  uint64_t triangles = 0;   // triangles rasterized
+  GroupCounts objects{};   // objects drawn per group (GroupIndex)
+  uint64_t triangles = 0;  // triangles rasterized
   uint32_t samples_per_pixel = 1;
   double pixels_per_metre = 0;  // scale of the picture (scene units per pixel, inverted)
 };
 
 // Renders the level-`options.level` colouring of `store` and writes it as an 8-bit RGB PNG at `png_path`
 // (temporary file and rename: nothing half-written on error).
-Result<RenderReport> RenderLevel(const StoreReader& store, const std::string& png_path, const RenderOptions& options);
+Result<RenderReport> RenderLevel(const StoreReader& store, const std::string& png_path,
+                                 const RenderOptions& options);
 
 // Writes an 8-bit RGB image (rows top to bottom, 3 bytes a pixel) as a PNG, atomically.
 Status WriteRgbPng(const std::string& path, uint32_t width, uint32_t height, const std::vector<uint8_t>& rgb);

@@ -52,10 +52,14 @@ Tally Classify(const Image& img, uint32_t rows) {
   for (uint32_t y = 0; y < rows; ++y)
     for (uint32_t x = 0; x < img.width; ++x) {
       const int r = img.at(x, y)[0], g = img.at(x, y)[1], b = img.at(x, y)[2];
-      if (b > r + 40 && b > g + 40) ++t.blue, t.blue_x += x;
-      else if (r > g + 40 && r > b + 40) ++t.red, t.red_x += x;
-      else if (g > r + 40 && g > b + 40) ++t.green;
-      else if (std::abs(r - g) < 12 && std::abs(g - b) < 12 && r < 235 && r > 30) ++t.grey;
+      if (b > r + 40 && b > g + 40)
+        ++t.blue, t.blue_x += x;
+      else if (r > g + 40 && r > b + 40)
+        ++t.red, t.red_x += x;
+      else if (g > r + 40 && g > b + 40)
+        ++t.green;
+      else if (std::abs(r - g) < 12 && std::abs(g - b) < 12 && r < 235 && r > 30)
+        ++t.grey;
     }
   if (t.blue) t.blue_x /= static_cast<double>(t.blue);
   if (t.red) t.red_x /= static_cast<double>(t.red);
@@ -109,7 +113,8 @@ std::unique_ptr<StoreReader> BuildStore(const std::vector<SceneObject>& objs, co
 
 GroupCounts Expect(const StoreReader& r, const std::vector<SceneObject>& objs, int k) {
   GroupCounts c{};
-  for (const SceneObject& o : objs) ++c[GroupIndex(GroupAtLevel(r.tree(), r.objects().leaf[o.id], o.Aabb(), k))];
+  for (const SceneObject& o : objs)
+    ++c[GroupIndex(GroupAtLevel(r.tree(), r.objects().leaf[o.id], o.Aabb(), k))];
   return c;
 }
 

@@ -93,7 +93,8 @@ uint32_t BigEndian32(const std::string& s, size_t at) {
 TEST_F(ExportRenderCliTest, ExportWritesPlyAndGlb) {
   RunResult r = Run("export " + *store_ + " --level 1 -o " + P("ship.ply"));
   ASSERT_EQ(r.code, 0) << r.err;
-  EXPECT_NE(r.out.find("exported " + P("ship.ply") + ": level 1 geometry, 3000 objects"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("exported " + P("ship.ply") + ": level 1 geometry, 3000 objects"), std::string::npos)
+      << r.out;
   const std::string ply = Slurp(P("ship.ply"));
   EXPECT_EQ(ply.rfind("ply\nformat binary_little_endian 1.0\n", 0), 0u);
   EXPECT_NE(ply.find("property uchar red"), std::string::npos);
@@ -112,13 +113,15 @@ TEST_F(ExportRenderCliTest, ExportWritesPlyAndGlb) {
   for (auto it = std::sregex_iterator(glb.begin(), glb.end(), position); it != std::sregex_iterator(); ++it)
     vertices += std::stoull((*it)[1].str());
   EXPECT_EQ(vertices, 3000u * 8);
-  EXPECT_EQ(Files(), (std::vector<std::string>{"ship.glb", "ship.ply"}));  // no temporary or scratch file left
+  EXPECT_EQ(Files(),
+            (std::vector<std::string>{"ship.glb", "ship.ply"}));  // no temporary or scratch file left
 }
 
 TEST_F(ExportRenderCliTest, RenderWritesAPngOfTheRequestedSize) {
   RunResult r = Run("render " + *store_ + " --level 1 -o " + P("top.png") + " --size 640x200 --overlay");
   ASSERT_EQ(r.code, 0) << r.err;
-  EXPECT_NE(r.out.find("rendered " + P("top.png") + ": 640x200, level 1, top view, 3000 objects"), std::string::npos)
+  EXPECT_NE(r.out.find("rendered " + P("top.png") + ": 640x200, level 1, top view, 3000 objects"),
+            std::string::npos)
       << r.out;
   std::string png = Slurp(P("top.png"));
   ASSERT_GE(png.size(), 24u);
