@@ -228,6 +228,8 @@ LeafInfo FromRec(const LeafRec& r) {
   return l;
 }
 
+constexpr int kChecksumCount = 7;
+
 // Writes a 1-D contiguous compound dataset.
 Status WriteTable(hid_t loc, const char* name, hid_t file_type, hid_t mem_type, const void* data, size_t n,
                   const std::string& path) {
@@ -445,6 +447,9 @@ class Hdf5Writer : public StoreWriter::Impl {
     H5Id leaf_mem = MakeCompound(LeafFields(), sizeof(LeafRec), false);
     H5Id leaf_file = MakeCompound(LeafFields(), sizeof(LeafRec), true);
     MKTREE_RETURN_IF_ERROR(WriteTable(tree.get(), "leaves", leaf_file.get(), leaf_mem.get(), leaves.data(), leaves.size(), path_));
+    // The leaf filter: 6 uint8 per object (quantized min x y z, max x y z), leaf by leaf.
+    MKTREE_RETURN_IF_ERROR(WriteTable(tree.get(), "leaf_filter", H5T_STD_U8LE, H5T_NATIVE_UINT8,
+                                      c.tree.leaf_filter.data(), c.tree.leaf_filter.size(), path_));
 
     MKTREE_RETURN_IF_ERROR(WriteObjects(f, c.objects));
 
@@ -463,11 +468,12 @@ class Hdf5Writer : public StoreWriter::Impl {
     const uint64_t pages = store_->page_count(), objects = c.objects.size();
     const int32_t level = c.codec.zstd_level;
     const uint8_t shuffle = c.codec.shuffle ? 1 : 0;
-    const uint64_t sums[6] = {HeaderChecksum(c.params, c.codec, pages, objects), Checksum(EncodeNodes(c.tree.nodes)),
+    const uint64_t sums[kChecksumCount] = {HeaderChecksum(c.params, c.codec, pages, objects), Checksum(EncodeNodes(c.tree.nodes)),
                               Checksum(EncodeSplitNodes(c.tree.split_nodes)), Checksum(EncodeLeaves(c.tree.leaves)),
-                              ObjectsChecksum(c.objects), Checksum(c.stats_json)};
-    const char* sum_names[6] = {"checksum_header", "checksum_nodes", "checksum_split_nodes", "checksum_leaves",
-                                "checksum_objects", "checksum_stats_json"};
+                              ObjectsChecksum(c.objects), Checksum(c.stats_json), Checksum(c.tree.leaf_filter)};
+    const char* sum_names[kChecksumCount] = {"checksum_header",  "checksum_nodes",      "checksum_split_nodes",
+                                             "checksum_leaves",  "checksum_objects",    "checksum_stats_json",
+                                             "checksum_leaf_filter"};
     MKTREE_RETURN_IF_ERROR(WriteAttr(f, "format_version", H5T_STD_U32LE, H5T_NATIVE_UINT32, kHdf5FormatVersion, path_));
     MKTREE_RETURN_IF_ERROR(WriteAttr(f, "block_size", H5T_STD_U32LE, H5T_NATIVE_UINT32, c.params.block_size, path_));
     MKTREE_RETURN_IF_ERROR(
@@ -480,7 +486,7 @@ class Hdf5Writer : public StoreWriter::Impl {
     MKTREE_RETURN_IF_ERROR(WriteAttr(f, "shuffle", H5T_STD_U8LE, H5T_NATIVE_UINT8, shuffle, path_));
     MKTREE_RETURN_IF_ERROR(WriteAttr(f, "page_count", H5T_STD_U64LE, H5T_NATIVE_UINT64, pages, path_));
     MKTREE_RETURN_IF_ERROR(WriteAttr(f, "object_count", H5T_STD_U64LE, H5T_NATIVE_UINT64, objects, path_));
-    for (int i = 0; i < 6; ++i)
+    for (int i = 0; i < kChecksumCount; ++i)
       MKTREE_RETURN_IF_ERROR(WriteAttr(f, sum_names[i], H5T_STD_U64LE, H5T_NATIVE_UINT64, sums[i], path_));
     // Last: the magic that makes the file a store.
     MKTREE_RETURN_IF_ERROR(WriteStringAttr(f, "magic", kHdf5Magic, path_));
@@ -646,10 +652,11 @@ Result<OpenedStore> OpenHdf5(const std::string& path, const ReadOptions& opts) {
   c.codec.codec = *codec == "zstd" ? Codec::kZstd : Codec::kNone;
   c.codec.zstd_level = level;
   c.codec.shuffle = shuffle != 0;
-  const char* sum_names[6] = {"checksum_header", "checksum_nodes", "checksum_split_nodes", "checksum_leaves",
-                              "checksum_objects", "checksum_stats_json"};
-  uint64_t sums[6];
-  for (int i = 0; i < 6; ++i) MKTREE_RETURN_IF_ERROR(ReadAttr(f, sum_names[i], H5T_NATIVE_UINT64, &sums[i], path));
+  const char* sum_names[kChecksumCount] = {"checksum_header",  "checksum_nodes",      "checksum_split_nodes",
+                                           "checksum_leaves",  "checksum_objects",    "checksum_stats_json",
+                                           "checksum_leaf_filter"};
+  uint64_t sums[kChecksumCount];
+  for (int i = 0; i < kChecksumCount; ++i) MKTREE_RETURN_IF_ERROR(ReadAttr(f, sum_names[i], H5T_NATIVE_UINT64, &sums[i], path));
   if (HeaderChecksum(c.params, c.codec, page_count, object_count) != sums[0]) return bad("header checksum mismatch");
   BuildParams check_params;
   CodecOptions check_codec;
@@ -669,6 +676,8 @@ Result<OpenedStore> OpenHdf5(const std::string& path, const ReadOptions& opts) {
   MKTREE_RETURN_IF_ERROR(ReadTable(tree.get(), "nodes", node_mem.get(), &nodes, path));
   MKTREE_RETURN_IF_ERROR(ReadTable(tree.get(), "split_nodes", split_mem.get(), &splits, path));
   MKTREE_RETURN_IF_ERROR(ReadTable(tree.get(), "leaves", leaf_mem.get(), &leaves, path));
+  MKTREE_RETURN_IF_ERROR(ReadTable(tree.get(), "leaf_filter", H5T_NATIVE_UINT8, &c.tree.leaf_filter, path));
+  if (Checksum(c.tree.leaf_filter) != sums[6]) return bad("leaf_filter checksum mismatch");
   c.tree.params = c.params;
   for (const NodeRec& r : nodes) c.tree.nodes.push_back(FromRec(r));
   for (const SplitRec& r : splits) {

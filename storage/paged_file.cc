@@ -26,17 +26,18 @@ using storage_internal::PwriteFull;
 namespace {
 
 constexpr uint32_t kPagedFileVersion = 1;
-constexpr uint32_t kFixedHeaderBytes = 256;
+constexpr uint32_t kFixedHeaderBytes = 512;  // the smallest page the builder accepts
 constexpr uint32_t kParamsOffset = 16;
-constexpr uint32_t kSectionCount = 7;
+constexpr uint32_t kSectionCount = 8;
 constexpr uint32_t kSectionTableOffset = 80;
-constexpr uint32_t kHeaderChecksumOffset = kSectionTableOffset + kSectionCount * 24;  // 248
+constexpr uint32_t kHeaderChecksumOffset = kSectionTableOffset + kSectionCount * 24;  // 272
 constexpr size_t kDirectAlign = 4096;
 static_assert(kHeaderChecksumOffset + 8 <= kFixedHeaderBytes);
 static_assert(kParamsOffset + kParamsRecordBytes <= 48);
 
 const char* const kSectionNames[kSectionCount] = {"nodes",           "split nodes",  "leaves",    "object leaves",
-                                                  "object name ends", "object names", "stats JSON"};
+                                                  "object name ends", "object names", "stats JSON",
+                                                  "leaf filter"};
 
 uint64_t HeaderChecksum(const uint8_t* header_page, uint64_t mem_page) {
   // XXH3 of the whole header page with its checksum field taken as zero.
@@ -131,7 +132,8 @@ class PagedFileWriter : public StoreWriter::Impl {
         EncodeObjectLeaves(c.objects),
         EncodeObjectNameEnds(c.objects),
         std::vector<uint8_t>(c.objects.names.begin(), c.objects.names.end()),
-        std::vector<uint8_t>(c.stats_json.begin(), c.stats_json.end())};
+        std::vector<uint8_t>(c.stats_json.begin(), c.stats_json.end()),
+        c.tree.leaf_filter};
 
     std::vector<uint8_t> header(mem_page, 0);
     uint8_t* h = header.data();
@@ -247,6 +249,7 @@ Result<OpenedStore> OpenPagedFile(const std::string& path, const ReadOptions& op
       !(st = DecodeObjectTable(sections[3], sections[4], sections[5], &c.objects)).ok())
     return bad(st.message());
   c.stats_json.assign(sections[6].begin(), sections[6].end());
+  c.tree.leaf_filter = std::move(sections[7]);
   if (c.objects.size() != object_count) return bad("object table size does not match the header");
   MKTREE_RETURN_IF_ERROR(ValidateStructure(c.tree, c.objects, page_count, path));
 

@@ -126,8 +126,9 @@ StoreWriter::~StoreWriter() {
 Result<std::unique_ptr<StoreWriter>> StoreWriter::Create(const std::string& final_path, const StoreOptions& opts) {
   const uint64_t mem_page = opts.params.mem_page();
   if (opts.params.block_size == 0 || opts.params.blocks_per_page == 0 ||
-      mem_page < kPageHeaderBytes + kLeafHeaderBytes + kObjectEntryHeaderBytes || mem_page > (uint64_t{1} << 30))
-    return Status::InvalidArgument(final_path + ": page size " + std::to_string(mem_page) + " out of range");
+      mem_page < kMinPageBytes || mem_page > (uint64_t{1} << 30))
+    return Status::InvalidArgument(final_path + ": page size " + std::to_string(mem_page) +
+                                   " out of range (512 bytes to 1 GiB)");
   if (!(opts.params.balance_r >= 0 && opts.params.balance_r < 0.5))
     return Status::InvalidArgument(final_path + ": balance ratio must be in [0, 0.5)");
   auto lock = Lock::Acquire(final_path);
@@ -204,6 +205,7 @@ Result<std::unique_ptr<StoreReader>> StoreReader::Open(const std::string& path, 
   r->options_.params = o.contents.params;
   r->options_.direct_io = opts.direct_io && o.notice.empty();
   r->tree_ = std::move(o.contents.tree);
+  if (!r->tree_.IndexLeafFilter()) return Status::Corruption(path + ": leaf filter does not match the leaves");
   r->objects_ = std::move(o.contents.objects);
   r->stats_json_ = std::move(o.contents.stats_json);
   r->notice_ = std::move(o.notice);

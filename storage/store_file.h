@@ -32,6 +32,9 @@
 
 namespace mktree {
 
+// The smallest page a store accepts: the paged file's header page must hold its section table.
+inline constexpr uint64_t kMinPageBytes = 512;
+
 enum class Backend { kHdf5, kPagedFile };
 const char* BackendName(Backend b);  // "hdf5", "pagefile"
 

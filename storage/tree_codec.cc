@@ -1,5 +1,7 @@
 #include "storage/tree_codec.h"
 
+#include "engine/tree/leaf_filter.h"
+
 #include <xxhash.h>
 
 #include <cmath>
@@ -241,12 +243,15 @@ Status ValidateStructure(const MKTree& tree, const ObjectTable& objects, uint64_
   if (objects_in_leaves != objects.size())
     return bad("leaves hold " + std::to_string(objects_in_leaves) + " objects but the object table has " +
                std::to_string(objects.size()));
+  if (!tree.leaf_filter.empty() && tree.leaf_filter.size() != uint64_t{kLeafFilterBytesPerObject} * objects.size())
+    return bad("leaf filter holds " + std::to_string(tree.leaf_filter.size()) + " bytes for " +
+               std::to_string(objects.size()) + " objects");
   return Status::Ok();
 }
 
 bool SameTree(const MKTree& a, const MKTree& b) {
   return EncodeNodes(a.nodes) == EncodeNodes(b.nodes) && EncodeSplitNodes(a.split_nodes) == EncodeSplitNodes(b.split_nodes) &&
-         EncodeLeaves(a.leaves) == EncodeLeaves(b.leaves) &&
+         EncodeLeaves(a.leaves) == EncodeLeaves(b.leaves) && a.leaf_filter == b.leaf_filter &&
          EncodeParams(a.params, {}) == EncodeParams(b.params, {});
 }
 

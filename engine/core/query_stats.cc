@@ -6,6 +6,7 @@ QueryStats& QueryStats::operator+=(const QueryStats& o) {
   internal_nodes_visited += o.internal_nodes_visited;
   split_nodes_visited += o.split_nodes_visited;
   leaves_visited += o.leaves_visited;
+  leaves_filtered += o.leaves_filtered;
   pages_touched += o.pages_touched;
   pages_read += o.pages_read;
   cache_hits += o.cache_hits;
@@ -29,6 +30,7 @@ std::string QueryStats::ToJsonMembers() const {
   add("pages_touched", pages_touched);
   add("cache_hits", cache_hits);
   add("leaves_visited", leaves_visited);
+  add("leaves_filtered", leaves_filtered);
   add("internal_nodes_visited", internal_nodes_visited);
   add("split_nodes_visited", split_nodes_visited);
   add("bytes_read", bytes_read);

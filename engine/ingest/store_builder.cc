@@ -9,6 +9,7 @@
 
 #include "engine/geometry/mesh_edges.h"
 #include "engine/ingest/spill_file.h"
+#include "engine/tree/leaf_filter.h"
 #include "engine/tree/mktree_builder.h"
 #include "storage/leaf_codec.h"
 #include "storage/object_codec.h"
@@ -136,7 +137,9 @@ Result<IngestReport> BuildStore(const std::vector<SceneOpener>& inputs, const st
   if (!writer_or.ok()) return writer_or.status();
   StoreWriter& writer = **writer_or;
   const uint64_t mem_page = options.store.params.mem_page();
-  const MKTree& tree = result.tree;
+  MKTree& tree = result.tree;
+  tree.leaf_filter.resize(uint64_t{kLeafFilterBytesPerObject} * report.objects);
+  uint64_t filter_at = 0;
   std::vector<uint8_t> leaf_bytes;
   std::vector<std::span<const uint8_t>> entries;
   std::vector<uint32_t> leaf_of(report.objects, kNoIndex);
@@ -153,6 +156,10 @@ Result<IngestReport> BuildStore(const std::vector<SceneOpener>& inputs, const st
       leaf_of[id] = leaf;
       MKTREE_RETURN_IF_ERROR(geometry.ReadAt(spill_offset[id], entry_bytes[id], leaf_bytes.data() + at));
       entries.emplace_back(leaf_bytes.data() + at, entry_bytes[id]);
+      auto parsed = ParseObjectEntry(leaf_bytes.data() + at, entry_bytes[id]);
+      if (!parsed.ok()) return parsed.status();
+      QuantizeBox(tree.leaves[leaf].box, parsed->box, tree.leaf_filter.data() + filter_at);
+      filter_at += kLeafFilterBytesPerObject;
       at += entry_bytes[id];
     }
     if (tree.leaves[leaf].first_page != page)
@@ -165,6 +172,7 @@ Result<IngestReport> BuildStore(const std::vector<SceneOpener>& inputs, const st
     if (leaf % 4096 == 0) progress(IngestStage::kWritePages, leaf, tree.leaves.size());
   }
   report.pages = page;
+  if (!tree.IndexLeafFilter()) return Status::Internal("leaf filter does not match the leaves' object counts");
   progress(IngestStage::kWritePages, tree.leaves.size(), tree.leaves.size());
   spill_offset = {};
   entry_bytes = {};

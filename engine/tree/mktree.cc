@@ -1,5 +1,7 @@
 #include "engine/tree/mktree.h"
 
+#include "engine/tree/leaf_filter.h"
+
 namespace mktree {
 namespace {
 
@@ -53,6 +55,12 @@ void MKTree::RoutePoint(const Vec3d& p, std::vector<uint32_t>* leaves_out, Query
     const TreeNode& n = nodes[stack.back()];
     stack.pop_back();
     if (n.is_leaf()) {
+      if (!leaf_filter_begin.empty() &&
+          !FilterMeetsPoint(leaves[n.leaf].box, leaf_filter.data() + leaf_filter_begin[n.leaf],
+                            leaves[n.leaf].object_count, p)) {
+        ++stats->leaves_filtered;
+        continue;
+      }
       ++stats->leaves_visited;
       leaves_out->push_back(n.leaf);
       continue;
@@ -84,6 +92,12 @@ void MKTree::RouteBox(const Box3d& q, std::vector<uint32_t>* leaves_out, QuerySt
     const TreeNode& n = nodes[stack.back()];
     stack.pop_back();
     if (n.is_leaf()) {
+      if (!leaf_filter_begin.empty() &&
+          !FilterMeetsBox(leaves[n.leaf].box, leaf_filter.data() + leaf_filter_begin[n.leaf],
+                          leaves[n.leaf].object_count, q)) {
+        ++stats->leaves_filtered;
+        continue;
+      }
       ++stats->leaves_visited;
       leaves_out->push_back(n.leaf);
       continue;
@@ -108,6 +122,23 @@ void MKTree::RouteBox(const Box3d& q, std::vector<uint32_t>* leaves_out, QuerySt
     if ((sides & kRightBit) && meets_right) stack.push_back(n.child[1]);
     if ((sides & kLeftBit) && meets_left) stack.push_back(n.child[0]);
   }
+}
+
+bool MKTree::IndexLeafFilter() {
+  leaf_filter_begin.clear();
+  if (leaf_filter.empty()) return true;
+  leaf_filter_begin.reserve(leaves.size() + 1);
+  uint64_t at = 0;
+  for (const LeafInfo& l : leaves) {
+    leaf_filter_begin.push_back(at);
+    at += uint64_t{kLeafFilterBytesPerObject} * l.object_count;
+  }
+  leaf_filter_begin.push_back(at);
+  if (at != leaf_filter.size()) {
+    leaf_filter_begin.clear();
+    return false;
+  }
+  return true;
 }
 
 uint64_t MKTree::MemoryBytes() const {

@@ -64,14 +64,23 @@ struct MKTree {
   std::vector<TreeNode> nodes;       // nodes[0] is the root (when not empty)
   std::vector<SplitNode> split_nodes;
   std::vector<LeafInfo> leaves;      // in page order
+  // The leaf filter (engine/tree/leaf_filter.h): kLeafFilterBytesPerObject bytes per object, leaf by
+  // leaf in leaf order, each leaf's objects in page order. Empty: no filter (every routed leaf is read).
+  std::vector<uint8_t> leaf_filter;
+  // Derived, not persisted: where leaf i's entries start in leaf_filter (leaves + 1 entries). Set by
+  // IndexLeafFilter() after leaf_filter is filled or loaded.
+  std::vector<uint64_t> leaf_filter_begin;
 
   bool empty() const { return nodes.empty(); }
   // Leaves a point query must read, in leaf order, each once; counts internal/SplitTree nodes in stats.
   void RoutePoint(const Vec3d& p, std::vector<uint32_t>* leaves_out, QueryStats* stats) const;
   // Leaves a box query must read, in leaf order, each once.
   void RouteBox(const Box3d& box, std::vector<uint32_t>* leaves_out, QueryStats* stats) const;
-  // Bytes of RAM held by nodes, split nodes and leaf infos.
+  // Bytes of RAM held by nodes, split nodes and leaf infos (the leaf filter is FilterMemoryBytes()).
   uint64_t MemoryBytes() const;
+  uint64_t FilterMemoryBytes() const { return leaf_filter.capacity() + 8 * leaf_filter_begin.capacity(); }
+  // Computes leaf_filter_begin from the leaves' object counts; false if leaf_filter's size disagrees.
+  bool IndexLeafFilter();
 };
 
 }  // namespace mktree

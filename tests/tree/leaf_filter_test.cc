@@ -1,0 +1,113 @@
+// The leaf filter is conservative: a quantized box always contains its object's box, so a point or box
+// that meets an object is never filtered out; and it is useful: far from every object it filters.
+#include "engine/tree/leaf_filter.h"
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+namespace mktree {
+namespace {
+
+Box3f RandomBoxIn(const Box3f& leaf, std::mt19937_64& rng) {
+  std::uniform_real_distribution<float> u(0, 1);
+  Box3f b;
+  for (int a = 0; a < 3; ++a) {
+    float x = leaf.min[a] + u(rng) * (leaf.max[a] - leaf.min[a]);
+    float y = leaf.min[a] + u(rng) * (leaf.max[a] - leaf.min[a]);
+    if (rng() % 10 == 0) y = x;  // zero-thickness
+    b.min[a] = std::min(x, y);
+    b.max[a] = std::max(x, y);
+  }
+  return b;
+}
+
+TEST(LeafFilter, QuantizedBoxContainsTheObjectBox) {
+  std::mt19937_64 rng(1);
+  for (int t = 0; t < 20000; ++t) {
+    Box3f leaf;
+    for (int a = 0; a < 3; ++a) {
+      const float lo = static_cast<float>(static_cast<int64_t>(rng() % 2000001) - 1000000) / 7.0f;
+      const float ext = (t % 7 == 0) ? 0.0f : static_cast<float>(rng() % 100000) / 13.0f;
+      leaf.min[a] = lo;
+      leaf.max[a] = lo + ext;
+    }
+    const Box3f obj = t % 5 == 0 ? leaf : RandomBoxIn(leaf, rng);
+    uint8_t q[6];
+    QuantizeBox(leaf, obj, q);
+    const Box3d d = DequantizeBox(leaf, q);
+    for (int a = 0; a < 3; ++a) {
+      ASSERT_LE(d.min[a], obj.min[a]) << t;
+      ASSERT_GE(d.max[a], obj.max[a]) << t;
+    }
+    // Points of the object (corners, its centre) and boxes touching it pass the filter.
+    for (int c = 0; c < 9; ++c) {
+      Vec3d p;
+      for (int a = 0; a < 3; ++a)
+        p[a] = c == 8 ? (double{obj.min[a]} + obj.max[a]) / 2 : ((c >> a) & 1) ? obj.max[a] : obj.min[a];
+      ASSERT_TRUE(FilterMeetsPoint(leaf, q, 1, p)) << t << " corner " << c;
+      Box3d touching;
+      for (int a = 0; a < 3; ++a) {
+        touching.min[a] = p[a];
+        touching.max[a] = p[a] + 1;
+      }
+      ASSERT_TRUE(FilterMeetsBox(leaf, q, 1, touching)) << t;
+    }
+  }
+}
+
+TEST(LeafFilter, FiltersFreeSpace) {
+  Box3f leaf;
+  leaf.min = {0, 0, 0};
+  leaf.max = {100, 100, 100};
+  std::vector<uint8_t> q(6 * 2);
+  Box3f a, b;
+  a.min = {0, 0, 0};
+  a.max = {10, 10, 10};
+  b.min = {90, 90, 90};
+  b.max = {100, 100, 100};
+  QuantizeBox(leaf, a, q.data());
+  QuantizeBox(leaf, b, q.data() + 6);
+  EXPECT_TRUE(FilterMeetsPoint(leaf, q.data(), 2, {5, 5, 5}));
+  EXPECT_TRUE(FilterMeetsPoint(leaf, q.data(), 2, {95, 95, 95}));
+  EXPECT_FALSE(FilterMeetsPoint(leaf, q.data(), 2, {50, 50, 50}));
+  EXPECT_FALSE(FilterMeetsPoint(leaf, q.data(), 2, {11, 5, 5}));
+  EXPECT_FALSE(FilterMeetsPoint(leaf, q.data(), 2, {-1, 5, 5}));  // outside the leaf
+  Box3d mid;
+  mid.min = {40, 40, 40};
+  mid.max = {60, 60, 60};
+  EXPECT_FALSE(FilterMeetsBox(leaf, q.data(), 2, mid));
+  mid.max = {91, 91, 91};
+  EXPECT_TRUE(FilterMeetsBox(leaf, q.data(), 2, mid));
+}
+
+TEST(LeafFilter, RandomPointsAgainstBruteForce) {
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> u(0, 1);
+  Box3f leaf;
+  leaf.min = {-3.5f, 10, 200};
+  leaf.max = {40, 10.5f, 260};
+  std::vector<Box3f> objs;
+  std::vector<uint8_t> q;
+  for (int i = 0; i < 40; ++i) {
+    objs.push_back(RandomBoxIn(leaf, rng));
+    q.resize(q.size() + 6);
+    QuantizeBox(leaf, objs.back(), q.data() + q.size() - 6);
+  }
+  int filtered = 0;
+  for (int t = 0; t < 20000; ++t) {
+    Vec3d p;
+    for (int a = 0; a < 3; ++a) p[a] = leaf.min[a] + u(rng) * (leaf.max[a] - leaf.min[a]);
+    bool any = false;
+    for (const Box3f& o : objs) any = any || o.Contains(p);
+    const bool pass = FilterMeetsPoint(leaf, q.data(), static_cast<uint32_t>(objs.size()), p);
+    if (any) {
+      ASSERT_TRUE(pass) << t;
+    }
+    filtered += !pass;
+  }
+  EXPECT_GT(filtered, 0);
+}
+
+}  // namespace
+}  // namespace mktree
