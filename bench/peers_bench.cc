@@ -270,7 +270,9 @@ uint32_t CapacityFor(uint32_t fanout) {
 void ChooseSpatialIndexCapacities(const SceneInfo& s, Args* a) {
   uint32_t k = 1;
   while (60 + (k + 1) * (60 + s.entry_mean) + 2 * std::sqrt(k + 1.0) * s.entry_sd <= kPageBytes) ++k;
-  a->lsi_leaf = CapacityFor(k);
+  // libspatialindex refuses leaf capacities below 4: scenes of big objects (truman.ac) then get leaves
+  // that span several pages, as mktree's single-object leaves do.
+  a->lsi_leaf = CapacityFor(std::max<uint32_t>(k, 4));
   a->lsi_index = CapacityFor((kPageBytes - 60) / 60);
 }
 
