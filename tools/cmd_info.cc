@@ -59,14 +59,14 @@ int RunInfo(const InfoArgs& a) {
         "\"nodes\": %zu, \"internal_nodes\": %llu, \"leaves\": %zu, \"pages\": %llu, \"height\": %u, "
         "\"block_size\": %u, \"blocks_per_page\": %u, \"page_bytes\": %llu, \"balance_r\": %g, "
         "\"split_nodes\": %zu, \"split_cells\": %llu, \"split_both_cells\": %llu, \"page_fill\": %.4f, "
-        "\"ram_bytes\": %llu, \"tree\": %s}\n",
+        "\"ram_bytes\": %llu, \"leaf_filter_bytes\": %llu, \"tree\": %s}\n",
         JsonEscape(a.store).c_str(), static_cast<unsigned long long>(file_bytes), backend, codec,
         static_cast<unsigned long long>(r.object_count()), t.nodes.size(),
         static_cast<unsigned long long>(internal), t.leaves.size(), static_cast<unsigned long long>(pages), height,
         t.params.block_size, t.params.blocks_per_page, static_cast<unsigned long long>(mem_page),
         t.params.balance_r, t.split_nodes.size(), static_cast<unsigned long long>(split_cells),
         static_cast<unsigned long long>(both_cells), fill, static_cast<unsigned long long>(t.MemoryBytes()),
-        r.stats_json().empty() ? "null" : r.stats_json().c_str());
+        static_cast<unsigned long long>(t.FilterMemoryBytes()), r.stats_json().empty() ? "null" : r.stats_json().c_str());
     return 0;
   }
   std::printf("store        %s (%s, %s backend, codec %s)\n", a.store.c_str(), HumanBytes(file_bytes).c_str(),
@@ -80,8 +80,10 @@ int RunInfo(const InfoArgs& a) {
   std::printf("objects/page %.2f\n", pages ? static_cast<double>(r.object_count()) / static_cast<double>(pages) : 0.0);
   std::printf("split trees  %zu nodes, %llu cells, %llu BOTH\n", t.split_nodes.size(),
               static_cast<unsigned long long>(split_cells), static_cast<unsigned long long>(both_cells));
-  std::printf("RAM          %s for nodes and SplitTrees (%.2f B/object)\n", HumanBytes(t.MemoryBytes()).c_str(),
-              r.object_count() ? static_cast<double>(t.MemoryBytes()) / static_cast<double>(r.object_count()) : 0.0);
+  const double per = r.object_count() ? 1.0 / static_cast<double>(r.object_count()) : 0.0;
+  std::printf("RAM          %s for nodes and SplitTrees (%.2f B/object), %s for the leaf filter (%.2f B/object)\n",
+              HumanBytes(t.MemoryBytes()).c_str(), static_cast<double>(t.MemoryBytes()) * per,
+              HumanBytes(t.FilterMemoryBytes()).c_str(), static_cast<double>(t.FilterMemoryBytes()) * per);
   std::printf("balance r    %g\n", t.params.balance_r);
   if (!r.stats_json().empty()) std::printf("builder statistics: %s\n", r.stats_json().c_str());
   return 0;
