@@ -123,6 +123,27 @@ StoreWriter::~StoreWriter() {
   lock_.reset();
 }
 
+namespace {
+
+// Removes "<final_path>.tmp.<digits>" files: the leftovers of writers killed before Commit. Only called
+// while holding the writer lock of final_path, so none of them belongs to a live writer.
+void RemoveStaleTemps(const std::string& final_path) {
+  namespace fs = std::filesystem;
+  const fs::path final_p(final_path);
+  const fs::path dir = final_p.has_parent_path() ? final_p.parent_path() : fs::path(".");
+  const std::string prefix = final_p.filename().string() + ".tmp.";
+  std::error_code ec;
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (name.size() <= prefix.size() || name.compare(0, prefix.size(), prefix) != 0) continue;
+    if (name.find_first_not_of("0123456789", prefix.size()) != std::string::npos) continue;
+    std::error_code rm;
+    fs::remove(it->path(), rm);
+  }
+}
+
+}  // namespace
+
 Result<std::unique_ptr<StoreWriter>> StoreWriter::Create(const std::string& final_path, const StoreOptions& opts) {
   const uint64_t mem_page = opts.params.mem_page();
   if (opts.params.block_size == 0 || opts.params.blocks_per_page == 0 ||
@@ -134,7 +155,7 @@ Result<std::unique_ptr<StoreWriter>> StoreWriter::Create(const std::string& fina
   auto lock = Lock::Acquire(final_path);
   if (!lock.ok()) return lock.status();
   const std::string temp = final_path + ".tmp." + std::to_string(::getpid());
-  ::unlink(temp.c_str());  // a stale temp from a killed writer with our pid; we hold the lock
+  RemoveStaleTemps(final_path);  // we hold the lock: any "<final>.tmp.<pid>" is a killed writer's
   auto backend = opts.backend == Backend::kHdf5 ? CreateHdf5Writer(temp, opts.params)
                                                 : CreatePagedFileWriter(temp, opts.params);
   if (!backend.ok()) {
