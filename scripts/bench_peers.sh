@@ -5,6 +5,8 @@
 #   --objects N ...  tanker sizes (default: 100000 1000000); several may follow one --objects
 #   --queries Q      queries per small workload (default 200; big boxes use fewer, see bench/peers_bench.cc)
 #   --no-real        skip the real scenes of shared/data
+#   --no-tanker      only the real scenes (e.g. to add them to an existing --run folder)
+#   --engines LIST   comma-separated subset of peers_bench's engines (default: all)
 #   --run NAME       report folder bench/results/NAME (default: the date)
 #   --smoke          CI check: a 100k tanker and one small real scene, few queries, report in a temporary
 #                    folder that is removed; fails (non-zero) on any answer mismatch between engines.
@@ -15,7 +17,7 @@ cd "$(dirname "$0")/.."
 repo=$(pwd)
 
 args="$*"
-smoke=0; objects=(); queries=200; seed=1; real=1; run=""
+smoke=0; objects=(); queries=200; seed=1; real=1; run=""; extra=(); tanker=1
 while (($#)); do
   case "$1" in
     --smoke) smoke=1 ;;
@@ -23,6 +25,8 @@ while (($#)); do
     --queries) shift; queries="$1" ;;
     --seed) shift; seed="$1" ;;
     --no-real) real=0 ;;
+    --no-tanker) tanker=0 ;;
+    --engines) shift; extra+=(--engines "$1") ;;
     --run) shift; run="$1" ;;
     -h|--help) sed -n '2,12p' "$0"; exit 0 ;;
     *) echo "error: unknown argument $1 (see --help)" >&2; exit 2 ;;
@@ -32,10 +36,9 @@ done
 
 data="${MKTREE_DATA:-$(cd "$repo/.." && pwd)/shared/data}"
 real_scenes=(ships/truman.ac buildings/steel_mini_project.obj buildings/duplex.obj city/denhaag_01.obj)
-extra=()
 if ((smoke)); then
   ((${#objects[@]})) || objects=(100000)
-  queries=20; real_scenes=(buildings/duplex.obj); extra=(--smoke)
+  queries=20; real_scenes=(buildings/duplex.obj); extra+=(--smoke)
 fi
 ((${#objects[@]})) || objects=(100000 1000000)
 
@@ -81,6 +84,9 @@ echo "\`scripts/bench_peers.sh $args\` on $(date -u '+%Y-%m-%d %H:%M UTC'), comm
   sed 's/^/- /' "$out/runs.txt"
   echo
   echo "- Machine: $(nproc) cores, $cpu, $ram RAM, $(uname -sr), work files on $(df -h "$tmp" | awk 'NR==2 {print $1 " (" $2 ")"}')"
+  echo "- Load when the run started: $(cut -d' ' -f1-3 /proc/loadavg) (1/5/15 min); timings are wall-clock, page counts exact."
+  dirty=$(git status --short --untracked-files=no 2>/dev/null | grep -v -e ' bench/' -e ' scripts/' | awk '{print $2}' | tr '\n' ' ')
+  [ -z "$dirty" ] || echo "- Work tree had uncommitted changes (measured as built): $dirty"
   echo "- Libraries: $($bench --versions) (Debian libspatialindex6 $lsi_pkg, libsqlite3-0 $sqlite_pkg)"
   echo "- Pages: 12 KiB (mktree MemPage = 4096 x 3; libspatialindex disk storage manager page size 12288);"
   echo "  SQLite page_size 16384 (powers of two only; 8 KiB and 16 KiB are equally far from 12 KiB, 16 KiB holds at least as much)."
@@ -98,7 +104,9 @@ echo "\`scripts/bench_peers.sh $args\` on $(date -u '+%Y-%m-%d %H:%M UTC'), comm
 
 status=0
 scenes=()
-for n in "${objects[@]}"; do scenes+=("tanker:$n:1|tanker_$n"); done
+if ((tanker)); then
+  for n in "${objects[@]}"; do scenes+=("tanker:$n:1|tanker_$n"); done
+fi
 if ((real)); then
   if [ -d "$data" ]; then
     for f in "${real_scenes[@]}"; do scenes+=("$data/$f|$(basename "${f%.*}")"); done
