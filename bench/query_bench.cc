@@ -70,6 +70,17 @@ BBox ToB(const Box3d& b) {
               BPoint(static_cast<float>(b.max[0]), static_cast<float>(b.max[1]), static_cast<float>(b.max[2])));
 }
 
+template <typename Rtree>
+void BoostQuery(const Rtree& rtree, const Query& q, std::vector<BValue>* found) {
+  found->clear();
+  if (q.kind == Query::Kind::kPoint)
+    rtree.query(bgi::intersects(BPoint(static_cast<float>(q.point.x), static_cast<float>(q.point.y),
+                                       static_cast<float>(q.point.z))),
+                std::back_inserter(*found));
+  else
+    rtree.query(bgi::intersects(ToB(q.box)), std::back_inserter(*found));
+}
+
 // Boost.Geometry compares in float; mktree's query boxes are double. To compare answers exactly, the
 // workloads use query coordinates that are representable in float.
 double F(double x) { return static_cast<double>(static_cast<float>(x)); }
@@ -227,13 +238,7 @@ int main(int argc, char** argv) {
           t0 = Clock::now();
           size_t total = 0;
           for (const Query& q : w.queries) {
-            found.clear();
-            if (q.kind == Query::Kind::kPoint)
-              rtree.query(bgi::intersects(BPoint(static_cast<float>(q.point.x), static_cast<float>(q.point.y),
-                                                 static_cast<float>(q.point.z))),
-                          std::back_inserter(found));
-            else
-              rtree.query(bgi::intersects(ToB(q.box)), std::back_inserter(found));
+            BoostQuery(rtree, q, &found);
             total += found.size();
           }
           const double boost_qps = static_cast<double>(w.queries.size()) / Since(t0);
@@ -241,13 +246,7 @@ int main(int argc, char** argv) {
           std::snprintf(buf, sizeof buf, "%.2fx", warm_qps / boost_qps);
           vs = buf;
           for (const Query& q : w.queries) {
-            found.clear();
-            if (q.kind == Query::Kind::kPoint)
-              rtree.query(bgi::intersects(BPoint(static_cast<float>(q.point.x), static_cast<float>(q.point.y),
-                                                 static_cast<float>(q.point.z))),
-                          std::back_inserter(found));
-            else
-              rtree.query(bgi::intersects(ToB(q.box)), std::back_inserter(found));
+            BoostQuery(rtree, q, &found);
             ids.clear();
             for (const auto& v : found) ids.push_back(v.second);
             std::sort(ids.begin(), ids.end());

@@ -12,16 +12,13 @@
 
 #include "engine/scene/mkscene_format.h"
 #include "generator/mesh_checks.h"
+#include "tool_runner.h"
 
 namespace mktree {
 namespace {
 
 namespace fs = std::filesystem;
-
-struct ToolRun {
-  int exit_code = -1;
-  std::string out, err;
-};
+using testing::Slurp;
 
 class GenerateCommandTest : public ::testing::Test {
  protected:
@@ -36,31 +33,15 @@ class GenerateCommandTest : public ::testing::Test {
     if (!dir_.empty()) fs::remove_all(dir_);
   }
 
-  ToolRun Mktree(const std::string& args) {
-    const std::string out = dir_ / "stdout.txt", err = dir_ / "stderr.txt";
-    const std::string cmd = std::string(MKTREE_TOOL) + " " + args + " >" + out + " 2>" + err;
-    const int status = std::system(cmd.c_str());
-    ToolRun r;
-    r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    r.out = Slurp(out);
-    r.err = Slurp(err);
-    fs::remove(out);
-    fs::remove(err);
-    return r;
-  }
-
-  static std::string Slurp(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    return std::string(std::istreambuf_iterator<char>(in), {});
-  }
+  testing::ToolRun Mktree(const std::string& args) { return testing::RunMktree(args, dir_); }
 
   fs::path dir_;
 };
 
 TEST_F(GenerateCommandTest, WritesMksAndObjWithASummary) {
   const std::string mks = dir_ / "t.mks", obj = dir_ / "t.obj";
-  ToolRun r = Mktree("generate tanker --objects 1000 --seed 4 -o " + mks);
-  ASSERT_EQ(r.exit_code, 0) << r.err;
+  testing::ToolRun r = Mktree("generate tanker --objects 1000 --seed 4 -o " + mks);
+  ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("1000 objects (600 pipes, 300 plates, 100 equipment)"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("objects/s"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("MB/s"), std::string::npos) << r.out;
@@ -70,7 +51,7 @@ TEST_F(GenerateCommandTest, WritesMksAndObjWithASummary) {
   EXPECT_EQ(testing::Drain(source->get()).size(), 1000u);
 
   r = Mktree("generate tanker --objects 1000 --seed 4 -o " + obj);
-  ASSERT_EQ(r.exit_code, 0) << r.err;
+  ASSERT_EQ(r.code, 0) << r.err;
   const std::string text = Slurp(obj);
   size_t objects = 0;
   for (size_t at = 0; (at = text.find("\no ", at)) != std::string::npos; ++at) ++objects;
@@ -78,7 +59,7 @@ TEST_F(GenerateCommandTest, WritesMksAndObjWithASummary) {
 
   // The same seed gives the same file.
   const std::string again = dir_ / "again.mks";
-  ASSERT_EQ(Mktree("generate tanker --objects 1000 --seed 4 -o " + again).exit_code, 0);
+  ASSERT_EQ(Mktree("generate tanker --objects 1000 --seed 4 -o " + again).code, 0);
   EXPECT_EQ(Slurp(mks), Slurp(again));
 }
 
@@ -91,8 +72,8 @@ TEST_F(GenerateCommandTest, ErrorsExitNonZeroAndWriteNothing) {
       "generate boat --objects 10 -o " + (dir_ / "a.obj").string(),
   };
   for (const std::string& args : bad_args) {
-    const ToolRun r = Mktree(args);
-    EXPECT_NE(r.exit_code, 0) << args;
+    const testing::ToolRun r = Mktree(args);
+    EXPECT_NE(r.code, 0) << args;
     EXPECT_EQ(r.err.rfind("error: ", 0), 0u) << args << ": " << r.err;
     EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
   }

@@ -8,14 +8,13 @@
 #include <fstream>
 #include <sstream>
 
+#include "tool_runner.h"
+
 namespace {
 
 namespace fs = std::filesystem;
 
-struct RunResult {
-  int code = -1;
-  std::string out, err;
-};
+using RunResult = mktree::testing::ToolRun;
 
 class CliTest : public ::testing::Test {
  protected:
@@ -29,25 +28,7 @@ class CliTest : public ::testing::Test {
 
   std::string P(const std::string& name) const { return (dir_ / name).string(); }
 
-  RunResult Mktree(const std::string& args) const {
-    const std::string out = P("stdout.txt"), err = P("stderr.txt");
-    const std::string cmd = std::string(MKTREE_TOOL) + " " + args + " >" + out + " 2>" + err;
-    RunResult r;
-    const int status = std::system(cmd.c_str());
-    r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    r.out = Slurp(out);
-    r.err = Slurp(err);
-    fs::remove(out);
-    fs::remove(err);
-    return r;
-  }
-
-  static std::string Slurp(const std::string& path) {
-    std::ifstream in(path);
-    std::stringstream ss;
-    ss << in.rdbuf();
-    return ss.str();
-  }
+  RunResult Mktree(const std::string& args) const { return mktree::testing::RunMktree(args, dir_); }
 
   void Write(const std::string& name, const std::string& text) const { std::ofstream(P(name)) << text; }
 

@@ -11,14 +11,14 @@
 #include <regex>
 #include <sstream>
 
+#include "tool_runner.h"
+
 namespace {
 
 namespace fs = std::filesystem;
 
-struct RunResult {
-  int code = -1;
-  std::string out, err;
-};
+using RunResult = mktree::testing::ToolRun;
+using mktree::testing::Slurp;
 
 class ExportRenderCliTest : public ::testing::Test {
  protected:
@@ -44,22 +44,7 @@ class ExportRenderCliTest : public ::testing::Test {
 
   std::string P(const std::string& name) const { return (out_ / name).string(); }
 
-  static RunResult Run(const std::string& args) {
-    const std::string out = (*dir_ / "stdout.txt").string(), err = (*dir_ / "stderr.txt").string();
-    const std::string cmd = std::string(MKTREE_TOOL) + " " + args + " >" + out + " 2>" + err;
-    RunResult r;
-    const int status = std::system(cmd.c_str());
-    r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    r.out = Slurp(out);
-    r.err = Slurp(err);
-    return r;
-  }
-  static std::string Slurp(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    std::stringstream ss;
-    ss << in.rdbuf();
-    return ss.str();
-  }
+  static RunResult Run(const std::string& args) { return mktree::testing::RunMktree(args, *dir_); }
   std::vector<std::string> Files() const {
     std::vector<std::string> names;
     for (const auto& e : fs::directory_iterator(out_)) names.push_back(e.path().filename().string());
