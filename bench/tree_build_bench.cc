@@ -1,9 +1,11 @@
 // tree_build_bench: MKtree construction from in-RAM records, and the routing quality of the result.
 //
 // Workloads (each runs in its own forked process, so that its peak RSS is its own):
-//   tanker_1m        1,000,000 objects of MakeTankerSource(1e6, seed 1), BuildTuning defaults (1 thread)
+//   tanker_1m        1,000,000 objects of MakeTankerSource(1e6, seed 1), BuildTuning defaults (1 thread,
+//                    SplitPolicy::kCompact)
 //   tanker_1m_2t     the same, two threads
-//   tanker_1m_soa    the same, plain SOA (no page-fill-aware tie breaking): the fill baseline
+//   tanker_1m_soafill  the same, SplitPolicy::kSoa with the page-fill-aware ranking near the leaves
+//   tanker_1m_soa    the same, plain SOA (DESIGN.md §2.1 exactly): the fill baseline
 //   tanker_10m       10,000,000 objects of MakeTankerSource(1e7, seed 1)
 //   synthetic_1m     1,000,000 synthetic records (pipes / plates / equipment boxes; no generator)
 // Usage: tree_build_bench [workload...]   (default: all of them)
@@ -14,7 +16,9 @@
 // plus everything the builder holds) in B/object; RAM of internal nodes + SplitTrees in B/object; the tree's
 // shape (TreeStats). Routing quality on 10,000 random points (seed 99) uniform in the scene box:
 // "extra leaves" = mean over points of (leaves reached - distinct leaves holding an object whose AABB
-// contains the point), and the share of points reaching more than one leaf.
+// contains the point), and the share of points reaching more than one leaf. Box quality: cubes of side 2 m
+// and 8 m centred uniformly in the scene box (seed 7), distinct leaves holding an answer (= leaves read
+// with the leaf filter) against the floor ceil(hits / objects per page).
 // Targets: >= 2M objects/s at 1M, <= 100 B/object peak while building, <= 16 B/object for the index.
 #include <sys/resource.h>
 #include <sys/wait.h>
@@ -23,6 +27,7 @@
 #include <chrono>
 #include <cstdio>
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <random>
 #include <string>
@@ -131,12 +136,55 @@ Quality RoutingQuality(const BuildResult& r, const std::vector<ObjectRecord>& re
   return q;
 }
 
+// Box queries: mean over cubes of side `side` centred uniformly in the scene box of the distinct leaves
+// holding an object whose AABB meets the cube (what a query reads once the leaf filter has dropped the
+// leaves without an answer), and of the I/O floor ceil(hits / B), B = objects per page.
+struct BoxQuality {
+  double leaves = 0;
+  double floor = 0;
+};
+
+BoxQuality BoxLeaves(const BuildResult& r, const std::vector<ObjectRecord>& recs, double side, int count,
+                     uint64_t seed) {
+  BoxQuality q;
+  if (r.tree.empty()) return q;
+  std::vector<uint32_t> leaf_of(recs.size());
+  for (uint32_t l = 0; l < r.tree.leaves.size(); ++l)
+    for (uint64_t k = r.leaf_offsets[l]; k < r.leaf_offsets[l + 1]; ++k) leaf_of[r.leaf_objects[k]] = l;
+  const double per_page = double(recs.size()) / double(r.stats.pages);
+  std::mt19937_64 rng(seed);
+  const Box3f& root = r.tree.nodes[0].box;
+  std::vector<uint32_t> seen(r.tree.leaves.size(), 0);
+  for (int i = 1; i <= count; ++i) {
+    Box3f b;
+    for (int a = 0; a < 3; ++a) {
+      const double c = std::uniform_real_distribution<double>(root.min[a], root.max[a])(rng);
+      b.min[a] = static_cast<float>(c - side / 2);
+      b.max[a] = static_cast<float>(c + side / 2);
+    }
+    uint64_t hits = 0;
+    for (size_t k = 0; k < recs.size(); ++k) {
+      if (!recs[k].box.Intersects(b)) continue;
+      ++hits;
+      if (seen[leaf_of[k]] != static_cast<uint32_t>(i)) {
+        seen[leaf_of[k]] = static_cast<uint32_t>(i);
+        q.leaves += 1;
+      }
+    }
+    q.floor += std::ceil(double(hits) / per_page);
+  }
+  q.leaves /= count;
+  q.floor /= count;
+  return q;
+}
+
 struct Workload {
   const char* name;
   uint64_t objects;
   bool tanker;
   int threads;
   bool fill_aware;
+  SplitPolicy policy;
 };
 
 void Run(const Workload& w) {
@@ -145,6 +193,7 @@ void Run(const Workload& w) {
   BuildTuning tune;
   tune.threads = w.threads;
   tune.fill_aware = w.fill_aware;
+  tune.split_policy = w.policy;
   const auto t0 = std::chrono::steady_clock::now();
   auto built = BuildMKTree(std::move(recs), BuildParams(), tune);
   const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -172,6 +221,13 @@ void Run(const Workload& w) {
               "  split nodes/point %.2f  (leaf boxes containing the point %.3f)\n",
               "", q.mean_leaves, q.mean_answer_leaves, q.extra_leaves, 100 * q.multi_leaf_share,
               q.mean_split_nodes, q.mean_leaf_boxes);
+  const int box_count = static_cast<int>(std::clamp<uint64_t>(300000000 / w.objects, 30, 300));
+  std::printf("%-14s boxes (%d, seed 7): leaves with an answer", "", box_count);
+  for (double side : {2.0, 8.0}) {
+    const BoxQuality b = BoxLeaves(*built, recs, side, box_count, 7);
+    std::printf("  side %.0f m: %.2f (floor %.2f)", side, b.leaves, b.floor);
+  }
+  std::printf("\n");
   if (std::getenv("TREE_BENCH_VERBOSE")) std::printf("%s", s.ToString().c_str());
   std::fflush(stdout);
 }
@@ -181,10 +237,14 @@ void Run(const Workload& w) {
 
 int main(int argc, char** argv) {
   using mktree::Workload;
+  constexpr mktree::SplitPolicy kSoa = mktree::SplitPolicy::kSoa, kCompact = mktree::SplitPolicy::kCompact;
   const Workload all[] = {
-      {"tanker_1m", 1000000, true, 1, true},      {"tanker_1m_2t", 1000000, true, 2, true},
-      {"tanker_1m_soa", 1000000, true, 1, false}, {"tanker_10m", 10000000, true, 1, true},
-      {"synthetic_1m", 1000000, false, 1, true},
+      {"tanker_1m", 1000000, true, 1, true, kCompact},
+      {"tanker_1m_2t", 1000000, true, 2, true, kCompact},
+      {"tanker_1m_soafill", 1000000, true, 1, true, kSoa},
+      {"tanker_1m_soa", 1000000, true, 1, false, kSoa},
+      {"tanker_10m", 10000000, true, 1, true, kCompact},
+      {"synthetic_1m", 1000000, false, 1, true, kCompact},
   };
 #ifndef NDEBUG
   std::printf("WARNING: built without optimisation (NDEBUG not defined); timings are not meaningful\n");

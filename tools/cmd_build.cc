@@ -22,6 +22,7 @@ struct BuildArgs {
   uint32_t blocks_per_page = 3;
   double r = 0.3;
   uint32_t split_budget = 64;
+  std::string split_policy = "compact";
   bool quiet = false;
 };
 
@@ -57,6 +58,16 @@ int RunBuild(const BuildArgs& a) {
   opts.store.params.balance_r = a.r;
   opts.store.params.split_tree_node_budget = a.split_budget;
   if (!(a.r >= 0 && a.r < 0.5)) return Fail("--r must be in [0, 0.5)");
+  if (a.split_policy == "compact") {
+    opts.tuning.split_policy = SplitPolicy::kCompact;
+  } else if (a.split_policy == "soa") {  // DESIGN.md §2.1 exactly
+    opts.tuning.split_policy = SplitPolicy::kSoa;
+    opts.tuning.fill_aware = false;
+  } else if (a.split_policy == "soa-fill") {
+    opts.tuning.split_policy = SplitPolicy::kSoa;
+  } else {
+    return Fail("--split-policy must be compact, soa or soa-fill, not '" + a.split_policy + "'");
+  }
   if (a.block_size < 512 || a.blocks_per_page == 0 ||
       uint64_t{a.block_size} * a.blocks_per_page > (uint64_t{1} << 30))
     return Fail("--block-size must be at least 512 and the page (block size x blocks per page) at most 1 GiB");
@@ -110,6 +121,10 @@ void RegisterBuild(CLI::App& app, CommandRun* run) {
   cmd->add_option("--blocks-per-page", args->blocks_per_page, "d: blocks per leaf page")->capture_default_str();
   cmd->add_option("--r", args->r, "SOA balance ratio, 0 <= r < 0.5")->capture_default_str();
   cmd->add_option("--split-budget", args->split_budget, "SplitTree node budget per internal node")
+      ->capture_default_str();
+  cmd->add_option("--split-policy", args->split_policy,
+                  "How nodes are split: compact (SOA over compact candidates), soa (DESIGN.md 2.1 exactly) or "
+                  "soa-fill (SOA, page fill first near the leaves)")
       ->capture_default_str();
   cmd->add_flag("-q,--quiet", args->quiet, "No progress and no summary");
   cmd->callback([run, args] { *run = [args] { return RunBuild(*args); }; });

@@ -124,7 +124,7 @@ Result<IngestReport> BuildStore(const std::vector<SceneOpener>& inputs, const st
   // 2. The tree, from the records alone.
   const auto build_start = Clock::now();
   progress(IngestStage::kBuildTree, 0, 1);
-  auto built = BuildMKTree(std::move(records), options.store.params);
+  auto built = BuildMKTree(std::move(records), options.store.params, options.tuning);
   if (!built.ok()) return built.status();
   BuildResult& result = *built;
   report.tree_stats = result.stats;

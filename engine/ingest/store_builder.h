@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "engine/scene/scene_source.h"
+#include "engine/tree/mktree_builder.h"
 #include "engine/tree/tree_stats.h"
 #include "mktree/status.h"
 #include "storage/store_file.h"
@@ -33,6 +34,7 @@ using IngestProgress = std::function<void(IngestStage stage, uint64_t done, uint
 
 struct IngestOptions {
   StoreOptions store;          // backend, codec, build parameters
+  BuildTuning tuning;          // tree quality knobs that are not persisted (split policy, threads)
   std::string spill_dir;       // where the spill files go; empty: next to the output store
   IngestProgress progress;     // optional
 };

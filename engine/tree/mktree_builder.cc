@@ -81,6 +81,7 @@ struct Candidate {
   uint32_t sm = 0;
   uint32_t primary = 0;  // sm, or 0 when within the fill slack of the minimum
   uint32_t waste = 0;
+  float margin = 0;  // kCompact: N1 x margin(R(Sn1)) + N2 x margin(R(Sn2)); 0 under kSoa
   double slab = 0;
   uint32_t imbalance = 0;
   uint64_t left_bytes = 0;  // encoded bytes of Sn1 (known only when fill_aware)
@@ -89,6 +90,7 @@ struct Candidate {
     if (o.list < 0) return true;
     if (primary != o.primary) return primary < o.primary;
     if (waste != o.waste) return waste < o.waste;
+    if (margin != o.margin) return margin < o.margin;
     if (sm != o.sm) return sm < o.sm;
     if (slab != o.slab) return slab < o.slab;
     return imbalance < o.imbalance;
@@ -243,30 +245,87 @@ class SubtreeBuilder {
  private:
   void ShrinkScratch(size_t n) {
     if (tmp_.capacity() < 4 * n + (1u << 16)) return;
-    for (auto* v : {&sorted_min_, &prefix_max_, &sorted_max_, &suffix_min_}) std::vector<float>(n).swap(*v);
+    for (auto* v : {&sorted_min_, &prefix_max_, &sorted_max_, &suffix_min_, &margin_pre_, &margin_suf_})
+      if (!v->empty()) std::vector<float>(n).swap(*v);
     std::vector<uint32_t>(n).swap(tmp_);
   }
 
   uint64_t Pages(uint64_t bytes) const { return PagesForLeaf(bytes, mem_page_); }
 
+  // How the candidates of one node are ranked.
+  struct Mode {
+    bool fill_aware = false;
+    bool compact = false;
+    uint32_t sm_min = 0;  // the minimal |Sm| over the candidates (known when fill_aware)
+  };
+
   Candidate ChooseSplit(const Task& t, uint32_t k_lo, uint32_t k_hi) {
+    const BuildTuning& tu = s_.tuning;
     const uint64_t pages = Pages(t.bytes);
-    const bool fill_aware = s_.tuning.fill_aware && pages <= s_.tuning.fill_aware_pages;
+    Mode m;
+    m.fill_aware = tu.fill_aware && pages <= tu.fill_aware_pages;
+    m.compact = tu.split_policy == SplitPolicy::kCompact;
+    bool axis_ok[3] = {true, true, true};
+    if (m.compact) CompactAxes(t, axis_ok);
     Candidate best;
-    uint32_t sm_min = std::numeric_limits<uint32_t>::max();
-    if (fill_aware) {  // first pass: the minimal |Sm|, to know which candidates are within the slack
-      for (int w = 0; w < 3; ++w) Sweep(t, w, k_lo, k_hi, false, 0, &best, &sm_min);
+    if (m.fill_aware) {  // first pass: the minimal |Sm|, to know which candidates are within the slack
+      uint32_t sm_min = std::numeric_limits<uint32_t>::max();
+      Mode first;
+      for (int w = 0; w < 3; ++w)
+        if (axis_ok[w]) Sweep(t, w, k_lo, k_hi, first, &best, &sm_min);
+      m.sm_min = sm_min;
       best = Candidate();
     }
-    for (int w = 0; w < 3; ++w) Sweep(t, w, k_lo, k_hi, fill_aware, sm_min, &best, nullptr);
+    for (int w = 0; w < 3; ++w)
+      if (axis_ok[w]) Sweep(t, w, k_lo, k_hi, m, &best, nullptr);
     return best;
+  }
+
+  // kCompact: the axes along which the objects spread at least compact_axis_ratio x the longest spread.
+  // Spread along w: the mean of the spreads of min_w and of max_w (the ends of the two sorted lists), so
+  // one long object does not make an axis look long.
+  void CompactAxes(const Task& t, bool axis_ok[3]) const {
+    double spread[3], longest = 0;
+    for (int w = 0; w < 3; ++w) {
+      const std::vector<uint32_t>& by_min = s_.lists[2 * w];
+      const std::vector<uint32_t>& by_max = s_.lists[2 * w + 1];
+      spread[w] = 0.5 * ((double{rec_[by_min[t.hi - 1]].box.min[w]} - rec_[by_min[t.lo]].box.min[w]) +
+                         (double{rec_[by_max[t.hi - 1]].box.max[w]} - rec_[by_max[t.lo]].box.max[w]));
+      longest = std::max(longest, spread[w]);
+    }
+    // The longest axis always stays (whatever the ratio), so there is a candidate.
+    for (int w = 0; w < 3; ++w)
+      axis_ok[w] = spread[w] == longest || spread[w] >= s_.tuning.compact_axis_ratio * longest;
+  }
+
+  static float Margin(const Box3f& b) {
+    return (b.max[0] - b.min[0]) + (b.max[1] - b.min[1]) + (b.max[2] - b.min[2]);
+  }
+
+  // margin_pre_[i]: Margin of the union of the boxes of order[lo .. lo+i]; margin_suf_[i]: of
+  // order[lo+i .. hi).
+  void PrefixSuffixMargins(const Task& t, const std::vector<uint32_t>& order) {
+    const uint32_t n = t.hi - t.lo;
+    margin_pre_.resize(n);
+    margin_suf_.resize(n);
+    Box3f u;
+    for (uint32_t i = 0; i < n; ++i) {
+      u.Extend(rec_[order[t.lo + i]].box);
+      margin_pre_[i] = Margin(u);
+    }
+    u = Box3f();
+    for (uint32_t i = n; i-- > 0;) {
+      u.Extend(rec_[order[t.lo + i]].box);
+      margin_suf_[i] = Margin(u);
+    }
   }
 
   // Evaluates the candidates of both keys of axis w. In O(n) after the gathers: along either order,
   // a(k) and b(k) never decrease, so |Sm| = #(min_w < b) - #(max_w <= a) is counted with two cursors
   // moving forward over the sorted min_w and max_w arrays.
-  void Sweep(const Task& t, int w, uint32_t k_lo, uint32_t k_hi, bool fill_aware, uint32_t sm_min,
-             Candidate* best, uint32_t* sm_min_out) {
+  void Sweep(const Task& t, int w, uint32_t k_lo, uint32_t k_hi, const Mode& m, Candidate* best,
+             uint32_t* sm_min_out) {
+    const bool fill_aware = m.fill_aware;
     const uint32_t n = t.hi - t.lo;
     const std::vector<uint32_t>& by_min = s_.lists[2 * w];
     const std::vector<uint32_t>& by_max = s_.lists[2 * w + 1];
@@ -291,6 +350,7 @@ class SubtreeBuilder {
 
     for (int key = 0; key < 2; ++key) {
       const std::vector<uint32_t>& order = key == 0 ? by_min : by_max;
+      if (m.compact) PrefixSuffixMargins(t, order);
       uint32_t pa = 0, pb = 0;  // #(max_w <= a), #(min_w < b)
       uint64_t left_bytes = 0;
       for (uint32_t k = 1; k <= k_hi; ++k) {
@@ -317,8 +377,13 @@ class SubtreeBuilder {
         c.sm = sm;
         c.primary = sm;
         if (fill_aware) {
-          if (sm <= sm_min + s_.tuning.fill_sm_slack + s_.tuning.fill_sm_slack_rel * sm_min) c.primary = 0;
+          const double slack = s_.tuning.fill_sm_slack + s_.tuning.fill_sm_slack_rel * m.sm_min;
+          if (sm <= m.sm_min + slack) c.primary = 0;
           c.waste = static_cast<uint32_t>(Pages(left_bytes) + Pages(t.bytes - left_bytes) - total_pages);
+        }
+        if (m.compact) {
+          c.margin = static_cast<float>(static_cast<double>(k) * margin_pre_[k - 1] +
+                                        static_cast<double>(n - k) * margin_suf_[k]);
         }
         c.slab = std::max(0.0, double{b} - double{a});
         c.imbalance = static_cast<uint32_t>(std::abs(2 * int64_t{k} - int64_t{n}));
@@ -333,6 +398,7 @@ class SubtreeBuilder {
   const std::vector<ObjectRecord>& rec_;
   const uint64_t mem_page_;
   std::vector<float> sorted_min_, prefix_max_, sorted_max_, suffix_min_;
+  std::vector<float> margin_pre_, margin_suf_;  // kCompact only
   std::vector<uint32_t> tmp_;
   std::vector<SplitItem> items_;
   std::vector<uint32_t> overlap_ids_;

@@ -5,11 +5,12 @@
 // subtree is the contiguous index range [n, child-range end); leaves numbered in DFS order; a leaf's pages
 // follow the previous leaf's (LeafInfo::first_page/page_count from PagesForLeaf in storage/leaf_format.h).
 //
-// Splitting: the SOA of §2.1 over all 6 sort keys; ties on |Sm| broken by page waste near the leaves (see
-// BuildTuning), then by the thinner slab, then by balance. Objects entirely inside the slab ("In") are
-// given a side by the SplitTree builder (split_tree_builder.h); TreeNode::a/b are then recomputed from
-// the final children (they can only narrow the slab), so that a = min over Sn2 of min_w and
-// b = max over Sn1 of max_w always hold for the stored tree.
+// Splitting: the SOA of §2.1 over the 6 sort keys, ranked as BuildTuning::split_policy says (kSoa: page
+// waste near the leaves, then |Sm|, slab, balance; kCompact: the wide axes only, margin before slab).
+// Objects entirely inside the slab ("In") are given a side by the SplitTree builder
+// (split_tree_builder.h); TreeNode::a/b are then recomputed from the final children (they can only narrow
+// the slab), so that a = min over Sn2 of min_w and b = max over Sn1 of max_w always hold for the stored
+// tree.
 //
 // Guard: past depth 100 the builder uses r = max(r, 0.25). With r near 0 the SOA may peel one object off
 // per level (quadratic build time, heights beyond TreeNode::depth's 8 bits); the guard bounds the height
@@ -36,16 +37,38 @@ struct BuildResult {
   TreeStats stats;
 };
 
+// How an internal node chooses among the SOA candidates (the 6 sort orders x the balanced cut positions k).
+enum class SplitPolicy : uint8_t {
+  // DESIGN.md §2.1 as stated: fewest |Sm|, then the thinner slab, then balance. With
+  // BuildTuning::fill_aware off this is the SOA exactly; on, page waste ranks first near the leaves.
+  kSoa,
+  // The SOA over compact candidates: only axes along which the node's objects spread at least
+  // compact_axis_ratio x their longest spread are tried, and ties on |Sm| (near the leaves: on page waste)
+  // go to the smaller N1 x margin(R(Sn1)) + N2 x margin(R(Sn2)) (margin = ex + ey + ez, the R*-tree's),
+  // then to the thinner slab and balance. Why: the SOA alone cuts a node along a thin axis whenever that
+  // crosses the fewest objects, and its many ties (|Sm| = 0 is common) go to the thinner slab, not to the
+  // tighter children; leaves become thin slabs that a box query meets many of. Measured on the 1M tanker,
+  // 2000 cold queries of each kind, pages read (fill): kSoa + fill_aware box 8 m 146.0, box 2 m 16.57,
+  // point 0.774 (84.1 %); kCompact 110.1, 14.60, 0.763 (83.4 %). Tried and not kept (worse or no better):
+  // longest axis only, ratio 0.2 / 0.5, ranking by margin, area or (e + 2 m)^3 before |Sm| (a surface area
+  // heuristic: long pipes then stretch the children), |Sm| slack of 2 or 2 % before the margin.
+  kCompact,
+};
+
 // Knobs that change the tree's quality but not its contract; defaults are what the benchmarks measured best.
 struct BuildTuning {
+  SplitPolicy split_policy = SplitPolicy::kCompact;
+  // kCompact: candidate axes spread at least this share of the longest (the longest always stays).
+  double compact_axis_ratio = 0.3;
   // Near the leaves (a node of at most `fill_aware_pages` pages of data), rank the SOA candidates whose
   // |Sm| is within `fill_sm_slack` + `fill_sm_slack_rel` x minimum first by page waste
-  // (ceil(D1/C) + ceil(D2/C) - ceil(D/C)), then by |Sm|, slab and balance, and keep the page counts when
-  // free objects change side. Off: plain SOA (|Sm|, slab, balance). Measured on the 200k tanker: plain SOA
-  // fills pages to 62 %; slack 1 to 65 %; the default (waste first near the leaves) to 82 %, for 13 % more
-  // leaves visited per random point (2.50 vs 2.22 extra leaves) and 24 % fewer leaves.
+  // (ceil(D1/C) + ceil(D2/C) - ceil(D/C)), then by |Sm| (kCompact: by margin, then |Sm|), slab and balance,
+  // and keep the page counts when free objects change side. Off: plain SOA (|Sm|, slab, balance).
+  // Measured on the 200k tanker (kSoa): plain SOA fills pages to 62 %; slack 1 to 65 %; waste first within
+  // 4 pages to 82 %, for 13 % more leaves visited per random point and 24 % fewer leaves. At 1M, 8 pages
+  // rather than 4: kSoa 81.6 -> 84.1 % fill, kCompact 80.5 -> 83.4 % and box 8 m 115.1 -> 110.1 pages.
   bool fill_aware = true;
-  uint32_t fill_aware_pages = 4;
+  uint32_t fill_aware_pages = 8;
   uint32_t fill_sm_slack = 1u << 30;
   double fill_sm_slack_rel = 0;
   // A SplitTree cut is made only when it saves at least this share of the routing cost of a point spread

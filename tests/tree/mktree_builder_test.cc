@@ -5,6 +5,8 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <random>
+#include <unordered_map>
 
 #include "tree/tree_test_util.h"
 
@@ -14,6 +16,8 @@ namespace {
 using testing::CheckTree;
 using testing::MakeScene;
 using testing::SceneKind;
+using testing::WithPolicy;
+using testing::kAllPolicies;
 
 ObjectRecord Rec(ObjectId id, Box3f box, uint32_t bytes = 1000) {
   ObjectRecord r;
@@ -97,21 +101,26 @@ TEST(BuildMKTree, RejectsBadParams) {
   EXPECT_FALSE(BuildMKTree(recs, tiny).ok());
 }
 
-// Structure, planes, groups and the SplitTree invariant on every kind of scene, both thread counts.
+// Structure, planes, groups and the SplitTree invariant on every kind of scene, both thread counts, every
+// split policy (and the SOA without the fill-aware ranking).
 TEST(BuildMKTree, StructureOnAllSceneKinds) {
   for (SceneKind kind : {SceneKind::kUniform, SceneKind::kClustered, SceneKind::kIdentical, SceneKind::kPlates,
                          SceneKind::kHuge, SceneKind::kOversized, SceneKind::kShip, SceneKind::kGrid}) {
     for (size_t n : {2u, 9u, 100u, 3000u}) {
       for (int threads : {1, 2}) {
-        SCOPED_TRACE(std::string(testing::Name(kind)) + " n=" + std::to_string(n) + " threads=" +
-                     std::to_string(threads));
-        auto recs = MakeScene(kind, n, 17 + n);
-        BuildParams p;
-        BuildTuning tune;
-        tune.threads = threads;
-        auto r = BuildMKTree(recs, p, tune);
-        ASSERT_TRUE(r.ok()) << r.status().ToString();
-        CheckTree(recs, *r, p);
+        for (int variant = 0; variant < 3; ++variant) {
+          BuildTuning tune = WithPolicy(variant == 2 ? SplitPolicy::kSoa : kAllPolicies[variant]);
+          tune.fill_aware = variant != 2;
+          tune.threads = threads;
+          SCOPED_TRACE(std::string(testing::Name(kind)) + " n=" + std::to_string(n) + " threads=" +
+                       std::to_string(threads) + " policy=" + testing::Name(tune.split_policy) +
+                       (tune.fill_aware ? "" : " plain"));
+          auto recs = MakeScene(kind, n, 17 + n);
+          BuildParams p;
+          auto r = BuildMKTree(recs, p, tune);
+          ASSERT_TRUE(r.ok()) << r.status().ToString();
+          CheckTree(recs, *r, p);
+        }
       }
     }
   }
@@ -121,55 +130,64 @@ TEST(BuildMKTree, StructureWithExtremeParams) {
   for (double ratio : {0.0, 0.49}) {
     for (uint32_t budget : {0u, 1u, 3u, 64u, 1000u}) {
       for (SceneKind kind : {SceneKind::kUniform, SceneKind::kShip, SceneKind::kGrid}) {
-        SCOPED_TRACE(std::string(testing::Name(kind)) + " r=" + std::to_string(ratio) + " budget=" +
-                     std::to_string(budget));
-        auto recs = MakeScene(kind, 2000, 5);
-        BuildParams p;
-        p.balance_r = ratio;
-        p.split_tree_node_budget = budget;
-        p.block_size = 1024;  // smaller pages: deeper trees
-        auto r = BuildMKTree(recs, p);
-        ASSERT_TRUE(r.ok()) << r.status().ToString();
-        CheckTree(recs, *r, p);
+        for (SplitPolicy policy : kAllPolicies) {
+          SCOPED_TRACE(std::string(testing::Name(kind)) + " r=" + std::to_string(ratio) + " budget=" +
+                       std::to_string(budget) + " policy=" + testing::Name(policy));
+          auto recs = MakeScene(kind, 2000, 5);
+          BuildParams p;
+          p.balance_r = ratio;
+          p.split_tree_node_budget = budget;
+          p.block_size = 1024;  // smaller pages: deeper trees
+          auto r = BuildMKTree(recs, p, WithPolicy(policy));
+          ASSERT_TRUE(r.ok()) << r.status().ToString();
+          CheckTree(recs, *r, p);
+        }
       }
     }
   }
 }
 
 TEST(BuildMKTree, OversizedObjectsGetTheirOwnMultiPageLeaf) {
-  BuildParams p;
-  auto recs = MakeScene(SceneKind::kOversized, 500, 3, p.mem_page());
-  auto r = BuildMKTree(recs, p);
-  ASSERT_TRUE(r.ok());
-  CheckTree(recs, *r, p);
-  uint64_t multi = 0;
-  for (const LeafInfo& lf : r->tree.leaves) {
-    if (lf.page_count > 1) {
-      ++multi;
-      EXPECT_EQ(lf.object_count, 1u);
+  for (SplitPolicy policy : kAllPolicies) {
+    SCOPED_TRACE(testing::Name(policy));
+    BuildParams p;
+    auto recs = MakeScene(SceneKind::kOversized, 500, 3, p.mem_page());
+    auto r = BuildMKTree(recs, p, WithPolicy(policy));
+    ASSERT_TRUE(r.ok());
+    CheckTree(recs, *r, p);
+    uint64_t multi = 0;
+    for (const LeafInfo& lf : r->tree.leaves) {
+      if (lf.page_count > 1) {
+        ++multi;
+        EXPECT_EQ(lf.object_count, 1u);
+      }
     }
+    EXPECT_GT(multi, 0u);
+    EXPECT_EQ(multi, r->stats.multi_page_leaves);
   }
-  EXPECT_GT(multi, 0u);
-  EXPECT_EQ(multi, r->stats.multi_page_leaves);
 }
 
 TEST(BuildMKTree, SingleThreadAndTwoThreadsBuildTheSameTree) {
-  auto recs = MakeScene(SceneKind::kShip, 20000, 11);
-  BuildTuning one, two;
-  one.threads = 1;
-  two.threads = 2;
-  auto r1 = BuildMKTree(recs, BuildParams(), one);
-  auto r2 = BuildMKTree(recs, BuildParams(), two);
-  ASSERT_TRUE(r1.ok() && r2.ok());
-  EXPECT_EQ(r1->leaf_objects, r2->leaf_objects);
-  EXPECT_EQ(r1->leaf_offsets, r2->leaf_offsets);
-  ASSERT_EQ(r1->tree.nodes.size(), r2->tree.nodes.size());
-  ASSERT_EQ(r1->tree.split_nodes.size(), r2->tree.split_nodes.size());
-  for (size_t i = 0; i < r1->tree.nodes.size(); ++i) {
-    const TreeNode &x = r1->tree.nodes[i], &y = r2->tree.nodes[i];
-    ASSERT_TRUE(x.box == y.box && x.a == y.a && x.b == y.b && x.child[0] == y.child[0] &&
-                x.child[1] == y.child[1] && x.leaf == y.leaf && x.split_root == y.split_root && x.axis == y.axis)
-        << "node " << i;
+  for (SplitPolicy policy : kAllPolicies) {
+    SCOPED_TRACE(testing::Name(policy));
+    auto recs = MakeScene(SceneKind::kShip, 20000, 11);
+    BuildTuning one = WithPolicy(policy), two = WithPolicy(policy);
+    one.threads = 1;
+    two.threads = 2;
+    auto r1 = BuildMKTree(recs, BuildParams(), one);
+    auto r2 = BuildMKTree(recs, BuildParams(), two);
+    ASSERT_TRUE(r1.ok() && r2.ok());
+    EXPECT_EQ(r1->leaf_objects, r2->leaf_objects);
+    EXPECT_EQ(r1->leaf_offsets, r2->leaf_offsets);
+    ASSERT_EQ(r1->tree.nodes.size(), r2->tree.nodes.size());
+    ASSERT_EQ(r1->tree.split_nodes.size(), r2->tree.split_nodes.size());
+    for (size_t i = 0; i < r1->tree.nodes.size(); ++i) {
+      const TreeNode &x = r1->tree.nodes[i], &y = r2->tree.nodes[i];
+      ASSERT_TRUE(x.box == y.box && x.a == y.a && x.b == y.b && x.child[0] == y.child[0] &&
+                  x.child[1] == y.child[1] && x.leaf == y.leaf && x.split_root == y.split_root &&
+                  x.axis == y.axis)
+          << "node " << i;
+    }
   }
 }
 
@@ -177,47 +195,143 @@ TEST(BuildMKTree, SingleThreadAndTwoThreadsBuildTheSameTree) {
 // assertion: the test time limit is the guard) and still be correct.
 TEST(BuildMKTree, DegenerateLargeInputsBuildFast) {
   const size_t n = 200000;
-  {
-    auto recs = MakeScene(SceneKind::kIdentical, n, 1);
-    auto r = BuildMKTree(recs, BuildParams());
-    ASSERT_TRUE(r.ok());
-    EXPECT_EQ(r->leaf_objects.size(), n);
-    EXPECT_LT(r->stats.height, 64u);
-  }
-  {
-    // All objects cross the plane x = 0.
-    std::mt19937_64 rng(3);
-    std::uniform_real_distribution<float> u(0, 100);
-    std::vector<ObjectRecord> recs(n);
-    for (size_t i = 0; i < n; ++i) {
-      const float y = u(rng), z = u(rng);
-      recs[i] = Rec(static_cast<ObjectId>(i), B(-u(rng) - 0.1f, y, z, u(rng) + 0.1f, y + 0.3f, z + 0.3f), 1500);
+  for (SplitPolicy policy : kAllPolicies) {
+    SCOPED_TRACE(testing::Name(policy));
+    {
+      auto recs = MakeScene(SceneKind::kIdentical, n, 1);
+      auto r = BuildMKTree(recs, BuildParams(), WithPolicy(policy));
+      ASSERT_TRUE(r.ok());
+      EXPECT_EQ(r->leaf_objects.size(), n);
+      EXPECT_LT(r->stats.height, 64u);
     }
-    auto r = BuildMKTree(recs, BuildParams());
-    ASSERT_TRUE(r.ok());
-    EXPECT_EQ(r->leaf_objects.size(), n);
-    EXPECT_LT(r->stats.height, 64u);
-  }
-  {
-    // r = 0 on a uniform scene invites peeling one object per level; the depth guard bounds it.
-    auto recs = MakeScene(SceneKind::kUniform, 50000, 2);
-    BuildParams p;
-    p.balance_r = 0;
-    auto r = BuildMKTree(recs, p);
-    ASSERT_TRUE(r.ok());
-    EXPECT_LE(r->stats.height, 255u);
+    {
+      // All objects cross the plane x = 0.
+      std::mt19937_64 rng(3);
+      std::uniform_real_distribution<float> u(0, 100);
+      std::vector<ObjectRecord> recs(n);
+      for (size_t i = 0; i < n; ++i) {
+        const float y = u(rng), z = u(rng);
+        recs[i] =
+            Rec(static_cast<ObjectId>(i), B(-u(rng) - 0.1f, y, z, u(rng) + 0.1f, y + 0.3f, z + 0.3f), 1500);
+      }
+      auto r = BuildMKTree(recs, BuildParams(), WithPolicy(policy));
+      ASSERT_TRUE(r.ok());
+      EXPECT_EQ(r->leaf_objects.size(), n);
+      EXPECT_LT(r->stats.height, 64u);
+    }
+    {
+      // r = 0 on a uniform scene invites peeling one object per level; the depth guard bounds it.
+      auto recs = MakeScene(SceneKind::kUniform, 50000, 2);
+      BuildParams p;
+      p.balance_r = 0;
+      auto r = BuildMKTree(recs, p, WithPolicy(policy));
+      ASSERT_TRUE(r.ok());
+      EXPECT_LE(r->stats.height, 255u);
+    }
   }
 }
 
 TEST(BuildMKTree, PageFillNearTheLeavesIsHigh) {
   auto recs = MakeScene(SceneKind::kShip, 50000, 9);
-  BuildTuning plain;
+  BuildTuning plain = WithPolicy(SplitPolicy::kSoa);
   plain.fill_aware = false;
-  auto fill = BuildMKTree(recs, BuildParams());
+  auto fill = BuildMKTree(recs, BuildParams(), WithPolicy(SplitPolicy::kSoa));
   auto soa = BuildMKTree(recs, BuildParams(), plain);
-  ASSERT_TRUE(fill.ok() && soa.ok());
+  auto compact = BuildMKTree(recs, BuildParams(), WithPolicy(SplitPolicy::kCompact));
+  ASSERT_TRUE(fill.ok() && soa.ok() && compact.ok());
   EXPECT_GT(fill->stats.mean_page_fill, soa->stats.mean_page_fill);
   EXPECT_LT(fill->stats.leaves, soa->stats.leaves);
+  // The compact policy keeps the fill-aware ranking near the leaves.
+  EXPECT_GT(compact->stats.mean_page_fill, soa->stats.mean_page_fill);
+  EXPECT_GT(compact->stats.mean_page_fill, 0.95 * fill->stats.mean_page_fill);
+}
+
+// kCompact splits a node only along an axis whose objects spread at least compact_axis_ratio x the longest
+// spread (spread: the mean of the spreads of min_w and max_w), or along the longest.
+TEST(BuildMKTree, CompactPolicySplitsOnlyAlongWideAxes) {
+  for (SceneKind kind : {SceneKind::kShip, SceneKind::kPlates, SceneKind::kUniform}) {
+    SCOPED_TRACE(testing::Name(kind));
+    auto recs = MakeScene(kind, 20000, 4);
+    BuildTuning tune = WithPolicy(SplitPolicy::kCompact);
+    auto r = BuildMKTree(recs, BuildParams(), tune);
+    ASSERT_TRUE(r.ok());
+    std::unordered_map<ObjectId, size_t> by_id;
+    for (size_t i = 0; i < recs.size(); ++i) by_id[recs[i].id] = i;
+    const testing::NodeRanges nr = testing::ComputeRanges(*r);
+    uint64_t checked = 0;
+    for (uint32_t i = 0; i < r->tree.nodes.size(); ++i) {
+      const TreeNode& n = r->tree.nodes[i];
+      if (n.is_leaf()) continue;
+      float lo_min[3], hi_min[3], lo_max[3], hi_max[3];
+      for (int w = 0; w < 3; ++w) {
+        lo_min[w] = lo_max[w] = std::numeric_limits<float>::infinity();
+        hi_min[w] = hi_max[w] = -std::numeric_limits<float>::infinity();
+      }
+      for (uint64_t k = nr.begin[i]; k < nr.end[i]; ++k) {
+        const Box3f& bx = recs[by_id.at(r->leaf_objects[k])].box;
+        for (int w = 0; w < 3; ++w) {
+          lo_min[w] = std::min(lo_min[w], bx.min[w]);
+          hi_min[w] = std::max(hi_min[w], bx.min[w]);
+          lo_max[w] = std::min(lo_max[w], bx.max[w]);
+          hi_max[w] = std::max(hi_max[w], bx.max[w]);
+        }
+      }
+      double spread[3], longest = 0;
+      for (int w = 0; w < 3; ++w) {
+        spread[w] = 0.5 * ((double{hi_min[w]} - lo_min[w]) + (double{hi_max[w]} - lo_max[w]));
+        longest = std::max(longest, spread[w]);
+      }
+      EXPECT_TRUE(spread[n.axis] == longest || spread[n.axis] >= tune.compact_axis_ratio * longest)
+          << "node " << i << " split along axis " << int{n.axis} << " spread " << spread[n.axis] << " of "
+          << longest;
+      ++checked;
+    }
+    EXPECT_GT(checked, 100u);
+  }
+}
+
+// What the compact policy is for: on a ship-like scene of long pipes and plates, random boxes meet fewer
+// leaves holding an answer than with the SOA (the leaves a query reads once the leaf filter has spoken),
+// at a page fill within a few percent.
+TEST(BuildMKTree, CompactPolicyBoxesMeetFewerLeaves) {
+  auto recs = MakeScene(SceneKind::kShip, 60000, 21);
+  auto soa = BuildMKTree(recs, BuildParams(), WithPolicy(SplitPolicy::kSoa));
+  auto compact = BuildMKTree(recs, BuildParams(), WithPolicy(SplitPolicy::kCompact));
+  ASSERT_TRUE(soa.ok() && compact.ok());
+  std::unordered_map<ObjectId, size_t> by_id;
+  for (size_t i = 0; i < recs.size(); ++i) by_id[recs[i].id] = i;
+  auto leaves_met = [&](const BuildResult& r, double side) {
+    std::vector<uint32_t> leaf_of(recs.size());
+    for (uint32_t l = 0; l < r.tree.leaves.size(); ++l)
+      for (uint64_t k = r.leaf_offsets[l]; k < r.leaf_offsets[l + 1]; ++k)
+        leaf_of[by_id.at(r.leaf_objects[k])] = l;
+    std::mt19937_64 rng(77);
+    std::uniform_real_distribution<double> u(0, 100);
+    std::vector<uint32_t> seen(r.tree.leaves.size(), 0);
+    uint64_t met = 0;
+    for (uint32_t q = 1; q <= 300; ++q) {
+      Box3f box;
+      for (int a = 0; a < 3; ++a) {
+        const double c = u(rng);
+        box.min[a] = static_cast<float>(c - side / 2);
+        box.max[a] = static_cast<float>(c + side / 2);
+      }
+      for (size_t i = 0; i < recs.size(); ++i) {
+        if (recs[i].box.Intersects(box) && seen[leaf_of[i]] != q) {
+          seen[leaf_of[i]] = q;
+          ++met;
+        }
+      }
+    }
+    return met;
+  };
+  for (double side : {4.0, 16.0}) {
+    const uint64_t s = leaves_met(*soa, side), c = leaves_met(*compact, side);
+    EXPECT_LT(c, s) << "box side " << side;
+    std::printf("box side %.0f: leaves with an answer, soa %llu, compact %llu\n", side,
+                static_cast<unsigned long long>(s), static_cast<unsigned long long>(c));
+  }
+  EXPECT_GT(compact->stats.mean_page_fill, 0.95 * soa->stats.mean_page_fill);
 }
 
 }  // namespace
@@ -234,7 +348,7 @@ TEST(BuildMKTree, RootSplitMinimisesTheOverlapSetByBruteForce) {
       auto recs = MakeScene(kind, 120, seed);
       BuildParams p;
       p.block_size = 1024;
-      BuildTuning plain;
+      BuildTuning plain = WithPolicy(SplitPolicy::kSoa);
       plain.fill_aware = false;
       auto r = BuildMKTree(recs, p, plain);
       ASSERT_TRUE(r.ok());

@@ -20,10 +20,10 @@ struct Fixture {
   std::vector<uint32_t> leaf_of;  // per record
 };
 
-Fixture Build(std::vector<ObjectRecord> recs, const BuildParams& p) {
+Fixture Build(std::vector<ObjectRecord> recs, const BuildParams& p, const BuildTuning& tune = BuildTuning()) {
   Fixture f;
   f.recs = std::move(recs);
-  auto r = BuildMKTree(f.recs, p);
+  auto r = BuildMKTree(f.recs, p, tune);
   EXPECT_TRUE(r.ok()) << r.status().ToString();
   f.built = std::move(r).value();
   std::unordered_map<ObjectId, size_t> idx;
@@ -152,6 +152,7 @@ struct Case {
   SceneKind kind;
   size_t n;
   double r;
+  SplitPolicy policy;
 };
 
 class RoutingTest : public ::testing::TestWithParam<Case> {};
@@ -160,7 +161,7 @@ TEST_P(RoutingTest, NeverMissesAnObject) {
   const Case c = GetParam();
   BuildParams p;
   p.balance_r = c.r;
-  Fixture f = Build(MakeScene(c.kind, c.n, 1000 + c.n), p);
+  Fixture f = Build(MakeScene(c.kind, c.n, 1000 + c.n), p, testing::WithPolicy(c.policy));
   const size_t queries = c.n >= 10000 ? 150 : 400;
   CheckPoints(f, QueryPoints(f, queries, 7));
   CheckBoxes(f, queries, 8);
@@ -168,21 +169,23 @@ TEST_P(RoutingTest, NeverMissesAnObject) {
 
 std::vector<Case> Cases() {
   std::vector<Case> cs;
-  for (SceneKind k : {SceneKind::kUniform, SceneKind::kClustered, SceneKind::kIdentical, SceneKind::kPlates,
-                      SceneKind::kHuge, SceneKind::kOversized, SceneKind::kShip, SceneKind::kGrid}) {
-    for (size_t n : {1u, 2u, 7u, 300u, 5000u}) cs.push_back({k, n, 0.3});
-    cs.push_back({k, 3000, 0.0});
-    cs.push_back({k, 3000, 0.49});
+  for (SplitPolicy pol : testing::kAllPolicies) {
+    for (SceneKind k : {SceneKind::kUniform, SceneKind::kClustered, SceneKind::kIdentical, SceneKind::kPlates,
+                        SceneKind::kHuge, SceneKind::kOversized, SceneKind::kShip, SceneKind::kGrid}) {
+      for (size_t n : {1u, 2u, 7u, 300u, 5000u}) cs.push_back({k, n, 0.3, pol});
+      cs.push_back({k, 3000, 0.0, pol});
+      cs.push_back({k, 3000, 0.49, pol});
+    }
+    cs.push_back({SceneKind::kShip, 50000, 0.3, pol});
+    cs.push_back({SceneKind::kUniform, 50000, 0.3, pol});
+    cs.push_back({SceneKind::kGrid, 50000, 0.3, pol});
   }
-  cs.push_back({SceneKind::kShip, 50000, 0.3});
-  cs.push_back({SceneKind::kUniform, 50000, 0.3});
-  cs.push_back({SceneKind::kGrid, 50000, 0.3});
   return cs;
 }
 
 INSTANTIATE_TEST_SUITE_P(Scenes, RoutingTest, ::testing::ValuesIn(Cases()), [](const auto& info) {
-  return std::string(testing::Name(info.param.kind)) + "_" + std::to_string(info.param.n) + "_r" +
-         std::to_string(static_cast<int>(info.param.r * 100));
+  return std::string(testing::Name(info.param.policy)) + "_" + testing::Name(info.param.kind) + "_" +
+         std::to_string(info.param.n) + "_r" + std::to_string(static_cast<int>(info.param.r * 100));
 });
 
 TEST(Routing, StatsCountNodesAndPointsOutsideTheSceneReachNothing) {

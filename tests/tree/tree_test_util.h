@@ -40,6 +40,17 @@ inline const char* Name(SceneKind k) {
   return "?";
 }
 
+// Every split policy: structural and routing checks hold for all of them.
+inline constexpr SplitPolicy kAllPolicies[] = {SplitPolicy::kSoa, SplitPolicy::kCompact};
+
+inline const char* Name(SplitPolicy p) { return p == SplitPolicy::kSoa ? "soa" : "compact"; }
+
+inline BuildTuning WithPolicy(SplitPolicy p) {
+  BuildTuning t;
+  t.split_policy = p;
+  return t;
+}
+
 inline std::vector<ObjectRecord> MakeScene(SceneKind kind, size_t n, uint64_t seed, uint64_t mem_page = 12288) {
   std::mt19937_64 rng(seed);
   auto uni = [&](double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(rng); };
