@@ -27,6 +27,18 @@ class SpillFile {
   Status Flush();
   // Reads exactly `size` bytes at `offset` (after Flush).
   Status ReadAt(uint64_t offset, uint64_t size, void* out) const;
+
+  // One range to read: `size` bytes at `offset` into `out`.
+  struct Range {
+    uint64_t offset;
+    uint64_t size;
+    uint8_t* out;
+  };
+  // Reads many ranges (after Flush) with few system calls: sorted by offset, ranges whose gaps are small
+  // are gathered into one preadv (the gap bytes read into a scratch buffer), so that reading a leaf's
+  // scattered entries costs about one call per run of nearby entries rather than one per entry.
+  // Sorts `ranges` in place.
+  Status ReadMany(std::vector<Range>* ranges) const;
   uint64_t size() const { return size_; }
   const std::string& path() const { return path_; }
 
@@ -37,6 +49,21 @@ class SpillFile {
   std::vector<uint8_t> buffer_;
   uint64_t size_ = 0;       // bytes appended, buffered or not
   uint64_t flushed_ = 0;    // bytes on disk
+};
+
+// Reads a spill file front to back in large blocks (after Flush): for data spilled in the order it is
+// needed, such as the object names.
+class SpillCursor {
+ public:
+  explicit SpillCursor(const SpillFile& file) : file_(file) {}
+  // Reads the next `size` bytes into `out`.
+  Status Read(uint64_t size, void* out);
+
+ private:
+  const SpillFile& file_;
+  std::vector<uint8_t> block_;
+  uint64_t block_offset_ = 0;  // file offset of block_[0]
+  size_t at_ = 0;              // next unread byte in block_
 };
 
 }  // namespace mktree

@@ -36,6 +36,7 @@ struct IngestOptions {
   StoreOptions store;          // backend, codec, build parameters
   BuildTuning tuning;          // tree quality knobs that are not persisted (split policy, threads)
   std::string spill_dir;       // where the spill files go; empty: next to the output store
+  uint32_t threads = 0;        // threads encoding objects (edge check, codec), the caller's included; 0: one per core
   IngestProgress progress;     // optional
 };
 

@@ -1,0 +1,47 @@
+// The encoding half of ingest: each object's edge check (CheckEdges) and leaf entry (EncodeObjectEntry)
+// computed on worker threads, in batches, while the calling thread reads the next objects; results come
+// back to the calling thread in input order, so the spill is written in id order exactly as a
+// single-threaded loop would write it.
+//
+// Memory stays bounded: at most a few batches are in flight (each closes at kBatchObjects objects or
+// kBatchRawBytes of raw geometry), and the reader waits (or encodes a batch itself) when they are full.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <span>
+
+#include "mktree/scene.h"
+#include "mktree/status.h"
+#include "storage/object_codec.h"
+
+namespace mktree {
+
+// What the encoder learnt of one object.
+struct EncodedObject {
+  Box3f box;                       // obj.Aabb(), checked finite and non-empty
+  std::span<const uint8_t> entry;  // the leaf entry; valid only during the sink call
+};
+
+struct EncoderOptions {
+  CodecOptions codec;
+  // Threads working on ingest, the calling thread included: 1 encodes on the calling thread (no
+  // workers); 0 means one per core.
+  uint32_t threads = 0;
+};
+
+// Fills *obj with the next object; false at the end of the input. Called on the calling thread only.
+using ObjectReader = std::function<Result<bool>(SceneObject* obj)>;
+// Receives each object with its encoding, in the order read. Called on the calling thread only.
+using EncodedSink = std::function<Status(const SceneObject& obj, const EncodedObject& encoded)>;
+
+// Reads every object, encodes it and passes it to `sink`, in order. Stops at the first error, which is
+// the one a sequential loop would meet first (an object's encoding error before a later read error).
+// Errors: InvalidArgument for an object with empty or non-finite bounds or geometry that cannot be
+// encoded; otherwise what `read` or `sink` returned.
+Status EncodeObjects(const EncoderOptions& options, const ObjectReader& read, const EncodedSink& sink);
+
+// The number of threads EncodeObjects uses for options.threads (0 -> the number of cores).
+uint32_t EncoderThreads(uint32_t requested);
+
+}  // namespace mktree
