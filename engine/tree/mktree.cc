@@ -1,5 +1,7 @@
 #include "engine/tree/mktree.h"
 
+#include <type_traits>
+
 #include "engine/tree/leaf_filter.h"
 
 namespace mktree {
@@ -44,6 +46,27 @@ uint8_t BoxSides(const MKTree& t, const TreeNode& n, const Box3d& q, QueryStats*
   return sides;
 }
 
+// A leaf the routing reached: read it unless the leaf filter says none of its objects meets the query.
+template <typename QueryShape>
+void EmitLeaf(const MKTree& t, uint32_t leaf, const QueryShape& q, std::vector<uint32_t>* leaves_out,
+              QueryStats* stats) {
+  if (!t.leaf_filter_begin.empty()) {
+    const LeafInfo& info = t.leaves[leaf];
+    const uint8_t* boxes = t.leaf_filter.data() + t.leaf_filter_begin[leaf];
+    bool meets;
+    if constexpr (std::is_same_v<QueryShape, Vec3d>)
+      meets = FilterMeetsPoint(info.box, boxes, info.object_count, q);
+    else
+      meets = FilterMeetsBox(info.box, boxes, info.object_count, q);
+    if (!meets) {
+      ++stats->leaves_filtered;
+      return;
+    }
+  }
+  ++stats->leaves_visited;
+  leaves_out->push_back(leaf);
+}
+
 }  // namespace
 
 void MKTree::RoutePoint(const Vec3d& p, std::vector<uint32_t>* leaves_out, QueryStats* stats) const {
@@ -55,14 +78,7 @@ void MKTree::RoutePoint(const Vec3d& p, std::vector<uint32_t>* leaves_out, Query
     const TreeNode& n = nodes[stack.back()];
     stack.pop_back();
     if (n.is_leaf()) {
-      if (!leaf_filter_begin.empty() &&
-          !FilterMeetsPoint(leaves[n.leaf].box, leaf_filter.data() + leaf_filter_begin[n.leaf],
-                            leaves[n.leaf].object_count, p)) {
-        ++stats->leaves_filtered;
-        continue;
-      }
-      ++stats->leaves_visited;
-      leaves_out->push_back(n.leaf);
+      EmitLeaf(*this, n.leaf, p, leaves_out, stats);
       continue;
     }
     ++stats->internal_nodes_visited;
@@ -92,14 +108,7 @@ void MKTree::RouteBox(const Box3d& q, std::vector<uint32_t>* leaves_out, QuerySt
     const TreeNode& n = nodes[stack.back()];
     stack.pop_back();
     if (n.is_leaf()) {
-      if (!leaf_filter_begin.empty() &&
-          !FilterMeetsBox(leaves[n.leaf].box, leaf_filter.data() + leaf_filter_begin[n.leaf],
-                          leaves[n.leaf].object_count, q)) {
-        ++stats->leaves_filtered;
-        continue;
-      }
-      ++stats->leaves_visited;
-      leaves_out->push_back(n.leaf);
+      EmitLeaf(*this, n.leaf, q, leaves_out, stats);
       continue;
     }
     ++stats->internal_nodes_visited;
