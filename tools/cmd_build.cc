@@ -17,7 +17,7 @@ struct BuildArgs {
   std::string output;
   std::string backend = "hdf5";
   std::string codec = "zstd";
-  int zstd_level = 3;
+  int zstd_level = CodecOptions{}.zstd_level;
   uint32_t block_size = 4096;
   uint32_t blocks_per_page = 3;
   double r = 0.3;

@@ -36,14 +36,11 @@ uint32_t PositionBits(float f) {
   return b;
 }
 
-uint64_t Mix(uint64_t x) {  // the murmur3 finalizer: cheap, and spreads float bit patterns well
-  x ^= x >> 33;
-  x *= 0xff51afd7ed558ccdULL;
-  x ^= x >> 33;
-  x *= 0xc4ceb9fe1a85ec53ULL;
-  x ^= x >> 33;
-  return x;
-}
+// Multiplicative (Fibonacci) hashing: the top `bits` bits of key * 2^64/phi. One multiply; the high bits
+// depend on every key bit, which is what float bit patterns (equal low bits) and vertex pairs need.
+size_t HashTop(uint64_t key, int bits) { return static_cast<size_t>((key * 0x9E3779B97F4A7C15ULL) >> (64 - bits)); }
+
+int Log2(size_t pow2) { return std::countr_zero(pow2); }
 
 // Canonical id per vertex: the smallest index among vertices with the same coordinates (compared as
 // values; a vertex with a NaN coordinate equals nothing, itself only). One pass over a hash table
@@ -55,6 +52,7 @@ void WeldByPosition(const Mesh& mesh, Scratch* s) {
   const size_t cap = std::bit_ceil(2 * n + 16);
   s->slots.assign(cap, 0);
   const size_t mask = cap - 1;
+  const int bits = Log2(cap);
   for (size_t i = 0; i < n; ++i) {
     const float* p = v + 3 * i;
     if (std::isnan(p[0]) || std::isnan(p[1]) || std::isnan(p[2])) {
@@ -62,7 +60,7 @@ void WeldByPosition(const Mesh& mesh, Scratch* s) {
       continue;
     }
     const uint32_t x = PositionBits(p[0]), y = PositionBits(p[1]), z = PositionBits(p[2]);
-    size_t h = Mix((uint64_t{x} << 32 | y) ^ Mix(z)) & mask;
+    size_t h = HashTop((uint64_t{x} << 32 | y) ^ (uint64_t{z} * 0xC2B2AE3D27D4EB4FULL), bits);
     for (;; h = (h + 1) & mask) {
       const uint32_t slot = s->slots[h];
       if (slot == 0) {
@@ -110,6 +108,7 @@ void TallySorted(std::vector<uint64_t>* keys, EdgeCheck* r) {
 void TallyHashed(const Mesh& mesh, Scratch* s, EdgeCheck* r) {
   const size_t uses = 3 * (mesh.triangles.size() / 3);
   const size_t cap = std::bit_ceil(2 * uses + 16), mask = cap - 1;
+  const int bits = Log2(cap);
   s->edge_slots.assign(cap, EdgeSlot{0, 0, 0});
   const uint32_t* tri = mesh.triangles.data();
   for (size_t t = 0; t + 2 < mesh.triangles.size(); t += 3) {
@@ -118,7 +117,7 @@ void TallyHashed(const Mesh& mesh, Scratch* s, EdgeCheck* r) {
     for (int k = 0; k < 3; ++k) {
       const uint32_t a = c[k], b = c[(k + 1) % 3];
       const uint64_t edge = uint64_t{std::min(a, b)} << 32 | std::max(a, b);
-      for (size_t h = Mix(edge) & mask;; h = (h + 1) & mask) {
+      for (size_t h = HashTop(edge, bits);; h = (h + 1) & mask) {
         EdgeSlot& slot = s->edge_slots[h];
         if (slot.edge == 0) slot.edge = edge;
         if (slot.edge == edge) {

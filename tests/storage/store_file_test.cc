@@ -159,7 +159,7 @@ TEST_P(StoreFileTest, EveryLeafRoundTripsAndTheStoreReopensEqual) {
   const StoreReader& s = **r;
   EXPECT_EQ(s.options().backend, GetParam().backend);
   EXPECT_EQ(s.options().codec.codec, GetParam().codec);
-  EXPECT_EQ(s.options().codec.zstd_level, 3);
+  EXPECT_EQ(s.options().codec.zstd_level, CodecOptions{}.zstd_level);
   EXPECT_EQ(s.options().params.mem_page(), BuildParams().mem_page());
   EXPECT_EQ(s.options().params.balance_r, BuildParams().balance_r);
   EXPECT_EQ(s.options().params.split_tree_node_budget, BuildParams().split_tree_node_budget);
