@@ -112,13 +112,11 @@ Result<IngestReport> BuildStore(const std::vector<SceneOpener>& inputs, const st
   MKTREE_RETURN_IF_ERROR(names.Flush());
   report.read_seconds = Seconds(start);
 
-  // The spill offsets outlive the records, which the builder consumes.
-  std::vector<uint64_t> spill_offset(records.size());
+  // The entry sizes outlive the records, which the builder consumes. Offsets are not kept through the
+  // tree build (8 bytes per object at its memory peak): entries were spilled back to back in id order,
+  // so they are the prefix sums of the sizes, recomputed below.
   std::vector<uint32_t> entry_bytes(records.size());
-  for (const ObjectRecord& r : records) {
-    spill_offset[r.id] = r.spill_offset;
-    entry_bytes[r.id] = r.encoded_bytes;
-  }
+  for (const ObjectRecord& r : records) entry_bytes[r.id] = r.encoded_bytes;
 
   // 2. The tree, from the records alone.
   const auto build_start = Clock::now();
@@ -135,6 +133,10 @@ Result<IngestReport> BuildStore(const std::vector<SceneOpener>& inputs, const st
   //    (sorted, neighbours gathered into one preadv) costs ~1 system call per run of nearby entries
   //    instead of one per entry (1M pread calls were ~1 s of a 1M-object build).
   const auto write_start = Clock::now();
+  std::vector<uint64_t> spill_offset(entry_bytes.size());
+  for (size_t id = 1; id < spill_offset.size(); ++id) spill_offset[id] = spill_offset[id - 1] + entry_bytes[id - 1];
+  if (!spill_offset.empty() && spill_offset.back() + entry_bytes.back() != geometry.size())
+    return Status::Internal(geometry.path() + ": spill size does not match its entries");
   auto writer_or = StoreWriter::Create(store_path, options.store);
   if (!writer_or.ok()) return writer_or.status();
   StoreWriter& writer = **writer_or;
