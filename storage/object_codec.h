@@ -38,13 +38,13 @@ enum class Codec : uint8_t { kNone = 0, kZstd = 1 };
 
 struct CodecOptions {
   Codec codec = Codec::kZstd;  // how geometry is stored in leaf entries
-  // zstd compression level (1..19; negative = fast modes). -1: on the tanker's objects (~660 B raw each)
-  // it encodes in 2.0 us per object against 5.4 at level 1 and 5.6 at level 3 (1M-object build: read
-  // stage 2.3 s vs 5.3 s), for a store 1.3% larger than at level 3. Negative levels store literals raw;
-  // on inputs this small Huffman-coding them mostly costs time. Not free everywhere: the same scene read
-  // back from OBJ text (coordinates rounded to decimals) stores 10.7% larger than at level 3, and there
-  // the OBJ parser, not the codec, bounds the build (level 3 costs +1.1 s of 11 s at 1M).
-  int zstd_level = -1;
+  // zstd compression level (1..19; negative = fast modes). 3, because pages are what queries pay for:
+  // measured on 1M tanker objects read back from OBJ text (how users' scenes arrive), level -1 stores
+  // 11% more pages (26,804 vs 24,153) and builds no faster (the OBJ parser bounds it: 9.8 vs 9.6 s).
+  // From the generator, -1 builds 22% faster (179k vs 147k objects/s) for 1.3% more pages: pass
+  // --zstd-level -1 where ingest speed matters more than pages. Levels 1 and 3 cost the same on objects
+  // this small (~660 B raw).
+  int zstd_level = 3;
   bool shuffle = true;         // apply transform 1 before zstd (ignored with kNone)
 };
 
