@@ -71,7 +71,7 @@ cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release >/dev/null
 cmake --build "$build" --target peers_bench -j 2 >/dev/null
 bench="$build/bench/peers_bench"
 
-cpu=$(grep -m1 'model name' /proc/cpuinfo | sed 's/.*: //')
+cpu=$( (grep -m1 'model name' /proc/cpuinfo || echo 'model name: unknown') | sed 's/.*: //')
 ram=$(awk '/MemTotal/ {printf "%.1f GiB", $2 / 1048576}' /proc/meminfo)
 lsi_pkg=$(dpkg-query -W -f='${Version}' libspatialindex6 2>/dev/null || echo unknown)
 sqlite_pkg=$(dpkg-query -W -f='${Version}' libsqlite3-0 2>/dev/null || echo unknown)
@@ -85,7 +85,9 @@ echo "\`scripts/bench_peers.sh $args\` on $(date -u '+%Y-%m-%d %H:%M UTC'), comm
   echo
   echo "- Machine: $(nproc) cores, $cpu, $ram RAM, $(uname -sr), work files on $(df -h "$tmp" | awk 'NR==2 {print $1 " (" $2 ")"}')"
   echo "- Load when the run started: $(cut -d' ' -f1-3 /proc/loadavg) (1/5/15 min); timings are wall-clock, page counts exact."
-  dirty=$(git status --short --untracked-files=no 2>/dev/null | grep -v -e ' bench/' -e ' scripts/' | awk '{print $2}' | tr '\n' ' ')
+  # `|| true`: grep -v selects nothing on a clean tree and exits 1, which pipefail would make fatal.
+  dirty=$( (git status --short --untracked-files=no 2>/dev/null || true) | { grep -v -e ' bench/' -e ' scripts/' || true; } |
+    awk '{print $2}' | tr '\n' ' ')
   [ -z "$dirty" ] || echo "- Work tree had uncommitted changes (measured as built): $dirty"
   echo "- Libraries: $($bench --versions) (Debian libspatialindex6 $lsi_pkg, libsqlite3-0 $sqlite_pkg)"
   echo "- Pages: 12 KiB (mktree MemPage = 4096 x 3; libspatialindex disk storage manager page size 12288);"
