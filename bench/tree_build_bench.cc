@@ -178,6 +178,38 @@ BoxQuality BoxLeaves(const BuildResult& r, const std::vector<ObjectRecord>& recs
   return q;
 }
 
+// FNV-1a over every field of the built tree (nodes, split nodes, leaves, leaf_objects, leaf_offsets), field by
+// field so that struct padding does not count: equal hashes = the same tree (TREE_BENCH_HASH=1 prints it).
+struct Fnv {
+  uint64_t h = 1469598103934665603ull;
+  template <typename T>
+  void Add(const T& v) {
+    unsigned char bytes[sizeof(T)];
+    std::memcpy(bytes, &v, sizeof(T));
+    for (unsigned char c : bytes) h = (h ^ c) * 1099511628211ull;
+  }
+  void AddBox(const Box3f& b) {
+    for (int a = 0; a < 3; ++a) Add(b.min[a]), Add(b.max[a]);
+  }
+};
+
+uint64_t TreeHash(const BuildResult& r) {
+  Fnv f;
+  for (const TreeNode& n : r.tree.nodes) {
+    f.AddBox(n.box);
+    f.Add(n.a), f.Add(n.b), f.Add(n.child[0]), f.Add(n.child[1]), f.Add(n.leaf), f.Add(n.split_root);
+    f.Add(n.axis), f.Add(n.depth);
+  }
+  for (const SplitNode& n : r.tree.split_nodes) f.Add(n.cut), f.Add(n.child[0]), f.Add(n.child[1]), f.Add(n.axis), f.Add(n.label);
+  for (const LeafInfo& l : r.tree.leaves) {
+    f.AddBox(l.box);
+    f.Add(l.node), f.Add(l.object_count), f.Add(l.payload_bytes), f.Add(l.first_page), f.Add(l.page_count);
+  }
+  for (ObjectId o : r.leaf_objects) f.Add(o);
+  for (uint64_t o : r.leaf_offsets) f.Add(o);
+  return f.h;
+}
+
 struct Workload {
   const char* name;
   uint64_t objects;
@@ -204,6 +236,13 @@ void Run(const Workload& w) {
   }
   const TreeStats& s = built->stats;
   const double n = double(w.objects);
+  if (std::getenv("TREE_BENCH_HASH")) {
+    std::printf("%-14s %6.2f s  %6.2f Mobj/s  peak %6.1f B/obj  tree hash %016llx  nodes %zu  split nodes %zu"
+                "  leaves %zu\n", w.name, secs, n / secs / 1e6, peak / n, (unsigned long long)TreeHash(*built), built->tree.nodes.size(), built->tree.split_nodes.size(),
+                built->tree.leaves.size());
+    std::fflush(stdout);
+    if (std::getenv("TREE_BENCH_HASH_ONLY")) return;
+  }
   // The records went into the builder; make them again (deterministic) for the brute-force check.
   recs = w.tanker ? TankerRecords(w.objects, 1) : SyntheticRecords(w.objects, 1);
   const Quality q = RoutingQuality(*built, recs, 10000, 99);
