@@ -276,10 +276,45 @@ class SubtreeBuilder {
       m.sm_min = sm_min;
       best = Candidate();
     }
+    if (!m.compact) {
+      for (int w = 0; w < 3; ++w)
+        if (axis_ok[w]) Sweep(t, w, k_lo, k_hi, m, &best, nullptr);
+      return best;
+    }
+    // kCompact: the margin only breaks ties on (primary, waste). First pass without margins: per list, the
+    // best (primary, waste) and the range of k reaching it. Only when several candidates reach the global
+    // best are the margins computed, over the tied lists and k ranges only. Same choice as ranking every
+    // candidate with its margin: the others lose on (primary, waste) anyway, and the tied ones are
+    // compared in the same order (list, then k).
+    ListTies ties[6];
+    Mode plain = m;
+    plain.compact = false;
     for (int w = 0; w < 3; ++w)
-      if (axis_ok[w]) Sweep(t, w, k_lo, k_hi, m, &best, nullptr);
+      if (axis_ok[w]) Sweep(t, w, k_lo, k_hi, plain, &best, nullptr, ties + 2 * w);
+    uint64_t top = std::numeric_limits<uint64_t>::max(), count = 0;
+    for (const ListTies& lt : ties)
+      if (lt.count > 0) top = std::min(top, lt.key);
+    for (const ListTies& lt : ties) count += lt.count > 0 && lt.key == top ? lt.count : 0;
+    if (count == 1) {
+      for (const ListTies& lt : ties)
+        if (lt.count > 0 && lt.key == top) return lt.first;
+    }
+    best = Candidate();
+    for (int w = 0; w < 3; ++w) {
+      if (!axis_ok[w]) continue;
+      const ListTies* tl[2] = {&ties[2 * w], &ties[2 * w + 1]};
+      if ((tl[0]->count == 0 || tl[0]->key != top) && (tl[1]->count == 0 || tl[1]->key != top)) continue;
+      Sweep(t, w, k_lo, k_hi, m, &best, nullptr, nullptr, &top, ties + 2 * w);
+    }
     return best;
   }
+
+  // Per sort list, the candidates with the list's best (primary, waste) (kCompact's first pass).
+  struct ListTies {
+    uint64_t key = 0;  // primary << 32 | waste
+    uint32_t count = 0, k_min = 0, k_max = 0;
+    Candidate first;
+  };
 
   // kCompact: the axes along which the objects spread at least compact_axis_ratio x the longest spread.
   // Spread along w: the mean of the spreads of min_w and of max_w (the ends of the two sorted lists), so
@@ -303,18 +338,18 @@ class SubtreeBuilder {
   }
 
   // margin_pre_[i]: Margin of the union of the boxes of order[lo .. lo+i]; margin_suf_[i]: of
-  // order[lo+i .. hi).
-  void PrefixSuffixMargins(const Task& t, const std::vector<uint32_t>& order) {
+  // order[lo+i .. hi). Computed for the cuts k in [k_min, k_max] only: i < k_max, resp. i >= k_min.
+  void PrefixSuffixMargins(const Task& t, const std::vector<uint32_t>& order, uint32_t k_min, uint32_t k_max) {
     const uint32_t n = t.hi - t.lo;
     margin_pre_.resize(n);
     margin_suf_.resize(n);
     Box3f u;
-    for (uint32_t i = 0; i < n; ++i) {
+    for (uint32_t i = 0; i < k_max; ++i) {
       u.Extend(rec_[order[t.lo + i]].box);
       margin_pre_[i] = Margin(u);
     }
     u = Box3f();
-    for (uint32_t i = n; i-- > 0;) {
+    for (uint32_t i = n; i-- > k_min;) {
       u.Extend(rec_[order[t.lo + i]].box);
       margin_suf_[i] = Margin(u);
     }
@@ -323,8 +358,12 @@ class SubtreeBuilder {
   // Evaluates the candidates of both keys of axis w. In O(n) after the gathers: along either order,
   // a(k) and b(k) never decrease, so |Sm| = #(min_w < b) - #(max_w <= a) is counted with two cursors
   // moving forward over the sorted min_w and max_w arrays.
+  // ties (first pass of kCompact, margins not computed): per key, the candidates of best (primary, waste).
+  // only (second pass): evaluate only the candidates whose (primary, waste) is *only, with their margins
+  // computed over the k ranges of tied[key].
   void Sweep(const Task& t, int w, uint32_t k_lo, uint32_t k_hi, const Mode& m, Candidate* best,
-             uint32_t* sm_min_out) {
+             uint32_t* sm_min_out, ListTies* ties = nullptr, const uint64_t* only = nullptr,
+             const ListTies* tied = nullptr) {
     const bool fill_aware = m.fill_aware;
     const uint32_t n = t.hi - t.lo;
     const std::vector<uint32_t>& by_min = s_.lists[2 * w];
@@ -350,7 +389,12 @@ class SubtreeBuilder {
 
     for (int key = 0; key < 2; ++key) {
       const std::vector<uint32_t>& order = key == 0 ? by_min : by_max;
-      if (m.compact) PrefixSuffixMargins(t, order);
+      if (only != nullptr) {
+        if (tied[key].count == 0 || tied[key].key != *only) continue;
+        PrefixSuffixMargins(t, order, tied[key].k_min, tied[key].k_max);
+      } else if (m.compact) {
+        PrefixSuffixMargins(t, order, 1, n - 1);
+      }
       uint32_t pa = 0, pb = 0;  // #(max_w <= a), #(min_w < b)
       uint64_t left_bytes = 0;
       for (uint32_t k = 1; k <= k_hi; ++k) {
@@ -381,6 +425,8 @@ class SubtreeBuilder {
           if (sm <= m.sm_min + slack) c.primary = 0;
           c.waste = static_cast<uint32_t>(Pages(left_bytes) + Pages(t.bytes - left_bytes) - total_pages);
         }
+        const uint64_t tie_key = uint64_t{c.primary} << 32 | c.waste;
+        if (only != nullptr && tie_key != *only) continue;
         if (m.compact) {
           c.margin = static_cast<float>(static_cast<double>(k) * margin_pre_[k - 1] +
                                         static_cast<double>(n - k) * margin_suf_[k]);
@@ -389,6 +435,19 @@ class SubtreeBuilder {
         c.imbalance = static_cast<uint32_t>(std::abs(2 * int64_t{k} - int64_t{n}));
         c.left_bytes = left_bytes;
         c.fill_aware = fill_aware;
+        if (ties != nullptr) {
+          ListTies& lt = ties[key];
+          if (lt.count == 0 || tie_key < lt.key) {
+            lt.key = tie_key;
+            lt.count = 1;
+            lt.k_min = lt.k_max = k;
+            lt.first = c;
+          } else if (tie_key == lt.key) {
+            ++lt.count;
+            lt.k_max = k;
+          }
+          continue;
+        }
         if (c.BetterThan(*best)) *best = c;
       }
     }
