@@ -13,7 +13,7 @@ $MK generate tanker --objects "$N" --seed 1 -o out/tanker.obj
 echo "== build: out/tanker.mkt (HDF5 backend, 12 KiB pages, zstd)"
 $MK build out/tanker.obj -o out/tanker.mkt
 echo "== info"
-$MK info out/tanker.mkt | head -n 8
+$MK info out/tanker.mkt | sed -n "1,8p"  # sed, not head: head would close the pipe (SIGPIPE under pipefail)
 echo "== queries: 1000 points, 1000 boxes each of 0.5 m, 2 m and 8 m, seeded, cold cache"
 $MK generate queries out/tanker.mkt --count 1000 --seed 7 -o out/queries.txt
 $MK query out/tanker.mkt --queries out/queries.txt --cold --summary
