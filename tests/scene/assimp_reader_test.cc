@@ -11,6 +11,7 @@
 #include <fstream>
 #include <string>
 #include <vector>
+#include "scene/real_file_check.h"
 
 namespace mktree {
 namespace {
@@ -253,33 +254,12 @@ TEST(AssimpReaderTest, UnreadableFilesAreErrorsNamingTheFile) {
 }
 
 // The real scenes, against /work/shared/data/README.md.
-struct RealFile {
-  const char* path;
-  size_t objects;
-  size_t triangles;
-};
 
 class AssimpRealFileTest : public testing::TestWithParam<RealFile> {};
 
 TEST_P(AssimpRealFileTest, MatchesTheDataReadme) {
   const RealFile& f = GetParam();
-  auto src = OpenAssimpFile(std::string(MKTREE_SHARED_DATA) + "/" + f.path, 3);
-  ASSERT_TRUE(src.ok()) << src.status().ToString();
-  size_t objects = 0, triangles = 0;
-  SceneObject o;
-  while (true) {
-    auto more = (*src)->Next(&o);
-    ASSERT_TRUE(more.ok()) << more.status().ToString();
-    if (!*more) break;
-    EXPECT_EQ(o.id, 3 + objects);
-    ASSERT_FALSE(o.name.empty());
-    for (uint32_t i : o.mesh.triangles) ASSERT_LT(i, o.mesh.vertex_count()) << o.name;
-    ASSERT_FALSE(o.Aabb().empty());
-    ++objects;
-    triangles += o.mesh.triangle_count();
-  }
-  EXPECT_EQ(objects, f.objects);
-  EXPECT_EQ(triangles, f.triangles);
+  CheckRealFile(OpenAssimpFile(std::string(MKTREE_SHARED_DATA) + "/" + f.path, 3), 3, f);
 }
 
 // truman.ac: the README says 280 objects and 99,160 triangles. 280 counts every AC3D object with

@@ -10,6 +10,7 @@
 #include <fstream>
 #include <string>
 #include <vector>
+#include "scene/real_file_check.h"
 
 namespace mktree {
 namespace {
@@ -334,34 +335,12 @@ TEST(ObjReaderErrorTest, MutatedFilesNeverCrashAndErrorsNameTheLine) {
 
 // The real scenes: counts from /work/shared/data/README.md (one `o` line per object, every face a
 // triangle in these files). Also checks ids, non-empty names and that every index is in range.
-struct RealFile {
-  const char* path;
-  size_t objects;
-  size_t triangles;
-};
 
 class ObjRealFileTest : public testing::TestWithParam<RealFile> {};
 
 TEST_P(ObjRealFileTest, MatchesTheDataReadme) {
   const RealFile& f = GetParam();
-  auto src = OpenObjFile(std::string(MKTREE_SHARED_DATA) + "/" + f.path, 7);
-  ASSERT_TRUE(src.ok()) << src.status().ToString();
-  size_t objects = 0, triangles = 0;
-  SceneObject o;
-  while (true) {
-    auto more = (*src)->Next(&o);
-    ASSERT_TRUE(more.ok()) << more.status().ToString();
-    if (!*more) break;
-    EXPECT_EQ(o.id, 7 + objects);
-    ASSERT_FALSE(o.name.empty());
-    ASSERT_GT(o.mesh.triangle_count(), 0u);
-    for (uint32_t i : o.mesh.triangles) ASSERT_LT(i, o.mesh.vertex_count()) << o.name;
-    ASSERT_FALSE(o.Aabb().empty());
-    ++objects;
-    triangles += o.mesh.triangle_count();
-  }
-  EXPECT_EQ(objects, f.objects);
-  EXPECT_EQ(triangles, f.triangles);
+  CheckRealFile(OpenObjFile(std::string(MKTREE_SHARED_DATA) + "/" + f.path, 7), 7, f);
 }
 
 INSTANTIATE_TEST_SUITE_P(SharedData, ObjRealFileTest,
