@@ -332,8 +332,7 @@ class Hdf5PageStore : public PageStore {
 
   Status ReadPage(uint64_t index, uint8_t* out) const override {
     if (index >= count_)
-      return Status::InvalidArgument(name_ + ": page " + std::to_string(index) + " out of range (" +
-                                     std::to_string(count_) + " pages)");
+      return PageOutOfRange(name_, index, count_);
     std::lock_guard<std::recursive_mutex> lock(Hdf5Mutex());
     const hsize_t offset[2] = {index, 0};
     hsize_t stored = 0;

@@ -6,8 +6,7 @@ namespace mktree {
 
 Status MemoryPageStore::ReadPage(uint64_t index, uint8_t* out) const {
   if (index >= count_)
-    return Status::InvalidArgument(name_ + ": page " + std::to_string(index) + " out of range (" +
-                                   std::to_string(count_) + " pages)");
+    return PageOutOfRange(name_, index, count_);
   std::memcpy(out, data_.data() + index * page_bytes_, page_bytes_);
   return Status::Ok();
 }

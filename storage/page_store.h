@@ -10,6 +10,12 @@
 
 namespace mktree {
 
+// The error every backend gives for a page index past its end.
+inline Status PageOutOfRange(const std::string& store, uint64_t index, uint64_t count) {
+  return Status::InvalidArgument(store + ": page " + std::to_string(index) + " out of range (" +
+                                 std::to_string(count) + " pages)");
+}
+
 class PageStore {
  public:
   virtual ~PageStore() = default;

@@ -62,8 +62,7 @@ class PagedFileStore : public PageStore {
 
   Status ReadPage(uint64_t index, uint8_t* out) const override {
     if (index >= count_)
-      return Status::InvalidArgument(name_ + ": page " + std::to_string(index) + " out of range (" +
-                                     std::to_string(count_) + " pages)");
+      return PageOutOfRange(name_, index, count_);
     const uint64_t offset = (1 + index) * mem_page_;
     Status st;
     if (direct_fd_ >= 0) {

@@ -11,6 +11,7 @@
 #include <fstream>
 #include <string>
 #include <vector>
+
 #include "scene/real_file_check.h"
 
 namespace mktree {

@@ -10,6 +10,7 @@
 #include <fstream>
 #include <string>
 #include <vector>
+
 #include "scene/real_file_check.h"
 
 namespace mktree {
