@@ -4,7 +4,11 @@
 #include <array>
 #include <bit>
 #include <cmath>
+#include <condition_variable>
+#include <deque>
 #include <limits>
+#include <memory>
+#include <mutex>
 #include <string>
 #include <thread>
 
@@ -64,7 +68,11 @@ struct SubtreeOut {
   std::vector<LeafInfo> leaves;
   std::vector<uint64_t> leaf_begin;  // position of the leaf's first object in the lists
   std::vector<uint32_t> overlap;     // |Sm| per node
+  std::vector<uint32_t> split_count;  // SplitTree nodes per node (filled only by the multi-thread build)
 };
+
+// child[1] of a node whose right subtree was built as another fragment (multi-thread build).
+constexpr uint32_t kFragmentRef = 0x80000000u;
 
 struct Task {
   uint32_t lo = 0, hi = 0;
@@ -99,7 +107,31 @@ struct Candidate {
 
 class SubtreeBuilder {
  public:
-  explicit SubtreeBuilder(Shared* s) : s_(*s), rec_(s->rec), mem_page_(s->params.mem_page()) {}
+  explicit SubtreeBuilder(Shared* s, bool track_split_count = false)
+      : s_(*s), rec_(s->rec), mem_page_(s->params.mem_page()), track_split_count_(track_split_count) {}
+
+  // Like Run, but the right child of a node with at least `min_spawn` objects becomes a task of its own
+  // (spawn(task) returns its fragment id), referenced as kFragmentRef | id in child[1].
+  template <typename Spawn>
+  void RunSpawning(const Task& root, SubtreeOut* out, uint32_t min_spawn, Spawn&& spawn) {
+    std::vector<Task> stack{root};
+    Task kids[2];
+    while (!stack.empty()) {
+      const Task t = stack.back();
+      stack.pop_back();
+      if (ProcessNode(t, out, kids)) {
+        if (kids[1].hi - kids[1].lo >= min_spawn) {
+          const uint32_t me = kids[1].parent;
+          kids[1].parent = kNoIndex;
+          out->nodes[me].child[1] = kFragmentRef | spawn(kids[1]);
+        } else {
+          stack.push_back(kids[1]);
+        }
+        stack.push_back(kids[0]);
+      }
+      if (!stack.empty()) ShrinkScratch(stack.back().hi - stack.back().lo);
+    }
+  }
 
   // Builds the whole subtree of `root` into `out`.
   void Run(const Task& root, SubtreeOut* out) {
@@ -141,6 +173,7 @@ class SubtreeBuilder {
       out->leaf_begin.push_back(t.lo);
       out->nodes.push_back(node);
       out->overlap.push_back(0);
+      if (track_split_count_) out->split_count.push_back(0);
       return false;
     }
 
@@ -237,6 +270,8 @@ class SubtreeBuilder {
     }
     out->nodes.push_back(node);
     out->overlap.push_back(sm);
+    if (track_split_count_)
+      out->split_count.push_back(node.split_root == kNoIndex ? 0 : static_cast<uint32_t>(split.size()));
     kids[0] = Task{t.lo, t.lo + n1, t.depth + 1, me, 0, left_bytes};
     kids[1] = Task{t.lo + n1, t.hi, t.depth + 1, me, 1, t.bytes - left_bytes};
     return true;
@@ -456,6 +491,7 @@ class SubtreeBuilder {
   Shared& s_;
   const std::vector<ObjectRecord>& rec_;
   const uint64_t mem_page_;
+  const bool track_split_count_;
   std::vector<float> sorted_min_, prefix_max_, sorted_max_, suffix_min_;
   std::vector<float> margin_pre_, margin_suf_;  // kCompact only
   std::vector<uint32_t> tmp_;
@@ -463,34 +499,104 @@ class SubtreeBuilder {
   std::vector<uint32_t> overlap_ids_;
 };
 
-// Appends `sub` (built with local indices) to `dst`, shifting every index.
-void Append(SubtreeOut&& sub, SubtreeOut* dst) {
-  const uint32_t node_base = static_cast<uint32_t>(dst->nodes.size());
-  const uint32_t split_base = static_cast<uint32_t>(dst->split_nodes.size());
-  const uint32_t leaf_base = static_cast<uint32_t>(dst->leaves.size());
-  for (TreeNode nd : sub.nodes) {
+// Multi-thread build: workers take subtree tasks from a shared queue; each task is built depth-first into
+// its own fragment, handing the right child of every large node back to the queue. The fragments are then
+// stitched in DFS preorder (nodes, SplitTree nodes and leaves renumbered), which gives exactly the tree
+// that one thread builds: every node's split depends only on its own objects.
+void BuildParallel(Shared* shared, const Task& root, int threads, SubtreeOut* out) {
+  const uint32_t n = root.hi - root.lo;
+  // Tasks of at least this many objects are shared; smaller ones are not worth a fragment.
+  const uint32_t min_spawn = shared->tuning.parallel_task_objects > 0 ? shared->tuning.parallel_task_objects
+                                                                      : std::max<uint32_t>(4096, n / 256);
+  std::mutex mu;
+  std::condition_variable cv;
+  std::deque<std::pair<Task, uint32_t>> queue;
+  std::vector<std::unique_ptr<SubtreeOut>> frags;
+  int busy = 0;
+  frags.push_back(std::make_unique<SubtreeOut>());
+  queue.push_back({root, 0});
+  auto spawn = [&](const Task& t) {
+    std::lock_guard<std::mutex> lock(mu);
+    const uint32_t id = static_cast<uint32_t>(frags.size());
+    frags.push_back(std::make_unique<SubtreeOut>());
+    queue.push_back({t, id});
+    cv.notify_one();
+    return id;
+  };
+  auto worker = [&] {
+    SubtreeBuilder builder(shared, /*track_split_count=*/true);
+    std::unique_lock<std::mutex> lock(mu);
+    for (;;) {
+      cv.wait(lock, [&] { return !queue.empty() || busy == 0; });
+      if (queue.empty()) break;  // and nobody busy: done
+      const auto [task, id] = queue.back();  // newest first: depth-first, smaller scratch
+      queue.pop_back();
+      SubtreeOut* frag = frags[id].get();
+      ++busy;
+      lock.unlock();
+      builder.RunSpawning(task, frag, min_spawn, spawn);
+      lock.lock();
+      --busy;
+      if (busy == 0 && queue.empty()) cv.notify_all();
+    }
+  };
+  std::vector<std::thread> pool;
+  for (int i = 1; i < threads; ++i) pool.emplace_back(worker);
+  worker();
+  for (std::thread& th : pool) th.join();
+
+  // Stitch in DFS preorder.
+  size_t nodes = 0, splits = 0, leaves = 0;
+  for (const auto& f : frags) nodes += f->nodes.size(), splits += f->split_nodes.size(), leaves += f->leaves.size();
+  out->nodes.reserve(nodes);
+  out->split_nodes.reserve(splits);
+  out->leaves.reserve(leaves);
+  out->leaf_begin.reserve(leaves + 1);
+  out->overlap.reserve(nodes);
+  struct Ref {
+    uint32_t frag, node, parent;
+    int slot;
+  };
+  // A fragment is freed once all its nodes are stitched (fragments are small: most of the memory is
+  // released well before the end).
+  std::vector<size_t> left_to_stitch(frags.size());
+  for (size_t i = 0; i < frags.size(); ++i) left_to_stitch[i] = frags[i]->nodes.size();
+  std::vector<Ref> stack{{0, 0, kNoIndex, 0}};
+  while (!stack.empty()) {
+    const Ref r = stack.back();
+    stack.pop_back();
+    const SubtreeOut& f = *frags[r.frag];
+    TreeNode nd = f.nodes[r.node];
+    const uint32_t g = static_cast<uint32_t>(out->nodes.size());
+    if (r.parent != kNoIndex) out->nodes[r.parent].child[r.slot] = g;
     if (nd.is_leaf()) {
-      nd.leaf += leaf_base;
+      LeafInfo lf = f.leaves[nd.leaf];
+      out->leaf_begin.push_back(f.leaf_begin[nd.leaf]);
+      nd.leaf = static_cast<uint32_t>(out->leaves.size());
+      lf.node = g;
+      out->leaves.push_back(lf);
     } else {
-      nd.child[0] += node_base;
-      nd.child[1] += node_base;
-      if (nd.split_root != kNoIndex) nd.split_root += split_base;
+      if (nd.split_root != kNoIndex) {
+        const uint32_t base = static_cast<uint32_t>(out->split_nodes.size());
+        const uint32_t old = nd.split_root;
+        for (uint32_t i = 0; i < f.split_count[r.node]; ++i) {
+          SplitNode sn = f.split_nodes[old + i];
+          if (!sn.is_cell()) {
+            sn.child[0] = sn.child[0] - old + base;
+            sn.child[1] = sn.child[1] - old + base;
+          }
+          out->split_nodes.push_back(sn);
+        }
+        nd.split_root = base;
+      }
+      const uint32_t right = nd.child[1];
+      stack.push_back(right & kFragmentRef ? Ref{right & ~kFragmentRef, 0, g, 1} : Ref{r.frag, right, g, 1});
+      stack.push_back(Ref{r.frag, nd.child[0], g, 0});
     }
-    dst->nodes.push_back(nd);
+    out->nodes.push_back(nd);
+    out->overlap.push_back(f.overlap[r.node]);
+    if (--left_to_stitch[r.frag] == 0) frags[r.frag].reset();
   }
-  for (SplitNode sn : sub.split_nodes) {
-    if (!sn.is_cell()) {
-      sn.child[0] += split_base;
-      sn.child[1] += split_base;
-    }
-    dst->split_nodes.push_back(sn);
-  }
-  for (LeafInfo lf : sub.leaves) {
-    lf.node += node_base;
-    dst->leaves.push_back(lf);
-  }
-  dst->leaf_begin.insert(dst->leaf_begin.end(), sub.leaf_begin.begin(), sub.leaf_begin.end());
-  dst->overlap.insert(dst->overlap.end(), sub.overlap.begin(), sub.overlap.end());
 }
 
 std::string Describe(const ObjectRecord& r) { return "object " + std::to_string(r.id); }
@@ -561,21 +667,7 @@ Result<BuildResult> BuildMKTree(std::vector<ObjectRecord> records, const BuildPa
   SubtreeOut out;
   const Task root{0, n, 0, kNoIndex, 0, total_bytes};
   if (tuning.threads >= 2) {
-    // Split the root here, then build its two subtrees concurrently: they touch disjoint list ranges and
-    // disjoint objects' side flags.
-    SubtreeBuilder top(&shared);
-    Task kids[2];
-    if (top.ProcessNode(root, &out, kids)) {
-      kids[0].parent = kids[1].parent = kNoIndex;
-      SubtreeOut sub[2];
-      std::thread right([&] { SubtreeBuilder(&shared).Run(kids[1], &sub[1]); });
-      SubtreeBuilder(&shared).Run(kids[0], &sub[0]);
-      right.join();
-      out.nodes[0].child[0] = static_cast<uint32_t>(out.nodes.size());
-      out.nodes[0].child[1] = static_cast<uint32_t>(out.nodes.size() + sub[0].nodes.size());
-      Append(std::move(sub[0]), &out);
-      Append(std::move(sub[1]), &out);
-    }
+    BuildParallel(&shared, root, tuning.threads, &out);
   } else {
     SubtreeBuilder(&shared).Run(root, &out);
   }

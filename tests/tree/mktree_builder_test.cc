@@ -167,26 +167,61 @@ TEST(BuildMKTree, OversizedObjectsGetTheirOwnMultiPageLeaf) {
   }
 }
 
+void ExpectSameTree(const BuildResult& r1, const BuildResult& r2) {
+  EXPECT_EQ(r1.leaf_objects, r2.leaf_objects);
+  EXPECT_EQ(r1.leaf_offsets, r2.leaf_offsets);
+  ASSERT_EQ(r1.tree.nodes.size(), r2.tree.nodes.size());
+  ASSERT_EQ(r1.tree.split_nodes.size(), r2.tree.split_nodes.size());
+  ASSERT_EQ(r1.tree.leaves.size(), r2.tree.leaves.size());
+  for (size_t i = 0; i < r1.tree.nodes.size(); ++i) {
+    const TreeNode &x = r1.tree.nodes[i], &y = r2.tree.nodes[i];
+    ASSERT_TRUE(x.box == y.box && x.a == y.a && x.b == y.b && x.child[0] == y.child[0] &&
+                x.child[1] == y.child[1] && x.leaf == y.leaf && x.split_root == y.split_root &&
+                x.axis == y.axis && x.depth == y.depth)
+        << "node " << i;
+  }
+  for (size_t i = 0; i < r1.tree.split_nodes.size(); ++i) {
+    const SplitNode &x = r1.tree.split_nodes[i], &y = r2.tree.split_nodes[i];
+    ASSERT_TRUE(x.cut == y.cut && x.child[0] == y.child[0] && x.child[1] == y.child[1] && x.axis == y.axis &&
+                x.label == y.label)
+        << "split node " << i;
+  }
+  for (size_t i = 0; i < r1.tree.leaves.size(); ++i) {
+    const LeafInfo &x = r1.tree.leaves[i], &y = r2.tree.leaves[i];
+    ASSERT_TRUE(x.box == y.box && x.node == y.node && x.object_count == y.object_count &&
+                x.payload_bytes == y.payload_bytes && x.first_page == y.first_page && x.page_count == y.page_count)
+        << "leaf " << i;
+  }
+  EXPECT_EQ(r1.stats.overlap_objects, r2.stats.overlap_objects);
+}
+
+// The multi-thread build (task queue, fragments stitched in DFS order) gives exactly the 1-thread tree:
+// default task size, and tiny tasks (many fragments, 2-4 threads) on smaller pages.
 TEST(BuildMKTree, SingleThreadAndTwoThreadsBuildTheSameTree) {
   for (SplitPolicy policy : kAllPolicies) {
-    SCOPED_TRACE(testing::Name(policy));
-    auto recs = MakeScene(SceneKind::kShip, 20000, 11);
-    BuildTuning one = WithPolicy(policy), two = WithPolicy(policy);
-    one.threads = 1;
-    two.threads = 2;
-    auto r1 = BuildMKTree(recs, BuildParams(), one);
-    auto r2 = BuildMKTree(recs, BuildParams(), two);
-    ASSERT_TRUE(r1.ok() && r2.ok());
-    EXPECT_EQ(r1->leaf_objects, r2->leaf_objects);
-    EXPECT_EQ(r1->leaf_offsets, r2->leaf_offsets);
-    ASSERT_EQ(r1->tree.nodes.size(), r2->tree.nodes.size());
-    ASSERT_EQ(r1->tree.split_nodes.size(), r2->tree.split_nodes.size());
-    for (size_t i = 0; i < r1->tree.nodes.size(); ++i) {
-      const TreeNode &x = r1->tree.nodes[i], &y = r2->tree.nodes[i];
-      ASSERT_TRUE(x.box == y.box && x.a == y.a && x.b == y.b && x.child[0] == y.child[0] &&
-                  x.child[1] == y.child[1] && x.leaf == y.leaf && x.split_root == y.split_root &&
-                  x.axis == y.axis)
-          << "node " << i;
+    for (SceneKind kind : {SceneKind::kShip, SceneKind::kClustered, SceneKind::kOversized}) {
+      for (uint32_t task : {0u, 64u}) {
+        SCOPED_TRACE(std::string(testing::Name(policy)) + " " + testing::Name(kind) + " task " +
+                     std::to_string(task));
+        auto recs = MakeScene(kind, 20000, 11);
+        BuildParams p;
+        if (task > 0) p.block_size = 1024;
+        BuildTuning one = WithPolicy(policy);
+        one.threads = 1;
+        auto r1 = BuildMKTree(recs, p, one);
+        ASSERT_TRUE(r1.ok());
+        for (int threads : {2, 3, 4}) {
+          if (task == 0 && threads > 2) continue;
+          SCOPED_TRACE("threads " + std::to_string(threads));
+          BuildTuning many = one;
+          many.threads = threads;
+          many.parallel_task_objects = task;
+          auto r2 = BuildMKTree(recs, p, many);
+          ASSERT_TRUE(r2.ok());
+          ExpectSameTree(*r1, *r2);
+          CheckTree(recs, *r2, p);
+        }
+      }
     }
   }
 }
