@@ -7,6 +7,7 @@
 //   tanker_1m_soafill  the same, SplitPolicy::kSoa with the page-fill-aware ranking near the leaves
 //   tanker_1m_soa    the same, plain SOA (DESIGN.md §2.1 exactly): the fill baseline
 //   tanker_10m       10,000,000 objects of MakeTankerSource(1e7, seed 1)
+//   tanker_10m_2t    the same, two threads
 //   synthetic_1m     1,000,000 synthetic records (pipes / plates / equipment boxes; no generator)
 // Usage: tree_build_bench [workload...]   (default: all of them)
 //
@@ -283,6 +284,7 @@ int main(int argc, char** argv) {
       {"tanker_1m_soafill", 1000000, true, 1, true, kSoa},
       {"tanker_1m_soa", 1000000, true, 1, false, kSoa},
       {"tanker_10m", 10000000, true, 1, true, kCompact},
+      {"tanker_10m_2t", 10000000, true, 2, true, kCompact},
       {"synthetic_1m", 1000000, false, 1, true, kCompact},
   };
 #ifndef NDEBUG
