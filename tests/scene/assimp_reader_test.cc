@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "scene/real_file_check.h"
+#include "scene/scene_test_util.h"
 
 namespace mktree {
 namespace {
@@ -20,26 +20,11 @@ namespace {
 namespace fs = std::filesystem;
 
 std::string WriteTemp(const std::string& content, const std::string& name) {
-  const auto* info = testing::UnitTest::GetInstance()->current_test_info();
-  fs::path dir = fs::temp_directory_path() / ("mktree_assimp_" + std::to_string(::getpid()) + "_" +
-                                              info->test_suite_name() + "_" + info->name());
-  fs::create_directories(dir);
-  fs::path p = dir / name;
-  std::ofstream(p, std::ios::binary) << content;
-  return p.string();
+  return mktree::WriteTemp(content, name, "mktree_assimp");
 }
 
 Result<std::vector<SceneObject>> ReadAll(const std::string& path, ObjectId first_id = 0) {
-  auto src = OpenAssimpFile(path, first_id);
-  if (!src.ok()) return src.status();
-  std::vector<SceneObject> objects;
-  while (true) {
-    SceneObject o;
-    auto more = (*src)->Next(&o);
-    if (!more.ok()) return more.status();
-    if (!*more) return objects;
-    objects.push_back(std::move(o));
-  }
+  return ReadAllFrom(OpenAssimpFile(path, first_id));
 }
 
 // world > "parent" (loc 10 0 0) > "child" (loc 0 5 0) with one triangle; "wire" holds only a line

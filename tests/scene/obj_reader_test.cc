@@ -11,35 +11,19 @@
 #include <string>
 #include <vector>
 
-#include "scene/real_file_check.h"
+#include "scene/scene_test_util.h"
 
 namespace mktree {
 namespace {
 
 namespace fs = std::filesystem;
 
-// Writes `content` to a fresh file in a per-test temp dir and returns its path.
 std::string WriteTemp(const std::string& content, const std::string& name = "scene.obj") {
-  const auto* info = testing::UnitTest::GetInstance()->current_test_info();
-  fs::path dir = fs::temp_directory_path() / ("mktree_obj_" + std::to_string(::getpid()) + "_" +
-                                              info->test_suite_name() + "_" + info->name());
-  fs::create_directories(dir);
-  fs::path p = dir / name;
-  std::ofstream(p, std::ios::binary) << content;
-  return p.string();
+  return mktree::WriteTemp(content, name, "mktree_obj");
 }
 
 Result<std::vector<SceneObject>> ReadAll(const std::string& path, ObjectId first_id = 0) {
-  auto src = OpenObjFile(path, first_id);
-  if (!src.ok()) return src.status();
-  std::vector<SceneObject> objects;
-  while (true) {
-    SceneObject o;
-    auto more = (*src)->Next(&o);
-    if (!more.ok()) return more.status();
-    if (!*more) return objects;
-    objects.push_back(std::move(o));
-  }
+  return ReadAllFrom(OpenObjFile(path, first_id));
 }
 
 std::vector<SceneObject> ReadOk(const std::string& content, ObjectId first_id = 0) {
