@@ -8,7 +8,7 @@
 #include <thread>
 
 #include "engine/geometry/exact_geometry.h"
-#include "storage/leaf_codec.h"
+#include "storage/leaf_reader.h"
 #include "storage/object_codec.h"
 #include "storage/page_cache.h"
 #include "storage/store_file.h"
@@ -135,22 +135,12 @@ class StoreDatabase final : public Database {
   template <typename Test>
   Status ScanLeaf(uint32_t leaf, QueryStats* s, Test&& test, std::vector<ObjectId>* hits) const {
     const MKTree& tree = reader_->tree();
-    const LeafInfo& info = tree.leaves[leaf];
-    std::vector<PageHandle> handles;
-    std::vector<const uint8_t*> pages;
-    handles.reserve(info.page_count);
-    for (uint64_t p = info.first_page; p < info.first_page + info.page_count; ++p) {
-      auto h = cache_.Pin(p, s);
-      if (!h.ok()) return h.status();
-      pages.push_back(h->data());
-      handles.push_back(std::move(*h));
-    }
-    auto view = LeafView::Parse(reader_->pages().name(), leaf, info.first_page, pages, tree.params.mem_page(),
-                                options_.verify_checksums);
-    if (!view.ok()) return view.status();
+    auto read = ReadLeaf(cache_, reader_->pages().name(), leaf, tree.leaves[leaf], tree.params.mem_page(),
+                         options_.verify_checksums, s);
+    if (!read.ok()) return read.status();
+    const LeafView& view = read->view;
     const size_t before = hits->size();
-    for (size_t i = 0; i < view->size(); ++i) {
-      const ObjectEntryView& e = view->entry(i);
+    for (const ObjectEntryView& e : view.entries()) {
       ++s->candidates_tested;
       auto answer = test(e);
       if (!answer.ok()) return answer.status();

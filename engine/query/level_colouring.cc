@@ -2,8 +2,7 @@
 
 #include <vector>
 
-#include "storage/leaf_codec.h"
-#include "storage/page_cache.h"
+#include "storage/leaf_reader.h"
 
 namespace mktree {
 
@@ -41,23 +40,12 @@ Status ForEachObjectAtLevel(const StoreReader& store, int k, const LevelVisitor&
   const MKTree& tree = store.tree();
   // Capacity 0: a page lives only while pinned, so RAM is one leaf whatever the store size.
   PageCache cache(&store.pages(), 0);
-  std::vector<PageHandle> handles;
-  std::vector<const uint8_t*> pages;
   const uint64_t n = tree.leaves.size();
   for (uint32_t leaf = 0; leaf < n; ++leaf) {
-    const LeafInfo& info = tree.leaves[leaf];
-    handles.clear();
-    pages.clear();
-    for (uint64_t p = info.first_page; p < info.first_page + info.page_count; ++p) {
-      auto h = cache.Pin(p, nullptr);
-      if (!h.ok()) return h.status();
-      pages.push_back(h->data());
-      handles.push_back(std::move(*h));
-    }
-    auto view = LeafView::Parse(store.pages().name(), leaf, info.first_page, pages, tree.params.mem_page(),
-                                /*verify_checksums=*/true);
-    if (!view.ok()) return view.status();
-    for (const ObjectEntryView& e : view->entries())
+    auto read = ReadLeaf(cache, store.pages().name(), leaf, tree.leaves[leaf], tree.params.mem_page(),
+                         /*verify_checksums=*/true, nullptr);
+    if (!read.ok()) return read.status();
+    for (const ObjectEntryView& e : read->view.entries())
       MKTREE_RETURN_IF_ERROR(visit(leaf, e, GroupAtLevel(tree, leaf, e.box, k)));
     if (progress && (leaf % 256 == 0 || leaf + 1 == n)) progress(leaf + 1, n);
   }

@@ -5,7 +5,7 @@
 #include <atomic>
 #include <thread>
 
-#include "storage/leaf_codec.h"
+#include "storage/leaf_reader.h"
 #include "storage/memory_page_store.h"
 #include "storage/page_cache.h"
 #include "storage_test_util.h"
@@ -186,15 +186,7 @@ TEST(PageCacheTest, FlippedBytesAndShortReadsAreCorruptionNotWrongAnswers) {
   FaultyPageStore faulty(&mem);
   const LeafInfo& leaf = built.tree.leaves[1];
   auto parse = [&](PageCache& cache) -> Status {
-    std::vector<PageHandle> hs;
-    std::vector<const uint8_t*> ptrs;
-    for (uint32_t i = 0; i < leaf.page_count; ++i) {
-      auto h = cache.Pin(leaf.first_page + i, nullptr);
-      if (!h.ok()) return h.status();
-      ptrs.push_back(h->data());
-      hs.push_back(std::move(h).value());
-    }
-    return LeafView::Parse(faulty.name(), 1, leaf.first_page, ptrs, mem.page_bytes(), true).status();
+    return ReadLeaf(cache, faulty.name(), 1, leaf, mem.page_bytes(), true, nullptr).status();
   };
   {
     PageCache cache(&faulty, 8);

@@ -10,6 +10,7 @@
 #include <thread>
 
 #include "storage/leaf_codec.h"
+#include "storage/leaf_reader.h"
 #include "storage/page_cache.h"
 #include "storage/store_file.h"
 #include "storage_test_util.h"
@@ -110,18 +111,9 @@ class StoreFileTest : public ::testing::TestWithParam<Param> {
     if (!r.ok()) return r.status();
     PageCache cache(&(*r)->pages(), 0);
     for (uint32_t l = 0; l < (*r)->tree().leaves.size(); ++l) {
-      const LeafInfo& leaf = (*r)->tree().leaves[l];
-      std::vector<PageHandle> hs;
-      std::vector<const uint8_t*> ptrs;
-      for (uint32_t i = 0; i < leaf.page_count; ++i) {
-        auto h = cache.Pin(leaf.first_page + i, nullptr);
-        if (!h.ok()) return h.status();
-        ptrs.push_back(h->data());
-        hs.push_back(std::move(h).value());
-      }
-      auto v = LeafView::Parse(path, l, leaf.first_page, ptrs, (*r)->pages().page_bytes(), true);
+      auto v = ReadLeaf(cache, path, l, (*r)->tree().leaves[l], (*r)->pages().page_bytes(), true, nullptr);
       if (!v.ok()) return v.status();
-      for (const auto& e : v->entries()) {
+      for (const auto& e : v->view.entries()) {
         Mesh m;
         MKTREE_RETURN_IF_ERROR(DecodeObjectMesh(e, &m));
         if (!testing::SameMesh(m, objects_.at(e.id).mesh)) return Status::Internal("wrong answer");
