@@ -127,27 +127,17 @@ class SubtreeBuilder {
         } else {
           stack.push_back(kids[1]);
         }
-        stack.push_back(kids[0]);
-      }
-      if (!stack.empty()) ShrinkScratch(stack.back().hi - stack.back().lo);
-    }
-  }
-
-  // Builds the whole subtree of `root` into `out`.
-  void Run(const Task& root, SubtreeOut* out) {
-    std::vector<Task> stack{root};
-    Task kids[2];
-    while (!stack.empty()) {
-      const Task t = stack.back();
-      stack.pop_back();
-      if (ProcessNode(t, out, kids)) {
-        stack.push_back(kids[1]);
         stack.push_back(kids[0]);  // left next: it becomes node n+1 (DFS preorder)
       }
       // The scratch arrays were sized for the root; give the memory back once nodes are much smaller,
       // so that it does not add to the peak when the SplitTrees have grown.
       if (!stack.empty()) ShrinkScratch(stack.back().hi - stack.back().lo);
     }
+  }
+
+  // Builds the whole subtree of `root` into `out`: RunSpawning with a threshold no subtree reaches.
+  void Run(const Task& root, SubtreeOut* out) {
+    RunSpawning(root, out, std::numeric_limits<uint32_t>::max(), [](const Task&) -> uint32_t { return kNoIndex; });
   }
 
   // Appends the node of `t` to `out`; returns true with its two child tasks when it is internal.
