@@ -7,11 +7,15 @@
 //   box0.5/2/8   boxes of side 0.5 m, 2 m and 8 m centred on seeded random points
 // For each: mean/p50/p99 pages read with a cold cache, the I/O floor ceil(T/B), mean leaves reached minus
 // leaves holding an answer, queries/s cold (engine cache emptied before each query; add --direct-io
-// for the OS cache too) and warm (64 MiB cache, second pass), AABB and exact mode. Every AABB answer is
-// cross-checked against Boost.Geometry; a mismatch fails the run.
+// for the OS cache too) and warm (64 MiB cache, second pass; its misses read through the OS page cache),
+// the warm pass's cache hit rate, AABB and exact mode. Every AABB answer is cross-checked against
+// Boost.Geometry; a mismatch fails the run.
 //
 // Usage: query_bench [--objects N] [--seed S] [--queries Q] [--backend hdf5|pagefile] [--dir DIR]
-//                    [--direct-io] [--keep]
+//                    [--direct-io] [--keep] [--reuse] [--only WORKLOAD] [--mode aabb|exact] [--warm-passes K]
+//   --keep     keep the store; --reuse opens a kept store instead of building it (no build line)
+//   --only     run one workload (point, box0.5, box2, box8), --mode one mode, --warm-passes K time K warm
+//              passes (mean q/s): together, a profile of the warm path that perf record can read
 #include <sys/resource.h>
 #include <unistd.h>
 
@@ -52,6 +56,10 @@ struct Args {
   std::string dir = ".";
   bool direct_io = false;
   bool keep = false;
+  bool reuse = false;
+  std::string only;  // empty: every workload
+  std::string mode;  // empty: both modes
+  int warm_passes = 1;
 };
 
 struct Workload {
@@ -99,6 +107,10 @@ int main(int argc, char** argv) {
     else if (k == "--dir") a.dir = next();
     else if (k == "--direct-io") a.direct_io = true;
     else if (k == "--keep") a.keep = true;
+    else if (k == "--reuse") a.reuse = a.keep = true;
+    else if (k == "--only") a.only = next();
+    else if (k == "--mode") a.mode = next();
+    else if (k == "--warm-passes") a.warm_passes = std::max(1, std::stoi(next()));
     else {
       std::fprintf(stderr, "unknown argument %s\n", k.c_str());
       return 2;
@@ -171,28 +183,33 @@ int main(int argc, char** argv) {
   if (a.backend == "both" || a.backend == "pagefile") backends.push_back("pagefile");
   bool mismatch = false;
   for (const std::string& backend : backends) {
-    const std::string path = a.dir + "/query_bench_" + backend + ".mkt";
+    // The name carries the scene so that --reuse never opens a store of another scene.
+    const std::string path = a.dir + "/query_bench_" + backend + "_" + std::to_string(a.objects) + "_" +
+                             std::to_string(a.seed) + ".mkt";
     IngestOptions opts;
     opts.store.backend = backend == "hdf5" ? Backend::kHdf5 : Backend::kPagedFile;
-    t0 = Clock::now();
-    auto report = BuildStore({[&](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
-                               return MakeTankerSource(a.objects, a.seed, first);
-                             }},
-                             path, opts);
-    if (!report.ok()) {
-      std::fprintf(stderr, "build: %s\n", report.status().ToString().c_str());
-      return 1;
+    std::printf("\n## backend %s\n", backend.c_str());
+    if (!a.reuse || !std::filesystem::exists(path)) {
+      t0 = Clock::now();
+      auto report = BuildStore({[&](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
+                                 return MakeTankerSource(a.objects, a.seed, first);
+                               }},
+                               path, opts);
+      if (!report.ok()) {
+        std::fprintf(stderr, "build: %s\n", report.status().ToString().c_str());
+        return 1;
+      }
+      struct rusage ru {};
+      getrusage(RUSAGE_SELF, &ru);
+      std::printf("build: %.2fs, %.0f objects/s, %.1f MB/s written, store %.1f MiB, raw geometry "
+                  "%.1f MiB (ratio %.2f), peak RSS so far %.0f MiB, %llu leaves, %llu pages\n",
+                  report->total_seconds, a.objects / report->total_seconds,
+                  report->store_bytes / 1e6 / report->write_seconds, report->store_bytes / 1048576.0,
+                  report->raw_geometry_bytes / 1048576.0,
+                  static_cast<double>(report->raw_geometry_bytes) / static_cast<double>(report->store_bytes),
+                  ru.ru_maxrss / 1024.0, static_cast<unsigned long long>(report->tree_stats.leaves),
+                  static_cast<unsigned long long>(report->pages));
     }
-    struct rusage ru {};
-    getrusage(RUSAGE_SELF, &ru);
-    std::printf("\n## backend %s\nbuild: %.2fs, %.0f objects/s, %.1f MB/s written, store %.1f MiB, raw geometry "
-                "%.1f MiB (ratio %.2f), peak RSS so far %.0f MiB, %llu leaves, %llu pages\n",
-                backend.c_str(), report->total_seconds, a.objects / report->total_seconds,
-                report->store_bytes / 1e6 / report->write_seconds, report->store_bytes / 1048576.0,
-                report->raw_geometry_bytes / 1048576.0,
-                static_cast<double>(report->raw_geometry_bytes) / static_cast<double>(report->store_bytes),
-                ru.ru_maxrss / 1024.0, static_cast<unsigned long long>(report->tree_stats.leaves),
-                static_cast<unsigned long long>(report->pages));
 
     OpenOptions cold_opts;
     cold_opts.cache_pages = 4096;
@@ -207,11 +224,13 @@ int main(int argc, char** argv) {
     }
     const double B = (*db)->objects_per_page();
     std::printf("B = %.2f objects per page\n", B);
-    std::printf("%-8s %-5s %9s %9s %9s %9s %9s %10s %9s %11s %11s %11s %8s\n", "workload", "mode", "hits",
+    std::printf("%-8s %-5s %9s %9s %9s %9s %9s %10s %9s %11s %11s %11s %8s %8s\n", "workload", "mode", "hits",
                 "pages", "p50", "p99", "floor", "pages/flr", "extra_lv", ">1leaf(%)", "cold q/s", "warm q/s",
-                "vs boost");
+                "vs boost", "warm hit");
     for (const Workload& w : workloads) {
+      if (!a.only.empty() && w.name != a.only) continue;
       for (QueryMode mode : {QueryMode::kAabb, QueryMode::kExact}) {
+        if (!a.mode.empty() && a.mode != (mode == QueryMode::kAabb ? "aabb" : "exact")) continue;
         std::vector<double> pages, floors;
         double hits = 0, extra = 0, multi = 0;
         QueryResult r;
@@ -227,9 +246,17 @@ int main(int argc, char** argv) {
         }
         const double cold_qps = static_cast<double>(w.queries.size()) / Since(t0);
         for (const Query& q : w.queries) (*warm)->Run(q, mode, &r);  // fill the warm cache
+        QueryStats warm_stats;
         t0 = Clock::now();
-        for (const Query& q : w.queries) (*warm)->Run(q, mode, &r);
-        const double warm_qps = static_cast<double>(w.queries.size()) / Since(t0);
+        for (int pass = 0; pass < a.warm_passes; ++pass) {
+          for (const Query& q : w.queries) {
+            (*warm)->Run(q, mode, &r);
+            warm_stats += r.stats;
+          }
+        }
+        const double warm_qps = static_cast<double>(a.warm_passes * w.queries.size()) / Since(t0);
+        const double warm_hit_rate =
+            warm_stats.pages_touched ? static_cast<double>(warm_stats.cache_hits) / warm_stats.pages_touched : 1.0;
         std::string vs = "-";
         if (mode == QueryMode::kAabb) {
           // Same queries against Boost.Geometry, and the answers cross-checked.
@@ -266,11 +293,11 @@ int main(int argc, char** argv) {
         const double n = static_cast<double>(w.queries.size());
         mean_pages /= n;
         mean_floor /= n;
-        std::printf("%-8s %-5s %9.2f %9.3f %9.0f %9.0f %9.3f %10.2f %9.3f %11.1f %11.0f %11.0f %8s\n",
+        std::printf("%-8s %-5s %9.2f %9.3f %9.0f %9.0f %9.3f %10.2f %9.3f %11.1f %11.0f %11.0f %8s %7.1f%%\n",
                     w.name.c_str(), mode == QueryMode::kAabb ? "aabb" : "exact", hits / n, mean_pages,
                     Percentile(pages, 0.5), Percentile(pages, 0.99), mean_floor,
                     mean_floor > 0 ? mean_pages / mean_floor : 0.0, extra / n, 100 * multi / n, cold_qps, warm_qps,
-                    vs.c_str());
+                    vs.c_str(), 100 * warm_hit_rate);
       }
     }
     if (!a.keep) std::filesystem::remove(path);
