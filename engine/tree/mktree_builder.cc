@@ -12,6 +12,10 @@
 #include <string>
 #include <thread>
 
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
+
 #include "engine/tree/split_tree_builder.h"
 #include "storage/leaf_format.h"
 
@@ -19,6 +23,7 @@ namespace mktree {
 namespace {
 
 constexpr uint32_t kDepthGuard = 100;
+constexpr size_t kTrimBytes = size_t{8} << 20;
 constexpr double kGuardBalance = 0.25;
 
 // Float -> uint32 whose unsigned order is the float order (for the radix sort).
@@ -27,17 +32,10 @@ inline uint32_t SortableBits(float f) {
   return (u & 0x80000000u) ? ~u : (u | 0x80000000u);
 }
 
-// Object indices sorted by one key (axis, min or max), stable (ties by index): an LSD radix sort on
-// (key, index) pairs, 3 passes of 11/11/10 bits, far faster than an indirect comparison sort at 10M.
-void SortByKey(const std::vector<ObjectRecord>& rec, int axis, bool use_max, std::vector<uint64_t>* a,
-               std::vector<uint64_t>* b, std::vector<uint32_t>* out) {
-  const size_t n = rec.size();
-  a->resize(n);
-  b->resize(n);
-  for (size_t i = 0; i < n; ++i) {
-    const float k = use_max ? rec[i].box.max[axis] : rec[i].box.min[axis];
-    (*a)[i] = (uint64_t{SortableBits(k)} << 32) | i;
-  }
+// LSD radix sort of (key << 32 | payload) pairs by the key's top 32 bits, stable: 3 passes of 11/11/10 bits,
+// far faster than an indirect comparison sort at 10M.
+void RadixSortByHighWord(std::vector<uint64_t>* a, std::vector<uint64_t>* b) {
+  b->resize(a->size());
   constexpr int kShift[3] = {32, 43, 54};
   constexpr int kBits[3] = {11, 11, 10};
   for (int pass = 0; pass < 3; ++pass) {
@@ -48,12 +46,88 @@ void SortByKey(const std::vector<ObjectRecord>& rec, int axis, bool use_max, std
     for (uint64_t v : *a) (*b)[count[(v >> kShift[pass]) & mask]++] = v;
     a->swap(*b);
   }
+}
+
+// What the builder reads of an object: 28 bytes instead of ObjectRecord's 40 (ids are kept apart, for the
+// end only).
+struct BuildRecord {
+  Box3f box;
+  uint32_t encoded_bytes = 0;
+};
+
+// Object indices sorted by one key (axis, min or max), stable: ties in input order, so the lists (and so
+// the tree) do not depend on how the records are laid out in RAM. index_of_input[p]: the record index of
+// the object at input position p.
+void SortByKey(const std::vector<BuildRecord>& rec, const std::vector<uint32_t>& index_of_input, int axis,
+               bool use_max, std::vector<uint64_t>* a, std::vector<uint64_t>* b, std::vector<uint32_t>* out) {
+  const size_t n = rec.size();
+  a->resize(n);
+  for (size_t p = 0; p < n; ++p) {
+    const uint32_t i = index_of_input[p];
+    const float k = use_max ? rec[i].box.max[axis] : rec[i].box.min[axis];
+    (*a)[p] = (uint64_t{SortableBits(k)} << 32) | i;
+  }
+  RadixSortByHighWord(a, b);
   out->resize(n);
   for (size_t i = 0; i < n; ++i) (*out)[i] = static_cast<uint32_t>((*a)[i]);
 }
 
+// Spreads the low 10 bits of v to every third bit (Morton code helper).
+inline uint32_t Spread3(uint32_t v) {
+  v &= 0x3ff;
+  v = (v | (v << 16)) & 0x030000ff;
+  v = (v | (v << 8)) & 0x0300f00f;
+  v = (v | (v << 4)) & 0x030c30c3;
+  v = (v | (v << 2)) & 0x09249249;
+  return v;
+}
+
+// The builder's records, laid out in the Morton order of the box centres so that a node's objects lie
+// close together in RAM: the split sweeps and the list partitions read records in key order, which in
+// input order misses the cache all the way down the tree. Frees `records`; *ids: the object ids in the
+// same layout; *index_of_input: the record index of the object at each input position.
+std::vector<BuildRecord> SpatialLayout(std::vector<ObjectRecord> records, std::vector<ObjectId>* ids,
+                                       std::vector<uint32_t>* index_of_input) {
+  const size_t n = records.size();
+  Box3f all;
+  for (const ObjectRecord& r : records) all.Extend(r.box);
+  std::vector<uint64_t> a(n), b;
+  for (size_t i = 0; i < n; ++i) {
+    const Box3f& bx = records[i].box;
+    uint32_t code = 0;
+    for (int w = 0; w < 3; ++w) {
+      const double ext = double{all.max[w]} - all.min[w];
+      const double c = 0.5 * (double{bx.min[w]} + bx.max[w]) - all.min[w];
+      const uint32_t q = ext > 0 ? static_cast<uint32_t>(std::clamp(c / ext * 1023.0, 0.0, 1023.0)) : 0;
+      code |= Spread3(q) << w;
+    }
+    a[i] = (uint64_t{code} << 32) | i;
+  }
+  RadixSortByHighWord(&a, &b);
+  std::vector<uint64_t>().swap(b);
+  std::vector<BuildRecord> rec(n);
+  ids->resize(n);
+  index_of_input->resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    const uint32_t from = static_cast<uint32_t>(a[i]);
+    rec[i].box = records[from].box;
+    rec[i].encoded_bytes = records[from].encoded_bytes;
+    (*ids)[i] = records[from].id;
+    (*index_of_input)[from] = static_cast<uint32_t>(i);
+  }
+  return rec;
+}
+
+// Gives the heap's free pages back to the system: the builder frees large temporaries between phases,
+// and glibc keeps freed heap memory (not only its top) resident otherwise.
+void TrimHeap() {
+#ifdef __GLIBC__
+  malloc_trim(0);
+#endif
+}
+
 struct Shared {
-  const std::vector<ObjectRecord>& rec;
+  const std::vector<BuildRecord>& rec;
   BuildParams params;
   BuildTuning tuning;
   // lists[2*w + key]: the objects of every node, each node's range sorted by min_w (key 0) / max_w (key 1).
@@ -270,9 +344,11 @@ class SubtreeBuilder {
  private:
   void ShrinkScratch(size_t n) {
     if (tmp_.capacity() < 4 * n + (1u << 16)) return;
+    const size_t freed = 7 * (tmp_.capacity() - n) * sizeof(float);  // about
     for (auto* v : {&sorted_min_, &prefix_max_, &sorted_max_, &suffix_min_, &margin_pre_, &margin_suf_})
       if (!v->empty()) std::vector<float>(n).swap(*v);
     std::vector<uint32_t>(n).swap(tmp_);
+    if (freed >= kTrimBytes) TrimHeap();  // trimming is a walk of the heap: only for large frees
   }
 
   uint64_t Pages(uint64_t bytes) const { return PagesForLeaf(bytes, mem_page_); }
@@ -293,7 +369,9 @@ class SubtreeBuilder {
     bool axis_ok[3] = {true, true, true};
     if (m.compact) CompactAxes(t, axis_ok);
     Candidate best;
-    if (m.fill_aware) {  // first pass: the minimal |Sm|, to know which candidates are within the slack
+    // First pass: the minimal |Sm|, to know which candidates are within the slack (no need when the
+    // slack admits every candidate, as by default).
+    if (m.fill_aware && tu.fill_sm_slack < t.hi - t.lo) {
       uint32_t sm_min = std::numeric_limits<uint32_t>::max();
       Mode first;
       for (int w = 0; w < 3; ++w)
@@ -306,30 +384,41 @@ class SubtreeBuilder {
         if (axis_ok[w]) Sweep(t, w, k_lo, k_hi, m, &best, nullptr);
       return best;
     }
-    // kCompact: the margin only breaks ties on (primary, waste). First pass without margins: per list, the
-    // best (primary, waste) and the range of k reaching it. Only when several candidates reach the global
-    // best are the margins computed, over the tied lists and k ranges only. Same choice as ranking every
-    // candidate with its margin: the others lose on (primary, waste) anyway, and the tied ones are
-    // compared in the same order (list, then k).
-    ListTies ties[6];
+    // kCompact: the margin only breaks ties on (primary, waste). Per axis, while its keys are gathered:
+    // per list, the best (primary, waste) and the range of k reaching it; margins are computed only for
+    // the candidates that tie with the best so far, and not at all when one candidate alone is best. Same
+    // choice as ranking every candidate with its margin: the others lose on (primary, waste) anyway, and
+    // the tied ones are compared in the same order (list, then k).
     Mode plain = m;
     plain.compact = false;
-    for (int w = 0; w < 3; ++w)
-      if (axis_ok[w]) Sweep(t, w, k_lo, k_hi, plain, &best, nullptr, ties + 2 * w);
-    uint64_t top = std::numeric_limits<uint64_t>::max(), count = 0;
-    for (const ListTies& lt : ties)
-      if (lt.count > 0) top = std::min(top, lt.key);
-    for (const ListTies& lt : ties) count += lt.count > 0 && lt.key == top ? lt.count : 0;
-    if (count == 1) {
-      for (const ListTies& lt : ties)
-        if (lt.count > 0 && lt.key == top) return lt.first;
-    }
-    best = Candidate();
+    uint64_t top = std::numeric_limits<uint64_t>::max();
+    bool lone = false;  // `best` is the only candidate reaching `top` so far; its margin is not computed
     for (int w = 0; w < 3; ++w) {
       if (!axis_ok[w]) continue;
-      const ListTies* tl[2] = {&ties[2 * w], &ties[2 * w + 1]};
-      if ((tl[0]->count == 0 || tl[0]->key != top) && (tl[1]->count == 0 || tl[1]->key != top)) continue;
-      Sweep(t, w, k_lo, k_hi, m, &best, nullptr, nullptr, &top, ties + 2 * w);
+      ListTies ties[2];
+      GatherAxis(t, w, k_lo, k_hi);
+      ScanKeys(t, w, k_lo, k_hi, plain, nullptr, nullptr, ties);
+      uint64_t local = std::numeric_limits<uint64_t>::max();
+      uint32_t count = 0;
+      for (const ListTies& lt : ties)
+        if (lt.count > 0) local = std::min(local, lt.key);
+      for (const ListTies& lt : ties) count += lt.count > 0 && lt.key == local ? lt.count : 0;
+      if (count == 0 || local > top) continue;
+      if (local < top) {
+        top = local;
+        best = Candidate();
+        lone = false;
+        if (count == 1) {
+          best = ties[0].count > 0 && ties[0].key == local ? ties[0].first : ties[1].first;
+          lone = true;
+          continue;
+        }
+      }
+      if (lone) {
+        best.margin = SplitMargin(t, best.list, best.k);
+        lone = false;
+      }
+      ScanKeys(t, w, k_lo, k_hi, m, &best, nullptr, nullptr, &top, ties);
     }
     return best;
   }
@@ -362,54 +451,84 @@ class SubtreeBuilder {
     return (b.max[0] - b.min[0]) + (b.max[1] - b.min[1]) + (b.max[2] - b.min[2]);
   }
 
-  // margin_pre_[i]: Margin of the union of the boxes of order[lo .. lo+i]; margin_suf_[i]: of
-  // order[lo+i .. hi). Computed for the cuts k in [k_min, k_max] only: i < k_max, resp. i >= k_min.
+  // N1 x margin(R(Sn1)) + N2 x margin(R(Sn2)) of one candidate, as ScanKeys computes it.
+  float SplitMargin(const Task& t, int list, uint32_t k) const {
+    const std::vector<uint32_t>& order = s_.lists[list];
+    Box3f lo, hi;
+    for (uint32_t i = t.lo; i < t.lo + k; ++i) lo.Extend(rec_[order[i]].box);
+    for (uint32_t i = t.lo + k; i < t.hi; ++i) hi.Extend(rec_[order[i]].box);
+    const uint32_t n = t.hi - t.lo;
+    return static_cast<float>(static_cast<double>(k) * Margin(lo) + static_cast<double>(n - k) * Margin(hi));
+  }
+
+  // Margin of the union of the boxes of order[lo .. lo+i] for i in [k_min-1, k_max-1] at
+  // margin_pre_[i - (k_min-1)], and of order[lo+i .. hi) for i in [k_min, k_max] at margin_suf_[i - k_min]:
+  // what the cuts k in [k_min, k_max] need.
   void PrefixSuffixMargins(const Task& t, const std::vector<uint32_t>& order, uint32_t k_min, uint32_t k_max) {
     const uint32_t n = t.hi - t.lo;
-    margin_pre_.resize(n);
-    margin_suf_.resize(n);
+    margin_base_ = k_min;
+    margin_pre_.resize(k_max - k_min + 1);
+    margin_suf_.resize(k_max - k_min + 1);
     Box3f u;
     for (uint32_t i = 0; i < k_max; ++i) {
       u.Extend(rec_[order[t.lo + i]].box);
-      margin_pre_[i] = Margin(u);
+      if (i + 1 >= k_min) margin_pre_[i + 1 - k_min] = Margin(u);
     }
     u = Box3f();
     for (uint32_t i = n; i-- > k_min;) {
       u.Extend(rec_[order[t.lo + i]].box);
-      margin_suf_[i] = Margin(u);
+      if (i <= k_max) margin_suf_[i - k_min] = Margin(u);
     }
   }
 
-  // Evaluates the candidates of both keys of axis w. In O(n) after the gathers: along either order,
-  // a(k) and b(k) never decrease, so |Sm| = #(min_w < b) - #(max_w <= a) is counted with two cursors
-  // moving forward over the sorted min_w and max_w arrays.
-  // ties (first pass of kCompact, margins not computed): per key, the candidates of best (primary, waste).
-  // only (second pass): evaluate only the candidates whose (primary, waste) is *only, with their margins
-  // computed over the k ranges of tied[key].
+  // Gathers axis w and evaluates its candidates (kSoa, and kCompact's |Sm| first pass).
   void Sweep(const Task& t, int w, uint32_t k_lo, uint32_t k_hi, const Mode& m, Candidate* best,
-             uint32_t* sm_min_out, ListTies* ties = nullptr, const uint64_t* only = nullptr,
-             const ListTies* tied = nullptr) {
-    const bool fill_aware = m.fill_aware;
+             uint32_t* sm_min_out) {
+    GatherAxis(t, w, k_lo, k_hi);
+    ScanKeys(t, w, k_lo, k_hi, m, best, sm_min_out);
+  }
+
+  // The node's min_w in sorted order with the running max of max_w along it, and its max_w in sorted
+  // order with the suffix min of min_w along it: all ScanKeys needs of axis w.
+  void GatherAxis(const Task& t, int w, uint32_t k_lo, uint32_t k_hi) {
     const uint32_t n = t.hi - t.lo;
     const std::vector<uint32_t>& by_min = s_.lists[2 * w];
     const std::vector<uint32_t>& by_max = s_.lists[2 * w + 1];
+    // The running extremes are kept for the cuts k in [k_lo, k_hi] only: less scratch at the root.
+    window_base_ = k_lo;
     sorted_min_.resize(n);
-    prefix_max_.resize(n);
+    prefix_max_.resize(k_hi - k_lo + 1);
     sorted_max_.resize(n);
-    suffix_min_.resize(n);
+    suffix_min_.resize(k_hi - k_lo + 1);
     float run = -std::numeric_limits<float>::infinity();
     for (uint32_t i = 0; i < n; ++i) {
       const Box3f& bx = rec_[by_min[t.lo + i]].box;
       sorted_min_[i] = bx.min[w];
       run = std::max(run, bx.max[w]);
-      prefix_max_[i] = run;
+      if (i + 1 >= k_lo && i < k_hi) prefix_max_[i + 1 - k_lo] = run;
     }
-    for (uint32_t i = 0; i < n; ++i) {
+    run = std::numeric_limits<float>::infinity();
+    for (uint32_t i = n; i-- > 0;) {
       const Box3f& bx = rec_[by_max[t.lo + i]].box;
       sorted_max_[i] = bx.max[w];
-      suffix_min_[i] = bx.min[w];
+      run = std::min(run, bx.min[w]);
+      if (i >= k_lo && i <= k_hi) suffix_min_[i - k_lo] = run;
     }
-    for (uint32_t i = n - 1; i-- > 0;) suffix_min_[i] = std::min(suffix_min_[i], suffix_min_[i + 1]);
+  }
+
+  // Evaluates the candidates of both keys of axis w (GatherAxis(t, w) done). In O(n): along either order,
+  // a(k) and b(k) never decrease, so |Sm| = #(min_w < b) - #(max_w <= a) is counted with two cursors
+  // moving forward over the sorted min_w and max_w arrays.
+  // ties (kCompact, margins not computed): per key, the candidates of best (primary, waste).
+  // only (kCompact): evaluate only the candidates whose (primary, waste) is *only, with their margins
+  // computed over the k ranges of tied[key].
+  void ScanKeys(const Task& t, int w, uint32_t k_lo, uint32_t k_hi, const Mode& m, Candidate* best,
+                uint32_t* sm_min_out, ListTies* ties = nullptr, const uint64_t* only = nullptr,
+                const ListTies* tied = nullptr) {
+    const bool fill_aware = m.fill_aware;
+    const uint32_t n = t.hi - t.lo;
+    const std::vector<uint32_t>& by_min = s_.lists[2 * w];
+    const std::vector<uint32_t>& by_max = s_.lists[2 * w + 1];
     const uint64_t total_pages = Pages(t.bytes);
 
     for (int key = 0; key < 2; ++key) {
@@ -418,7 +537,7 @@ class SubtreeBuilder {
         if (tied[key].count == 0 || tied[key].key != *only) continue;
         PrefixSuffixMargins(t, order, tied[key].k_min, tied[key].k_max);
       } else if (m.compact) {
-        PrefixSuffixMargins(t, order, 1, n - 1);
+        PrefixSuffixMargins(t, order, k_lo, k_hi);
       }
       uint32_t pa = 0, pb = 0;  // #(max_w <= a), #(min_w < b)
       uint64_t left_bytes = 0;
@@ -426,8 +545,8 @@ class SubtreeBuilder {
         // Bytes only matter near the leaves (and are a random read per object, so not gathered above).
         if (fill_aware) left_bytes += rec_[order[t.lo + k - 1]].encoded_bytes;
         if (k < k_lo) continue;
-        const float a = key == 0 ? sorted_min_[k] : suffix_min_[k];
-        const float b = key == 0 ? prefix_max_[k - 1] : sorted_max_[k - 1];
+        const float a = key == 0 ? sorted_min_[k] : suffix_min_[k - window_base_];
+        const float b = key == 0 ? prefix_max_[k - window_base_] : sorted_max_[k - 1];
         uint32_t sm = 0;
         if (a < b) {
           while (pa < n && sorted_max_[pa] <= a) ++pa;
@@ -453,8 +572,8 @@ class SubtreeBuilder {
         const uint64_t tie_key = uint64_t{c.primary} << 32 | c.waste;
         if (only != nullptr && tie_key != *only) continue;
         if (m.compact) {
-          c.margin = static_cast<float>(static_cast<double>(k) * margin_pre_[k - 1] +
-                                        static_cast<double>(n - k) * margin_suf_[k]);
+          c.margin = static_cast<float>(static_cast<double>(k) * margin_pre_[k - margin_base_] +
+                                        static_cast<double>(n - k) * margin_suf_[k - margin_base_]);
         }
         c.slab = std::max(0.0, double{b} - double{a});
         c.imbalance = static_cast<uint32_t>(std::abs(2 * int64_t{k} - int64_t{n}));
@@ -479,15 +598,24 @@ class SubtreeBuilder {
   }
 
   Shared& s_;
-  const std::vector<ObjectRecord>& rec_;
+  const std::vector<BuildRecord>& rec_;
   const uint64_t mem_page_;
   const bool track_split_count_;
   std::vector<float> sorted_min_, prefix_max_, sorted_max_, suffix_min_;
+  uint32_t window_base_ = 0;  // prefix_max_ / suffix_min_ index of the cut k_lo
   std::vector<float> margin_pre_, margin_suf_;  // kCompact only
+  uint32_t margin_base_ = 0;  // margin_pre_ / margin_suf_ index of the cut k_min
   std::vector<uint32_t> tmp_;
   std::vector<SplitItem> items_;
   std::vector<uint32_t> overlap_ids_;
 };
+
+// Frees what only the splits needed: lists 1-5 and the side flags (list 0 gives the leaves' objects).
+void ReleaseBuildLists(Shared* shared) {
+  for (int l = 1; l < 6; ++l) std::vector<uint32_t>().swap(shared->lists[l]);
+  std::vector<uint8_t>().swap(shared->side);
+  TrimHeap();
+}
 
 // Multi-thread build: workers take subtree tasks from a shared queue; each task is built depth-first into
 // its own fragment, handing the right child of every large node back to the queue. The fragments are then
@@ -534,6 +662,7 @@ void BuildParallel(Shared* shared, const Task& root, int threads, SubtreeOut* ou
   for (int i = 1; i < threads; ++i) pool.emplace_back(worker);
   worker();
   for (std::thread& th : pool) th.join();
+  ReleaseBuildLists(shared);  // before stitching, which holds the fragments and the tree at once
 
   // Stitch in DFS preorder.
   size_t nodes = 0, splits = 0, leaves = 0;
@@ -645,14 +774,19 @@ Result<BuildResult> BuildMKTree(std::vector<ObjectRecord> records, const BuildPa
     return result;
   }
 
-  Shared shared{records, params, tuning, {}, {}};
+  std::vector<ObjectId> ids;
+  std::vector<BuildRecord> rec;
+  Shared shared{rec, params, tuning, {}, {}};
   {
+    std::vector<uint32_t> index_of_input;
+    rec = SpatialLayout(std::move(records), &ids, &index_of_input);
     std::vector<uint64_t> a, b;
-    for (int l = 0; l < 6; ++l) SortByKey(records, l / 2, l % 2 == 1, &a, &b, &shared.lists[l]);
+    for (int l = 0; l < 6; ++l) SortByKey(rec, index_of_input, l / 2, l % 2 == 1, &a, &b, &shared.lists[l]);
   }
+  TrimHeap();
   shared.side.assign(n, 0);
   uint64_t total_bytes = 0;
-  for (const ObjectRecord& r : records) total_bytes += r.encoded_bytes;
+  for (const BuildRecord& r : rec) total_bytes += r.encoded_bytes;
 
   SubtreeOut out;
   const Task root{0, n, 0, kNoIndex, 0, total_bytes};
@@ -669,10 +803,9 @@ Result<BuildResult> BuildMKTree(std::vector<ObjectRecord> records, const BuildPa
     page += lf.page_count;
   }
   // The leaves' ranges of any list hold their objects: list 0 becomes leaf_objects (ids in place).
-  for (int l = 1; l < 6; ++l) std::vector<uint32_t>().swap(shared.lists[l]);
-  std::vector<uint8_t>().swap(shared.side);
+  ReleaseBuildLists(&shared);
   result.leaf_objects = std::move(shared.lists[0]);
-  for (ObjectId& o : result.leaf_objects) o = records[o].id;
+  for (ObjectId& o : result.leaf_objects) o = ids[o];
   result.leaf_offsets = std::move(out.leaf_begin);
   result.leaf_offsets.push_back(n);
   result.tree.nodes = std::move(out.nodes);

@@ -13,11 +13,32 @@ constexpr uint8_t kLeftBit = 1, kRightBit = 2;
 
 inline uint8_t SideBit(uint8_t side) { return side == SplitItem::kLeft ? kLeftBit : side == SplitItem::kRight ? kRightBit : 0; }
 
+constexpr float kInf = std::numeric_limits<float>::infinity();
+
 struct Cell {
   Box3f region;
   std::vector<uint32_t> items;  // items whose clipped box meets the closed region
   uint32_t node = 0;            // its SplitNode in `out`
   uint8_t label = 0;            // sides of the resolved items meeting it
+  // [side][axis]: extremes of the resolved items' boxes within the region (kept up to date by Split, so
+  // that a cut's children need no second pass over their items).
+  float lo_of[2][3], hi_of[2][3];
+
+  void ResetExtremes() {
+    for (int s = 0; s < 2; ++s)
+      for (int u = 0; u < 3; ++u) lo_of[s][u] = kInf, hi_of[s][u] = -kInf;
+  }
+  void AddExtremes(const SplitItem& it) {
+    for (int u = 0; u < 3; ++u) {
+      lo_of[it.side][u] = std::min(lo_of[it.side][u], std::max(it.box.min[u], region.min[u]));
+      hi_of[it.side][u] = std::max(hi_of[it.side][u], std::min(it.box.max[u], region.max[u]));
+    }
+  }
+  void ComputeExtremes(const std::vector<SplitItem>& all) {
+    ResetExtremes();
+    for (uint32_t i : items)
+      if (all[i].side != SplitItem::kFree) AddExtremes(all[i]);
+  }
 };
 
 struct Cut {
@@ -48,23 +69,13 @@ class CostModel {
 // The best cut of a cell: the label of the part below a cut c has L iff some L item has min <= c, and
 // the part above has L iff some L item has max >= c, so the cost only changes just past the extremes of
 // each side's items; the candidates are the floats just outside them.
-Cut BestCut(const Cell& cell, const std::vector<SplitItem>& items, const CostModel& cm) {
+Cut BestCut(const Cell& cell, const CostModel& cm) {
   Cut best;
   const double vol = cm.Volume(cell.region);
   if (vol <= 0 || cell.label == 0) return best;
   const int cost_now = std::popcount(cell.label);
-  constexpr float kInf = std::numeric_limits<float>::infinity();
-  float lo_of[2][3], hi_of[2][3];  // [side][axis] extremes of resolved items within the cell
-  for (int s = 0; s < 2; ++s)
-    for (int u = 0; u < 3; ++u) lo_of[s][u] = kInf, hi_of[s][u] = -kInf;
-  for (uint32_t i : cell.items) {
-    const SplitItem& it = items[i];
-    if (it.side == SplitItem::kFree) continue;
-    for (int u = 0; u < 3; ++u) {
-      lo_of[it.side][u] = std::min(lo_of[it.side][u], std::max(it.box.min[u], cell.region.min[u]));
-      hi_of[it.side][u] = std::max(hi_of[it.side][u], std::min(it.box.max[u], cell.region.max[u]));
-    }
-  }
+  const auto& lo_of = cell.lo_of;
+  const auto& hi_of = cell.hi_of;
   for (int u = 0; u < 3; ++u) {
     const float lo = cell.region.min[u], hi = cell.region.max[u];
     if (!(lo < hi)) continue;
@@ -118,10 +129,13 @@ class Builder {
     std::vector<Cut> cut_of(cells_.size());
     auto consider = [&](uint32_t ci) {
       if (cut_of.size() <= ci) cut_of.resize(ci + 1);
-      cut_of[ci] = BestCut(cells_[ci], items_, cm_);
+      cut_of[ci] = BestCut(cells_[ci], cm_);
       if (cut_of[ci].axis >= 0 && cut_of[ci].gain >= min_gain) open.push({cut_of[ci].gain, ci});
     };
-    for (uint32_t ci : leaves_) consider(ci);
+    for (uint32_t ci : leaves_) {
+      cells_[ci].ComputeExtremes(items_);  // items resolved since the last Refine count now
+      consider(ci);
+    }
     while (!open.empty() && out_.size() + 2 <= node_limit) {
       const uint32_t ci = open.top().second;
       open.pop();
@@ -181,16 +195,21 @@ class Builder {
     lower.region = upper.region = cells_[ci].region;
     lower.region.max[cut.axis] = cut.pos;
     upper.region.min[cut.axis] = cut.pos;
+    lower.ResetExtremes();
+    upper.ResetExtremes();
     // Closed cells: an item touching the cut meets both.
     for (uint32_t i : cells_[ci].items) {
       const SplitItem& it = items_[i];
+      const bool resolved = it.side != SplitItem::kFree;
       if (it.box.min[cut.axis] <= cut.pos) {
         lower.items.push_back(i);
         lower.label |= SideBit(it.side);
+        if (resolved) lower.AddExtremes(it);
       }
       if (it.box.max[cut.axis] >= cut.pos) {
         upper.items.push_back(i);
         upper.label |= SideBit(it.side);
+        if (resolved) upper.AddExtremes(it);
       }
     }
     std::vector<uint32_t>().swap(cells_[ci].items);
