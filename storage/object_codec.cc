@@ -172,28 +172,32 @@ Result<ObjectEntryView> ParseObjectEntry(const uint8_t* data, size_t n) {
   e.triangle_count = Get<uint32_t>(data + 36);
   e.raw_bytes = Get<uint32_t>(data + 40);
   const uint32_t stored = Get<uint32_t>(data + 44);
-  const std::string where = "object entry (id " + std::to_string(e.id) + "): ";
-  if (codec > 1) return Status::Corruption(where + "unknown codec " + std::to_string(codec));
+  // The message is built only on failure: queries parse every entry of every leaf they read.
+  auto fail = [&](const std::string& what) {
+    return Status::Corruption("object entry (id " + std::to_string(e.id) + "): " + what);
+  };
+  if (codec > 1) return fail("unknown codec " + std::to_string(codec));
   e.codec = static_cast<Codec>(codec);
   if (e.transform > 1 || (e.codec == Codec::kNone && e.transform != 0))
-    return Status::Corruption(where + "unknown transform " + std::to_string(e.transform));
+    return fail("unknown transform " + std::to_string(e.transform));
   if (e.shape_flags > (kShapeKnown | kShapeEvenEdges | kShapeClosed) ||
       (e.shape_flags != 0 && !(e.shape_flags & kShapeKnown)))
-    return Status::Corruption(where + "unknown shape flags " + std::to_string(e.shape_flags));
+    return fail("unknown shape flags " + std::to_string(e.shape_flags));
   if (12 * (uint64_t{e.vertex_count} + e.triangle_count) != e.raw_bytes)
-    return Status::Corruption(where + "geometry size does not match its counts");
-  if (e.codec == Codec::kNone && stored != e.raw_bytes)
-    return Status::Corruption(where + "stored size does not match raw size");
-  if (stored > n - kObjectEntryHeaderBytes) return Status::Corruption(where + "runs past the end of the leaf");
+    return fail("geometry size does not match its counts");
+  if (e.codec == Codec::kNone && stored != e.raw_bytes) return fail("stored size does not match raw size");
+  if (stored > n - kObjectEntryHeaderBytes) return fail("runs past the end of the leaf");
   e.geometry = std::span<const uint8_t>(data + kObjectEntryHeaderBytes, stored);
   return e;
 }
 
 Status DecodeObjectMesh(const ObjectEntryView& e, Mesh* mesh) {
-  const std::string where = "object " + std::to_string(e.id) + ": ";
+  auto fail = [&](const std::string& what) {
+    return Status::Corruption("object " + std::to_string(e.id) + ": " + what);
+  };
   const size_t vc = e.vertex_count, nt = 3 * size_t{e.triangle_count};
   if (e.codec == Codec::kNone) {
-    if (e.geometry.size() != e.raw_bytes) return Status::Corruption(where + "geometry size mismatch");
+    if (e.geometry.size() != e.raw_bytes) return fail("geometry size mismatch");
     mesh->vertices.resize(3 * vc);
     mesh->triangles.resize(nt);
     std::memcpy(mesh->vertices.data(), e.geometry.data(), 12 * vc);
@@ -202,8 +206,8 @@ Status DecodeObjectMesh(const ObjectEntryView& e, Mesh* mesh) {
     thread_local std::vector<uint8_t> buf;
     buf.resize(e.raw_bytes);
     const size_t r = ZSTD_decompressDCtx(ThreadDCtx(), buf.data(), buf.size(), e.geometry.data(), e.geometry.size());
-    if (ZSTD_isError(r)) return Status::Corruption(where + "zstd: " + ZSTD_getErrorName(r));
-    if (r != e.raw_bytes) return Status::Corruption(where + "decompressed size mismatch");
+    if (ZSTD_isError(r)) return fail(std::string("zstd: ") + ZSTD_getErrorName(r));
+    if (r != e.raw_bytes) return fail("decompressed size mismatch");
     if (e.transform == 1) {
       InverseTransform(buf.data(), vc, nt, mesh);
     } else {
@@ -214,7 +218,7 @@ Status DecodeObjectMesh(const ObjectEntryView& e, Mesh* mesh) {
     }
   }
   for (uint32_t t : mesh->triangles)
-    if (t >= vc) return Status::Corruption(where + "triangle index out of range");
+    if (t >= vc) return fail("triangle index out of range");
   return Status::Ok();
 }
 
