@@ -64,8 +64,25 @@ Status EncodeLeafPages(uint32_t leaf_index, const std::vector<std::span<const ui
 Result<LeafView> LeafView::Parse(const std::string& store_name, uint32_t leaf_index, uint64_t first_page,
                                  const std::vector<const uint8_t*>& pages, uint64_t mem_page,
                                  bool verify_checksums) {
+  LeafView v;
+  MKTREE_RETURN_IF_ERROR(Parse(store_name, leaf_index, first_page, pages, mem_page, verify_checksums, &v));
+  return v;
+}
+
+void LeafView::Clear() {
+  leaf_index_ = 0;
+  payload_bytes_ = 0;
+  joined_.clear();
+  entries_.clear();
+}
+
+Status LeafView::Parse(const std::string& store_name, uint32_t leaf_index, uint64_t first_page,
+                       const std::vector<const uint8_t*>& pages, uint64_t mem_page, bool verify_checksums,
+                       LeafView* out) {
+  out->Clear();
   if (pages.empty()) return Status::InvalidArgument(store_name + ": leaf " + std::to_string(leaf_index) + ": no pages");
   auto fail = [&](uint64_t page, const std::string& what) {
+    out->Clear();  // a failed parse leaves *out empty, never half-filled
     return Status::Corruption(store_name + ": page " + std::to_string(page) + " (leaf " +
                               std::to_string(leaf_index) + "): " + what);
   };
@@ -84,7 +101,7 @@ Result<LeafView> LeafView::Parse(const std::string& store_name, uint32_t leaf_in
     total += h->payload_bytes;
   }
 
-  LeafView v;
+  LeafView& v = *out;
   v.leaf_index_ = leaf_index;
   const uint8_t* payload;
   if (pages.size() == 1) {
@@ -101,7 +118,8 @@ Result<LeafView> LeafView::Parse(const std::string& store_name, uint32_t leaf_in
   v.payload_bytes_ = Get<uint64_t>(payload + 8);
   if (stored_leaf != leaf_index) return fail(first_page, "leaf header names leaf " + std::to_string(stored_leaf));
   if (v.payload_bytes_ != total) return fail(first_page, "leaf payload size does not match its pages");
-  v.entries_.reserve(count);
+  // The count is not trusted for the allocation: no entry is shorter than its header.
+  v.entries_.reserve(std::min<uint64_t>(count, total / kObjectEntryHeaderBytes));
   uint64_t off = kLeafHeaderBytes;
   for (uint32_t i = 0; i < count; ++i) {
     auto e = ParseObjectEntry(payload + off, total - off);
@@ -110,7 +128,7 @@ Result<LeafView> LeafView::Parse(const std::string& store_name, uint32_t leaf_in
     v.entries_.push_back(*e);
   }
   if (off != total) return fail(first_page, "leaf payload has trailing bytes after its entries");
-  return v;
+  return Status::Ok();
 }
 
 }  // namespace mktree

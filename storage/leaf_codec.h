@@ -48,6 +48,13 @@ class LeafView {
   static Result<LeafView> Parse(const std::string& store_name, uint32_t leaf_index, uint64_t first_page,
                                 const std::vector<const uint8_t*>& pages, uint64_t mem_page,
                                 bool verify_checksums);
+  // The same, into *out, reusing its buffers: a reader that parses leaf after leaf into one LeafView
+  // allocates only for a leaf larger than any before. On error *out is left empty.
+  static Status Parse(const std::string& store_name, uint32_t leaf_index, uint64_t first_page,
+                      const std::vector<const uint8_t*>& pages, uint64_t mem_page, bool verify_checksums,
+                      LeafView* out);
+  // Empties the view (keeping its buffers), so that it points into no page.
+  void Clear();
 
   size_t size() const { return entries_.size(); }
   const ObjectEntryView& entry(size_t i) const { return entries_[i]; }

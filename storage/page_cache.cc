@@ -1,7 +1,9 @@
 #include "storage/page_cache.h"
 
+#include <algorithm>
+#include <atomic>
 #include <cstdlib>
-#include <vector>
+#include <memory>
 
 namespace mktree {
 
@@ -15,41 +17,93 @@ PageBuffer AllocatePage(uint64_t bytes) {
   const uint64_t rounded = (bytes + 4095) / 4096 * 4096;
   return PageBuffer(static_cast<uint8_t*>(std::aligned_alloc(4096, rounded)));
 }
+// Spare frames kept past this many are freed: in steady state each miss takes one and its eviction gives
+// one back, and Clear() should still return the memory of the pages it drops.
+constexpr size_t kMaxSpareFrames = 8;
 }  // namespace
 
-struct PageCache::Frame {
+// A frame lives in the table from its miss until its eviction; a frame whose read failed leaves the
+// table at once and is freed by the last thread that held it. Every field but `verified` is guarded by
+// the cache's mutex; `data` is written only by the loading thread before `loading` is cleared.
+struct PageFrame {
   uint64_t page = 0;
   PageBuffer data;
   int pins = 0;
   bool loading = true;
+  bool failed = false;
   Status load_status;
-  std::list<Frame*>::iterator lru_pos;
+  std::atomic<bool> verified{false};
+  PageFrame* lru_prev = nullptr;  // towards the head (more recent)
+  PageFrame* lru_next = nullptr;
   bool in_lru = false;
 };
 
-// PageHandle stores its frame type-erased so that the Frame type stays private to the cache.
-PageHandle::PageHandle(PageCache* cache, std::shared_ptr<void> frame) : cache_(cache), frame_(std::move(frame)) {}
-PageHandle::PageHandle(PageHandle&& o) noexcept : cache_(o.cache_), frame_(std::move(o.frame_)) { o.cache_ = nullptr; }
+PageHandle::PageHandle(PageHandle&& o) noexcept : cache_(o.cache_), frame_(o.frame_) {
+  o.cache_ = nullptr;
+  o.frame_ = nullptr;
+}
 PageHandle& PageHandle::operator=(PageHandle&& o) noexcept {
   if (this != &o) {
     Release();
     cache_ = o.cache_;
-    frame_ = std::move(o.frame_);
+    frame_ = o.frame_;
     o.cache_ = nullptr;
+    o.frame_ = nullptr;
   }
   return *this;
 }
 PageHandle::~PageHandle() { Release(); }
 void PageHandle::Release() {
-  if (frame_) cache_->Unpin(std::static_pointer_cast<PageCache::Frame>(frame_));
-  frame_.reset();
+  if (frame_) cache_->Unpin(frame_);
+  frame_ = nullptr;
   cache_ = nullptr;
 }
-const uint8_t* PageHandle::data() const { return static_cast<PageCache::Frame*>(frame_.get())->data.get(); }
-uint64_t PageHandle::page() const { return static_cast<PageCache::Frame*>(frame_.get())->page; }
+const uint8_t* PageHandle::data() const { return frame_->data.get(); }
+uint64_t PageHandle::page() const { return frame_->page; }
+bool PageHandle::verified() const { return frame_->verified.load(std::memory_order_acquire); }
+void PageHandle::MarkVerified() { frame_->verified.store(true, std::memory_order_release); }
 
-PageCache::PageCache(const PageStore* store, size_t capacity_pages) : store_(store), capacity_(capacity_pages) {}
-PageCache::~PageCache() = default;
+PageCache::PageCache(const PageStore* store, size_t capacity_pages) : store_(store), capacity_(capacity_pages) {
+  // Sized once so that a full cache never rehashes under the lock.
+  frames_.reserve(std::min<uint64_t>(capacity_pages, store->page_count()) + 1);
+}
+
+PageCache::~PageCache() {
+  for (auto& [page, f] : frames_) delete f;
+  for (PageFrame* f : spare_) delete f;
+}
+
+PageFrame* PageCache::NewFrameLocked(uint64_t page) {
+  PageFrame* f;
+  if (spare_.empty()) {
+    f = new PageFrame;
+    f->data = AllocatePage(store_->page_bytes());
+  } else {
+    f = spare_.back();
+    spare_.pop_back();
+  }
+  f->page = page;
+  f->pins = 1;
+  f->loading = true;
+  f->failed = false;
+  f->load_status = Status::Ok();
+  f->verified.store(false, std::memory_order_relaxed);
+  return f;
+}
+
+void PageCache::FreeFrameLocked(PageFrame* f) {
+  if (spare_.size() < kMaxSpareFrames)
+    spare_.push_back(f);
+  else
+    delete f;
+}
+
+void PageCache::LruUnlinkLocked(PageFrame* f) {
+  (f->lru_prev ? f->lru_prev->lru_next : lru_head_) = f->lru_next;
+  (f->lru_next ? f->lru_next->lru_prev : lru_tail_) = f->lru_prev;
+  f->lru_prev = f->lru_next = nullptr;
+  f->in_lru = false;
+}
 
 Result<PageHandle> PageCache::Pin(uint64_t page, QueryStats* stats) {
   std::unique_lock<std::mutex> lock(mu_);
@@ -57,18 +111,18 @@ Result<PageHandle> PageCache::Pin(uint64_t page, QueryStats* stats) {
   if (stats) ++stats->pages_touched;
   auto it = frames_.find(page);
   if (it != frames_.end()) {
-    std::shared_ptr<Frame> f = it->second;
+    PageFrame* f = it->second;
     ++counters_.hits;
     if (stats) ++stats->cache_hits;
-    if (f->in_lru) {
-      lru_.erase(f->lru_pos);
-      f->in_lru = false;
-    }
+    if (f->in_lru) LruUnlinkLocked(f);
     if (f->pins++ == 0) ++pinned_;
     loaded_.wait(lock, [&] { return !f->loading; });
-    if (!f->load_status.ok()) {
+    if (f->failed) {
       Status st = f->load_status;
-      if (--f->pins == 0) --pinned_;
+      if (--f->pins == 0) {
+        --pinned_;
+        FreeFrameLocked(f);
+      }
       return st;
     }
     return PageHandle(this, f);
@@ -80,60 +134,61 @@ Result<PageHandle> PageCache::Pin(uint64_t page, QueryStats* stats) {
     ++stats->pages_read;
     stats->bytes_read += store_->page_bytes();
   }
-  auto f = std::make_shared<Frame>();
-  f->page = page;
-  f->pins = 1;
+  PageFrame* f = NewFrameLocked(page);
   ++pinned_;
   frames_.emplace(page, f);
   EvictLocked();  // keep resident <= max(capacity, pinned)
   lock.unlock();
 
   // Read outside the lock so that other lookups (and misses on other pages) are not held up.
-  PageBuffer buf = AllocatePage(store_->page_bytes());
-  Status st = store_->ReadPage(page, buf.get());
+  Status st = store_->ReadPage(page, f->data.get());
 
   lock.lock();
   f->loading = false;
-  if (st.ok()) {
-    f->data = std::move(buf);
-  } else {
-    // Waiters see the error; the frame leaves the table so that a later lookup retries the read.
-    f->load_status = st;
-    frames_.erase(page);
-    if (--f->pins == 0) --pinned_;
-  }
   loaded_.notify_all();
-  if (!st.ok()) return st;
-  return PageHandle(this, f);
+  if (st.ok()) return PageHandle(this, f);
+  // Waiters (woken once the lock is released) see the error; the frame leaves the table so that a later
+  // lookup retries the read.
+  f->failed = true;
+  f->load_status = st;
+  frames_.erase(page);
+  if (--f->pins == 0) {
+    --pinned_;
+    FreeFrameLocked(f);
+  }
+  return st;
 }
 
-void PageCache::Unpin(const std::shared_ptr<Frame>& f) {
+void PageCache::Unpin(PageFrame* f) {
+  // Handles exist only for loaded frames, which stay in the table while pinned.
   std::lock_guard<std::mutex> lock(mu_);
   if (--f->pins > 0) return;
   --pinned_;
-  if (!f->load_status.ok()) return;  // failed frames are already out of the table
-  lru_.push_front(f.get());
-  f->lru_pos = lru_.begin();
+  f->lru_prev = nullptr;
+  f->lru_next = lru_head_;
+  (lru_head_ ? lru_head_->lru_prev : lru_tail_) = f;
+  lru_head_ = f;
   f->in_lru = true;
   EvictLocked();
 }
 
 void PageCache::EvictLocked() {
-  while (frames_.size() > capacity_ && !lru_.empty()) {
-    Frame* victim = lru_.back();
-    lru_.pop_back();
-    victim->in_lru = false;
+  while (frames_.size() > capacity_ && lru_tail_ != nullptr) {
+    PageFrame* victim = lru_tail_;
+    LruUnlinkLocked(victim);
     frames_.erase(victim->page);
+    FreeFrameLocked(victim);
   }
 }
 
 void PageCache::Clear() {
   std::lock_guard<std::mutex> lock(mu_);
-  for (Frame* f : lru_) {
-    f->in_lru = false;
+  while (lru_head_ != nullptr) {
+    PageFrame* f = lru_head_;
+    LruUnlinkLocked(f);
     frames_.erase(f->page);
+    FreeFrameLocked(f);
   }
-  lru_.clear();
 }
 
 PageCache::Counters PageCache::counters() const {

@@ -8,16 +8,17 @@
 // - Counters: lookups == hits + misses always; bytes_read == misses * page_bytes. A lookup that waits for
 //   another thread's in-flight read of the same page counts as a hit (it costs no disk access): concurrent
 //   misses on one page read it once.
+// - Each cached copy carries a `verified` flag for its reader (e.g. "checksum checked"): it is cleared
+//   whenever the page is read from the store, so a reader verifies a page once per load, not per pin.
 // Thread safety: all methods may be called from many threads at once. Store reads run outside the cache's
 // lock, so misses on different pages proceed in parallel (as far as the store allows).
 #pragma once
 
 #include <condition_variable>
 #include <cstdint>
-#include <list>
-#include <memory>
 #include <mutex>
 #include <unordered_map>
+#include <vector>
 
 #include "mktree/query_stats.h"
 #include "mktree/status.h"
@@ -26,6 +27,7 @@
 namespace mktree {
 
 class PageCache;
+struct PageFrame;  // one cached page; private to page_cache.cc
 
 // Pins one cached page while alive. Move-only; unpins in its destructor.
 class PageHandle {
@@ -42,17 +44,22 @@ class PageHandle {
   explicit operator bool() const { return frame_ != nullptr; }
   void Release();  // unpin now
 
+  // Whether a reader has marked this copy of the page verified since it was read from the store. Any
+  // number of threads may read and mark the same page at once.
+  bool verified() const;
+  // REQUIRES: the page's bytes passed the reader's checks.
+  void MarkVerified();
+
  private:
   friend class PageCache;
-  struct Frame;
-  PageHandle(PageCache* cache, std::shared_ptr<void> frame);
+  PageHandle(PageCache* cache, PageFrame* frame) : cache_(cache), frame_(frame) {}
   PageCache* cache_ = nullptr;
-  std::shared_ptr<void> frame_;
+  PageFrame* frame_ = nullptr;
 };
 
 class PageCache {
  public:
-  // REQUIRES: `store` outlives the cache and every handle it hands out.
+  // REQUIRES: `store` outlives the cache and every handle it hands out; the cache outlives its handles.
   PageCache(const PageStore* store, size_t capacity_pages);
   ~PageCache();
   PageCache(const PageCache&) = delete;
@@ -76,16 +83,23 @@ class PageCache {
 
  private:
   friend class PageHandle;
-  struct Frame;
-  void Unpin(const std::shared_ptr<Frame>& f);
+  void Unpin(PageFrame* f);
+  PageFrame* NewFrameLocked(uint64_t page);
+  void FreeFrameLocked(PageFrame* f);
+  void LruUnlinkLocked(PageFrame* f);
   void EvictLocked();
 
   const PageStore* store_;
   const size_t capacity_;
   mutable std::mutex mu_;
   std::condition_variable loaded_;
-  std::unordered_map<uint64_t, std::shared_ptr<Frame>> frames_;
-  std::list<Frame*> lru_;  // unpinned resident frames, most recently unpinned at the front
+  std::unordered_map<uint64_t, PageFrame*> frames_;  // owned; failed loads leave at once
+  // Unpinned resident frames, an intrusive list: most recently unpinned at lru_head_, victims at lru_tail_.
+  PageFrame* lru_head_ = nullptr;
+  PageFrame* lru_tail_ = nullptr;
+  // Frames (with their page buffers) kept from evictions for the next misses: a miss in a full cache
+  // then allocates nothing.
+  std::vector<PageFrame*> spare_;
   size_t pinned_ = 0;
   Counters counters_;
 };

@@ -135,12 +135,17 @@ class StoreDatabase final : public Database {
   template <typename Test>
   Status ScanLeaf(uint32_t leaf, QueryStats* s, Test&& test, std::vector<ObjectId>* hits) const {
     const MKTree& tree = reader_->tree();
-    auto read = ReadLeaf(cache_, reader_->pages().name(), leaf, tree.leaves[leaf], tree.params.mem_page(),
-                         options_.verify_checksums, s);
-    if (!read.ok()) return read.status();
-    const LeafView& view = read->view;
+    // One PinnedLeaf per thread, reused leaf after leaf so that a scan allocates nothing; it holds pins
+    // only during the scan.
+    thread_local PinnedLeaf pinned;
+    struct Unpin {
+      PinnedLeaf& leaf;
+      ~Unpin() { leaf.Release(); }
+    } unpin{pinned};
+    MKTREE_RETURN_IF_ERROR(ReadLeaf(cache_, reader_->pages().name(), leaf, tree.leaves[leaf],
+                                    tree.params.mem_page(), options_.verify_checksums, s, &pinned));
     const size_t before = hits->size();
-    for (const ObjectEntryView& e : view.entries()) {
+    for (const ObjectEntryView& e : pinned.view.entries()) {
       ++s->candidates_tested;
       auto answer = test(e);
       if (!answer.ok()) return answer.status();

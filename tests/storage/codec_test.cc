@@ -205,6 +205,42 @@ TEST_F(LeafCodecTest, SingleAndMultiPageLeavesRoundTrip) {
   EXPECT_EQ(ev->size(), 0u);
 }
 
+TEST_F(LeafCodecTest, ParsingIntoOneViewLeafAfterLeafEqualsFreshParses) {
+  std::mt19937 g(5);
+  SceneObject big;
+  big.id = 3;
+  big.mesh = RandomMesh(g, 2000, 2000);
+  auto big_pages = Pages(7, Entries({big}));
+  ASSERT_GT(big_pages.size(), 1u);
+  auto small_pages = Pages(2, Entries(testing::MakeObjects(20, 5, false)));
+  ASSERT_EQ(small_pages.size(), 1u);
+  auto fresh_small = LeafView::Parse("s", 2, 0, Ptrs(small_pages), kMemPage, true);
+  ASSERT_TRUE(fresh_small.ok());
+
+  LeafView v;
+  ASSERT_TRUE(LeafView::Parse("s", 7, 0, Ptrs(big_pages), kMemPage, true, &v).ok());
+  ASSERT_EQ(v.size(), 1u);
+  Mesh m;
+  ASSERT_TRUE(DecodeObjectMesh(v.entry(0), &m).ok());
+  EXPECT_TRUE(SameMesh(m, big.mesh));
+  ASSERT_TRUE(LeafView::Parse("s", 2, 0, Ptrs(small_pages), kMemPage, true, &v).ok());
+  EXPECT_EQ(v.leaf_index(), 2u);
+  EXPECT_EQ(v.payload_bytes(), fresh_small->payload_bytes());
+  ASSERT_EQ(v.size(), fresh_small->size());
+  for (size_t i = 0; i < v.size(); ++i) {
+    EXPECT_EQ(v.entry(i).id, fresh_small->entry(i).id);
+    EXPECT_EQ(v.entry(i).geometry.data(), fresh_small->entry(i).geometry.data());  // into the page itself
+  }
+  // A failed parse leaves the view empty, never holding the previous leaf's entries.
+  auto bad = small_pages;
+  bad[0][500] ^= 1;
+  EXPECT_FALSE(LeafView::Parse("s", 2, 0, Ptrs(bad), kMemPage, true, &v).ok());
+  EXPECT_EQ(v.size(), 0u);
+  ASSERT_TRUE(LeafView::Parse("s", 2, 0, Ptrs(small_pages), kMemPage, true, &v).ok());
+  EXPECT_FALSE(LeafView::Parse("s", 3, 0, Ptrs(small_pages), kMemPage, true, &v).ok());  // wrong leaf
+  EXPECT_EQ(v.size(), 0u);
+}
+
 TEST_F(LeafCodecTest, EveryFlippedByteIsDetected) {
   auto entries = Entries(testing::MakeObjects(20, 5, false));
   auto pages = Pages(2, entries);

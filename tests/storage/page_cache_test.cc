@@ -208,6 +208,83 @@ TEST(PageCacheTest, FlippedBytesAndShortReadsAreCorruptionNotWrongAnswers) {
   }
 }
 
+TEST(PageCacheTest, VerifiedFlagLastsAsLongAsTheCachedCopy) {
+  CountingStore store(4);
+  PageCache cache(&store, 1);
+  {
+    auto h = cache.Pin(0, nullptr);
+    ASSERT_TRUE(h.ok());
+    EXPECT_FALSE(h->verified());  // fresh from the store
+    h->MarkVerified();
+    auto again = cache.Pin(0, nullptr);  // a second pin sees the same copy
+    EXPECT_TRUE(again->verified());
+  }
+  {
+    auto h = cache.Pin(0, nullptr);  // a hit: still verified
+    EXPECT_TRUE(h->verified());
+  }
+  { ASSERT_TRUE(cache.Pin(1, nullptr).ok()); }  // evicts 0
+  {
+    auto h = cache.Pin(0, nullptr);  // read again (its frame may be a recycled one): not verified
+    EXPECT_FALSE(h->verified());
+    EXPECT_EQ(h->data()[7], 0);
+  }
+  cache.Clear();
+  auto h = cache.Pin(0, nullptr);
+  EXPECT_FALSE(h->verified());
+  EXPECT_EQ(store.reads.load(), 4u);
+  ExpectInvariants(cache);
+}
+
+// Checksums are verified once per load into the cache, yet a corrupt page is refused on every read, hit
+// or miss, and a clean page is never hashed again while it stays cached.
+TEST(PageCacheTest, ChecksumsAreVerifiedOncePerLoadAndCorruptPagesAlwaysRefused) {
+  MemoryPageStore mem(12288, "mem.mkt");
+  testing::BuiltStore built;
+  auto objects = testing::MakeObjects(200, 4);
+  ASSERT_TRUE(testing::BuildTestStore(objects, {}, BuildParams(), &mem, &built).ok());
+  FaultyPageStore faulty(&mem);
+  const LeafInfo& leaf = built.tree.leaves[1];
+  ASSERT_EQ(leaf.page_count, 1u);
+  const uint64_t page_bytes = mem.page_bytes();
+  PageCache cache(&faulty, 8);
+  PinnedLeaf pinned;  // reused across reads, as queries do
+  QueryStats s;
+  ASSERT_TRUE(ReadLeaf(cache, faulty.name(), 1, leaf, page_bytes, true, &s, &pinned).ok());
+  EXPECT_EQ(pinned.view.size(), leaf.object_count);
+  pinned.Release();
+  EXPECT_EQ(cache.pinned_pages(), 0u);
+  {
+    auto h = cache.Pin(leaf.first_page, nullptr);
+    EXPECT_TRUE(h->verified());
+  }
+
+  faulty.FlipByte(leaf.first_page, 5000, 0x04);
+  cache.Clear();  // the next read loads the corrupt copy
+  for (int round = 0; round < 3; ++round) {
+    QueryStats r;
+    Status st = ReadLeaf(cache, faulty.name(), 1, leaf, page_bytes, true, &r, &pinned);
+    EXPECT_EQ(st.code(), Status::Code::kCorruption) << "round " << round;
+    EXPECT_NE(st.message().find("checksum mismatch"), std::string::npos) << st.message();
+    EXPECT_EQ(r.pages_touched, 1u);
+    EXPECT_EQ(r.pages_read, round == 0 ? 1u : 0u);  // cached once, refused on every hit too
+    EXPECT_EQ(r.cache_hits + r.pages_read, r.pages_touched);
+    EXPECT_EQ(pinned.view.size(), 0u);
+    EXPECT_TRUE(pinned.pages.empty());
+  }
+  EXPECT_EQ(cache.pinned_pages(), 0u);
+  // Without verification the flipped geometry byte goes unnoticed and the page is not marked verified.
+  ASSERT_TRUE(ReadLeaf(cache, faulty.name(), 1, leaf, page_bytes, false, nullptr, &pinned).ok());
+  EXPECT_FALSE(pinned.pages[0].verified());
+  pinned.Release();
+  faulty.ClearFaults();
+  cache.Clear();
+  ASSERT_TRUE(ReadLeaf(cache, faulty.name(), 1, leaf, page_bytes, true, nullptr, &pinned).ok());
+  EXPECT_TRUE(pinned.pages[0].verified());
+  const auto k = cache.counters();
+  EXPECT_EQ(k.hits + k.misses, k.lookups);
+}
+
 TEST(PageCacheTest, ConcurrentPinsReadEachPageOnceAndKeepCountersExact) {
   CountingStore store(64);
   store.slow = true;  // widen the window in which threads miss on the same page
