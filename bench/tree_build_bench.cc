@@ -9,6 +9,9 @@
 //   tanker_10m       10,000,000 objects of MakeTankerSource(1e7, seed 1)
 //   tanker_10m_2t    the same, two threads
 //   synthetic_1m     1,000,000 synthetic records (pipes / plates / equipment boxes; no generator)
+//   tanker_1m_packing  (only when named) the MKtree's leaves against Morton and STR packings of the same
+//                    records into pages of the same budget: leaves holding an answer per point / box query
+//                    against the floor ceil(hits / B)
 // Usage: tree_build_bench [workload...]   (default: all of them)
 //
 // Records: id, Aabb() and encoded_bytes = 64 + mesh.RawGeometryBytes() / 2, a stand-in for the compressed
@@ -36,6 +39,7 @@
 
 #include "engine/generator/tanker_generator.h"
 #include "engine/tree/mktree_builder.h"
+#include "storage/leaf_format.h"
 
 namespace mktree {
 namespace {
@@ -145,21 +149,16 @@ struct BoxQuality {
   double floor = 0;
 };
 
-BoxQuality BoxLeaves(const BuildResult& r, const std::vector<ObjectRecord>& recs, double side, int count,
-                     uint64_t seed) {
+// leaf_of[k]: the leaf (page group) of record k, of `leaves`; B = records / pages.
+BoxQuality BoxLeaves(const std::vector<uint32_t>& leaf_of, size_t leaves, double per_page, const Box3f& scene,
+                     const std::vector<ObjectRecord>& recs, double side, int count, uint64_t seed) {
   BoxQuality q;
-  if (r.tree.empty()) return q;
-  std::vector<uint32_t> leaf_of(recs.size());
-  for (uint32_t l = 0; l < r.tree.leaves.size(); ++l)
-    for (uint64_t k = r.leaf_offsets[l]; k < r.leaf_offsets[l + 1]; ++k) leaf_of[r.leaf_objects[k]] = l;
-  const double per_page = double(recs.size()) / double(r.stats.pages);
   std::mt19937_64 rng(seed);
-  const Box3f& root = r.tree.nodes[0].box;
-  std::vector<uint32_t> seen(r.tree.leaves.size(), 0);
+  std::vector<uint32_t> seen(leaves, 0);
   for (int i = 1; i <= count; ++i) {
     Box3f b;
     for (int a = 0; a < 3; ++a) {
-      const double c = std::uniform_real_distribution<double>(root.min[a], root.max[a])(rng);
+      const double c = std::uniform_real_distribution<double>(scene.min[a], scene.max[a])(rng);
       b.min[a] = static_cast<float>(c - side / 2);
       b.max[a] = static_cast<float>(c + side / 2);
     }
@@ -177,6 +176,93 @@ BoxQuality BoxLeaves(const BuildResult& r, const std::vector<ObjectRecord>& recs
   q.leaves /= count;
   q.floor /= count;
   return q;
+}
+
+std::vector<uint32_t> LeafOf(const BuildResult& r, size_t objects) {
+  std::vector<uint32_t> leaf_of(objects);
+  for (uint32_t l = 0; l < r.tree.leaves.size(); ++l)
+    for (uint64_t k = r.leaf_offsets[l]; k < r.leaf_offsets[l + 1]; ++k) leaf_of[r.leaf_objects[k]] = l;
+  return leaf_of;
+}
+
+BoxQuality BoxLeaves(const BuildResult& r, const std::vector<ObjectRecord>& recs, double side, int count,
+                     uint64_t seed) {
+  if (r.tree.empty()) return BoxQuality{};
+  return BoxLeaves(LeafOf(r, recs.size()), r.tree.leaves.size(), double(recs.size()) / double(r.stats.pages),
+                   r.tree.nodes[0].box, recs, side, count, seed);
+}
+
+// Packing baselines: the records cut into one-page leaves in a given order, greedily by encoded bytes
+// (the page budget the MKtree uses). Returns leaf_of and sets *leaves.
+std::vector<uint32_t> PackInOrder(const std::vector<ObjectRecord>& recs, const std::vector<uint32_t>& order,
+                                  uint64_t mem_page, size_t* leaves) {
+  std::vector<uint32_t> leaf_of(recs.size());
+  uint64_t bytes = 0;
+  uint32_t leaf = 0;
+  bool empty = true;
+  for (uint32_t k : order) {
+    const uint64_t b = recs[k].encoded_bytes;
+    if (!empty && !FitsInOnePage(bytes + b, mem_page)) {
+      ++leaf;
+      bytes = 0;
+    }
+    bytes += b;
+    empty = false;
+    leaf_of[k] = leaf;
+  }
+  *leaves = recs.empty() ? 0 : leaf + 1;
+  return leaf_of;
+}
+
+float Centre(const ObjectRecord& r, int a) { return 0.5f * (r.box.min[a] + r.box.max[a]); }
+
+// Z-order (Morton) of the box centres, 21 bits per axis.
+std::vector<uint32_t> MortonOrder(const std::vector<ObjectRecord>& recs, const Box3f& scene) {
+  auto spread = [](uint64_t v) {
+    v &= 0x1fffff;
+    v = (v | v << 32) & 0x1f00000000ffffull;
+    v = (v | v << 16) & 0x1f0000ff0000ffull;
+    v = (v | v << 8) & 0x100f00f00f00f00full;
+    v = (v | v << 4) & 0x10c30c30c30c30c3ull;
+    v = (v | v << 2) & 0x1249249249249249ull;
+    return v;
+  };
+  std::vector<std::pair<uint64_t, uint32_t>> keyed(recs.size());
+  for (uint32_t k = 0; k < recs.size(); ++k) {
+    uint64_t code = 0;
+    for (int a = 0; a < 3; ++a) {
+      const double ext = double{scene.max[a]} - scene.min[a];
+      const double f = ext > 0 ? (Centre(recs[k], a) - scene.min[a]) / ext : 0;
+      code |= spread(static_cast<uint64_t>(std::clamp(f, 0.0, 1.0) * 2097151.0)) << a;
+    }
+    keyed[k] = {code, k};
+  }
+  std::sort(keyed.begin(), keyed.end());
+  std::vector<uint32_t> order(recs.size());
+  for (size_t i = 0; i < keyed.size(); ++i) order[i] = keyed[i].second;
+  return order;
+}
+
+// Sort-Tile-Recursive on the box centres (what R-tree bulk loaders such as libspatialindex's use): S slabs
+// along x, S strips along y in each, then z order, S = cbrt(expected pages).
+std::vector<uint32_t> StrOrder(const std::vector<ObjectRecord>& recs, uint64_t mem_page) {
+  uint64_t total = 0;
+  for (const ObjectRecord& r : recs) total += r.encoded_bytes;
+  const double pages = std::max(1.0, double(total) / double(PagePayloadCapacity(mem_page)));
+  const size_t s = std::max<size_t>(1, static_cast<size_t>(std::ceil(std::cbrt(pages))));
+  std::vector<uint32_t> order(recs.size());
+  for (uint32_t k = 0; k < recs.size(); ++k) order[k] = k;
+  auto by = [&](int a) { return [&recs, a](uint32_t x, uint32_t y) { return Centre(recs[x], a) < Centre(recs[y], a); }; };
+  std::sort(order.begin(), order.end(), by(0));
+  const size_t slab = (order.size() + s - 1) / s;
+  for (size_t i = 0; i < order.size(); i += slab) {
+    const auto first = order.begin() + i, last = order.begin() + std::min(order.size(), i + slab);
+    std::sort(first, last, by(1));
+    const size_t strip = (size_t(last - first) + s - 1) / s;
+    for (auto j = first; j < last; j += std::min<ptrdiff_t>(strip, last - j))
+      std::sort(j, std::min(last, j + strip), by(2));
+  }
+  return order;
 }
 
 // FNV-1a over every field of the built tree (nodes, split nodes, leaves, leaf_objects, leaf_offsets), field by
@@ -272,6 +358,52 @@ void Run(const Workload& w) {
   std::fflush(stdout);
 }
 
+// The MKtree's leaves against packing baselines over the same records and page budget: how far any
+// partition of the objects into pages is from the floor ceil(hits / B) on the same queries.
+void RunPacking(uint64_t objects) {
+  std::vector<ObjectRecord> recs = TankerRecords(objects, 1);
+  const BuildParams params;
+  auto built = BuildMKTree(recs, params, BuildTuning());
+  if (!built.ok()) {
+    std::fprintf(stderr, "error: %s\n", built.status().ToString().c_str());
+    std::exit(1);
+  }
+  const Box3f scene = built->tree.nodes[0].box;
+  struct Partition {
+    const char* name;
+    std::vector<uint32_t> leaf_of;
+    size_t leaves = 0;
+    double pages = 0;
+  };
+  std::vector<Partition> parts;
+  parts.push_back({"mktree", LeafOf(*built, recs.size()), built->tree.leaves.size(), double(built->stats.pages)});
+  for (const char* name : {"morton", "str"}) {
+    Partition p{name, {}, 0, 0};
+    const std::vector<uint32_t> order = std::strcmp(name, "morton") == 0 ? MortonOrder(recs, scene)
+                                                                          : StrOrder(recs, params.mem_page());
+    p.leaf_of = PackInOrder(recs, order, params.mem_page(), &p.leaves);
+    p.pages = double(p.leaves);
+    parts.push_back(std::move(p));
+  }
+  std::printf("tanker_%llu_packing: leaves holding an answer per query / floor ceil(hits/B), same records and page "
+              "budget; query centres uniform in the scene box (seed 7): 1000 points, 300 boxes per side\n",
+              (unsigned long long)objects);
+  std::printf("%-8s %8s %7s %16s %16s %16s %16s\n", "leaves", "count", "B", "point", "box 0.5 m", "box 2 m",
+              "box 8 m");
+  for (const Partition& p : parts) {
+    const double per_page = double(recs.size()) / p.pages;
+    std::printf("%-8s %8zu %7.2f", p.name, p.leaves, per_page);
+    for (const auto& [side, count] : {std::pair{0.0, 1000}, {0.5, 300}, {2.0, 300}, {8.0, 300}}) {
+      const BoxQuality b = BoxLeaves(p.leaf_of, p.leaves, per_page, scene, recs, side, count, 7);
+      char cell[32];
+      std::snprintf(cell, sizeof cell, "%.2f/%.2f=%.1fx", b.leaves, b.floor, b.floor > 0 ? b.leaves / b.floor : 0);
+      std::printf(" %16s", cell);
+    }
+    std::printf("\n");
+    std::fflush(stdout);
+  }
+}
+
 }  // namespace
 }  // namespace mktree
 
@@ -293,6 +425,8 @@ int main(int argc, char** argv) {
   std::printf("tree_build_bench: MKtree construction from in-RAM records (BuildParams defaults: MemPage 12288 B,"
               " r 0.3, SplitTree budget 64)\n");
   std::printf("records: tanker generator seed 1, encoded_bytes = 64 + RawGeometryBytes/2; 10,000 query points seed 99\n");
+  for (int i = 1; i < argc; ++i)
+    if (std::strcmp(argv[i], "tanker_1m_packing") == 0) mktree::RunPacking(1000000);
   for (const Workload& w : all) {
     bool wanted = argc == 1;
     for (int i = 1; i < argc; ++i) wanted |= std::strcmp(argv[i], w.name) == 0;
