@@ -296,21 +296,24 @@ class SubtreeBuilder {
     uint64_t left_bytes = 0;
     uint32_t n1 = 0;
     tmp_.resize(n);
+    // Branch-free: the sides of neighbours in key order are not predictable.
     for (int l = 0; l < 6; ++l) {
-      std::vector<uint32_t>& v = s_.lists[l];
+      uint32_t* v = s_.lists[l].data();
+      uint32_t* right = tmp_.data();
+      const uint8_t* side = s_.side.data();
       uint32_t wpos = t.lo, tpos = 0;
       for (uint32_t i = t.lo; i < t.hi; ++i) {
         const uint32_t idx = v[i];
-        if (s_.side[idx] == 0) {
-          v[wpos++] = idx;
-          if (l == 0) left_bytes += rec_[idx].encoded_bytes;
-        } else {
-          tmp_[tpos++] = idx;
-        }
+        const uint32_t r = side[idx];
+        v[wpos] = idx;
+        right[tpos] = idx;
+        wpos += r ^ 1;
+        tpos += r;
       }
-      std::copy(tmp_.begin(), tmp_.begin() + tpos, v.begin() + wpos);
+      std::copy(right, right + tpos, v + wpos);
       n1 = wpos - t.lo;
     }
+    for (uint32_t i = t.lo; i < t.lo + n1; ++i) left_bytes += rec_[s_.lists[0][i]].encoded_bytes;
     // The stored planes are those of the final children (free objects may have narrowed the slab).
     node.a = rec_[s_.lists[2 * w][t.lo + n1]].box.min[w];
     node.b = rec_[s_.lists[2 * w + 1][t.lo + n1 - 1]].box.max[w];
@@ -780,8 +783,19 @@ Result<BuildResult> BuildMKTree(std::vector<ObjectRecord> records, const BuildPa
   {
     std::vector<uint32_t> index_of_input;
     rec = SpatialLayout(std::move(records), &ids, &index_of_input);
-    std::vector<uint64_t> a, b;
-    for (int l = 0; l < 6; ++l) SortByKey(rec, index_of_input, l / 2, l % 2 == 1, &a, &b, &shared.lists[l]);
+    // With two threads or more, the six sorts run on two (each thread with its own radix buffers).
+    auto sort_lists = [&](int first, int step) {
+      std::vector<uint64_t> a, b;
+      for (int l = first; l < 6; l += step)
+        SortByKey(rec, index_of_input, l / 2, l % 2 == 1, &a, &b, &shared.lists[l]);
+    };
+    if (tuning.threads >= 2) {
+      std::thread other(sort_lists, 1, 2);
+      sort_lists(0, 2);
+      other.join();
+    } else {
+      sort_lists(0, 1);
+    }
   }
   TrimHeap();
   shared.side.assign(n, 0);
