@@ -1,6 +1,7 @@
 // tree_build_bench: MKtree construction from in-RAM records, and the routing quality of the result.
 //
 // Workloads (each runs in its own forked process, so that its peak RSS is its own):
+//   tanker_100k      100,000 objects (for instruction-level profiles: valgrind --tool=callgrind)
 //   tanker_1m        1,000,000 objects of MakeTankerSource(1e6, seed 1), BuildTuning defaults (1 thread,
 //                    SplitPolicy::kCompact)
 //   tanker_1m_2t     the same, two threads
@@ -411,6 +412,7 @@ int main(int argc, char** argv) {
   using mktree::Workload;
   constexpr mktree::SplitPolicy kSoa = mktree::SplitPolicy::kSoa, kCompact = mktree::SplitPolicy::kCompact;
   const Workload all[] = {
+      {"tanker_100k", 100000, true, 1, true, kCompact},
       {"tanker_1m", 1000000, true, 1, true, kCompact},
       {"tanker_1m_2t", 1000000, true, 2, true, kCompact},
       {"tanker_1m_soafill", 1000000, true, 1, true, kSoa},

@@ -499,10 +499,11 @@ class SubtreeBuilder {
     const std::vector<uint32_t>& by_max = s_.lists[2 * w + 1];
     // The running extremes are kept for the cuts k in [k_lo, k_hi] only: less scratch at the root.
     window_base_ = k_lo;
-    sorted_min_.resize(n);
+    sorted_min_.resize(n + 1);
     prefix_max_.resize(k_hi - k_lo + 1);
-    sorted_max_.resize(n);
+    sorted_max_.resize(n + 1);
     suffix_min_.resize(k_hi - k_lo + 1);
+    sorted_min_[n] = sorted_max_[n] = std::numeric_limits<float>::infinity();
     float run = -std::numeric_limits<float>::infinity();
     for (uint32_t i = 0; i < n; ++i) {
       const Box3f& bx = rec_[by_min[t.lo + i]].box;
@@ -552,8 +553,14 @@ class SubtreeBuilder {
         const float b = key == 0 ? prefix_max_[k - window_base_] : sorted_max_[k - 1];
         uint32_t sm = 0;
         if (a < b) {
-          while (pa < n && sorted_max_[pa] <= a) ++pa;
-          while (pb < n && sorted_min_[pb] < b) ++pb;
+          // The cursors mostly move by 0-2 a step: two branch-free moves, then a loop that rarely runs
+          // (+inf sentinels at [n] stop them).
+          pa += sorted_max_[pa] <= a;
+          pa += sorted_max_[pa] <= a;
+          while (sorted_max_[pa] <= a) ++pa;
+          pb += sorted_min_[pb] < b;
+          pb += sorted_min_[pb] < b;
+          while (sorted_min_[pb] < b) ++pb;
           sm = pb - pa;
         }
         if (sm_min_out != nullptr) {
@@ -777,6 +784,8 @@ Result<BuildResult> BuildMKTree(std::vector<ObjectRecord> records, const BuildPa
     return result;
   }
 
+  const int threads =
+      tuning.threads > 0 ? tuning.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   std::vector<ObjectId> ids;
   std::vector<BuildRecord> rec;
   Shared shared{rec, params, tuning, {}, {}};
@@ -789,7 +798,7 @@ Result<BuildResult> BuildMKTree(std::vector<ObjectRecord> records, const BuildPa
       for (int l = first; l < 6; l += step)
         SortByKey(rec, index_of_input, l / 2, l % 2 == 1, &a, &b, &shared.lists[l]);
     };
-    if (tuning.threads >= 2) {
+    if (threads >= 2) {
       std::thread other(sort_lists, 1, 2);
       sort_lists(0, 2);
       other.join();
@@ -804,8 +813,8 @@ Result<BuildResult> BuildMKTree(std::vector<ObjectRecord> records, const BuildPa
 
   SubtreeOut out;
   const Task root{0, n, 0, kNoIndex, 0, total_bytes};
-  if (tuning.threads >= 2) {
-    BuildParallel(&shared, root, tuning.threads, &out);
+  if (threads >= 2) {
+    BuildParallel(&shared, root, threads, &out);
   } else {
     SubtreeBuilder(&shared).Run(root, &out);
   }

@@ -74,14 +74,12 @@ struct BuildTuning {
   // A SplitTree cut is made only when it saves at least this share of the routing cost of a point spread
   // over the overlap region Q (see split_tree_builder.h): it keeps SplitTrees to the cuts that matter.
   double split_min_gain = 0.01;
-  // Threads used: with 2 or more, subtrees are built concurrently from a shared task queue (the right
-  // child of every node of at least `parallel_task_objects` objects becomes a task; 0: max(4096, N/256)),
-  // each into its own fragment, and the fragments are stitched in DFS order: the same tree as 1 thread.
-  // Measured at 1M (tanker, kCompact, best of 3): cores free (load average 2.3, falling): 2 threads 1.02 s,
-  // 132 B/object peak vs 1 thread 1.75 s, 115 B/object (the former root-only 2-thread split: 1.39 s,
-  // 182 B/object); both cores busy with another build (load average 3): 2.03 s vs 1.97 s. Default 1: the
-  // bench machine's 2 cores are shared, and the second builder's scratch raises the peak.
-  int threads = 1;
+  // Threads used (0: one per hardware thread): with 2 or more, the key sorts run on two threads and
+  // subtrees are built concurrently from a shared task queue (the right child of every node of at least
+  // `parallel_task_objects` objects becomes a task; 0: max(4096, N/256)), each into its own fragment, and
+  // the fragments are stitched in DFS order: the same tree as 1 thread. Measured at 1M (tanker, kCompact):
+  // see bench/tree_build_bench.cc (tanker_1m: 1 thread, tanker_1m_2t: 2 threads).
+  int threads = 0;
   uint32_t parallel_task_objects = 0;
 };
 
