@@ -1,6 +1,5 @@
 #include "storage/page_cache.h"
 
-#include <algorithm>
 #include <atomic>
 #include <cstdlib>
 #include <memory>
@@ -63,13 +62,11 @@ uint64_t PageHandle::page() const { return frame_->page; }
 bool PageHandle::verified() const { return frame_->verified.load(std::memory_order_acquire); }
 void PageHandle::MarkVerified() { frame_->verified.store(true, std::memory_order_release); }
 
-PageCache::PageCache(const PageStore* store, size_t capacity_pages) : store_(store), capacity_(capacity_pages) {
-  // Sized once so that a full cache never rehashes under the lock.
-  frames_.reserve(std::min<uint64_t>(capacity_pages, store->page_count()) + 1);
-}
+PageCache::PageCache(const PageStore* store, size_t capacity_pages)
+    : store_(store), capacity_(capacity_pages), table_(store->page_count(), nullptr) {}
 
 PageCache::~PageCache() {
-  for (auto& [page, f] : frames_) delete f;
+  for (PageFrame* f : table_) delete f;
   for (PageFrame* f : spare_) delete f;
 }
 
@@ -109,9 +106,8 @@ Result<PageHandle> PageCache::Pin(uint64_t page, QueryStats* stats) {
   std::unique_lock<std::mutex> lock(mu_);
   ++counters_.lookups;
   if (stats) ++stats->pages_touched;
-  auto it = frames_.find(page);
-  if (it != frames_.end()) {
-    PageFrame* f = it->second;
+  if (page >= table_.size() && page < store_->page_count()) table_.resize(store_->page_count(), nullptr);
+  if (PageFrame* f = page < table_.size() ? table_[page] : nullptr) {
     ++counters_.hits;
     if (stats) ++stats->cache_hits;
     if (f->in_lru) LruUnlinkLocked(f);
@@ -134,9 +130,12 @@ Result<PageHandle> PageCache::Pin(uint64_t page, QueryStats* stats) {
     ++stats->pages_read;
     stats->bytes_read += store_->page_bytes();
   }
+  // Past the store's end: a miss that every backend refuses with this error; nothing to cache.
+  if (page >= table_.size()) return PageOutOfRange(store_->name(), page, store_->page_count());
   PageFrame* f = NewFrameLocked(page);
   ++pinned_;
-  frames_.emplace(page, f);
+  table_[page] = f;
+  ++resident_;
   EvictLocked();  // keep resident <= max(capacity, pinned)
   lock.unlock();
 
@@ -151,7 +150,8 @@ Result<PageHandle> PageCache::Pin(uint64_t page, QueryStats* stats) {
   // lookup retries the read.
   f->failed = true;
   f->load_status = st;
-  frames_.erase(page);
+  table_[page] = nullptr;
+  --resident_;
   if (--f->pins == 0) {
     --pinned_;
     FreeFrameLocked(f);
@@ -173,10 +173,11 @@ void PageCache::Unpin(PageFrame* f) {
 }
 
 void PageCache::EvictLocked() {
-  while (frames_.size() > capacity_ && lru_tail_ != nullptr) {
+  while (resident_ > capacity_ && lru_tail_ != nullptr) {
     PageFrame* victim = lru_tail_;
     LruUnlinkLocked(victim);
-    frames_.erase(victim->page);
+    table_[victim->page] = nullptr;
+    --resident_;
     FreeFrameLocked(victim);
   }
 }
@@ -186,7 +187,8 @@ void PageCache::Clear() {
   while (lru_head_ != nullptr) {
     PageFrame* f = lru_head_;
     LruUnlinkLocked(f);
-    frames_.erase(f->page);
+    table_[f->page] = nullptr;
+    --resident_;
     FreeFrameLocked(f);
   }
 }
@@ -201,7 +203,7 @@ void PageCache::ResetCounters() {
 }
 size_t PageCache::resident_pages() const {
   std::lock_guard<std::mutex> lock(mu_);
-  return frames_.size();
+  return resident_;
 }
 size_t PageCache::pinned_pages() const {
   std::lock_guard<std::mutex> lock(mu_);

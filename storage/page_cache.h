@@ -10,6 +10,7 @@
 //   misses on one page read it once.
 // - Each cached copy carries a `verified` flag for its reader (e.g. "checksum checked"): it is cleared
 //   whenever the page is read from the store, so a reader verifies a page once per load, not per pin.
+// - Memory: the cached pages, plus 8 bytes per page of the store (the page table: a lookup is one index).
 // Thread safety: all methods may be called from many threads at once. Store reads run outside the cache's
 // lock, so misses on different pages proceed in parallel (as far as the store allows).
 #pragma once
@@ -17,7 +18,6 @@
 #include <condition_variable>
 #include <cstdint>
 #include <mutex>
-#include <unordered_map>
 #include <vector>
 
 #include "mktree/query_stats.h"
@@ -93,7 +93,10 @@ class PageCache {
   const size_t capacity_;
   mutable std::mutex mu_;
   std::condition_variable loaded_;
-  std::unordered_map<uint64_t, PageFrame*> frames_;  // owned; failed loads leave at once
+  // The page table, indexed by page (the store's page count, grown if the store grows): the resident
+  // frames, owned; a frame whose load failed leaves it at once.
+  std::vector<PageFrame*> table_;
+  size_t resident_ = 0;
   // Unpinned resident frames, an intrusive list: most recently unpinned at lru_head_, victims at lru_tail_.
   PageFrame* lru_head_ = nullptr;
   PageFrame* lru_tail_ = nullptr;

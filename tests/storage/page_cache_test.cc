@@ -158,6 +158,25 @@ TEST(PageCacheTest, CapacityOne) {
   ExpectInvariants(cache);
 }
 
+TEST(PageCacheTest, PagesAddedToTheStoreAfterTheCacheWasMadeAreCached) {
+  CountingStore store(2);
+  PageCache cache(&store, 4);
+  auto past = cache.Pin(2, nullptr);
+  ASSERT_FALSE(past.ok());
+  EXPECT_NE(past.status().message().find("out of range"), std::string::npos) << past.status().message();
+  std::vector<uint8_t> p(kPage, 9);
+  ASSERT_TRUE(store.WritePage(2, p.data()).ok());
+  for (int i = 0; i < 2; ++i) {
+    auto h = cache.Pin(2, nullptr);
+    ASSERT_TRUE(h.ok());
+    EXPECT_EQ(h->data()[0], 9);
+  }
+  EXPECT_EQ(cache.counters().misses, 2u);  // the refused lookup, then one read
+  EXPECT_EQ(cache.counters().hits, 1u);
+  EXPECT_EQ(cache.resident_pages(), 1u);
+  ExpectInvariants(cache);
+}
+
 TEST(PageCacheTest, ReadErrorsAreReportedAndRetried) {
   CountingStore base(4);
   FaultyPageStore faulty(&base);
