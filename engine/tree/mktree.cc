@@ -1,5 +1,6 @@
 #include "engine/tree/mktree.h"
 
+#include <algorithm>
 #include <type_traits>
 
 #include "engine/tree/leaf_filter.h"
@@ -67,6 +68,24 @@ void EmitLeaf(const MKTree& t, uint32_t leaf, const QueryShape& q, std::vector<u
   leaves_out->push_back(leaf);
 }
 
+// Queues node `i` for a later visit and starts loading what that visit reads: its children's boxes and
+// its SplitTree root, or its leaf's info and filter bytes. A box query reaches hundreds of nodes spread
+// over a tree of megabytes, and each visit would otherwise wait for memory.
+void QueuePrefetched(const MKTree& t, uint32_t i, std::vector<uint32_t>* queue) {
+  const TreeNode& n = t.nodes[i];
+  if (n.is_leaf()) {
+    __builtin_prefetch(&t.leaves[n.leaf]);
+    if (!t.leaf_filter_begin.empty()) __builtin_prefetch(t.leaf_filter.data() + t.leaf_filter_begin[n.leaf]);
+  } else {
+    for (uint32_t c : n.child) {
+      __builtin_prefetch(&t.nodes[c]);
+      __builtin_prefetch(reinterpret_cast<const char*>(&t.nodes[c] + 1) - 1);  // a node may straddle two lines
+    }
+    if (n.split_root != kNoIndex) __builtin_prefetch(&t.split_nodes[n.split_root]);
+  }
+  queue->push_back(i);
+}
+
 }  // namespace
 
 void MKTree::RoutePoint(const Vec3d& p, std::vector<uint32_t>* leaves_out, QueryStats* stats) const {
@@ -103,10 +122,15 @@ void MKTree::RouteBox(const Box3d& q, std::vector<uint32_t>* leaves_out, QuerySt
   QueryStats local;
   if (stats == nullptr) stats = &local;
   if (nodes.empty() || q.empty() || !nodes[0].box.Intersects(q)) return;
-  std::vector<uint32_t> stack{0};
-  while (!stack.empty()) {
-    const TreeNode& n = nodes[stack.back()];
-    stack.pop_back();
+  // Breadth first, so that a node is visited only after the rest of its level, by when the loads its
+  // queuing started have arrived (depth first, the next node is nearly always the one just pushed).
+  // The nodes visited, and so the statistics, are the same in any order; the leaves found are sorted
+  // back into leaf (= depth-first) order. The queue is per thread: a query allocates nothing.
+  thread_local std::vector<uint32_t> queue;
+  queue.assign(1, 0);
+  const size_t first_out = leaves_out->size();
+  for (size_t head = 0; head < queue.size(); ++head) {
+    const TreeNode& n = nodes[queue[head]];
     if (n.is_leaf()) {
       EmitLeaf(*this, n.leaf, q, leaves_out, stats);
       continue;
@@ -128,9 +152,10 @@ void MKTree::RouteBox(const Box3d& q, std::vector<uint32_t>* leaves_out, QuerySt
       const uint8_t wanted = (meets_left ? kLeftBit : 0) | (meets_right ? kRightBit : 0);
       if (meets_slab && (sides & wanted) != wanted) sides |= BoxSides(*this, n, q, stats);
     }
-    if ((sides & kRightBit) && meets_right) stack.push_back(n.child[1]);
-    if ((sides & kLeftBit) && meets_left) stack.push_back(n.child[0]);
+    if ((sides & kLeftBit) && meets_left) QueuePrefetched(*this, n.child[0], &queue);
+    if ((sides & kRightBit) && meets_right) QueuePrefetched(*this, n.child[1], &queue);
   }
+  std::sort(leaves_out->begin() + static_cast<std::ptrdiff_t>(first_out), leaves_out->end());
 }
 
 bool MKTree::IndexLeafFilter() {
