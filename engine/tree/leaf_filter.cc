@@ -1,15 +1,24 @@
 #include "engine/tree/leaf_filter.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 namespace mktree {
 
 namespace {
 
+// q / 255.0 for every quantum, correctly rounded like the division it replaces: routing evaluates Level
+// up to six times per object of every leaf it reaches, and the division cost more than the rest.
+constexpr std::array<double, 256> kQuantumFraction = [] {
+  std::array<double, 256> f{};
+  for (int q = 0; q < 256; ++q) f[q] = q / 255.0;
+  return f;
+}();
+
 // The value quantum q stands for on an axis [lo, hi]. Both the quantizer and the tests use this one
 // function, so "rounded outward" is checked against exactly what queries compare with.
-inline double Level(double lo, double hi, int q) { return q == 255 ? hi : lo + (hi - lo) * (q / 255.0); }
+inline double Level(double lo, double hi, int q) { return q == 255 ? hi : lo + (hi - lo) * kQuantumFraction[q]; }
 
 }  // namespace
 
