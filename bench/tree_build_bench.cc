@@ -2,8 +2,8 @@
 //
 // Workloads (each runs in its own forked process, so that its peak RSS is its own):
 //   tanker_100k      100,000 objects (for instruction-level profiles: valgrind --tool=callgrind)
-//   tanker_1m        1,000,000 objects of MakeTankerSource(1e6, seed 1), BuildTuning defaults (1 thread,
-//                    SplitPolicy::kCompact)
+//   tanker_1m        1,000,000 objects of MakeTankerSource(1e6, seed 1), BuildTuning defaults
+//                    (SplitPolicy::kCompact) on 1 thread
 //   tanker_1m_2t     the same, two threads
 //   tanker_1m_soafill  the same, SplitPolicy::kSoa with the page-fill-aware ranking near the leaves
 //   tanker_1m_soa    the same, plain SOA (DESIGN.md §2.1 exactly): the fill baseline
