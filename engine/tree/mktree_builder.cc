@@ -534,6 +534,7 @@ class SubtreeBuilder {
     const std::vector<uint32_t>& by_min = s_.lists[2 * w];
     const std::vector<uint32_t>& by_max = s_.lists[2 * w + 1];
     const uint64_t total_pages = Pages(t.bytes);
+    const double slack = s_.tuning.fill_sm_slack + s_.tuning.fill_sm_slack_rel * m.sm_min;
 
     for (int key = 0; key < 2; ++key) {
       const std::vector<uint32_t>& order = key == 0 ? by_min : by_max;
@@ -543,12 +544,17 @@ class SubtreeBuilder {
       } else if (m.compact) {
         PrefixSuffixMargins(t, order, k_lo, k_hi);
       }
+      // The second kCompact pass looks at the tied cuts only.
+      const uint32_t k_first = only != nullptr ? tied[key].k_min : k_lo;
+      const uint32_t k_last = only != nullptr ? tied[key].k_max : k_hi;
+      const int list = 2 * w + key;
       uint32_t pa = 0, pb = 0;  // #(max_w <= a), #(min_w < b)
-      uint64_t left_bytes = 0;
-      for (uint32_t k = 1; k <= k_hi; ++k) {
+      uint64_t left_bytes = 0;  // encoded bytes of the first k objects
+      if (fill_aware)
+        for (uint32_t i = 0; i + 1 < k_first; ++i) left_bytes += rec_[order[t.lo + i]].encoded_bytes;
+      for (uint32_t k = k_first; k <= k_last; ++k) {
         // Bytes only matter near the leaves (and are a random read per object, so not gathered above).
         if (fill_aware) left_bytes += rec_[order[t.lo + k - 1]].encoded_bytes;
-        if (k < k_lo) continue;
         const float a = key == 0 ? sorted_min_[k] : suffix_min_[k - window_base_];
         const float b = key == 0 ? prefix_max_[k - window_base_] : sorted_max_[k - 1];
         uint32_t sm = 0;
@@ -567,44 +573,51 @@ class SubtreeBuilder {
           *sm_min_out = std::min(*sm_min_out, sm);
           continue;
         }
-        Candidate c;
-        c.list = 2 * w + key;
-        c.k = k;
-        c.a = a;
-        c.b = b;
-        c.sm = sm;
-        c.primary = sm;
+        uint32_t primary = sm, waste = 0;
         if (fill_aware) {
-          const double slack = s_.tuning.fill_sm_slack + s_.tuning.fill_sm_slack_rel * m.sm_min;
-          if (sm <= m.sm_min + slack) c.primary = 0;
-          c.waste = static_cast<uint32_t>(Pages(left_bytes) + Pages(t.bytes - left_bytes) - total_pages);
+          if (sm <= m.sm_min + slack) primary = 0;
+          waste = static_cast<uint32_t>(Pages(left_bytes) + Pages(t.bytes - left_bytes) - total_pages);
         }
-        const uint64_t tie_key = uint64_t{c.primary} << 32 | c.waste;
-        if (only != nullptr && tie_key != *only) continue;
-        if (m.compact) {
-          c.margin = static_cast<float>(static_cast<double>(k) * margin_pre_[k - margin_base_] +
-                                        static_cast<double>(n - k) * margin_suf_[k - margin_base_]);
-        }
-        c.slab = std::max(0.0, double{b} - double{a});
-        c.imbalance = static_cast<uint32_t>(std::abs(2 * int64_t{k} - int64_t{n}));
-        c.left_bytes = left_bytes;
-        c.fill_aware = fill_aware;
-        if (ties != nullptr) {
+        const uint64_t tie_key = uint64_t{primary} << 32 | waste;
+        if (ties != nullptr) {  // a Candidate only for a new best: most cuts are not
           ListTies& lt = ties[key];
           if (lt.count == 0 || tie_key < lt.key) {
             lt.key = tie_key;
             lt.count = 1;
             lt.k_min = lt.k_max = k;
-            lt.first = c;
+            lt.first = MakeCandidate(list, k, n, a, b, sm, primary, waste, left_bytes, fill_aware);
           } else if (tie_key == lt.key) {
             ++lt.count;
             lt.k_max = k;
           }
           continue;
         }
+        if (only != nullptr && tie_key != *only) continue;
+        Candidate c = MakeCandidate(list, k, n, a, b, sm, primary, waste, left_bytes, fill_aware);
+        if (m.compact) {
+          c.margin = static_cast<float>(static_cast<double>(k) * margin_pre_[k - margin_base_] +
+                                        static_cast<double>(n - k) * margin_suf_[k - margin_base_]);
+        }
         if (c.BetterThan(*best)) *best = c;
       }
     }
+  }
+
+  static Candidate MakeCandidate(int list, uint32_t k, uint32_t n, float a, float b, uint32_t sm, uint32_t primary,
+                                 uint32_t waste, uint64_t left_bytes, bool fill_aware) {
+    Candidate c;
+    c.list = list;
+    c.k = k;
+    c.a = a;
+    c.b = b;
+    c.sm = sm;
+    c.primary = primary;
+    c.waste = waste;
+    c.slab = std::max(0.0, double{b} - double{a});
+    c.imbalance = static_cast<uint32_t>(std::abs(2 * int64_t{k} - int64_t{n}));
+    c.left_bytes = left_bytes;
+    c.fill_aware = fill_aware;
+    return c;
   }
 
   Shared& s_;
