@@ -127,10 +127,10 @@ Status LeafView::Parse(const std::string& store_name, uint32_t leaf_index, uint6
   for (uint64_t at = 0; at < std::min(kAhead, total); at += 64) __builtin_prefetch(payload + at);
   for (uint32_t i = 0; i < count; ++i) {
     __builtin_prefetch(payload + std::min(off + kAhead, total - 1));
-    auto e = ParseObjectEntry(payload + off, total - off);
-    if (!e.ok()) return fail(first_page + off / cap, e.status().message());
-    off += e->entry_bytes();
-    v.entries_.push_back(*e);
+    ObjectEntryView& e = v.entries_.emplace_back();
+    Status st = ParseObjectEntry(payload + off, total - off, &e);
+    if (!st.ok()) return fail(first_page + off / cap, st.message());
+    off += e.entry_bytes();
   }
   if (off != total) return fail(first_page, "leaf payload has trailing bytes after its entries");
   return Status::Ok();

@@ -158,8 +158,14 @@ uint32_t EncodeObjectEntry(const SceneObject& obj, const CodecOptions& opts, std
 }
 
 Result<ObjectEntryView> ParseObjectEntry(const uint8_t* data, size_t n) {
-  if (n < kObjectEntryHeaderBytes) return Status::Corruption("object entry truncated");
   ObjectEntryView e;
+  MKTREE_RETURN_IF_ERROR(ParseObjectEntry(data, n, &e));
+  return e;
+}
+
+Status ParseObjectEntry(const uint8_t* data, size_t n, ObjectEntryView* out) {
+  if (n < kObjectEntryHeaderBytes) return Status::Corruption("object entry truncated");
+  ObjectEntryView& e = *out;
   e.id = Get<uint32_t>(data);
   for (int i = 0; i < 3; ++i) {
     e.box.min[i] = Get<float>(data + 4 + 4 * i);
@@ -188,7 +194,7 @@ Result<ObjectEntryView> ParseObjectEntry(const uint8_t* data, size_t n) {
   if (e.codec == Codec::kNone && stored != e.raw_bytes) return fail("stored size does not match raw size");
   if (stored > n - kObjectEntryHeaderBytes) return fail("runs past the end of the leaf");
   e.geometry = std::span<const uint8_t>(data + kObjectEntryHeaderBytes, stored);
-  return e;
+  return Status::Ok();
 }
 
 Status DecodeObjectMesh(const ObjectEntryView& e, Mesh* mesh) {

@@ -81,6 +81,9 @@ struct ObjectEntryView {
 // Parses the entry starting at data[0] (n bytes available). Checks header consistency only (not the
 // geometry). Corruption if the header is inconsistent or the entry runs past `n`.
 Result<ObjectEntryView> ParseObjectEntry(const uint8_t* data, size_t n);
+// The same into *out, which is meaningful only on Ok (for loops over a leaf's entries: no Result to
+// build and copy per entry).
+Status ParseObjectEntry(const uint8_t* data, size_t n, ObjectEntryView* out);
 
 // Decompresses and un-transforms an entry's geometry into *mesh. Corruption on bad data (zstd failure,
 // size mismatch, a triangle index out of range).
