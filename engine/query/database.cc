@@ -6,6 +6,8 @@
 #include <atomic>
 #include <cmath>
 #include <thread>
+#include <type_traits>
+#include <utility>
 
 #include "engine/geometry/exact_geometry.h"
 #include "storage/leaf_reader.h"
@@ -29,6 +31,34 @@ SolidClassifier Classifier(const ObjectEntryView& e, const Mesh& mesh) {
   return SolidClassifier(mesh, o);
 }
 
+// Sorts ids ascending. Large answers (an 8 m box in the tanker has ~1800) by radix, three passes of 11
+// bits, which costs a fraction of std::sort's ~11 comparisons per id.
+void SortIds(std::vector<ObjectId>* ids) {
+  constexpr size_t kRadixFrom = 512;
+  if (ids->size() < kRadixFrom) {
+    std::sort(ids->begin(), ids->end());
+    return;
+  }
+  thread_local std::vector<ObjectId> other;
+  other.resize(ids->size());
+  uint32_t counts[3][2048] = {};
+  for (ObjectId id : *ids) {
+    ++counts[0][id & 2047];
+    ++counts[1][(id >> 11) & 2047];
+    ++counts[2][id >> 22];
+  }
+  std::vector<ObjectId>* from = ids;
+  std::vector<ObjectId>* to = &other;
+  for (int pass = 0; pass < 3; ++pass) {
+    uint32_t at = 0;
+    for (uint32_t& c : counts[pass]) at += std::exchange(c, at);
+    const int shift = 11 * pass;
+    for (ObjectId id : *from) (*to)[counts[pass][(id >> shift) & 2047]++] = id;
+    std::swap(from, to);
+  }
+  ids->swap(other);  // three passes: the sorted ids are in `other`
+}
+
 bool Finite(const Vec3d& p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z); }
 
 class StoreDatabase final : public Database {
@@ -47,15 +77,16 @@ class StoreDatabase final : public Database {
     hits->clear();
     std::vector<uint32_t> leaves;
     reader_->tree().RoutePoint(p, &leaves, &s);
-    for (uint32_t leaf : leaves) {
-      MKTREE_RETURN_IF_ERROR(ScanLeaf(leaf, &s, [&](const ObjectEntryView& e) -> Result<bool> {
-        if (!e.box.Contains(p)) return false;
-        if (mode == QueryMode::kAabb) return true;
-        Mesh mesh;
-        MKTREE_RETURN_IF_ERROR(DecodeObjectMesh(e, &mesh));
-        return Classifier(e, mesh).Contains(p);
-      }, hits));
-    }
+    auto in_box = [&](const ObjectEntryView& e) { return e.box.Contains(p); };
+    auto in_solid = [&](const ObjectEntryView& e) -> Result<bool> {
+      if (!e.box.Contains(p)) return false;
+      Mesh mesh;
+      MKTREE_RETURN_IF_ERROR(DecodeObjectMesh(e, &mesh));
+      return Classifier(e, mesh).Contains(p);
+    };
+    for (uint32_t leaf : leaves)
+      MKTREE_RETURN_IF_ERROR(mode == QueryMode::kAabb ? ScanLeaf(leaf, &s, in_box, hits)
+                                                      : ScanLeaf(leaf, &s, in_solid, hits));
     return Finish(hits, &s);
   }
 
@@ -72,15 +103,16 @@ class StoreDatabase final : public Database {
     hits->clear();
     std::vector<uint32_t> leaves;
     reader_->tree().RouteBox(box, &leaves, &s);
-    for (uint32_t leaf : leaves) {
-      MKTREE_RETURN_IF_ERROR(ScanLeaf(leaf, &s, [&](const ObjectEntryView& e) -> Result<bool> {
-        if (!e.box.Intersects(box)) return false;
-        if (mode == QueryMode::kAabb) return true;
-        Mesh mesh;
-        MKTREE_RETURN_IF_ERROR(DecodeObjectMesh(e, &mesh));
-        return Classifier(e, mesh).MeetsBox(box);
-      }, hits));
-    }
+    auto meets_box = [&](const ObjectEntryView& e) { return e.box.Intersects(box); };
+    auto meets_solid = [&](const ObjectEntryView& e) -> Result<bool> {
+      if (!e.box.Intersects(box)) return false;
+      Mesh mesh;
+      MKTREE_RETURN_IF_ERROR(DecodeObjectMesh(e, &mesh));
+      return Classifier(e, mesh).MeetsBox(box);
+    };
+    for (uint32_t leaf : leaves)
+      MKTREE_RETURN_IF_ERROR(mode == QueryMode::kAabb ? ScanLeaf(leaf, &s, meets_box, hits)
+                                                      : ScanLeaf(leaf, &s, meets_solid, hits));
     return Finish(hits, &s);
   }
 
@@ -131,7 +163,7 @@ class StoreDatabase final : public Database {
 
  private:
   // Pins the leaf's pages, verifies and parses them, and tests every object; `test` says whether an
-  // object answers.
+  // object answers: a bool, or a Result<bool> where the test can fail (exact geometry).
   template <typename Test>
   Status ScanLeaf(uint32_t leaf, QueryStats* s, Test&& test, std::vector<ObjectId>* hits) const {
     const MKTree& tree = reader_->tree();
@@ -147,16 +179,20 @@ class StoreDatabase final : public Database {
     const size_t before = hits->size();
     for (const ObjectEntryView& e : pinned.view.entries()) {
       ++s->candidates_tested;
-      auto answer = test(e);
-      if (!answer.ok()) return answer.status();
-      if (*answer) hits->push_back(e.id);
+      if constexpr (std::is_same_v<std::invoke_result_t<Test&, const ObjectEntryView&>, bool>) {
+        if (test(e)) hits->push_back(e.id);
+      } else {
+        auto answer = test(e);
+        if (!answer.ok()) return answer.status();
+        if (*answer) hits->push_back(e.id);
+      }
     }
     s->leaves_with_hits += hits->size() > before;
     return Status::Ok();
   }
 
   static Status Finish(std::vector<ObjectId>* hits, QueryStats* s) {
-    std::sort(hits->begin(), hits->end());
+    SortIds(hits);
     s->hits = hits->size();
     return Status::Ok();
   }

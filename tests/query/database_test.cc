@@ -178,6 +178,53 @@ TEST_P(DatabaseTest, OversizedObjectsSpanSeveralPages) {
   fs::remove(path);
 }
 
+TEST_P(DatabaseTest, LargeAnswersAndRepeatedQueriesKeepAnswersAndCounts) {
+  const auto objs = testing::ClusteredScene(3000, 17);
+  const std::string path = TempPath("large.mkt");
+  ASSERT_TRUE(Build(objs, path, Options(GetParam().backend, GetParam().codec, 1024, 2)).ok());
+  auto db = Database::Open(path, {.cache_pages = 100000});
+  ASSERT_TRUE(db.ok());
+  Box3f all;
+  for (const SceneObject& o : objs) all.Extend(o.Aabb());
+  // The whole scene, and its halves and quarters: answers of thousands of ids, sorted by radix.
+  std::vector<Query> qs;
+  for (int parts : {1, 2, 4}) {
+    for (int k = 0; k < parts; ++k) {
+      Box3d b;
+      for (int a = 0; a < 3; ++a) {
+        b.min[a] = all.min[a];
+        b.max[a] = all.max[a];
+      }
+      const double step = (double{all.max[0]} - all.min[0]) / parts;
+      b.min[0] = all.min[0] + k * step;
+      b.max[0] = all.min[0] + (k + 1) * step;
+      qs.push_back(Query::Box(b));
+    }
+  }
+  for (QueryMode mode : {QueryMode::kAabb, QueryMode::kExact}) {
+    QueryResult first, again;
+    for (const Query& q : qs) {
+      (*db)->ClearCache();
+      ASSERT_TRUE((*db)->Run(q, mode, &first).ok());
+      ASSERT_EQ(first.hits, BruteBox(objs, q.box, mode));
+      CheckStats(first, /*cold=*/true);
+      // Repeated with every page cached: the same answer and work, and every page a hit.
+      ASSERT_TRUE((*db)->Run(q, mode, &again).ok());
+      EXPECT_EQ(again.hits, first.hits);
+      EXPECT_EQ(again.stats.pages_touched, first.stats.pages_touched);
+      EXPECT_EQ(again.stats.cache_hits, again.stats.pages_touched);
+      EXPECT_EQ(again.stats.pages_read, 0u);
+      EXPECT_EQ(again.stats.bytes_read, 0u);
+      EXPECT_EQ(again.stats.leaves_visited, first.stats.leaves_visited);
+      EXPECT_EQ(again.stats.candidates_tested, first.stats.candidates_tested);
+    }
+  }
+  QueryResult r;
+  ASSERT_TRUE((*db)->Run(qs[0], QueryMode::kAabb, &r).ok());
+  EXPECT_EQ(r.hits.size(), objs.size());
+  fs::remove(path);
+}
+
 INSTANTIATE_TEST_SUITE_P(Backends, DatabaseTest,
                          ::testing::Values(Config{Backend::kHdf5, Codec::kZstd}, Config{Backend::kHdf5, Codec::kNone},
                                            Config{Backend::kPagedFile, Codec::kZstd},
