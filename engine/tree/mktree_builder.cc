@@ -143,6 +143,15 @@ struct SubtreeOut {
   std::vector<uint64_t> leaf_begin;  // position of the leaf's first object in the lists
   std::vector<uint32_t> overlap;     // |Sm| per node
   std::vector<uint32_t> split_count;  // SplitTree nodes per node (filled only by the multi-thread build)
+
+  void ShrinkToFit() {
+    nodes.shrink_to_fit();
+    split_nodes.shrink_to_fit();
+    leaves.shrink_to_fit();
+    leaf_begin.shrink_to_fit();
+    overlap.shrink_to_fit();
+    split_count.shrink_to_fit();
+  }
 };
 
 // child[1] of a node whose right subtree was built as another fragment (multi-thread build).
@@ -287,7 +296,8 @@ class SubtreeBuilder {
           window.max_left_bytes = Pages(best.left_bytes) * cap - kLeafHeaderBytes;
           window.max_right_bytes = Pages(t.bytes - best.left_bytes) * cap - kLeafHeaderBytes;
         }
-        BuildSplitTree(q, &items_, s_.params.split_tree_node_budget, &window, &split, s_.tuning.split_min_gain);
+        BuildSplitTree(q, &items_, s_.params.split_tree_node_budget, &window, &split, s_.tuning.split_min_gain,
+                       &split_scratch_);
         for (size_t i = 0; i < items_.size(); ++i) s_.side[overlap_ids_[i]] = items_[i].side;
       }
     }
@@ -351,6 +361,7 @@ class SubtreeBuilder {
     for (auto* v : {&sorted_min_, &prefix_max_, &sorted_max_, &suffix_min_, &margin_pre_, &margin_suf_})
       if (!v->empty()) std::vector<float>(n).swap(*v);
     std::vector<uint32_t>(n).swap(tmp_);
+    split_scratch_.Release();
     if (freed >= kTrimBytes) TrimHeap();  // trimming is a walk of the heap: only for large frees
   }
 
@@ -630,6 +641,7 @@ class SubtreeBuilder {
   uint32_t margin_base_ = 0;  // margin_pre_ / margin_suf_ index of the cut k_min
   std::vector<uint32_t> tmp_;
   std::vector<SplitItem> items_;
+  SplitTreeScratch split_scratch_;
   std::vector<uint32_t> overlap_ids_;
 };
 
@@ -676,6 +688,7 @@ void BuildParallel(Shared* shared, const Task& root, int threads, SubtreeOut* ou
       ++busy;
       lock.unlock();
       builder.RunSpawning(task, frag, min_spawn, spawn);
+      frag->ShrinkToFit();  // fragments live until stitched: no growth slack in the peak
       lock.lock();
       --busy;
       if (busy == 0 && queue.empty()) cv.notify_all();

@@ -4,20 +4,32 @@
 #include <bit>
 #include <cmath>
 #include <limits>
-#include <queue>
 
 namespace mktree {
 namespace {
 
 constexpr uint8_t kLeftBit = 1, kRightBit = 2;
 
-inline uint8_t SideBit(uint8_t side) { return side == SplitItem::kLeft ? kLeftBit : side == SplitItem::kRight ? kRightBit : 0; }
+// kLeft -> kLeftBit, kRight -> kRightBit, kFree -> 0.
+inline uint8_t SideBit(uint8_t side) { return static_cast<uint8_t>((1u << side) & 3u); }
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
 
+// Float neighbours of a finite x (std::nextafter without the library call: BestCut asks for 12 a cell).
+inline float NextDown(float x) {
+  if (x == 0) return -std::numeric_limits<float>::denorm_min();
+  const uint32_t u = std::bit_cast<uint32_t>(x);
+  return std::bit_cast<float>(x > 0 ? u - 1 : u + 1);
+}
+inline float NextUp(float x) {
+  if (x == 0) return std::numeric_limits<float>::denorm_min();
+  const uint32_t u = std::bit_cast<uint32_t>(x);
+  return std::bit_cast<float>(x > 0 ? u + 1 : u - 1);
+}
+
 struct Cell {
   Box3f region;
-  std::vector<uint32_t> items;  // items whose clipped box meets the closed region
+  uint32_t begin = 0, end = 0;  // its items (those whose clipped box meets the closed region): pool[begin, end)
   uint32_t node = 0;            // its SplitNode in `out`
   uint8_t label = 0;            // sides of the resolved items meeting it
   // [side][axis]: extremes of the resolved items' boxes within the region (kept up to date by Split, so
@@ -33,11 +45,6 @@ struct Cell {
       lo_of[it.side][u] = std::min(lo_of[it.side][u], std::max(it.box.min[u], region.min[u]));
       hi_of[it.side][u] = std::max(hi_of[it.side][u], std::min(it.box.max[u], region.max[u]));
     }
-  }
-  void ComputeExtremes(const std::vector<SplitItem>& all) {
-    ResetExtremes();
-    for (uint32_t i : items)
-      if (all[i].side != SplitItem::kFree) AddExtremes(all[i]);
   }
 };
 
@@ -83,8 +90,8 @@ Cut BestCut(const Cell& cell, const CostModel& cm) {
     int nc = 0;
     for (int s = 0; s < 2; ++s) {
       if (lo_of[s][u] == kInf) continue;
-      cand[nc++] = std::nextafter(lo_of[s][u], -kInf);
-      cand[nc++] = std::nextafter(hi_of[s][u], kInf);
+      cand[nc++] = NextDown(lo_of[s][u]);
+      cand[nc++] = NextUp(hi_of[s][u]);
     }
     for (int k = 0; k < nc; ++k) {
       const float c = cand[k];
@@ -103,42 +110,73 @@ Cut BestCut(const Cell& cell, const CostModel& cm) {
   return best;
 }
 
+}  // namespace
+
+// Buffers one SplitTree build leaves behind for the next (no allocation per cell or per tree).
+struct SplitTreeScratch::Buffers {
+  std::vector<Cell> cells;
+  std::vector<uint32_t> pool;       // the cells' item lists, each a range
+  std::vector<uint32_t> leaves;     // cells that are not cut
+  std::vector<uint32_t> node_cell;  // SplitNode -> its cell
+  std::vector<uint32_t> stack, met;
+  std::vector<Cut> cut_of;
+  std::vector<std::pair<double, uint32_t>> open;  // heap of (gain, cell)
+};
+
+SplitTreeScratch::SplitTreeScratch() : buffers(std::make_unique<Buffers>()) {}
+SplitTreeScratch::~SplitTreeScratch() = default;
+void SplitTreeScratch::Release() { buffers = std::make_unique<Buffers>(); }
+
+namespace {
+
 class Builder {
  public:
-  Builder(const Box3f& q, std::vector<SplitItem>* items, uint32_t budget, std::vector<SplitNode>* out)
-      : items_(*items), budget_(budget), out_(*out), cm_(q) {
+  Builder(const Box3f& q, std::vector<SplitItem>* items, uint32_t budget, std::vector<SplitNode>* out,
+          SplitTreeScratch::Buffers* b)
+      : items_(*items), budget_(budget), out_(*out), cm_(q), b_(*b) {
     out_.clear();
-    cells_.resize(1);
-    cells_[0].region = q;
-    cells_[0].items.resize(items_.size());
+    b_.cells.clear();
+    b_.pool.clear();
+    b_.leaves.clear();
+    b_.node_cell.clear();
+    Cell root;
+    root.region = q;
+    root.end = static_cast<uint32_t>(items_.size());
+    b_.pool.resize(items_.size());
     for (uint32_t i = 0; i < items_.size(); ++i) {
-      cells_[0].items[i] = i;
-      cells_[0].label |= SideBit(items_[i].side);
+      b_.pool[i] = i;
+      root.label |= SideBit(items_[i].side);
     }
+    b_.cells.push_back(root);
     out_.push_back(SplitNode{});
-    node_cell_.push_back(0);
-    leaves_.push_back(0);
+    b_.node_cell.push_back(0);
+    b_.leaves.push_back(0);
   }
 
   // Best-first: cut the cell with the largest gain until the budget is spent or no cut gains at least
   // `min_gain` (a share of Q's volume): small gains are not worth 32 bytes of RAM per cut.
   void Refine(uint32_t node_limit, double min_gain) {
     node_limit = std::min(node_limit, budget_);
-    using Entry = std::pair<double, uint32_t>;  // (gain, cell)
-    std::priority_queue<Entry> open;
-    std::vector<Cut> cut_of(cells_.size());
+    std::vector<std::pair<double, uint32_t>>& open = b_.open;
+    std::vector<Cut>& cut_of = b_.cut_of;
+    open.clear();
+    cut_of.assign(b_.cells.size(), Cut{});
     auto consider = [&](uint32_t ci) {
       if (cut_of.size() <= ci) cut_of.resize(ci + 1);
-      cut_of[ci] = BestCut(cells_[ci], cm_);
-      if (cut_of[ci].axis >= 0 && cut_of[ci].gain >= min_gain) open.push({cut_of[ci].gain, ci});
+      cut_of[ci] = BestCut(b_.cells[ci], cm_);
+      if (cut_of[ci].axis >= 0 && cut_of[ci].gain >= min_gain) {
+        open.push_back({cut_of[ci].gain, ci});
+        std::push_heap(open.begin(), open.end());
+      }
     };
-    for (uint32_t ci : leaves_) {
-      cells_[ci].ComputeExtremes(items_);  // items resolved since the last Refine count now
+    for (uint32_t ci : b_.leaves) {
+      ComputeExtremes(&b_.cells[ci]);  // items resolved since the last Refine count now
       consider(ci);
     }
     while (!open.empty() && out_.size() + 2 <= node_limit) {
-      const uint32_t ci = open.top().second;
-      open.pop();
+      std::pop_heap(open.begin(), open.end());
+      const uint32_t ci = open.back().second;
+      open.pop_back();
       const auto [lower, upper] = Split(ci, cut_of[ci]);
       consider(lower);
       consider(upper);
@@ -148,7 +186,7 @@ class Builder {
   // Free items take the side that adds the least cost (volume of cells that would gain that side), ties
   // to their default side, within the balance window. Labels are updated as items are placed.
   void ResolveFree(BalanceWindow* window) {
-    std::vector<uint32_t> met;
+    std::vector<uint32_t>& met = b_.met;
     for (uint32_t i = 0; i < items_.size(); ++i) {
       SplitItem& it = items_[i];
       if (it.side != SplitItem::kFree) continue;
@@ -156,9 +194,10 @@ class Builder {
       CellsMeeting(it.box, &met);
       double added[2] = {0, 0};
       for (uint32_t ci : met) {
-        const double v = cm_.Volume(cells_[ci].region);
-        if (!(cells_[ci].label & kLeftBit)) added[0] += v;
-        if (!(cells_[ci].label & kRightBit)) added[1] += v;
+        const Cell& c = b_.cells[ci];
+        const double v = cm_.Volume(c.region);
+        if (!(c.label & kLeftBit)) added[0] += v;
+        if (!(c.label & kRightBit)) added[1] += v;
       }
       uint8_t want = it.default_side;
       if (added[0] != added[1]) want = added[0] < added[1] ? SplitItem::kLeft : SplitItem::kRight;
@@ -174,46 +213,66 @@ class Builder {
         }
       }
       it.side = want;
-      for (uint32_t ci : met) cells_[ci].label |= SideBit(want);
+      for (uint32_t ci : met) b_.cells[ci].label |= SideBit(want);
     }
   }
 
   // Labels from the items each cell holds (all resolved by now): the invariant by construction.
   void WriteLabels() {
-    for (uint32_t ci : leaves_) {
+    for (uint32_t ci : b_.leaves) {
+      const Cell& c = b_.cells[ci];
       uint8_t label = 0;
-      for (uint32_t i : cells_[ci].items) label |= SideBit(items_[i].side);
-      SplitNode& sn = out_[cells_[ci].node];
+      for (uint32_t k = c.begin; k < c.end; ++k) label |= SideBit(items_[b_.pool[k]].side);
+      SplitNode& sn = out_[c.node];
       sn.axis = 3;
       sn.label = static_cast<CellLabel>(label);
     }
   }
 
  private:
+  void ComputeExtremes(Cell* c) const {
+    c->ResetExtremes();
+    for (uint32_t k = c->begin; k < c->end; ++k) {
+      const SplitItem& it = items_[b_.pool[k]];
+      if (it.side != SplitItem::kFree) c->AddExtremes(it);
+    }
+  }
+
   std::pair<uint32_t, uint32_t> Split(uint32_t ci, const Cut& cut) {
     Cell lower, upper;
-    lower.region = upper.region = cells_[ci].region;
+    lower.region = upper.region = b_.cells[ci].region;
     lower.region.max[cut.axis] = cut.pos;
     upper.region.min[cut.axis] = cut.pos;
     lower.ResetExtremes();
     upper.ResetExtremes();
+    // The children's items go to the end of the pool: lower's, then upper's after a gap closed below.
+    const uint32_t begin = b_.cells[ci].begin, end = b_.cells[ci].end, m = end - begin;
+    const uint32_t base = static_cast<uint32_t>(b_.pool.size());
+    b_.pool.resize(size_t{base} + 2 * size_t{m});
+    uint32_t* pool = b_.pool.data();
+    uint32_t nl = 0, nu = 0;
     // Closed cells: an item touching the cut meets both.
-    for (uint32_t i : cells_[ci].items) {
+    for (uint32_t k = begin; k < end; ++k) {
+      const uint32_t i = pool[k];
       const SplitItem& it = items_[i];
       const bool resolved = it.side != SplitItem::kFree;
       if (it.box.min[cut.axis] <= cut.pos) {
-        lower.items.push_back(i);
+        pool[base + nl++] = i;
         lower.label |= SideBit(it.side);
         if (resolved) lower.AddExtremes(it);
       }
       if (it.box.max[cut.axis] >= cut.pos) {
-        upper.items.push_back(i);
+        pool[base + m + nu++] = i;
         upper.label |= SideBit(it.side);
         if (resolved) upper.AddExtremes(it);
       }
     }
-    std::vector<uint32_t>().swap(cells_[ci].items);
-    const uint32_t node = cells_[ci].node;
+    std::copy(pool + base + m, pool + base + m + nu, pool + base + nl);
+    b_.pool.resize(size_t{base} + nl + nu);
+    lower.begin = base;
+    lower.end = upper.begin = base + nl;
+    upper.end = base + nl + nu;
+    const uint32_t node = b_.cells[ci].node;
     const uint32_t first = static_cast<uint32_t>(out_.size());
     out_[node].axis = static_cast<uint8_t>(cut.axis);
     out_[node].cut = cut.pos;
@@ -223,28 +282,29 @@ class Builder {
     out_.push_back(SplitNode{});
     lower.node = first;
     upper.node = first + 1;
-    const uint32_t lc = static_cast<uint32_t>(cells_.size());
-    cells_.push_back(std::move(lower));
-    cells_.push_back(std::move(upper));
-    node_cell_.push_back(lc);
-    node_cell_.push_back(lc + 1);
-    std::replace(leaves_.begin(), leaves_.end(), ci, lc);
-    leaves_.push_back(lc + 1);
+    const uint32_t lc = static_cast<uint32_t>(b_.cells.size());
+    b_.cells.push_back(lower);
+    b_.cells.push_back(upper);
+    b_.node_cell.push_back(lc);
+    b_.node_cell.push_back(lc + 1);
+    std::replace(b_.leaves.begin(), b_.leaves.end(), ci, lc);
+    b_.leaves.push_back(lc + 1);
     return {lc, lc + 1};
   }
 
   void CellsMeeting(const Box3f& b, std::vector<uint32_t>* met) {
-    stack_.assign(1, 0);
-    while (!stack_.empty()) {
-      const uint32_t n = stack_.back();
-      stack_.pop_back();
+    std::vector<uint32_t>& stack = b_.stack;
+    stack.assign(1, 0);
+    while (!stack.empty()) {
+      const uint32_t n = stack.back();
+      stack.pop_back();
       const SplitNode& sn = out_[n];
       if (sn.is_cell()) {
-        met->push_back(node_cell_[n]);
+        met->push_back(b_.node_cell[n]);
         continue;
       }
-      if (b.max[sn.axis] >= sn.cut) stack_.push_back(sn.child[1]);
-      if (b.min[sn.axis] <= sn.cut) stack_.push_back(sn.child[0]);
+      if (b.max[sn.axis] >= sn.cut) stack.push_back(sn.child[1]);
+      if (b.min[sn.axis] <= sn.cut) stack.push_back(sn.child[0]);
     }
   }
 
@@ -252,17 +312,15 @@ class Builder {
   uint32_t budget_;
   std::vector<SplitNode>& out_;
   CostModel cm_;
-  std::vector<Cell> cells_;
-  std::vector<uint32_t> leaves_;     // cells that are not cut
-  std::vector<uint32_t> node_cell_;  // SplitNode -> its cell
-  std::vector<uint32_t> stack_;
+  SplitTreeScratch::Buffers& b_;
 };
 
 }  // namespace
 
 void BuildSplitTree(const Box3f& q, std::vector<SplitItem>* items, uint32_t budget, BalanceWindow* window,
-                    std::vector<SplitNode>* out, double min_gain) {
-  Builder b(q, items, std::max<uint32_t>(budget, 1), out);
+                    std::vector<SplitNode>* out, double min_gain, SplitTreeScratch* scratch) {
+  SplitTreeScratch local;
+  Builder b(q, items, std::max<uint32_t>(budget, 1), out, (scratch ? scratch : &local)->buffers.get());
   // First carve with the fixed items alone, then place the free items against those cells, then spend
   // what is left of the budget with every item placed.
   b.Refine(std::max<uint32_t>(1, budget / 2) | 1, min_gain);

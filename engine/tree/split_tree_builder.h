@@ -18,6 +18,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "engine/tree/mktree.h"
@@ -49,10 +50,20 @@ struct BalanceWindow {
   }
 };
 
+// Buffers reused from one BuildSplitTree call to the next (one per builder thread).
+struct SplitTreeScratch {
+  struct Buffers;
+  std::unique_ptr<Buffers> buffers;
+  SplitTreeScratch();
+  ~SplitTreeScratch();
+  void Release();  // gives the buffers' memory back
+};
+
 // Builds the SplitTree of region `q` into `out` (cleared; root at index 0, child indices local to `out`)
 // with at most `budget` nodes (budget >= 1), and resolves every kFree item to kLeft or kRight. A cut is
 // only made when it lowers the routing cost by at least `min_gain` (a share of Q's volume, see .cc).
+// `scratch` (optional) keeps the working buffers between calls.
 void BuildSplitTree(const Box3f& q, std::vector<SplitItem>* items, uint32_t budget, BalanceWindow* window,
-                    std::vector<SplitNode>* out, double min_gain);
+                    std::vector<SplitNode>* out, double min_gain, SplitTreeScratch* scratch = nullptr);
 
 }  // namespace mktree
