@@ -126,6 +126,28 @@ void TrimHeap() {
 #endif
 }
 
+// A per-node scratch array: it grows without zero-filling (every node writes what it reads), keeps its
+// size from node to node, and is shrunk explicitly.
+template <typename T>
+class Scratch {
+ public:
+  void Fit(size_t n) {
+    if (n > capacity_) Reset(n);
+  }
+  void Reset(size_t n) {
+    data_ = std::make_unique_for_overwrite<T[]>(n);
+    capacity_ = n;
+  }
+  size_t capacity() const { return capacity_; }
+  T* data() { return data_.get(); }
+  T& operator[](size_t i) { return data_[i]; }
+  const T& operator[](size_t i) const { return data_[i]; }
+
+ private:
+  std::unique_ptr<T[]> data_;
+  size_t capacity_ = 0;
+};
+
 struct Shared {
   const std::vector<BuildRecord>& rec;
   BuildParams params;
@@ -305,7 +327,7 @@ class SubtreeBuilder {
     // Stable in-place partition of the six lists by side, keeping each half sorted by its key.
     uint64_t left_bytes = 0;
     uint32_t n1 = 0;
-    tmp_.resize(n);
+    tmp_.Fit(n);
     // Branch-free: the sides of neighbours in key order are not predictable.
     for (int l = 0; l < 6; ++l) {
       uint32_t* v = s_.lists[l].data();
@@ -359,8 +381,8 @@ class SubtreeBuilder {
     if (tmp_.capacity() < 4 * n + (1u << 16)) return;
     const size_t freed = 7 * (tmp_.capacity() - n) * sizeof(float);  // about
     for (auto* v : {&sorted_min_, &prefix_max_, &sorted_max_, &suffix_min_, &margin_pre_, &margin_suf_})
-      if (!v->empty()) std::vector<float>(n).swap(*v);
-    std::vector<uint32_t>(n).swap(tmp_);
+      if (v->capacity() > n + 1) v->Reset(n + 1);
+    tmp_.Reset(n);
     split_scratch_.Release();
     if (freed >= kTrimBytes) TrimHeap();  // trimming is a walk of the heap: only for large frees
   }
@@ -481,8 +503,8 @@ class SubtreeBuilder {
   void PrefixSuffixMargins(const Task& t, const std::vector<uint32_t>& order, uint32_t k_min, uint32_t k_max) {
     const uint32_t n = t.hi - t.lo;
     margin_base_ = k_min;
-    margin_pre_.resize(k_max - k_min + 1);
-    margin_suf_.resize(k_max - k_min + 1);
+    margin_pre_.Fit(k_max - k_min + 1);
+    margin_suf_.Fit(k_max - k_min + 1);
     Box3f u;
     for (uint32_t i = 0; i < k_max; ++i) {
       u.Extend(rec_[order[t.lo + i]].box);
@@ -510,10 +532,10 @@ class SubtreeBuilder {
     const std::vector<uint32_t>& by_max = s_.lists[2 * w + 1];
     // The running extremes are kept for the cuts k in [k_lo, k_hi] only: less scratch at the root.
     window_base_ = k_lo;
-    sorted_min_.resize(n + 1);
-    prefix_max_.resize(k_hi - k_lo + 1);
-    sorted_max_.resize(n + 1);
-    suffix_min_.resize(k_hi - k_lo + 1);
+    sorted_min_.Fit(n + 1);
+    prefix_max_.Fit(k_hi - k_lo + 1);
+    sorted_max_.Fit(n + 1);
+    suffix_min_.Fit(k_hi - k_lo + 1);
     sorted_min_[n] = sorted_max_[n] = std::numeric_limits<float>::infinity();
     float run = -std::numeric_limits<float>::infinity();
     for (uint32_t i = 0; i < n; ++i) {
@@ -635,11 +657,11 @@ class SubtreeBuilder {
   const std::vector<BuildRecord>& rec_;
   const uint64_t mem_page_;
   const bool track_split_count_;
-  std::vector<float> sorted_min_, prefix_max_, sorted_max_, suffix_min_;
+  Scratch<float> sorted_min_, prefix_max_, sorted_max_, suffix_min_;
   uint32_t window_base_ = 0;  // prefix_max_ / suffix_min_ index of the cut k_lo
-  std::vector<float> margin_pre_, margin_suf_;  // kCompact only
+  Scratch<float> margin_pre_, margin_suf_;  // kCompact only
   uint32_t margin_base_ = 0;  // margin_pre_ / margin_suf_ index of the cut k_min
-  std::vector<uint32_t> tmp_;
+  Scratch<uint32_t> tmp_;
   std::vector<SplitItem> items_;
   SplitTreeScratch split_scratch_;
   std::vector<uint32_t> overlap_ids_;

@@ -116,6 +116,7 @@ Cut BestCut(const Cell& cell, const CostModel& cm) {
 struct SplitTreeScratch::Buffers {
   std::vector<Cell> cells;
   std::vector<uint32_t> pool;       // the cells' item lists, each a range
+  std::vector<uint32_t> upper;      // Split's upper items before they join the pool
   std::vector<uint32_t> leaves;     // cells that are not cut
   std::vector<uint32_t> node_cell;  // SplitNode -> its cell
   std::vector<uint32_t> stack, met;
@@ -245,33 +246,31 @@ class Builder {
     upper.region.min[cut.axis] = cut.pos;
     lower.ResetExtremes();
     upper.ResetExtremes();
-    // The children's items go to the end of the pool: lower's, then upper's after a gap closed below.
-    const uint32_t begin = b_.cells[ci].begin, end = b_.cells[ci].end, m = end - begin;
+    // The children's items go to the end of the pool: lower's, then upper's.
+    const uint32_t begin = b_.cells[ci].begin, end = b_.cells[ci].end;
     const uint32_t base = static_cast<uint32_t>(b_.pool.size());
-    b_.pool.resize(size_t{base} + 2 * size_t{m});
-    uint32_t* pool = b_.pool.data();
-    uint32_t nl = 0, nu = 0;
+    b_.pool.reserve(size_t{base} + 2 * size_t{end - begin});  // the parent's range stays put below
+    b_.upper.clear();
     // Closed cells: an item touching the cut meets both.
     for (uint32_t k = begin; k < end; ++k) {
-      const uint32_t i = pool[k];
+      const uint32_t i = b_.pool[k];
       const SplitItem& it = items_[i];
       const bool resolved = it.side != SplitItem::kFree;
       if (it.box.min[cut.axis] <= cut.pos) {
-        pool[base + nl++] = i;
+        b_.pool.push_back(i);
         lower.label |= SideBit(it.side);
         if (resolved) lower.AddExtremes(it);
       }
       if (it.box.max[cut.axis] >= cut.pos) {
-        pool[base + m + nu++] = i;
+        b_.upper.push_back(i);
         upper.label |= SideBit(it.side);
         if (resolved) upper.AddExtremes(it);
       }
     }
-    std::copy(pool + base + m, pool + base + m + nu, pool + base + nl);
-    b_.pool.resize(size_t{base} + nl + nu);
     lower.begin = base;
-    lower.end = upper.begin = base + nl;
-    upper.end = base + nl + nu;
+    lower.end = upper.begin = static_cast<uint32_t>(b_.pool.size());
+    b_.pool.insert(b_.pool.end(), b_.upper.begin(), b_.upper.end());
+    upper.end = static_cast<uint32_t>(b_.pool.size());
     const uint32_t node = b_.cells[ci].node;
     const uint32_t first = static_cast<uint32_t>(out_.size());
     out_[node].axis = static_cast<uint8_t>(cut.axis);
