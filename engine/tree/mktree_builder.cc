@@ -582,6 +582,7 @@ class SubtreeBuilder {
       const uint32_t k_last = only != nullptr ? tied[key].k_max : k_hi;
       const int list = 2 * w + key;
       uint32_t pa = 0, pb = 0;  // #(max_w <= a), #(min_w < b)
+      bool placed = false;
       uint64_t left_bytes = 0;  // encoded bytes of the first k objects
       if (fill_aware)
         for (uint32_t i = 0; i + 1 < k_first; ++i) left_bytes += rec_[order[t.lo + i]].encoded_bytes;
@@ -592,6 +593,11 @@ class SubtreeBuilder {
         const float b = key == 0 ? prefix_max_[k - window_base_] : sorted_max_[k - 1];
         uint32_t sm = 0;
         if (a < b) {
+          if (!placed) {  // first use: a binary search instead of walking past the first ~k_lo objects
+            pa = static_cast<uint32_t>(std::upper_bound(&sorted_max_[0], &sorted_max_[0] + n, a) - &sorted_max_[0]);
+            pb = static_cast<uint32_t>(std::lower_bound(&sorted_min_[0], &sorted_min_[0] + n, b) - &sorted_min_[0]);
+            placed = true;
+          }
           // The cursors mostly move by 0-2 a step: two branch-free moves, then a loop that rarely runs
           // (+inf sentinels at [n] stop them).
           pa += sorted_max_[pa] <= a;
