@@ -12,11 +12,13 @@
 #include <fcntl.h>
 #include <hdf5.h>
 #include <unistd.h>
+#include <xxhash.h>
 
 #include <algorithm>
 #include <cerrno>
 #include <cstddef>
 #include <cstring>
+#include <memory>
 #include <mutex>
 
 #include "storage/byte_io.h"
@@ -311,12 +313,21 @@ uint64_t HeaderChecksum(const BuildParams& p, const CodecOptions& c, uint64_t pa
   w.Put<uint32_t>(kHdf5FormatVersion);
   return Checksum(b);
 }
+// XXH3 of the object leaves, name ends and names concatenated, streamed part by part (the same value,
+// without a copy of the whole table).
 uint64_t ObjectsChecksum(const ObjectTable& t) {
-  std::vector<uint8_t> b = EncodeObjectLeaves(t);
-  const std::vector<uint8_t> ends = EncodeObjectNameEnds(t);
-  b.insert(b.end(), ends.begin(), ends.end());
-  b.insert(b.end(), t.names.begin(), t.names.end());
-  return Checksum(b);
+  std::unique_ptr<XXH3_state_t, decltype(&XXH3_freeState)> state(XXH3_createState(), XXH3_freeState);
+  XXH3_64bits_reset(state.get());
+  {
+    const std::vector<uint8_t> b = EncodeObjectLeaves(t);
+    XXH3_64bits_update(state.get(), b.data(), b.size());
+  }
+  {
+    const std::vector<uint8_t> b = EncodeObjectNameEnds(t);
+    XXH3_64bits_update(state.get(), b.data(), b.size());
+  }
+  XXH3_64bits_update(state.get(), t.names.data(), t.names.size());
+  return XXH3_64bits_digest(state.get());
 }
 
 class Hdf5PageStore : public PageStore {
@@ -428,24 +439,34 @@ class Hdf5Writer : public StoreWriter::Impl {
     H5Id tree(H5Gcreate2(f, "tree", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose);
     if (!tree.ok()) return Status::IOError(path_ + ": creating /tree: " + Hdf5ErrorText());
 
-    std::vector<NodeRec> nodes;
-    for (const TreeNode& n : c.tree.nodes) nodes.push_back(ToRec(n));
-    H5Id node_mem = MakeCompound(NodeFields(), sizeof(NodeRec), false);
-    H5Id node_file = MakeCompound(NodeFields(), sizeof(NodeRec), true);
-    MKTREE_RETURN_IF_ERROR(WriteTable(tree.get(), "nodes", node_file.get(), node_mem.get(), nodes.data(), nodes.size(), path_));
-
-    std::vector<SplitRec> splits;
-    for (const SplitNode& s : c.tree.split_nodes)
-      splits.push_back({s.cut, {s.child[0], s.child[1]}, s.axis, static_cast<uint8_t>(s.label)});
-    H5Id split_mem = SplitType(false), split_file = SplitType(true);
-    MKTREE_RETURN_IF_ERROR(
-        WriteTable(tree.get(), "split_nodes", split_file.get(), split_mem.get(), splits.data(), splits.size(), path_));
-
-    std::vector<LeafRec> leaves;
-    for (const LeafInfo& l : c.tree.leaves) leaves.push_back(ToRec(l));
-    H5Id leaf_mem = MakeCompound(LeafFields(), sizeof(LeafRec), false);
-    H5Id leaf_file = MakeCompound(LeafFields(), sizeof(LeafRec), true);
-    MKTREE_RETURN_IF_ERROR(WriteTable(tree.get(), "leaves", leaf_file.get(), leaf_mem.get(), leaves.data(), leaves.size(), path_));
+    // Each table's records are freed once written (they copy the tree, which is in RAM already).
+    {
+      std::vector<NodeRec> nodes;
+      nodes.reserve(c.tree.nodes.size());
+      for (const TreeNode& n : c.tree.nodes) nodes.push_back(ToRec(n));
+      H5Id node_mem = MakeCompound(NodeFields(), sizeof(NodeRec), false);
+      H5Id node_file = MakeCompound(NodeFields(), sizeof(NodeRec), true);
+      MKTREE_RETURN_IF_ERROR(
+          WriteTable(tree.get(), "nodes", node_file.get(), node_mem.get(), nodes.data(), nodes.size(), path_));
+    }
+    {
+      std::vector<SplitRec> splits;
+      splits.reserve(c.tree.split_nodes.size());
+      for (const SplitNode& s : c.tree.split_nodes)
+        splits.push_back({s.cut, {s.child[0], s.child[1]}, s.axis, static_cast<uint8_t>(s.label)});
+      H5Id split_mem = SplitType(false), split_file = SplitType(true);
+      MKTREE_RETURN_IF_ERROR(WriteTable(tree.get(), "split_nodes", split_file.get(), split_mem.get(), splits.data(),
+                                        splits.size(), path_));
+    }
+    {
+      std::vector<LeafRec> leaves;
+      leaves.reserve(c.tree.leaves.size());
+      for (const LeafInfo& l : c.tree.leaves) leaves.push_back(ToRec(l));
+      H5Id leaf_mem = MakeCompound(LeafFields(), sizeof(LeafRec), false);
+      H5Id leaf_file = MakeCompound(LeafFields(), sizeof(LeafRec), true);
+      MKTREE_RETURN_IF_ERROR(
+          WriteTable(tree.get(), "leaves", leaf_file.get(), leaf_mem.get(), leaves.data(), leaves.size(), path_));
+    }
     // The leaf filter: 6 uint8 per object (quantized min x y z, max x y z), leaf by leaf.
     MKTREE_RETURN_IF_ERROR(WriteTable(tree.get(), "leaf_filter", H5T_STD_U8LE, H5T_NATIVE_UINT8,
                                       c.tree.leaf_filter.data(), c.tree.leaf_filter.size(), path_));
@@ -467,9 +488,15 @@ class Hdf5Writer : public StoreWriter::Impl {
     const uint64_t pages = store_->page_count(), objects = c.objects.size();
     const int32_t level = c.codec.zstd_level;
     const uint8_t shuffle = c.codec.shuffle ? 1 : 0;
-    const uint64_t sums[kChecksumCount] = {HeaderChecksum(c.params, c.codec, pages, objects), Checksum(EncodeNodes(c.tree.nodes)),
-                              Checksum(EncodeSplitNodes(c.tree.split_nodes)), Checksum(EncodeLeaves(c.tree.leaves)),
-                              ObjectsChecksum(c.objects), Checksum(c.stats_json), Checksum(c.tree.leaf_filter)};
+    // One encoded section alive at a time (an initializer list would keep every temporary to its end).
+    uint64_t sums[kChecksumCount];
+    sums[0] = HeaderChecksum(c.params, c.codec, pages, objects);
+    sums[1] = Checksum(EncodeNodes(c.tree.nodes));
+    sums[2] = Checksum(EncodeSplitNodes(c.tree.split_nodes));
+    sums[3] = Checksum(EncodeLeaves(c.tree.leaves));
+    sums[4] = ObjectsChecksum(c.objects);
+    sums[5] = Checksum(c.stats_json);
+    sums[6] = Checksum(c.tree.leaf_filter);
     const char* sum_names[kChecksumCount] = {"checksum_header",  "checksum_nodes",      "checksum_split_nodes",
                                              "checksum_leaves",  "checksum_objects",    "checksum_stats_json",
                                              "checksum_leaf_filter"};

@@ -124,15 +124,20 @@ class PagedFileWriter : public StoreWriter::Impl {
 
   Status Finish(const StoreContents& c) override {
     const uint64_t mem_page = store_.page_bytes();
-    const std::vector<uint8_t> sections[kSectionCount] = {
-        EncodeNodes(c.tree.nodes),
-        EncodeSplitNodes(c.tree.split_nodes),
-        EncodeLeaves(c.tree.leaves),
-        EncodeObjectLeaves(c.objects),
-        EncodeObjectNameEnds(c.objects),
-        std::vector<uint8_t>(c.objects.names.begin(), c.objects.names.end()),
-        std::vector<uint8_t>(c.stats_json.begin(), c.stats_json.end()),
-        c.tree.leaf_filter};
+    // Sections are encoded one at a time, each freed once written: the tree and object table are in RAM
+    // already, and at 10M objects an encoded copy of everything would be the build's peak.
+    auto encode = [&c](uint32_t i) -> std::vector<uint8_t> {
+      switch (i) {
+        case 0: return EncodeNodes(c.tree.nodes);
+        case 1: return EncodeSplitNodes(c.tree.split_nodes);
+        case 2: return EncodeLeaves(c.tree.leaves);
+        case 3: return EncodeObjectLeaves(c.objects);
+        case 4: return EncodeObjectNameEnds(c.objects);
+        case 5: return std::vector<uint8_t>(c.objects.names.begin(), c.objects.names.end());
+        case 6: return std::vector<uint8_t>(c.stats_json.begin(), c.stats_json.end());
+        default: return c.tree.leaf_filter;
+      }
+    };
 
     std::vector<uint8_t> header(mem_page, 0);
     uint8_t* h = header.data();
@@ -147,7 +152,7 @@ class PagedFileWriter : public StoreWriter::Impl {
 
     uint64_t offset = (1 + store_.page_count()) * mem_page;
     for (uint32_t i = 0; i < kSectionCount; ++i) {
-      const auto& s = sections[i];
+      const std::vector<uint8_t> s = encode(i);
       MKTREE_RETURN_IF_ERROR(PwriteFull(store_.fd(), s.data(), s.size(), offset, path_));
       uint8_t* e = h + kSectionTableOffset + 24 * i;
       Put<uint64_t>(e, offset);

@@ -176,7 +176,7 @@ Status StoreWriter::AppendObject(ObjectId id, uint32_t leaf, std::string_view na
   return Status::Ok();
 }
 
-Status StoreWriter::Commit(const MKTree& tree, const std::string& stats_json) {
+Status StoreWriter::Commit(MKTree tree, const std::string& stats_json) {
   if (done_) return Status::InvalidArgument(final_path_ + ": writer already committed");
   auto fail = [&](Status st) {
     done_ = true;
@@ -190,7 +190,7 @@ Status StoreWriter::Commit(const MKTree& tree, const std::string& stats_json) {
   StoreContents c;
   c.params = tree.params;
   c.codec = opts_.codec;
-  c.tree = tree;
+  c.tree = std::move(tree);
   c.objects = std::move(objects_);
   c.stats_json = stats_json;
   Status st = ValidateStructure(c.tree, c.objects, backend_->pages().page_count(), final_path_);

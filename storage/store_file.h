@@ -64,7 +64,8 @@ class StoreWriter {
   // tree.params page size == the store's), writes the tree, object table, parameters, codec, stats JSON
   // and the header with checksums; fsyncs; renames to final_path; fsyncs the directory. After Commit
   // (successful or not) the writer accepts no more calls.
-  Status Commit(const MKTree& tree, const std::string& stats_json);
+  // The tree is taken by value: move it in when it is not needed afterwards (it is not copied again).
+  Status Commit(MKTree tree, const std::string& stats_json);
 
   const std::string& final_path() const { return final_path_; }
   const std::string& temp_path() const { return temp_path_; }

@@ -215,7 +215,7 @@ Result<IngestReport> BuildStore(const std::vector<SceneOpener>& inputs, const st
     if (id % kProgressEvery == 0) progress(IngestStage::kWriteTable, id, report.objects);
   }
   progress(IngestStage::kWriteTable, report.objects, report.objects);
-  MKTREE_RETURN_IF_ERROR(writer.Commit(tree, result.stats.ToJson()));
+  MKTREE_RETURN_IF_ERROR(writer.Commit(std::move(tree), result.stats.ToJson()));
   report.write_seconds = Seconds(write_start);
 
   struct stat st {};
