@@ -7,12 +7,14 @@
 //   box0.5/2/8   boxes of side 0.5 m, 2 m and 8 m centred on seeded random points
 // For each: mean/p50/p99 pages read with a cold cache, the I/O floor ceil(T/B), mean leaves reached minus
 // leaves holding an answer, queries/s cold (engine cache emptied before each query; add --direct-io
-// for the OS cache too) and warm (64 MiB cache, second pass; its misses read through the OS page cache),
+// for the OS cache too) and warm (64 MiB cache unless --warm-cache-mib, second pass; its misses read
+// through the OS page cache),
 // the warm pass's cache hit rate, AABB and exact mode. Every AABB answer is cross-checked against
 // Boost.Geometry; a mismatch fails the run.
 //
 // Usage: query_bench [--objects N] [--seed S] [--queries Q] [--backend hdf5|pagefile] [--dir DIR]
 //                    [--direct-io] [--keep] [--reuse] [--only WORKLOAD] [--mode aabb|exact] [--warm-passes K]
+//                    [--warm-cache-mib M]
 //   --keep     keep the store; --reuse opens a kept store instead of building it (no build line)
 //   --only     run one workload (point, box0.5, box2, box8), --mode one mode: for perf record
 //   --warm-passes K  time K warm passes, and K Boost.Geometry passes, and report the fastest of each (on a
@@ -61,6 +63,7 @@ struct Args {
   std::string only;  // empty: every workload
   std::string mode;  // empty: both modes
   int warm_passes = 1;
+  uint64_t warm_cache_mib = 64;
 };
 
 struct Workload {
@@ -112,6 +115,7 @@ int main(int argc, char** argv) {
     else if (k == "--only") a.only = next();
     else if (k == "--mode") a.mode = next();
     else if (k == "--warm-passes") a.warm_passes = std::max(1, std::stoi(next()));
+    else if (k == "--warm-cache-mib") a.warm_cache_mib = std::stoull(next());
     else {
       std::fprintf(stderr, "unknown argument %s\n", k.c_str());
       return 2;
@@ -123,8 +127,10 @@ int main(int argc, char** argv) {
   std::printf("# query_bench: tanker objects=%llu seed=%llu queries/workload=%zu page=12 KiB direct_io=%d\n",
               static_cast<unsigned long long>(a.objects), static_cast<unsigned long long>(a.seed), a.queries,
               a.direct_io);
-  std::printf("# cores=%ld, cold = engine cache emptied before each query%s\n", sysconf(_SC_NPROCESSORS_ONLN),
-              a.direct_io ? " and O_DIRECT reads" : " (OS page cache not bypassed)");
+  std::printf("# cores=%ld, cold = engine cache emptied before each query%s; warm = %llu MiB cache, best of %d "
+              "passes\n",
+              sysconf(_SC_NPROCESSORS_ONLN), a.direct_io ? " and O_DIRECT reads" : " (OS page cache not bypassed)",
+              static_cast<unsigned long long>(a.warm_cache_mib), a.warm_passes);
 
   // Object AABBs for the peer and for query placement, streamed from the generator.
   std::vector<BValue> values;
@@ -217,7 +223,7 @@ int main(int argc, char** argv) {
     cold_opts.direct_io = a.direct_io;
     auto db = Database::Open(path, cold_opts);
     OpenOptions warm_opts;
-    warm_opts.cache_pages = (64ull << 20) / opts.store.params.mem_page();
+    warm_opts.cache_pages = (a.warm_cache_mib << 20) / opts.store.params.mem_page();
     auto warm = Database::Open(path, warm_opts);
     if (!db.ok() || !warm.ok()) {
       std::fprintf(stderr, "open: %s\n", (!db.ok() ? db.status() : warm.status()).ToString().c_str());
