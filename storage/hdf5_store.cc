@@ -439,34 +439,24 @@ class Hdf5Writer : public StoreWriter::Impl {
     H5Id tree(H5Gcreate2(f, "tree", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose);
     if (!tree.ok()) return Status::IOError(path_ + ": creating /tree: " + Hdf5ErrorText());
 
-    // Each table's records are freed once written (they copy the tree, which is in RAM already).
-    {
-      std::vector<NodeRec> nodes;
-      nodes.reserve(c.tree.nodes.size());
-      for (const TreeNode& n : c.tree.nodes) nodes.push_back(ToRec(n));
-      H5Id node_mem = MakeCompound(NodeFields(), sizeof(NodeRec), false);
-      H5Id node_file = MakeCompound(NodeFields(), sizeof(NodeRec), true);
-      MKTREE_RETURN_IF_ERROR(
-          WriteTable(tree.get(), "nodes", node_file.get(), node_mem.get(), nodes.data(), nodes.size(), path_));
-    }
-    {
-      std::vector<SplitRec> splits;
-      splits.reserve(c.tree.split_nodes.size());
-      for (const SplitNode& s : c.tree.split_nodes)
-        splits.push_back({s.cut, {s.child[0], s.child[1]}, s.axis, static_cast<uint8_t>(s.label)});
-      H5Id split_mem = SplitType(false), split_file = SplitType(true);
-      MKTREE_RETURN_IF_ERROR(WriteTable(tree.get(), "split_nodes", split_file.get(), split_mem.get(), splits.data(),
-                                        splits.size(), path_));
-    }
-    {
-      std::vector<LeafRec> leaves;
-      leaves.reserve(c.tree.leaves.size());
-      for (const LeafInfo& l : c.tree.leaves) leaves.push_back(ToRec(l));
-      H5Id leaf_mem = MakeCompound(LeafFields(), sizeof(LeafRec), false);
-      H5Id leaf_file = MakeCompound(LeafFields(), sizeof(LeafRec), true);
-      MKTREE_RETURN_IF_ERROR(
-          WriteTable(tree.get(), "leaves", leaf_file.get(), leaf_mem.get(), leaves.data(), leaves.size(), path_));
-    }
+    // Each table's records are converted, written and freed in turn (they copy the tree, in RAM already).
+    auto write_table = [&](const char* name, const auto& items, auto to_rec, const H5Id& file_type,
+                           const H5Id& mem_type) {
+      std::vector<decltype(to_rec(items.front()))> recs;
+      recs.reserve(items.size());
+      for (const auto& x : items) recs.push_back(to_rec(x));
+      return WriteTable(tree.get(), name, file_type.get(), mem_type.get(), recs.data(), recs.size(), path_);
+    };
+    MKTREE_RETURN_IF_ERROR(write_table(
+        "nodes", c.tree.nodes, [](const TreeNode& n) { return ToRec(n); },
+        MakeCompound(NodeFields(), sizeof(NodeRec), true), MakeCompound(NodeFields(), sizeof(NodeRec), false)));
+    MKTREE_RETURN_IF_ERROR(write_table(
+        "split_nodes", c.tree.split_nodes,
+        [](const SplitNode& n) { return SplitRec{n.cut, {n.child[0], n.child[1]}, n.axis, static_cast<uint8_t>(n.label)}; },
+        SplitType(true), SplitType(false)));
+    MKTREE_RETURN_IF_ERROR(write_table(
+        "leaves", c.tree.leaves, [](const LeafInfo& l) { return ToRec(l); },
+        MakeCompound(LeafFields(), sizeof(LeafRec), true), MakeCompound(LeafFields(), sizeof(LeafRec), false)));
     // The leaf filter: 6 uint8 per object (quantized min x y z, max x y z), leaf by leaf.
     MKTREE_RETURN_IF_ERROR(WriteTable(tree.get(), "leaf_filter", H5T_STD_U8LE, H5T_NATIVE_UINT8,
                                       c.tree.leaf_filter.data(), c.tree.leaf_filter.size(), path_));

@@ -71,23 +71,9 @@ class StoreDatabase final : public Database {
   Status QueryPoint(const Vec3d& p, QueryMode mode, std::vector<ObjectId>* hits,
                     QueryStats* stats) const override {
     if (!Finite(p)) return Status::InvalidArgument("point query with a non-finite coordinate");
-    QueryStats local;
-    QueryStats& s = stats ? *stats : local;
-    s.Reset();
-    hits->clear();
-    std::vector<uint32_t> leaves;
-    reader_->tree().RoutePoint(p, &leaves, &s);
-    auto in_box = [&](const ObjectEntryView& e) { return e.box.Contains(p); };
-    auto in_solid = [&](const ObjectEntryView& e) -> Result<bool> {
-      if (!e.box.Contains(p)) return false;
-      Mesh mesh;
-      MKTREE_RETURN_IF_ERROR(DecodeObjectMesh(e, &mesh));
-      return Classifier(e, mesh).Contains(p);
-    };
-    for (uint32_t leaf : leaves)
-      MKTREE_RETURN_IF_ERROR(mode == QueryMode::kAabb ? ScanLeaf(leaf, &s, in_box, hits)
-                                                      : ScanLeaf(leaf, &s, in_solid, hits));
-    return Finish(hits, &s);
+    return Answer([&](std::vector<uint32_t>* leaves, QueryStats* s) { reader_->tree().RoutePoint(p, leaves, s); },
+                  mode, [&](const ObjectEntryView& e) { return e.box.Contains(p); },
+                  [&](const SolidClassifier& solid) { return solid.Contains(p); }, hits, stats);
   }
 
   Status QueryBox(const Box3d& box, QueryMode mode, std::vector<ObjectId>* hits,
@@ -97,23 +83,9 @@ class StoreDatabase final : public Database {
         return Status::InvalidArgument("box query with a non-finite coordinate");
       if (box.min[i] > box.max[i]) return Status::InvalidArgument("box query with min > max");
     }
-    QueryStats local;
-    QueryStats& s = stats ? *stats : local;
-    s.Reset();
-    hits->clear();
-    std::vector<uint32_t> leaves;
-    reader_->tree().RouteBox(box, &leaves, &s);
-    auto meets_box = [&](const ObjectEntryView& e) { return e.box.Intersects(box); };
-    auto meets_solid = [&](const ObjectEntryView& e) -> Result<bool> {
-      if (!e.box.Intersects(box)) return false;
-      Mesh mesh;
-      MKTREE_RETURN_IF_ERROR(DecodeObjectMesh(e, &mesh));
-      return Classifier(e, mesh).MeetsBox(box);
-    };
-    for (uint32_t leaf : leaves)
-      MKTREE_RETURN_IF_ERROR(mode == QueryMode::kAabb ? ScanLeaf(leaf, &s, meets_box, hits)
-                                                      : ScanLeaf(leaf, &s, meets_solid, hits));
-    return Finish(hits, &s);
+    return Answer([&](std::vector<uint32_t>* leaves, QueryStats* s) { reader_->tree().RouteBox(box, leaves, s); },
+                  mode, [&](const ObjectEntryView& e) { return e.box.Intersects(box); },
+                  [&](const SolidClassifier& solid) { return solid.MeetsBox(box); }, hits, stats);
   }
 
   Status Run(const Query& q, QueryMode mode, QueryResult* out) const override {
@@ -189,6 +161,29 @@ class StoreDatabase final : public Database {
     }
     s->leaves_with_hits += hits->size() > before;
     return Status::Ok();
+  }
+
+  // One query: `route` lists the leaves to read; `meets_aabb` tests an entry's box (AABB mode, and the
+  // first test of exact mode); `meets_solid` tests the object's solid (exact mode).
+  template <typename Route, typename MeetsAabb, typename MeetsSolid>
+  Status Answer(Route&& route, QueryMode mode, MeetsAabb&& meets_aabb, MeetsSolid&& meets_solid,
+                std::vector<ObjectId>* hits, QueryStats* stats) const {
+    QueryStats local;
+    QueryStats& s = stats ? *stats : local;
+    s.Reset();
+    hits->clear();
+    std::vector<uint32_t> leaves;
+    route(&leaves, &s);
+    auto exact = [&](const ObjectEntryView& e) -> Result<bool> {
+      if (!meets_aabb(e)) return false;
+      Mesh mesh;
+      MKTREE_RETURN_IF_ERROR(DecodeObjectMesh(e, &mesh));
+      return meets_solid(Classifier(e, mesh));
+    };
+    for (uint32_t leaf : leaves)
+      MKTREE_RETURN_IF_ERROR(mode == QueryMode::kAabb ? ScanLeaf(leaf, &s, meets_aabb, hits)
+                                                      : ScanLeaf(leaf, &s, exact, hits));
+    return Finish(hits, &s);
   }
 
   static Status Finish(std::vector<ObjectId>* hits, QueryStats* s) {

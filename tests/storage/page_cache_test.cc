@@ -197,12 +197,18 @@ TEST(PageCacheTest, ReadErrorsAreReportedAndRetried) {
   ExpectInvariants(cache);
 }
 
-TEST(PageCacheTest, FlippedBytesAndShortReadsAreCorruptionNotWrongAnswers) {
-  MemoryPageStore mem(12288, "mem.mkt");
+// A small built store in memory behind a FaultyPageStore, and its leaf 1.
+class PageCacheFaultTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    ASSERT_TRUE(testing::BuildTestStore(testing::MakeObjects(200, 4), {}, BuildParams(), &mem, &built).ok());
+  }
+  MemoryPageStore mem{12288, "mem.mkt"};
   testing::BuiltStore built;
-  auto objects = testing::MakeObjects(200, 4);
-  ASSERT_TRUE(testing::BuildTestStore(objects, {}, BuildParams(), &mem, &built).ok());
-  FaultyPageStore faulty(&mem);
+  FaultyPageStore faulty{&mem};
+};
+
+TEST_F(PageCacheFaultTest, FlippedBytesAndShortReadsAreCorruptionNotWrongAnswers) {
   const LeafInfo& leaf = built.tree.leaves[1];
   auto parse = [&](PageCache& cache) -> Status {
     return ReadLeaf(cache, faulty.name(), 1, leaf, mem.page_bytes(), true, nullptr).status();
@@ -257,12 +263,7 @@ TEST(PageCacheTest, VerifiedFlagLastsAsLongAsTheCachedCopy) {
 
 // Checksums are verified once per load into the cache, yet a corrupt page is refused on every read, hit
 // or miss, and a clean page is never hashed again while it stays cached.
-TEST(PageCacheTest, ChecksumsAreVerifiedOncePerLoadAndCorruptPagesAlwaysRefused) {
-  MemoryPageStore mem(12288, "mem.mkt");
-  testing::BuiltStore built;
-  auto objects = testing::MakeObjects(200, 4);
-  ASSERT_TRUE(testing::BuildTestStore(objects, {}, BuildParams(), &mem, &built).ok());
-  FaultyPageStore faulty(&mem);
+TEST_F(PageCacheFaultTest, ChecksumsAreVerifiedOncePerLoadAndCorruptPagesAlwaysRefused) {
   const LeafInfo& leaf = built.tree.leaves[1];
   ASSERT_EQ(leaf.page_count, 1u);
   const uint64_t page_bytes = mem.page_bytes();
