@@ -26,7 +26,8 @@ constexpr size_t kMaxSpareFrames = 8;
 // the cache's mutex; `data` is written only by the loading thread before `loading` is cleared.
 struct PageFrame {
   uint64_t page = 0;
-  PageBuffer data;
+  const uint8_t* bytes = nullptr;  // the page: `data`, or the store's mapping of it
+  PageBuffer data;                 // allocated on the first miss the store cannot map
   int pins = 0;
   bool loading = true;
   bool failed = false;
@@ -57,7 +58,7 @@ void PageHandle::Release() {
   frame_ = nullptr;
   cache_ = nullptr;
 }
-const uint8_t* PageHandle::data() const { return frame_->data.get(); }
+const uint8_t* PageHandle::data() const { return frame_->bytes; }
 uint64_t PageHandle::page() const { return frame_->page; }
 bool PageHandle::verified() const { return frame_->verified.load(std::memory_order_acquire); }
 void PageHandle::MarkVerified() { frame_->verified.store(true, std::memory_order_release); }
@@ -74,7 +75,6 @@ PageFrame* PageCache::NewFrameLocked(uint64_t page) {
   PageFrame* f;
   if (spare_.empty()) {
     f = new PageFrame;
-    f->data = AllocatePage(store_->page_bytes());
   } else {
     f = spare_.back();
     spare_.pop_back();
@@ -139,8 +139,16 @@ Result<PageHandle> PageCache::Pin(uint64_t page, QueryStats* stats) {
   EvictLocked();  // keep resident <= max(capacity, pinned)
   lock.unlock();
 
-  // Read outside the lock so that other lookups (and misses on other pages) are not held up.
-  Status st = store_->ReadPage(page, f->data.get());
+  // Read outside the lock so that other lookups (and misses on other pages) are not held up. A mapped
+  // store needs no read: the miss still counts, as the page must come from the store (and be verified).
+  Status st;
+  if (const uint8_t* mapped = store_->MappedPage(page)) {
+    f->bytes = mapped;
+  } else {
+    if (!f->data) f->data = AllocatePage(store_->page_bytes());
+    f->bytes = f->data.get();
+    st = store_->ReadPage(page, f->data.get());
+  }
 
   lock.lock();
   f->loading = false;

@@ -28,6 +28,12 @@ class PageStore {
   virtual Status Sync() = 0;
   // The file (or "memory") the store lives in, for error messages.
   virtual const std::string& name() const = 0;
+  // Page `index` in place when the store maps its file read-only (a cache miss then copies nothing), or
+  // nullptr: read it with ReadPage. Valid as long as the store. REQUIRES index < page_count().
+  virtual const uint8_t* MappedPage(uint64_t index) const {
+    (void)index;
+    return nullptr;
+  }
 };
 
 }  // namespace mktree
