@@ -574,8 +574,6 @@ class SubtreeBuilder {
       if (only != nullptr) {
         if (tied[key].count == 0 || tied[key].key != *only) continue;
         PrefixSuffixMargins(t, order, tied[key].k_min, tied[key].k_max);
-      } else if (m.compact) {
-        PrefixSuffixMargins(t, order, k_lo, k_hi);
       }
       // The second kCompact pass looks at the tied cuts only.
       const uint32_t k_first = only != nullptr ? tied[key].k_min : k_lo;
@@ -633,7 +631,7 @@ class SubtreeBuilder {
         }
         if (only != nullptr && tie_key != *only) continue;
         Candidate c = MakeCandidate(list, k, n, a, b, sm, primary, waste, left_bytes, fill_aware);
-        if (m.compact) {
+        if (only != nullptr) {  // kCompact's margin pass: margins of the tied cuts were computed above
           c.margin = static_cast<float>(static_cast<double>(k) * margin_pre_[k - margin_base_] +
                                         static_cast<double>(n - k) * margin_suf_[k - margin_base_]);
         }
