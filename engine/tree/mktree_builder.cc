@@ -25,6 +25,8 @@ namespace {
 constexpr uint32_t kDepthGuard = 100;
 constexpr size_t kTrimBytes = size_t{8} << 20;
 constexpr double kGuardBalance = 0.25;
+// Cuts per block of the pruned candidate scan (ScanKeys).
+constexpr uint32_t kPruneBlock = 64;
 
 // Float -> uint32 whose unsigned order is the float order (for the radix sort).
 inline uint32_t SortableBits(float f) {
@@ -433,7 +435,7 @@ class SubtreeBuilder {
       if (!axis_ok[w]) continue;
       ListTies ties[2];
       GatherAxis(t, w, k_lo, k_hi);
-      ScanKeys(t, w, k_lo, k_hi, plain, nullptr, nullptr, ties);
+      ScanKeys(t, w, k_lo, k_hi, plain, nullptr, nullptr, ties, nullptr, nullptr, top);
       uint64_t local = std::numeric_limits<uint64_t>::max();
       uint32_t count = 0;
       for (const ListTies& lt : ties)
@@ -521,7 +523,9 @@ class SubtreeBuilder {
   void Sweep(const Task& t, int w, uint32_t k_lo, uint32_t k_hi, const Mode& m, Candidate* best,
              uint32_t* sm_min_out) {
     GatherAxis(t, w, k_lo, k_hi);
-    ScanKeys(t, w, k_lo, k_hi, m, best, sm_min_out);
+    const uint64_t bound = best->list >= 0 ? uint64_t{best->primary} << 32 | best->waste
+                                           : std::numeric_limits<uint64_t>::max();
+    ScanKeys(t, w, k_lo, k_hi, m, best, sm_min_out, nullptr, nullptr, nullptr, bound);
   }
 
   // The node's min_w in sorted order with the running max of max_w along it, and its max_w in sorted
@@ -553,21 +557,47 @@ class SubtreeBuilder {
     }
   }
 
+  // First index i >= from with arr[i] > x (upper) or arr[i] >= x (lower), by galloping forward: arr is
+  // sorted and arr[n] = +inf stops it; the answer is known to be >= from.
+  template <bool kUpper>
+  static uint32_t Gallop(const float* arr, uint32_t n, uint32_t from, float x) {
+    auto before = [x](float v) { return kUpper ? v <= x : v < x; };
+    uint32_t lo = from, hi = from, step = 1;
+    while (before(arr[hi])) {  // stops at the sentinel arr[n] at the latest
+      lo = hi + 1;
+      hi = std::min(n, hi + step);
+      step <<= 1;
+    }
+    const float* r = kUpper ? std::upper_bound(arr + lo, arr + hi, x) : std::lower_bound(arr + lo, arr + hi, x);
+    return static_cast<uint32_t>(r - arr);
+  }
+
   // Evaluates the candidates of both keys of axis w (GatherAxis(t, w) done). In O(n): along either order,
   // a(k) and b(k) never decrease, so |Sm| = #(min_w < b) - #(max_w <= a) is counted with two cursors
   // moving forward over the sorted min_w and max_w arrays.
   // ties (kCompact, margins not computed): per key, the candidates of best (primary, waste).
   // only (kCompact): evaluate only the candidates whose (primary, waste) is *only, with their margins
   // computed over the k ranges of tied[key].
+  // bound: a (primary, waste) key that the chosen candidate is known to reach; cuts that cannot reach it
+  // may be skipped (kSoa: the best so far; kCompact: `top`).
+  // Pruning (|Sm| ranks first): cut k's |Sm| is pb(k) - pa(k) (or 0), and both counts grow with k, so over
+  // a block of cuts [p, q] |Sm| >= pb(p) - pa(q). Both are found at every block's ends by galloping; a
+  // block whose bound exceeds the best key so far holds no candidate that wins or ties, and is skipped.
   void ScanKeys(const Task& t, int w, uint32_t k_lo, uint32_t k_hi, const Mode& m, Candidate* best,
                 uint32_t* sm_min_out, ListTies* ties = nullptr, const uint64_t* only = nullptr,
-                const ListTies* tied = nullptr) {
+                const ListTies* tied = nullptr, uint64_t bound = std::numeric_limits<uint64_t>::max()) {
     const bool fill_aware = m.fill_aware;
     const uint32_t n = t.hi - t.lo;
     const std::vector<uint32_t>& by_min = s_.lists[2 * w];
     const std::vector<uint32_t>& by_max = s_.lists[2 * w + 1];
     const uint64_t total_pages = Pages(t.bytes);
     const double slack = s_.tuning.fill_sm_slack + s_.tuning.fill_sm_slack_rel * m.sm_min;
+    const float* smin = sorted_min_.data();
+    const float* smax = sorted_max_.data();
+    // |Sm| ranks first (so a lower bound on it bounds the key) unless the fill slack zeroes it.
+    const bool prunable = !fill_aware && sm_min_out == nullptr && only == nullptr;
+    // Near the leaves with the default slack every |Sm| is within it: the key is the page waste alone.
+    const bool sm_free = fill_aware && sm_min_out == nullptr && only == nullptr && m.sm_min + slack >= n;
 
     for (int key = 0; key < 2; ++key) {
       const std::vector<uint32_t>& order = key == 0 ? by_min : by_max;
@@ -579,63 +609,115 @@ class SubtreeBuilder {
       const uint32_t k_first = only != nullptr ? tied[key].k_min : k_lo;
       const uint32_t k_last = only != nullptr ? tied[key].k_max : k_hi;
       const int list = 2 * w + key;
-      uint32_t pa = 0, pb = 0;  // #(max_w <= a), #(min_w < b)
-      bool placed = false;
+      auto a_of = [&](uint32_t k) { return key == 0 ? smin[k] : suffix_min_[k - window_base_]; };
+      auto b_of = [&](uint32_t k) { return key == 0 ? prefix_max_[k - window_base_] : smax[k - 1]; };
       uint64_t left_bytes = 0;  // encoded bytes of the first k objects
       if (fill_aware)
         for (uint32_t i = 0; i + 1 < k_first; ++i) left_bytes += rec_[order[t.lo + i]].encoded_bytes;
-      for (uint32_t k = k_first; k <= k_last; ++k) {
-        // Bytes only matter near the leaves (and are a random read per object, so not gathered above).
-        if (fill_aware) left_bytes += rec_[order[t.lo + k - 1]].encoded_bytes;
-        const float a = key == 0 ? sorted_min_[k] : suffix_min_[k - window_base_];
-        const float b = key == 0 ? prefix_max_[k - window_base_] : sorted_max_[k - 1];
-        uint32_t sm = 0;
-        if (a < b) {
-          if (!placed) {  // first use: a binary search instead of walking past the first ~k_lo objects
-            pa = static_cast<uint32_t>(std::upper_bound(&sorted_max_[0], &sorted_max_[0] + n, a) - &sorted_max_[0]);
-            pb = static_cast<uint32_t>(std::lower_bound(&sorted_min_[0], &sorted_min_[0] + n, b) - &sorted_min_[0]);
-            placed = true;
+
+      // Cuts [k_begin, k_end]; pa, pb: the counts at k_begin when `placed`.
+      auto eval = [&](uint32_t k_begin, uint32_t k_end, uint32_t pa, uint32_t pb, bool placed) {
+        for (uint32_t k = k_begin; k <= k_end; ++k) {
+          // Bytes only matter near the leaves (and are a random read per object, so not gathered above).
+          if (fill_aware) left_bytes += rec_[order[t.lo + k - 1]].encoded_bytes;
+          const float a = a_of(k);
+          const float b = b_of(k);
+          uint32_t sm = 0;
+          if (sm_free) {  // the key is the waste alone: |Sm| only for a cut that may win or tie
+            const uint64_t waste_key = Pages(left_bytes) + Pages(t.bytes - left_bytes) - total_pages;
+            if (ties != nullptr) {
+              ListTies& lt = ties[key];
+              if (lt.count != 0 && waste_key >= lt.key) {
+                if (waste_key == lt.key) ++lt.count, lt.k_max = k;
+                continue;
+              }
+            } else if (waste_key > bound) {
+              continue;
+            }
+            if (a < b) {
+              pa = Gallop<true>(smax, n, pa, a);
+              pb = Gallop<false>(smin, n, pb, b);
+              sm = pb - pa;
+            }
+          } else if (a < b) {
+            if (!placed) {  // first use: a binary search instead of walking past the first ~k_lo objects
+              pa = static_cast<uint32_t>(std::upper_bound(smax, smax + n, a) - smax);
+              pb = static_cast<uint32_t>(std::lower_bound(smin, smin + n, b) - smin);
+              placed = true;
+            }
+            // The cursors mostly move by 0-2 a step: two branch-free moves, then a loop that rarely runs
+            // (+inf sentinels at [n] stop them).
+            pa += smax[pa] <= a;
+            pa += smax[pa] <= a;
+            while (smax[pa] <= a) ++pa;
+            pb += smin[pb] < b;
+            pb += smin[pb] < b;
+            while (smin[pb] < b) ++pb;
+            sm = pb - pa;
           }
-          // The cursors mostly move by 0-2 a step: two branch-free moves, then a loop that rarely runs
-          // (+inf sentinels at [n] stop them).
-          pa += sorted_max_[pa] <= a;
-          pa += sorted_max_[pa] <= a;
-          while (sorted_max_[pa] <= a) ++pa;
-          pb += sorted_min_[pb] < b;
-          pb += sorted_min_[pb] < b;
-          while (sorted_min_[pb] < b) ++pb;
-          sm = pb - pa;
-        }
-        if (sm_min_out != nullptr) {
-          *sm_min_out = std::min(*sm_min_out, sm);
-          continue;
-        }
-        uint32_t primary = sm, waste = 0;
-        if (fill_aware) {
-          if (sm <= m.sm_min + slack) primary = 0;
-          waste = static_cast<uint32_t>(Pages(left_bytes) + Pages(t.bytes - left_bytes) - total_pages);
-        }
-        const uint64_t tie_key = uint64_t{primary} << 32 | waste;
-        if (ties != nullptr) {  // a Candidate only for a new best: most cuts are not
-          ListTies& lt = ties[key];
-          if (lt.count == 0 || tie_key < lt.key) {
-            lt.key = tie_key;
-            lt.count = 1;
-            lt.k_min = lt.k_max = k;
-            lt.first = MakeCandidate(list, k, n, a, b, sm, primary, waste, left_bytes, fill_aware);
-          } else if (tie_key == lt.key) {
-            ++lt.count;
-            lt.k_max = k;
+          if (sm_min_out != nullptr) {
+            *sm_min_out = std::min(*sm_min_out, sm);
+            continue;
           }
-          continue;
+          uint32_t primary = sm, waste = 0;
+          if (fill_aware) {
+            if (sm <= m.sm_min + slack) primary = 0;
+            waste = static_cast<uint32_t>(Pages(left_bytes) + Pages(t.bytes - left_bytes) - total_pages);
+          }
+          const uint64_t tie_key = uint64_t{primary} << 32 | waste;
+          if (ties != nullptr) {  // a Candidate only for a new best: most cuts are not
+            ListTies& lt = ties[key];
+            if (lt.count == 0 || tie_key < lt.key) {
+              lt.key = tie_key;
+              lt.count = 1;
+              lt.k_min = lt.k_max = k;
+              lt.first = MakeCandidate(list, k, n, a, b, sm, primary, waste, left_bytes, fill_aware);
+              bound = std::min(bound, tie_key);
+            } else if (tie_key == lt.key) {
+              ++lt.count;
+              lt.k_max = k;
+            }
+            continue;
+          }
+          if (only != nullptr && tie_key != *only) continue;
+          Candidate c = MakeCandidate(list, k, n, a, b, sm, primary, waste, left_bytes, fill_aware);
+          if (only != nullptr) {  // kCompact's margin pass: margins of the tied cuts were computed above
+            c.margin = static_cast<float>(static_cast<double>(k) * margin_pre_[k - margin_base_] +
+                                          static_cast<double>(n - k) * margin_suf_[k - margin_base_]);
+          }
+          if (c.BetterThan(*best)) {
+            *best = c;
+            bound = std::min(bound, tie_key);
+          }
         }
-        if (only != nullptr && tie_key != *only) continue;
-        Candidate c = MakeCandidate(list, k, n, a, b, sm, primary, waste, left_bytes, fill_aware);
-        if (only != nullptr) {  // kCompact's margin pass: margins of the tied cuts were computed above
-          c.margin = static_cast<float>(static_cast<double>(k) * margin_pre_[k - margin_base_] +
-                                        static_cast<double>(n - k) * margin_suf_[k - margin_base_]);
-        }
-        if (c.BetterThan(*best)) *best = c;
+      };
+
+      const uint32_t cuts = k_last - k_first + 1;
+      if (!prunable || cuts < 2 * kPruneBlock) {
+        eval(k_first, k_last, 0, 0, false);
+        continue;
+      }
+      // Block ends p_j = k_first + j * kPruneBlock (j < blocks) and p_blocks = k_last; the counts there,
+      // and the exact |Sm| of those cuts to tighten the bound before any block is scanned.
+      const uint32_t blocks = (cuts + kPruneBlock - 1) / kPruneBlock;
+      block_pa_.Fit(blocks + 1);
+      block_pb_.Fit(blocks + 1);
+      uint32_t pa = 0, pb = 0;
+      for (uint32_t j = 0; j <= blocks; ++j) {
+        const uint32_t p = j < blocks ? k_first + j * kPruneBlock : k_last;
+        pa = Gallop<true>(smax, n, pa, a_of(p));
+        pb = Gallop<false>(smin, n, pb, b_of(p));
+        block_pa_[j] = pa;
+        block_pb_[j] = pb;
+        if (pb > pa) bound = std::min(bound, uint64_t{pb - pa} << 32);
+        else bound = 0;  // a cut with |Sm| = 0: only such cuts can tie
+      }
+      for (uint32_t j = 0; j < blocks; ++j) {
+        const uint32_t p = k_first + j * kPruneBlock;
+        const uint32_t q = j + 1 < blocks ? p + kPruneBlock - 1 : k_last;
+        const uint32_t lower = block_pb_[j] > block_pa_[j + 1] ? block_pb_[j] - block_pa_[j + 1] : 0;
+        if ((uint64_t{lower} << 32) > bound) continue;
+        eval(p, q, block_pa_[j], block_pb_[j], true);
       }
     }
   }
@@ -664,6 +746,7 @@ class SubtreeBuilder {
   Scratch<float> sorted_min_, prefix_max_, sorted_max_, suffix_min_;
   uint32_t window_base_ = 0;  // prefix_max_ / suffix_min_ index of the cut k_lo
   Scratch<float> margin_pre_, margin_suf_;  // kCompact only
+  Scratch<uint32_t> block_pa_, block_pb_;   // ScanKeys' counts at its block ends
   uint32_t margin_base_ = 0;  // margin_pre_ / margin_suf_ index of the cut k_min
   Scratch<uint32_t> tmp_;
   std::vector<SplitItem> items_;
