@@ -25,6 +25,8 @@ namespace {
 constexpr uint32_t kDepthGuard = 100;
 constexpr size_t kTrimBytes = size_t{8} << 20;
 constexpr double kGuardBalance = 0.25;
+// How far ahead record reads in key order are prefetched.
+constexpr uint32_t kPrefetch = 16;
 // Cuts per block of the pruned candidate scan (ScanKeys).
 constexpr uint32_t kPruneBlock = 64;
 
@@ -35,17 +37,27 @@ inline uint32_t SortableBits(float f) {
 }
 
 // LSD radix sort of (key << 32 | payload) pairs by the key's top 32 bits, stable: 3 passes of 11/11/10 bits,
-// far faster than an indirect comparison sort at 10M.
+// far faster than an indirect comparison sort at 10M. The three digits are counted in one pass.
 void RadixSortByHighWord(std::vector<uint64_t>* a, std::vector<uint64_t>* b) {
   b->resize(a->size());
   constexpr int kShift[3] = {32, 43, 54};
-  constexpr int kBits[3] = {11, 11, 10};
+  constexpr size_t kBuckets = size_t{1} << 11;
+  std::vector<size_t> count(3 * kBuckets, 0);
+  for (uint64_t v : *a) {
+    ++count[(v >> 32) & 0x7ff];
+    ++count[kBuckets + ((v >> 43) & 0x7ff)];
+    ++count[2 * kBuckets + (v >> 54)];
+  }
   for (int pass = 0; pass < 3; ++pass) {
-    const uint64_t mask = (uint64_t{1} << kBits[pass]) - 1;
-    std::vector<size_t> count(mask + 2, 0);
-    for (uint64_t v : *a) ++count[((v >> kShift[pass]) & mask) + 1];
-    for (size_t i = 1; i < count.size(); ++i) count[i] += count[i - 1];
-    for (uint64_t v : *a) (*b)[count[(v >> kShift[pass]) & mask]++] = v;
+    size_t* c = count.data() + pass * kBuckets;
+    size_t sum = 0;
+    for (size_t i = 0; i < kBuckets; ++i) {
+      const size_t here = c[i];
+      c[i] = sum;
+      sum += here;
+    }
+    const int shift = kShift[pass];
+    for (uint64_t v : *a) (*b)[c[(v >> shift) & 0x7ff]++] = v;
     a->swap(*b);
   }
 }
@@ -541,8 +553,11 @@ class SubtreeBuilder {
     sorted_max_.Fit(n + 1);
     suffix_min_.Fit(k_hi - k_lo + 1);
     sorted_min_[n] = sorted_max_[n] = std::numeric_limits<float>::infinity();
+    // The records are read in key order, scattered over RAM in large nodes: fetched kPrefetch ahead.
+    const uint32_t ahead = std::min<uint32_t>(kPrefetch, n);
     float run = -std::numeric_limits<float>::infinity();
     for (uint32_t i = 0; i < n; ++i) {
+      if (i + ahead < n) __builtin_prefetch(&rec_[by_min[t.lo + i + ahead]]);
       const Box3f& bx = rec_[by_min[t.lo + i]].box;
       sorted_min_[i] = bx.min[w];
       run = std::max(run, bx.max[w]);
@@ -550,6 +565,7 @@ class SubtreeBuilder {
     }
     run = std::numeric_limits<float>::infinity();
     for (uint32_t i = n; i-- > 0;) {
+      if (i >= ahead) __builtin_prefetch(&rec_[by_max[t.lo + i - ahead]]);
       const Box3f& bx = rec_[by_max[t.lo + i]].box;
       sorted_max_[i] = bx.max[w];
       run = std::min(run, bx.min[w]);
@@ -572,6 +588,23 @@ class SubtreeBuilder {
     return static_cast<uint32_t>(r - arr);
   }
 
+  // Page waste Pages(left) + Pages(total - left) - Pages(total) of cuts in increasing order of their left
+  // bytes, without a division per cut: the page counts only step where the bytes cross a page.
+  class PageSplit {
+   public:
+    PageSplit(uint64_t left, uint64_t total, uint64_t mem_page)
+        : total_(total), cap_(PagePayloadCapacity(mem_page)), left_pages_(PagesForLeaf(left, mem_page)),
+          right_pages_(PagesForLeaf(total - left, mem_page)), total_pages_(PagesForLeaf(total, mem_page)) {}
+    uint64_t Waste(uint64_t left) {  // left never decreases from one call to the next
+      while (LeafPayloadBytes(left) > left_pages_ * cap_) ++left_pages_;
+      while (right_pages_ > 1 && LeafPayloadBytes(total_ - left) <= (right_pages_ - 1) * cap_) --right_pages_;
+      return left_pages_ + right_pages_ - total_pages_;
+    }
+
+   private:
+    uint64_t total_, cap_, left_pages_, right_pages_, total_pages_;
+  };
+
   // Evaluates the candidates of both keys of axis w (GatherAxis(t, w) done). In O(n): along either order,
   // a(k) and b(k) never decrease, so |Sm| = #(min_w < b) - #(max_w <= a) is counted with two cursors
   // moving forward over the sorted min_w and max_w arrays.
@@ -590,14 +623,13 @@ class SubtreeBuilder {
     const uint32_t n = t.hi - t.lo;
     const std::vector<uint32_t>& by_min = s_.lists[2 * w];
     const std::vector<uint32_t>& by_max = s_.lists[2 * w + 1];
-    const uint64_t total_pages = Pages(t.bytes);
     const double slack = s_.tuning.fill_sm_slack + s_.tuning.fill_sm_slack_rel * m.sm_min;
     const float* smin = sorted_min_.data();
     const float* smax = sorted_max_.data();
     // |Sm| ranks first (so a lower bound on it bounds the key) unless the fill slack zeroes it.
     const bool prunable = !fill_aware && sm_min_out == nullptr && only == nullptr;
     // Near the leaves with the default slack every |Sm| is within it: the key is the page waste alone.
-    const bool sm_free = fill_aware && sm_min_out == nullptr && only == nullptr && m.sm_min + slack >= n;
+    const bool sm_free = fill_aware && sm_min_out == nullptr && m.sm_min + slack >= n;
 
     for (int key = 0; key < 2; ++key) {
       const std::vector<uint32_t>& order = key == 0 ? by_min : by_max;
@@ -615,17 +647,27 @@ class SubtreeBuilder {
       if (fill_aware)
         for (uint32_t i = 0; i + 1 < k_first; ++i) left_bytes += rec_[order[t.lo + i]].encoded_bytes;
 
+      PageSplit pages(left_bytes, t.bytes, mem_page_);
+
       // Cuts [k_begin, k_end]; pa, pb: the counts at k_begin when `placed`.
       auto eval = [&](uint32_t k_begin, uint32_t k_end, uint32_t pa, uint32_t pb, bool placed) {
         for (uint32_t k = k_begin; k <= k_end; ++k) {
           // Bytes only matter near the leaves (and are a random read per object, so not gathered above).
-          if (fill_aware) left_bytes += rec_[order[t.lo + k - 1]].encoded_bytes;
+          uint64_t waste_key = 0;
+          if (fill_aware) {
+            left_bytes += rec_[order[t.lo + k - 1]].encoded_bytes;
+            waste_key = pages.Waste(left_bytes);
+          }
           const float a = a_of(k);
           const float b = b_of(k);
           uint32_t sm = 0;
+          float margin = 0;
           if (sm_free) {  // the key is the waste alone: |Sm| only for a cut that may win or tie
-            const uint64_t waste_key = Pages(left_bytes) + Pages(t.bytes - left_bytes) - total_pages;
-            if (ties != nullptr) {
+            if (only != nullptr) {  // all tie with `best` on the key: the margin ranks next
+              if (waste_key != *only) continue;
+              margin = CutMargin(k, n);
+              if (best->list >= 0 && margin > best->margin) continue;
+            } else if (ties != nullptr) {
               ListTies& lt = ties[key];
               if (lt.count != 0 && waste_key >= lt.key) {
                 if (waste_key == lt.key) ++lt.count, lt.k_max = k;
@@ -662,7 +704,7 @@ class SubtreeBuilder {
           uint32_t primary = sm, waste = 0;
           if (fill_aware) {
             if (sm <= m.sm_min + slack) primary = 0;
-            waste = static_cast<uint32_t>(Pages(left_bytes) + Pages(t.bytes - left_bytes) - total_pages);
+            waste = static_cast<uint32_t>(waste_key);
           }
           const uint64_t tie_key = uint64_t{primary} << 32 | waste;
           if (ties != nullptr) {  // a Candidate only for a new best: most cuts are not
@@ -681,10 +723,7 @@ class SubtreeBuilder {
           }
           if (only != nullptr && tie_key != *only) continue;
           Candidate c = MakeCandidate(list, k, n, a, b, sm, primary, waste, left_bytes, fill_aware);
-          if (only != nullptr) {  // kCompact's margin pass: margins of the tied cuts were computed above
-            c.margin = static_cast<float>(static_cast<double>(k) * margin_pre_[k - margin_base_] +
-                                          static_cast<double>(n - k) * margin_suf_[k - margin_base_]);
-          }
+          if (only != nullptr) c.margin = sm_free ? margin : CutMargin(k, n);
           if (c.BetterThan(*best)) {
             *best = c;
             bound = std::min(bound, tie_key);
@@ -720,6 +759,12 @@ class SubtreeBuilder {
         eval(p, q, block_pa_[j], block_pb_[j], true);
       }
     }
+  }
+
+  // kCompact's margin pass: N1 x margin(R(Sn1)) + N2 x margin(R(Sn2)) of cut k (PrefixSuffixMargins done).
+  float CutMargin(uint32_t k, uint32_t n) const {
+    return static_cast<float>(static_cast<double>(k) * margin_pre_[k - margin_base_] +
+                              static_cast<double>(n - k) * margin_suf_[k - margin_base_]);
   }
 
   static Candidate MakeCandidate(int list, uint32_t k, uint32_t n, float a, float b, uint32_t sm, uint32_t primary,
