@@ -25,8 +25,10 @@ namespace {
 constexpr uint32_t kDepthGuard = 100;
 constexpr size_t kTrimBytes = size_t{8} << 20;
 constexpr double kGuardBalance = 0.25;
-// How far ahead record reads in key order are prefetched.
+// How far ahead record reads in key order are prefetched, in nodes of at least kPrefetchObjects (smaller
+// ones are in cache).
 constexpr uint32_t kPrefetch = 16;
+constexpr uint32_t kPrefetchObjects = 8192;
 // Cuts per block of the pruned candidate scan (ScanKeys).
 constexpr uint32_t kPruneBlock = 64;
 
@@ -199,6 +201,7 @@ struct Task {
   uint32_t parent = kNoIndex;  // local node index of the parent, kNoIndex for a subtree root
   int slot = 0;
   uint64_t bytes = 0;          // sum of encoded_bytes of the objects
+  bool leaf_lists_only = false;  // a leaf whose range is sorted in list 0 (and the split axis' lists) only
 };
 
 struct Candidate {
@@ -265,9 +268,13 @@ class SubtreeBuilder {
     const uint32_t me = static_cast<uint32_t>(out->nodes.size());
     if (t.parent != kNoIndex) out->nodes[t.parent].child[t.slot] = me;
     TreeNode node;
-    for (int w = 0; w < 3; ++w) {
-      node.box.min[w] = rec_[s_.lists[2 * w][t.lo]].box.min[w];
-      node.box.max[w] = rec_[s_.lists[2 * w + 1][t.hi - 1]].box.max[w];
+    if (t.leaf_lists_only) {
+      for (uint32_t i = t.lo; i < t.hi; ++i) node.box.Extend(rec_[s_.lists[0][i]].box);
+    } else {
+      for (int w = 0; w < 3; ++w) {
+        node.box.min[w] = rec_[s_.lists[2 * w][t.lo]].box.min[w];
+        node.box.max[w] = rec_[s_.lists[2 * w + 1][t.hi - 1]].box.max[w];
+      }
     }
     node.depth = static_cast<uint8_t>(std::min<uint32_t>(t.depth, 255));
     if (n == 1 || FitsInOnePage(t.bytes, mem_page_)) {
@@ -338,12 +345,27 @@ class SubtreeBuilder {
       }
     }
 
-    // Stable in-place partition of the six lists by side, keeping each half sorted by its key.
+    // The children's sizes. When both are leaves, only list 0 (their objects) and the split axis' lists
+    // (the planes below) are partitioned: a leaf takes its box from its objects.
     uint64_t left_bytes = 0;
     uint32_t n1 = 0;
+    {
+      const uint32_t* v = s_.lists[0].data();
+      const uint8_t* side = s_.side.data();
+      for (uint32_t i = t.lo; i < t.hi; ++i) {
+        const uint32_t idx = v[i];
+        const uint32_t r = side[idx];
+        n1 += r ^ 1;
+        left_bytes += rec_[idx].encoded_bytes & (r - 1);  // r = 0: all bits
+      }
+    }
+    auto is_leaf = [&](uint32_t count, uint64_t bytes) { return count == 1 || FitsInOnePage(bytes, mem_page_); };
+    const bool leaf_kids = is_leaf(n1, left_bytes) && is_leaf(n - n1, t.bytes - left_bytes);
+    // Stable in-place partition of the lists by side, keeping each half sorted by its key.
     tmp_.Fit(n);
     // Branch-free: the sides of neighbours in key order are not predictable.
     for (int l = 0; l < 6; ++l) {
+      if (leaf_kids && l != 0 && l / 2 != w) continue;
       uint32_t* v = s_.lists[l].data();
       uint32_t* right = tmp_.data();
       const uint8_t* side = s_.side.data();
@@ -357,9 +379,7 @@ class SubtreeBuilder {
         tpos += r;
       }
       std::copy(right, right + tpos, v + wpos);
-      n1 = wpos - t.lo;
     }
-    for (uint32_t i = t.lo; i < t.lo + n1; ++i) left_bytes += rec_[s_.lists[0][i]].encoded_bytes;
     // The stored planes are those of the final children (free objects may have narrowed the slab).
     node.a = rec_[s_.lists[2 * w][t.lo + n1]].box.min[w];
     node.b = rec_[s_.lists[2 * w + 1][t.lo + n1 - 1]].box.max[w];
@@ -385,8 +405,8 @@ class SubtreeBuilder {
     out->overlap.push_back(sm);
     if (track_split_count_)
       out->split_count.push_back(node.split_root == kNoIndex ? 0 : static_cast<uint32_t>(split.size()));
-    kids[0] = Task{t.lo, t.lo + n1, t.depth + 1, me, 0, left_bytes};
-    kids[1] = Task{t.lo + n1, t.hi, t.depth + 1, me, 1, t.bytes - left_bytes};
+    kids[0] = Task{t.lo, t.lo + n1, t.depth + 1, me, 0, left_bytes, leaf_kids};
+    kids[1] = Task{t.lo + n1, t.hi, t.depth + 1, me, 1, t.bytes - left_bytes, leaf_kids};
     return true;
   }
 
@@ -544,8 +564,6 @@ class SubtreeBuilder {
   // order with the suffix min of min_w along it: all ScanKeys needs of axis w.
   void GatherAxis(const Task& t, int w, uint32_t k_lo, uint32_t k_hi) {
     const uint32_t n = t.hi - t.lo;
-    const std::vector<uint32_t>& by_min = s_.lists[2 * w];
-    const std::vector<uint32_t>& by_max = s_.lists[2 * w + 1];
     // The running extremes are kept for the cuts k in [k_lo, k_hi] only: less scratch at the root.
     window_base_ = k_lo;
     sorted_min_.Fit(n + 1);
@@ -553,24 +571,47 @@ class SubtreeBuilder {
     sorted_max_.Fit(n + 1);
     suffix_min_.Fit(k_hi - k_lo + 1);
     sorted_min_[n] = sorted_max_[n] = std::numeric_limits<float>::infinity();
-    // The records are read in key order, scattered over RAM in large nodes: fetched kPrefetch ahead.
-    const uint32_t ahead = std::min<uint32_t>(kPrefetch, n);
+    if (n >= kPrefetchObjects)
+      GatherRuns<true>(t, w, k_lo, k_hi);
+    else
+      GatherRuns<false>(t, w, k_lo, k_hi);
+  }
+
+  // GatherAxis' two sweeps, each in three stretches (before, in and after the cut window) so that the
+  // window test is not made per object. kFar: the records are read in key order, scattered over RAM in
+  // large nodes, so each is prefetched kPrefetch objects ahead.
+  template <bool kFar>
+  void GatherRuns(const Task& t, int w, uint32_t k_lo, uint32_t k_hi) {
+    const uint32_t n = t.hi - t.lo;
+    const BuildRecord* rec = rec_.data();
+    const uint32_t* by_min = s_.lists[2 * w].data() + t.lo;
+    const uint32_t* by_max = s_.lists[2 * w + 1].data() + t.lo;
+    float* smin = sorted_min_.data();
+    float* smax = sorted_max_.data();
+    float* pmax = prefix_max_.data();  // [k - k_lo]: max of max_w over the first k objects
+    float* smn = suffix_min_.data();   // [k - k_lo]: min of min_w over objects k..n-1
     float run = -std::numeric_limits<float>::infinity();
-    for (uint32_t i = 0; i < n; ++i) {
-      if (i + ahead < n) __builtin_prefetch(&rec_[by_min[t.lo + i + ahead]]);
-      const Box3f& bx = rec_[by_min[t.lo + i]].box;
-      sorted_min_[i] = bx.min[w];
+    auto up = [&](uint32_t i) {
+      if (kFar && i + kPrefetch < n) __builtin_prefetch(&rec[by_min[i + kPrefetch]]);
+      const Box3f& bx = rec[by_min[i]].box;
+      smin[i] = bx.min[w];
       run = std::max(run, bx.max[w]);
-      if (i + 1 >= k_lo && i < k_hi) prefix_max_[i + 1 - k_lo] = run;
-    }
+    };
+    uint32_t i = 0;
+    for (; i + 1 < k_lo; ++i) up(i);
+    for (; i < k_hi; ++i) up(i), pmax[i + 1 - k_lo] = run;
+    for (; i < n; ++i) up(i);
     run = std::numeric_limits<float>::infinity();
-    for (uint32_t i = n; i-- > 0;) {
-      if (i >= ahead) __builtin_prefetch(&rec_[by_max[t.lo + i - ahead]]);
-      const Box3f& bx = rec_[by_max[t.lo + i]].box;
-      sorted_max_[i] = bx.max[w];
+    auto down = [&](uint32_t i) {
+      if (kFar && i >= kPrefetch) __builtin_prefetch(&rec[by_max[i - kPrefetch]]);
+      const Box3f& bx = rec[by_max[i]].box;
+      smax[i] = bx.max[w];
       run = std::min(run, bx.min[w]);
-      if (i >= k_lo && i <= k_hi) suffix_min_[i - k_lo] = run;
-    }
+    };
+    i = n;
+    for (; i > k_hi + 1;) down(--i);
+    for (; i > k_lo;) --i, down(i), smn[i - k_lo] = run;
+    for (; i > 0;) down(--i);
   }
 
   // First index i >= from with arr[i] > x (upper) or arr[i] >= x (lower), by galloping forward: arr is
