@@ -11,6 +11,7 @@
 #include <mutex>
 #include <string>
 #include <thread>
+#include <type_traits>
 
 #ifdef __GLIBC__
 #include <malloc.h>
@@ -88,6 +89,19 @@ void SortByKey(const std::vector<BuildRecord>& rec, const std::vector<uint32_t>&
   for (size_t i = 0; i < n; ++i) (*out)[i] = static_cast<uint32_t>((*a)[i]);
 }
 
+// fn(lo, hi) over [0, n) in two halves, the first on a thread of its own when there are threads to spare
+// and enough objects to pay for one.
+template <typename Fn>
+void RunOnHalves(size_t n, int threads, Fn&& fn) {
+  if (threads < 2 || n < (size_t{1} << 16)) {
+    fn(size_t{0}, n);
+    return;
+  }
+  std::thread first([&] { fn(size_t{0}, n / 2); });
+  fn(n / 2, n);
+  first.join();
+}
+
 // Spreads the low 10 bits of v to every third bit (Morton code helper).
 inline uint32_t Spread3(uint32_t v) {
   v &= 0x3ff;
@@ -103,34 +117,42 @@ inline uint32_t Spread3(uint32_t v) {
 // input order misses the cache all the way down the tree. Frees `records`; *ids: the object ids in the
 // same layout; *index_of_input: the record index of the object at each input position.
 std::vector<BuildRecord> SpatialLayout(std::vector<ObjectRecord> records, std::vector<ObjectId>* ids,
-                                       std::vector<uint32_t>* index_of_input) {
+                                       std::vector<uint32_t>* index_of_input, int threads) {
   const size_t n = records.size();
-  Box3f all;
-  for (const ObjectRecord& r : records) all.Extend(r.box);
+  Box3f half_box[2];
+  RunOnHalves(n, threads, [&](size_t lo, size_t hi) {
+    for (size_t i = lo; i < hi; ++i) half_box[lo == 0 ? 0 : 1].Extend(records[i].box);
+  });
+  Box3f all = half_box[0];
+  all.Extend(half_box[1]);
   std::vector<uint64_t> a(n), b;
-  for (size_t i = 0; i < n; ++i) {
-    const Box3f& bx = records[i].box;
-    uint32_t code = 0;
-    for (int w = 0; w < 3; ++w) {
-      const double ext = double{all.max[w]} - all.min[w];
-      const double c = 0.5 * (double{bx.min[w]} + bx.max[w]) - all.min[w];
-      const uint32_t q = ext > 0 ? static_cast<uint32_t>(std::clamp(c / ext * 1023.0, 0.0, 1023.0)) : 0;
-      code |= Spread3(q) << w;
+  RunOnHalves(n, threads, [&](size_t lo, size_t hi) {
+    for (size_t i = lo; i < hi; ++i) {
+      const Box3f& bx = records[i].box;
+      uint32_t code = 0;
+      for (int w = 0; w < 3; ++w) {
+        const double ext = double{all.max[w]} - all.min[w];
+        const double c = 0.5 * (double{bx.min[w]} + bx.max[w]) - all.min[w];
+        const uint32_t q = ext > 0 ? static_cast<uint32_t>(std::clamp(c / ext * 1023.0, 0.0, 1023.0)) : 0;
+        code |= Spread3(q) << w;
+      }
+      a[i] = (uint64_t{code} << 32) | i;
     }
-    a[i] = (uint64_t{code} << 32) | i;
-  }
+  });
   RadixSortByHighWord(&a, &b);
   std::vector<uint64_t>().swap(b);
   std::vector<BuildRecord> rec(n);
   ids->resize(n);
   index_of_input->resize(n);
-  for (size_t i = 0; i < n; ++i) {
-    const uint32_t from = static_cast<uint32_t>(a[i]);
-    rec[i].box = records[from].box;
-    rec[i].encoded_bytes = records[from].encoded_bytes;
-    (*ids)[i] = records[from].id;
-    (*index_of_input)[from] = static_cast<uint32_t>(i);
-  }
+  RunOnHalves(n, threads, [&](size_t lo, size_t hi) {
+    for (size_t i = lo; i < hi; ++i) {
+      const uint32_t from = static_cast<uint32_t>(a[i]);
+      rec[i].box = records[from].box;
+      rec[i].encoded_bytes = records[from].encoded_bytes;
+      (*ids)[i] = records[from].id;
+      (*index_of_input)[from] = static_cast<uint32_t>(i);
+    }
+  });
   return rec;
 }
 
@@ -672,10 +694,12 @@ class SubtreeBuilder {
     // Near the leaves with the default slack every |Sm| is within it: the key is the page waste alone.
     const bool sm_free = fill_aware && sm_min_out == nullptr && m.sm_min + slack >= n;
 
-    for (int key = 0; key < 2; ++key) {
+    // Per key, with the key a constant: the cut loop reads a(k) and b(k) without a select.
+    auto scan_key = [&](auto key_constant) {
+      constexpr int key = decltype(key_constant)::value;
       const std::vector<uint32_t>& order = key == 0 ? by_min : by_max;
       if (only != nullptr) {
-        if (tied[key].count == 0 || tied[key].key != *only) continue;
+        if (tied[key].count == 0 || tied[key].key != *only) return;
         PrefixSuffixMargins(t, order, tied[key].k_min, tied[key].k_max);
       }
       // The second kCompact pass looks at the tied cuts only.
@@ -775,7 +799,7 @@ class SubtreeBuilder {
       const uint32_t cuts = k_last - k_first + 1;
       if (!prunable || cuts < 2 * kPruneBlock) {
         eval(k_first, k_last, 0, 0, false);
-        continue;
+        return;
       }
       // Block ends p_j = k_first + j * kPruneBlock (j < blocks) and p_blocks = k_last; the counts there,
       // and the exact |Sm| of those cuts to tighten the bound before any block is scanned.
@@ -799,7 +823,9 @@ class SubtreeBuilder {
         if ((uint64_t{lower} << 32) > bound) continue;
         eval(p, q, block_pa_[j], block_pb_[j], true);
       }
-    }
+    };
+    scan_key(std::integral_constant<int, 0>{});
+    scan_key(std::integral_constant<int, 1>{});
   }
 
   // kCompact's margin pass: N1 x margin(R(Sn1)) + N2 x margin(R(Sn2)) of cut k (PrefixSuffixMargins done).
@@ -1012,7 +1038,7 @@ Result<BuildResult> BuildMKTree(std::vector<ObjectRecord> records, const BuildPa
   Shared shared{rec, params, tuning, {}, {}};
   {
     std::vector<uint32_t> index_of_input;
-    rec = SpatialLayout(std::move(records), &ids, &index_of_input);
+    rec = SpatialLayout(std::move(records), &ids, &index_of_input, threads);
     // With two threads or more, the six sorts run on two (each thread with its own radix buffers).
     auto sort_lists = [&](int first, int step) {
       std::vector<uint64_t> a, b;
