@@ -3,15 +3,17 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <cstddef>
+#include <cstring>
 #include <limits>
+#include <optional>
+#include <type_traits>
 
 namespace mktree {
 namespace {
 
 constexpr uint8_t kLeftBit = 1, kRightBit = 2;
 
-// kLeft -> kLeftBit, kRight -> kRightBit, kFree -> 0.
-inline uint8_t SideBit(uint8_t side) { return static_cast<uint8_t>((1u << side) & 3u); }
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
 
@@ -27,31 +29,48 @@ inline float NextUp(float x) {
   return std::bit_cast<float>(x > 0 ? u + 1 : u - 1);
 }
 
-struct Cell {
-  Box3f region;
-  uint32_t begin = 0, end = 0;  // its items (those whose clipped box meets the closed region): pool[begin, end)
-  uint32_t node = 0;            // its SplitNode in `out`
-  uint8_t label = 0;            // sides of the resolved items meeting it
-  // [side][axis]: extremes of the resolved items' boxes within the region (kept up to date by Split, so
-  // that a cut's children need no second pass over their items).
-  float lo_of[2][3], hi_of[2][3];
+// 4-lane vectors of floats (GCC/Clang vector extension): a cell's extremes take one vector min and one
+// vector max per item.
+typedef float Lanes __attribute__((vector_size(16)));
 
-  void ResetExtremes() {
-    for (int s = 0; s < 2; ++s)
-      for (int u = 0; u < 3; ++u) lo_of[s][u] = kInf, hi_of[s][u] = -kInf;
-  }
-  void AddExtremes(const SplitItem& it) {
-    for (int u = 0; u < 3; ++u) {
-      lo_of[it.side][u] = std::min(lo_of[it.side][u], std::max(it.box.min[u], region.min[u]));
-      hi_of[it.side][u] = std::max(hi_of[it.side][u], std::min(it.box.max[u], region.max[u]));
-    }
-  }
-};
+// A box as two vectors loaded straight from it: its bytes 0-15, whose lanes 0-2 are min[0..2], and its
+// bytes 8-23, whose lanes 1-3 are max[0..2]. (The other lane of each is never read.)
+static_assert(std::is_standard_layout_v<Box3f> && sizeof(Box3f) == 24 && offsetof(Box3f, max) == 12);
+constexpr int kMaxLane = 1;  // max[u] is lane u + kMaxLane
+inline Lanes MinLanes(const Box3f& b) {
+  Lanes v;
+  std::memcpy(&v, &b, sizeof v);
+  return v;
+}
+inline Lanes MaxLanes(const Box3f& b) {
+  Lanes v;
+  std::memcpy(&v, reinterpret_cast<const char*>(&b) + 8, sizeof v);
+  return v;
+}
+// As std::min(acc, x) and std::max(acc, x), lane by lane (so a NaN in x never enters).
+inline Lanes Min(Lanes acc, Lanes x) { return x < acc ? x : acc; }
+inline Lanes Max(Lanes acc, Lanes x) { return x > acc ? x : acc; }
 
 struct Cut {
   int axis = -1;
   float pos = 0;
   double gain = 0;
+};
+
+// A cell's index is also its SplitNode's index in `out` (both are made together, root first).
+struct Cell {
+  // [side]: extremes of its items' boxes (MinLanes, MaxLanes), not clipped to the region: BestCut only
+  // takes cuts strictly inside the region, where clipped and unclipped extremes compare alike.
+  Lanes lo_of[2], hi_of[2];
+  Box3f region;
+  double volume = 0;  // CostModel::Volume(region), asked for by every BestCut and every free item meeting it
+  // Its resolved items (those whose clipped box meets the closed region), by side: side s in
+  // pool[begin[s], end[s]). Free items join the leaves they meet as they are placed.
+  uint32_t begin[2] = {0, 0}, end[2] = {0, 0};
+  Cut cut;  // its best cut, from the last Refine that considered it
+
+  bool has(int side) const { return end[side] > begin[side]; }
+  uint8_t label() const { return static_cast<uint8_t>((has(0) ? kLeftBit : 0) | (has(1) ? kRightBit : 0)); }
 };
 
 // Routing cost model: a point of Q in a cell is sent to popcount(label) children. A cell's cost is its
@@ -76,35 +95,32 @@ class CostModel {
 // The best cut of a cell: the label of the part below a cut c has L iff some L item has min <= c, and
 // the part above has L iff some L item has max >= c, so the cost only changes just past the extremes of
 // each side's items; the candidates are the floats just outside them.
-Cut BestCut(const Cell& cell, const CostModel& cm) {
+Cut BestCut(const Cell& cell) {
   Cut best;
-  const double vol = cm.Volume(cell.region);
-  if (vol <= 0 || cell.label == 0) return best;
-  const int cost_now = std::popcount(cell.label);
-  const auto& lo_of = cell.lo_of;
-  const auto& hi_of = cell.hi_of;
+  const double vol = cell.volume;
+  const int cost_now = cell.has(0) + cell.has(1);
+  if (vol <= 0 || cost_now == 0) return best;
   for (int u = 0; u < 3; ++u) {
     const float lo = cell.region.min[u], hi = cell.region.max[u];
     if (!(lo < hi)) continue;
-    float cand[4];
-    int nc = 0;
+    // A side without items has lo_of = kInf (never <= a cut inside the region); `top` gives it -kInf
+    // (never >= a cut) whatever its hi_of.
+    const float lo_of[2] = {cell.lo_of[0][u], cell.lo_of[1][u]};
+    const float top[2] = {lo_of[0] == kInf ? -kInf : cell.hi_of[0][u + kMaxLane],
+                          lo_of[1] == kInf ? -kInf : cell.hi_of[1][u + kMaxLane]};
     for (int s = 0; s < 2; ++s) {
-      if (lo_of[s][u] == kInf) continue;
-      cand[nc++] = NextDown(lo_of[s][u]);
-      cand[nc++] = NextUp(hi_of[s][u]);
-    }
-    for (int k = 0; k < nc; ++k) {
-      const float c = cand[k];
-      if (!(c > lo && c < hi)) continue;
-      int below = 0, above = 0;
-      for (int s = 0; s < 2; ++s) {
-        if (lo_of[s][u] == kInf) continue;
-        below += lo_of[s][u] <= c;
-        above += hi_of[s][u] >= c;
+      if (lo_of[s] == kInf) continue;
+      // (A float just below lo_of can only lie in (lo, hi) if lo_of is in (lo, hi], one just above top
+      // only if top is in [lo, hi): the others are not worth their NextDown / NextUp.)
+      const bool down = lo_of[s] > lo && lo_of[s] <= hi, up = top[s] >= lo && top[s] < hi;
+      for (const float c : {down ? NextDown(lo_of[s]) : lo, up ? NextUp(top[s]) : lo}) {
+        if (!(c > lo && c < hi)) continue;
+        const int below = (lo_of[0] <= c) + (lo_of[1] <= c);
+        const int above = (top[0] >= c) + (top[1] >= c);
+        const double f = (double{c} - lo) / (double{hi} - lo);
+        const double gain = vol * (cost_now - (f * below + (1 - f) * above));
+        if (gain > best.gain) best = Cut{u, c, gain};
       }
-      const double f = (double{c} - lo) / (double{hi} - lo);
-      const double gain = vol * (cost_now - (f * below + (1 - f) * above));
-      if (gain > best.gain) best = Cut{u, c, gain};
     }
   }
   return best;
@@ -115,12 +131,8 @@ Cut BestCut(const Cell& cell, const CostModel& cm) {
 // Buffers one SplitTree build leaves behind for the next (no allocation per cell or per tree).
 struct SplitTreeScratch::Buffers {
   std::vector<Cell> cells;
-  std::vector<uint32_t> pool;       // the cells' item lists, each a range
-  std::vector<uint32_t> upper;      // Split's upper items before they join the pool
-  std::vector<uint32_t> leaves;     // cells that are not cut
-  std::vector<uint32_t> node_cell;  // SplitNode -> its cell
+  std::vector<uint32_t> pool;  // the cells' item lists, each a range (never shrunk: see Builder::Take)
   std::vector<uint32_t> stack, met;
-  std::vector<Cut> cut_of;
   std::vector<std::pair<double, uint32_t>> open;  // heap of (gain, cell)
 };
 
@@ -130,6 +142,9 @@ void SplitTreeScratch::Release() { buffers = std::make_unique<Buffers>(); }
 
 namespace {
 
+// A cell's lists hold the resolved items meeting it, so its label and extremes are those of its lists.
+// Free items stay out of the cells during the first Refine (they would neither label nor bound one) and
+// join the leaves they meet when ResolveFree places them.
 class Builder {
  public:
   Builder(const Box3f& q, std::vector<SplitItem>* items, uint32_t budget, std::vector<SplitNode>* out,
@@ -137,21 +152,30 @@ class Builder {
       : items_(*items), budget_(budget), out_(*out), cm_(q), b_(*b) {
     out_.clear();
     b_.cells.clear();
-    b_.pool.clear();
-    b_.leaves.clear();
-    b_.node_cell.clear();
+    // The root's lists: the fixed items (each written to both lists and kept by advancing).
+    const uint32_t n = static_cast<uint32_t>(items_.size());
+    const uint32_t at = Take(2 * n);
+    uint32_t* left = b_.pool.data() + at;
+    uint32_t* right = left + n;
+    uint32_t nl = 0, nr = 0;
+    for (uint32_t i = 0; i < n; ++i) {
+      const uint8_t side = items_[i].side;
+      left[nl] = i;
+      nl += side == SplitItem::kLeft;
+      right[nr] = i;
+      nr += side == SplitItem::kRight;
+    }
+    free_count_ = n - nl - nr;
     Cell root;
     root.region = q;
-    root.end = static_cast<uint32_t>(items_.size());
-    b_.pool.resize(items_.size());
-    for (uint32_t i = 0; i < items_.size(); ++i) {
-      b_.pool[i] = i;
-      root.label |= SideBit(items_[i].side);
-    }
+    root.volume = cm_.Volume(q);
+    root.begin[0] = at;
+    root.end[0] = at + nl;
+    root.begin[1] = at + n;
+    root.end[1] = at + n + nr;
+    ComputeExtremes(&root);
     b_.cells.push_back(root);
     out_.push_back(SplitNode{});
-    b_.node_cell.push_back(0);
-    b_.leaves.push_back(0);
   }
 
   // Best-first: cut the cell with the largest gain until the budget is spent or no cut gains at least
@@ -159,47 +183,56 @@ class Builder {
   void Refine(uint32_t node_limit, double min_gain) {
     node_limit = std::min(node_limit, budget_);
     std::vector<std::pair<double, uint32_t>>& open = b_.open;
-    std::vector<Cut>& cut_of = b_.cut_of;
     open.clear();
-    cut_of.assign(b_.cells.size(), Cut{});
     auto consider = [&](uint32_t ci) {
-      if (cut_of.size() <= ci) cut_of.resize(ci + 1);
-      cut_of[ci] = BestCut(b_.cells[ci], cm_);
-      if (cut_of[ci].axis >= 0 && cut_of[ci].gain >= min_gain) {
-        open.push_back({cut_of[ci].gain, ci});
+      Cell& c = b_.cells[ci];
+      c.cut = BestCut(c);
+      if (c.cut.axis >= 0 && c.cut.gain >= min_gain) {
+        open.push_back({c.cut.gain, ci});
         std::push_heap(open.begin(), open.end());
       }
     };
-    for (uint32_t ci : b_.leaves) {
-      ComputeExtremes(&b_.cells[ci]);  // items resolved since the last Refine count now
-      consider(ci);
-    }
+    // (The heap pops by (gain, cell), so the order in which cells are considered does not matter.)
+    for (uint32_t ci = 0; ci < b_.cells.size(); ++ci)
+      if (out_[ci].is_cell()) consider(ci);
     while (!open.empty() && out_.size() + 2 <= node_limit) {
       std::pop_heap(open.begin(), open.end());
       const uint32_t ci = open.back().second;
       open.pop_back();
-      const auto [lower, upper] = Split(ci, cut_of[ci]);
+      const uint32_t lower = Split(ci);
       consider(lower);
-      consider(upper);
+      consider(lower + 1);
     }
   }
 
   // Free items take the side that adds the least cost (volume of cells that would gain that side), ties
-  // to their default side, within the balance window. Labels are updated as items are placed.
+  // to their default side, within the balance window. Each joins the leaves it meets as it is placed.
   void ResolveFree(BalanceWindow* window) {
-    std::vector<uint32_t>& met = b_.met;
+    std::vector<Cell>& cells = b_.cells;
+    // Every leaf's lists move to a block with room for all free items between them: LEFT grows up, RIGHT
+    // down.
+    for (uint32_t ci = 0; ci < cells.size(); ++ci) {
+      if (!out_[ci].is_cell()) continue;
+      Cell& c = cells[ci];
+      const uint32_t nl = c.end[0] - c.begin[0], nr = c.end[1] - c.begin[1];
+      const uint32_t at = Take(nl + free_count_ + nr);
+      uint32_t* pool = b_.pool.data();
+      std::copy(pool + c.begin[0], pool + c.end[0], pool + at);
+      std::copy(pool + c.begin[1], pool + c.end[1], pool + at + nl + free_count_);
+      c.begin[0] = at;
+      c.end[0] = at + nl;
+      c.begin[1] = at + nl + free_count_;
+      c.end[1] = c.begin[1] + nr;
+    }
+    b_.stack.resize(out_.size() + 1);
+    b_.met.resize(out_.size());
+    const uint32_t* met = b_.met.data();
+    uint32_t* pool = b_.pool.data();
     for (uint32_t i = 0; i < items_.size(); ++i) {
       SplitItem& it = items_[i];
       if (it.side != SplitItem::kFree) continue;
-      met.clear();
-      CellsMeeting(it.box, &met);
       double added[2] = {0, 0};
-      for (uint32_t ci : met) {
-        const Cell& c = b_.cells[ci];
-        const double v = cm_.Volume(c.region);
-        if (!(c.label & kLeftBit)) added[0] += v;
-        if (!(c.label & kRightBit)) added[1] += v;
-      }
+      const uint32_t nm = CellsMeeting(it.box, added);
       uint8_t want = it.default_side;
       if (added[0] != added[1]) want = added[0] < added[1] ? SplitItem::kLeft : SplitItem::kRight;
       if (want != it.default_side) {
@@ -214,97 +247,118 @@ class Builder {
         }
       }
       it.side = want;
-      for (uint32_t ci : met) b_.cells[ci].label |= SideBit(want);
+      const Lanes lo = MinLanes(it.box), hi = MaxLanes(it.box);
+      for (uint32_t k = 0; k < nm; ++k) {
+        Cell& c = cells[met[k]];
+        pool[want == SplitItem::kLeft ? c.end[0]++ : --c.begin[1]] = i;
+        c.lo_of[want] = Min(c.lo_of[want], lo);
+        c.hi_of[want] = Max(c.hi_of[want], hi);
+      }
     }
   }
 
-  // Labels from the items each cell holds (all resolved by now): the invariant by construction.
+  // Every leaf's label names the sides of the items in its lists: the invariant by construction.
   void WriteLabels() {
-    for (uint32_t ci : b_.leaves) {
-      const Cell& c = b_.cells[ci];
-      uint8_t label = 0;
-      for (uint32_t k = c.begin; k < c.end; ++k) label |= SideBit(items_[b_.pool[k]].side);
-      SplitNode& sn = out_[c.node];
-      sn.axis = 3;
-      sn.label = static_cast<CellLabel>(label);
-    }
+    for (uint32_t ci = 0; ci < b_.cells.size(); ++ci)
+      if (out_[ci].is_cell()) out_[ci].label = static_cast<CellLabel>(b_.cells[ci].label());
   }
 
  private:
+  // Room for n more pool entries; returns where it starts. (The pool is never shrunk, so that its
+  // entries are not zeroed again on every call.)
+  uint32_t Take(uint32_t n) {
+    const uint32_t at = used_;
+    used_ += n;
+    if (b_.pool.size() < used_) b_.pool.resize(std::max<size_t>(used_, 2 * b_.pool.size()));
+    return at;
+  }
+
   void ComputeExtremes(Cell* c) const {
-    c->ResetExtremes();
-    for (uint32_t k = c->begin; k < c->end; ++k) {
-      const SplitItem& it = items_[b_.pool[k]];
-      if (it.side != SplitItem::kFree) c->AddExtremes(it);
+    const uint32_t* pool = b_.pool.data();
+    for (int s = 0; s < 2; ++s) {
+      Lanes lo = {kInf, kInf, kInf, kInf}, hi = -lo;
+      for (uint32_t k = c->begin[s]; k < c->end[s]; ++k) {
+        const Box3f& b = items_[pool[k]].box;
+        lo = Min(lo, MinLanes(b));
+        hi = Max(hi, MaxLanes(b));
+      }
+      c->lo_of[s] = lo;
+      c->hi_of[s] = hi;
     }
   }
 
-  std::pair<uint32_t, uint32_t> Split(uint32_t ci, const Cut& cut) {
+  // Cuts cell ci at its cut; returns the lower child (the upper one follows it).
+  uint32_t Split(uint32_t ci) {
+    const Cell& parent = b_.cells[ci];
+    const int axis = parent.cut.axis;
+    const float pos = parent.cut.pos;
     Cell lower, upper;
-    lower.region = upper.region = b_.cells[ci].region;
-    lower.region.max[cut.axis] = cut.pos;
-    upper.region.min[cut.axis] = cut.pos;
-    lower.ResetExtremes();
-    upper.ResetExtremes();
-    // The children's items go to the end of the pool: lower's, then upper's.
-    const uint32_t begin = b_.cells[ci].begin, end = b_.cells[ci].end;
-    const uint32_t base = static_cast<uint32_t>(b_.pool.size());
-    b_.pool.reserve(size_t{base} + 2 * size_t{end - begin});  // the parent's range stays put below
-    b_.upper.clear();
-    // Closed cells: an item touching the cut meets both.
-    for (uint32_t k = begin; k < end; ++k) {
-      const uint32_t i = b_.pool[k];
-      const SplitItem& it = items_[i];
-      const bool resolved = it.side != SplitItem::kFree;
-      if (it.box.min[cut.axis] <= cut.pos) {
-        b_.pool.push_back(i);
-        lower.label |= SideBit(it.side);
-        if (resolved) lower.AddExtremes(it);
+    lower.region = upper.region = parent.region;
+    lower.region.max[axis] = pos;
+    upper.region.min[axis] = pos;
+    // Each item is written to both children's lists and kept by advancing (the tests are hard to
+    // predict). Closed cells: an item touching the cut meets both.
+    const uint32_t n = parent.end[0] - parent.begin[0] + parent.end[1] - parent.begin[1];
+    const uint32_t at = Take(2 * n);
+    uint32_t* pool = b_.pool.data();
+    uint32_t* to_lower = pool + at;
+    uint32_t* to_upper = to_lower + n;
+    size_t nl = 0, nu = 0;
+    for (int s = 0; s < 2; ++s) {
+      lower.begin[s] = static_cast<uint32_t>(at + nl);
+      upper.begin[s] = static_cast<uint32_t>(at + n + nu);
+      const uint32_t* from = pool + parent.begin[s];
+      const uint32_t* const to = pool + parent.end[s];
+      for (; from < to; ++from) {
+        const uint32_t i = *from;
+        const Box3f& b = items_[i].box;
+        to_lower[nl] = i;
+        nl += b.min[axis] <= pos;
+        to_upper[nu] = i;
+        nu += b.max[axis] >= pos;
       }
-      if (it.box.max[cut.axis] >= cut.pos) {
-        b_.upper.push_back(i);
-        upper.label |= SideBit(it.side);
-        if (resolved) upper.AddExtremes(it);
-      }
+      lower.end[s] = static_cast<uint32_t>(at + nl);
+      upper.end[s] = static_cast<uint32_t>(at + n + nu);
     }
-    lower.begin = base;
-    lower.end = upper.begin = static_cast<uint32_t>(b_.pool.size());
-    b_.pool.insert(b_.pool.end(), b_.upper.begin(), b_.upper.end());
-    upper.end = static_cast<uint32_t>(b_.pool.size());
-    const uint32_t node = b_.cells[ci].node;
+    lower.volume = cm_.Volume(lower.region);
+    upper.volume = cm_.Volume(upper.region);
+    ComputeExtremes(&lower);
+    ComputeExtremes(&upper);
     const uint32_t first = static_cast<uint32_t>(out_.size());
-    out_[node].axis = static_cast<uint8_t>(cut.axis);
-    out_[node].cut = cut.pos;
-    out_[node].child[0] = first;
-    out_[node].child[1] = first + 1;
+    out_[ci].axis = static_cast<uint8_t>(axis);
+    out_[ci].cut = pos;
+    out_[ci].child[0] = first;
+    out_[ci].child[1] = first + 1;
     out_.push_back(SplitNode{});
     out_.push_back(SplitNode{});
-    lower.node = first;
-    upper.node = first + 1;
-    const uint32_t lc = static_cast<uint32_t>(b_.cells.size());
     b_.cells.push_back(lower);
     b_.cells.push_back(upper);
-    b_.node_cell.push_back(lc);
-    b_.node_cell.push_back(lc + 1);
-    std::replace(b_.leaves.begin(), b_.leaves.end(), ci, lc);
-    b_.leaves.push_back(lc + 1);
-    return {lc, lc + 1};
+    return first;
   }
 
-  void CellsMeeting(const Box3f& b, std::vector<uint32_t>* met) {
-    std::vector<uint32_t>& stack = b_.stack;
-    stack.assign(1, 0);
-    while (!stack.empty()) {
-      const uint32_t n = stack.back();
-      stack.pop_back();
+  // The leaves meeting box b into b_.met, in tree order (lower child first); returns how many. Adds to
+  // added[s] the volume of each that has no item of side s yet, in that order.
+  uint32_t CellsMeeting(const Box3f& b, double added[2]) {
+    uint32_t* stack = b_.stack.data();
+    uint32_t* met = b_.met.data();
+    uint32_t depth = 1, nm = 0;
+    stack[0] = 0;
+    while (depth > 0) {
+      const uint32_t n = stack[--depth];
       const SplitNode& sn = out_[n];
       if (sn.is_cell()) {
-        met->push_back(b_.node_cell[n]);
+        met[nm++] = n;
+        const Cell& c = b_.cells[n];
+        if (!c.has(0)) added[0] += c.volume;
+        if (!c.has(1)) added[1] += c.volume;
         continue;
       }
-      if (b.max[sn.axis] >= sn.cut) stack.push_back(sn.child[1]);
-      if (b.min[sn.axis] <= sn.cut) stack.push_back(sn.child[0]);
+      stack[depth] = sn.child[1];
+      depth += b.max[sn.axis] >= sn.cut;
+      stack[depth] = sn.child[0];
+      depth += b.min[sn.axis] <= sn.cut;
     }
+    return nm;
   }
 
   std::vector<SplitItem>& items_;
@@ -312,14 +366,17 @@ class Builder {
   std::vector<SplitNode>& out_;
   CostModel cm_;
   SplitTreeScratch::Buffers& b_;
+  uint32_t used_ = 0;  // pool entries in use
+  uint32_t free_count_ = 0;
 };
 
 }  // namespace
 
 void BuildSplitTree(const Box3f& q, std::vector<SplitItem>* items, uint32_t budget, BalanceWindow* window,
                     std::vector<SplitNode>* out, double min_gain, SplitTreeScratch* scratch) {
-  SplitTreeScratch local;
-  Builder b(q, items, std::max<uint32_t>(budget, 1), out, (scratch ? scratch : &local)->buffers.get());
+  std::optional<SplitTreeScratch> local;
+  if (!scratch) scratch = &local.emplace();
+  Builder b(q, items, std::max<uint32_t>(budget, 1), out, scratch->buffers.get());
   // First carve with the fixed items alone, then place the free items against those cells, then spend
   // what is left of the budget with every item placed.
   b.Refine(std::max<uint32_t>(1, budget / 2) | 1, min_gain);
