@@ -325,9 +325,11 @@ void Run(const Workload& w) {
   const TreeStats& s = built->stats;
   const double n = double(w.objects);
   if (std::getenv("TREE_BENCH_HASH")) {
+    const BuildTimings& tm = built->timings;
     std::printf("%-14s %6.2f s  %6.2f Mobj/s  peak %6.1f B/obj  tree hash %016llx  nodes %zu  split nodes %zu"
-                "  leaves %zu\n", w.name, secs, n / secs / 1e6, peak / n, (unsigned long long)TreeHash(*built), built->tree.nodes.size(), built->tree.split_nodes.size(),
-                built->tree.leaves.size());
+                "  leaves %zu  (layout %.3f sorts %.3f nodes %.3f finish %.3f s)\n",
+                w.name, secs, n / secs / 1e6, peak / n, (unsigned long long)TreeHash(*built), built->tree.nodes.size(),
+                built->tree.split_nodes.size(), built->tree.leaves.size(), tm.layout, tm.sorts, tm.nodes, tm.finish);
     std::fflush(stdout);
     if (std::getenv("TREE_BENCH_HASH_ONLY")) return;
   }
@@ -338,6 +340,8 @@ void Run(const Workload& w) {
               "  tree %5.2f B/obj\n",
               w.name, (unsigned long long)w.objects, secs, n / secs / 1e6, peak / n, rss_records / n,
               s.index_bytes_per_object, s.tree_bytes_per_object);
+  std::printf("%-14s phases: layout %.3f s  sorts %.3f s  nodes %.3f s  finish %.3f s\n", "", built->timings.layout,
+              built->timings.sorts, built->timings.nodes, built->timings.finish);
   std::printf("%-14s height %u  leaves %llu  obj/leaf %.2f  fill mean %.1f%% min %.1f%%  multi-page %llu"
               "  |Sm| %llu  SplitTree nodes %llu (max %u)  BOTH cells %llu/%llu\n",
               "", s.height, (unsigned long long)s.leaves, s.mean_objects_per_leaf, 100 * s.mean_page_fill,

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <bit>
+#include <chrono>
 #include <cmath>
 #include <condition_variable>
 #include <deque>
@@ -1021,6 +1022,13 @@ Status Validate(const std::vector<ObjectRecord>& records, const BuildParams& par
 
 Result<BuildResult> BuildMKTree(std::vector<ObjectRecord> records, const BuildParams& params,
                                 const BuildTuning& tuning) {
+  using Clock = std::chrono::steady_clock;
+  Clock::time_point mark = Clock::now();
+  auto lap = [&mark](double* phase) {
+    const Clock::time_point now = Clock::now();
+    *phase = std::chrono::duration<double>(now - mark).count();
+    mark = now;
+  };
   MKTREE_RETURN_IF_ERROR(Validate(records, params));
   BuildResult result;
   result.tree.params = params;
@@ -1039,6 +1047,7 @@ Result<BuildResult> BuildMKTree(std::vector<ObjectRecord> records, const BuildPa
   {
     std::vector<uint32_t> index_of_input;
     rec = SpatialLayout(std::move(records), &ids, &index_of_input, threads);
+    lap(&result.timings.layout);
     // With two threads or more, the six sorts run on two (each thread with its own radix buffers).
     auto sort_lists = [&](int first, int step) {
       std::vector<uint64_t> a, b;
@@ -1054,6 +1063,7 @@ Result<BuildResult> BuildMKTree(std::vector<ObjectRecord> records, const BuildPa
     }
   }
   TrimHeap();
+  lap(&result.timings.sorts);
   shared.side.assign(n, 0);
   uint64_t total_bytes = 0;
   for (const BuildRecord& r : rec) total_bytes += r.encoded_bytes;
@@ -1066,6 +1076,7 @@ Result<BuildResult> BuildMKTree(std::vector<ObjectRecord> records, const BuildPa
     SubtreeBuilder(&shared).Run(root, &out);
   }
 
+  lap(&result.timings.nodes);
   // Pages in leaf order.
   uint64_t page = 0;
   for (LeafInfo& lf : out.leaves) {
@@ -1082,6 +1093,7 @@ Result<BuildResult> BuildMKTree(std::vector<ObjectRecord> records, const BuildPa
   result.tree.split_nodes = std::move(out.split_nodes);
   result.tree.leaves = std::move(out.leaves);
   result.stats = ComputeTreeStats(result.tree, n, out.overlap);
+  lap(&result.timings.finish);
   return result;
 }
 

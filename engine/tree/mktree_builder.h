@@ -29,12 +29,21 @@
 
 namespace mktree {
 
+// Wall seconds of the build's phases (what bench/tree_build_bench reports).
+struct BuildTimings {
+  double layout = 0;  // checks, Morton layout of the records
+  double sorts = 0;   // the 6 key orders
+  double nodes = 0;   // SOA splits, SplitTrees, list partitions (and the 2-thread stitch)
+  double finish = 0;  // pages, leaf objects, statistics
+};
+
 struct BuildResult {
   MKTree tree;
   // Objects of leaf i: leaf_objects[leaf_offsets[i] .. leaf_offsets[i+1]), in no particular order.
   std::vector<ObjectId> leaf_objects;
   std::vector<uint64_t> leaf_offsets;  // leaves + 1 entries
   TreeStats stats;
+  BuildTimings timings;
 };
 
 // How an internal node chooses among the SOA candidates (the 6 sort orders x the balanced cut positions k).
