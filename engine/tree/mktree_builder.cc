@@ -66,23 +66,44 @@ void RadixSortByHighWord(std::vector<uint64_t>* a, std::vector<uint64_t>* b) {
   }
 }
 
-// What the builder reads of an object: 28 bytes instead of ObjectRecord's 40 (ids are kept apart, for the
-// end only).
-struct BuildRecord {
-  Box3f box;
-  uint32_t encoded_bytes = 0;
+// What the builder reads of an object, 28 bytes instead of ObjectRecord's 40, in two arrays: the boxes,
+// and the encoded sizes (read alone when a node sums its bytes, 16 to a cache line). The ids are kept
+// apart, for the end only.
+struct BuildRecords {
+  std::vector<Box3f> box;
+  std::vector<uint32_t> bytes;
+};
+
+// Object ids by record index, 4 bytes each (offsets from the smallest) when they span less than 2^32.
+class IdColumn {
+ public:
+  void Init(size_t n, ObjectId min_id, ObjectId max_id) {
+    base_ = min_id;
+    if (max_id - min_id <= UINT32_MAX) narrow_.resize(n);
+    else wide_.resize(n);
+  }
+  void Set(size_t i, ObjectId id) {
+    if (wide_.empty()) narrow_[i] = static_cast<uint32_t>(id - base_);
+    else wide_[i] = id;
+  }
+  ObjectId operator[](size_t i) const { return wide_.empty() ? base_ + narrow_[i] : wide_[i]; }
+
+ private:
+  ObjectId base_ = 0;
+  std::vector<uint32_t> narrow_;
+  std::vector<ObjectId> wide_;
 };
 
 // Object indices sorted by one key (axis, min or max), stable: ties in input order, so the lists (and so
 // the tree) do not depend on how the records are laid out in RAM. index_of_input[p]: the record index of
 // the object at input position p.
-void SortByKey(const std::vector<BuildRecord>& rec, const std::vector<uint32_t>& index_of_input, int axis,
+void SortByKey(const std::vector<Box3f>& box, const std::vector<uint32_t>& index_of_input, int axis,
                bool use_max, std::vector<uint64_t>* a, std::vector<uint64_t>* b, std::vector<uint32_t>* out) {
-  const size_t n = rec.size();
+  const size_t n = box.size();
   a->resize(n);
   for (size_t p = 0; p < n; ++p) {
     const uint32_t i = index_of_input[p];
-    const float k = use_max ? rec[i].box.max[axis] : rec[i].box.min[axis];
+    const float k = use_max ? box[i].max[axis] : box[i].min[axis];
     (*a)[p] = (uint64_t{SortableBits(k)} << 32) | i;
   }
   RadixSortByHighWord(a, b);
@@ -117,12 +138,19 @@ inline uint32_t Spread3(uint32_t v) {
 // close together in RAM: the split sweeps and the list partitions read records in key order, which in
 // input order misses the cache all the way down the tree. Frees `records`; *ids: the object ids in the
 // same layout; *index_of_input: the record index of the object at each input position.
-std::vector<BuildRecord> SpatialLayout(std::vector<ObjectRecord> records, std::vector<ObjectId>* ids,
-                                       std::vector<uint32_t>* index_of_input, int threads) {
+BuildRecords SpatialLayout(std::vector<ObjectRecord> records, IdColumn* ids,
+                          std::vector<uint32_t>* index_of_input, int threads) {
   const size_t n = records.size();
   Box3f half_box[2];
+  ObjectId min_id[2] = {std::numeric_limits<ObjectId>::max(), std::numeric_limits<ObjectId>::max()};
+  ObjectId max_id[2] = {0, 0};
   RunOnHalves(n, threads, [&](size_t lo, size_t hi) {
-    for (size_t i = lo; i < hi; ++i) half_box[lo == 0 ? 0 : 1].Extend(records[i].box);
+    const int h = lo == 0 ? 0 : 1;
+    for (size_t i = lo; i < hi; ++i) {
+      half_box[h].Extend(records[i].box);
+      min_id[h] = std::min(min_id[h], records[i].id);
+      max_id[h] = std::max(max_id[h], records[i].id);
+    }
   });
   Box3f all = half_box[0];
   all.Extend(half_box[1]);
@@ -142,15 +170,17 @@ std::vector<BuildRecord> SpatialLayout(std::vector<ObjectRecord> records, std::v
   });
   RadixSortByHighWord(&a, &b);
   std::vector<uint64_t>().swap(b);
-  std::vector<BuildRecord> rec(n);
-  ids->resize(n);
+  BuildRecords rec;
+  rec.box.resize(n);
+  rec.bytes.resize(n);
+  ids->Init(n, std::min(min_id[0], min_id[1]), std::max(max_id[0], max_id[1]));
   index_of_input->resize(n);
   RunOnHalves(n, threads, [&](size_t lo, size_t hi) {
     for (size_t i = lo; i < hi; ++i) {
       const uint32_t from = static_cast<uint32_t>(a[i]);
-      rec[i].box = records[from].box;
-      rec[i].encoded_bytes = records[from].encoded_bytes;
-      (*ids)[i] = records[from].id;
+      rec.box[i] = records[from].box;
+      rec.bytes[i] = records[from].encoded_bytes;
+      ids->Set(i, records[from].id);
       (*index_of_input)[from] = static_cast<uint32_t>(i);
     }
   });
@@ -188,7 +218,8 @@ class Scratch {
 };
 
 struct Shared {
-  const std::vector<BuildRecord>& rec;
+  const std::vector<Box3f>& box;
+  const std::vector<uint32_t>& bytes;
   BuildParams params;
   BuildTuning tuning;
   // lists[2*w + key]: the objects of every node, each node's range sorted by min_w (key 0) / max_w (key 1).
@@ -253,7 +284,7 @@ struct Candidate {
 class SubtreeBuilder {
  public:
   explicit SubtreeBuilder(Shared* s, bool track_split_count = false)
-      : s_(*s), rec_(s->rec), mem_page_(s->params.mem_page()), track_split_count_(track_split_count) {}
+      : s_(*s), box_(s->box), bytes_(s->bytes), mem_page_(s->params.mem_page()), track_split_count_(track_split_count) {}
 
   // Like Run, but the right child of a node with at least `min_spawn` objects becomes a task of its own
   // (spawn(task) returns its fragment id), referenced as kFragmentRef | id in child[1].
@@ -292,11 +323,11 @@ class SubtreeBuilder {
     if (t.parent != kNoIndex) out->nodes[t.parent].child[t.slot] = me;
     TreeNode node;
     if (t.leaf_lists_only) {
-      for (uint32_t i = t.lo; i < t.hi; ++i) node.box.Extend(rec_[s_.lists[0][i]].box);
+      for (uint32_t i = t.lo; i < t.hi; ++i) node.box.Extend(box_[s_.lists[0][i]]);
     } else {
       for (int w = 0; w < 3; ++w) {
-        node.box.min[w] = rec_[s_.lists[2 * w][t.lo]].box.min[w];
-        node.box.max[w] = rec_[s_.lists[2 * w + 1][t.hi - 1]].box.max[w];
+        node.box.min[w] = box_[s_.lists[2 * w][t.lo]].min[w];
+        node.box.max[w] = box_[s_.lists[2 * w + 1][t.hi - 1]].max[w];
       }
     }
     node.depth = static_cast<uint8_t>(std::min<uint32_t>(t.depth, 255));
@@ -334,7 +365,7 @@ class SubtreeBuilder {
       items_.clear();
       for (uint32_t i = t.lo; i < t.hi; ++i) {
         const uint32_t idx = s_.lists[2 * w][i];
-        const Box3f& bx = rec_[idx].box;
+        const Box3f& bx = box_[idx];
         if (bx.min[w] > best.b) break;  // sorted by min_w
         if (bx.max[w] < best.a) continue;
         SplitItem it;
@@ -342,7 +373,7 @@ class SubtreeBuilder {
         it.box.min[w] = std::max(bx.min[w], best.a);
         it.box.max[w] = std::min(bx.max[w], best.b);
         it.default_side = s_.side[idx];
-        it.bytes = rec_[idx].encoded_bytes;
+        it.bytes = bytes_[idx];
         it.side = bx.min[w] < best.a ? SplitItem::kLeft : (bx.max[w] > best.b ? SplitItem::kRight : SplitItem::kFree);
         items_.push_back(it);
         overlap_ids_.push_back(idx);
@@ -379,7 +410,7 @@ class SubtreeBuilder {
         const uint32_t idx = v[i];
         const uint32_t r = side[idx];
         n1 += r ^ 1;
-        left_bytes += rec_[idx].encoded_bytes & (r - 1);  // r = 0: all bits
+        left_bytes += bytes_[idx] & (r - 1);  // r = 0: all bits
       }
     }
     auto is_leaf = [&](uint32_t count, uint64_t bytes) { return count == 1 || FitsInOnePage(bytes, mem_page_); };
@@ -404,12 +435,12 @@ class SubtreeBuilder {
       std::copy(right, right + tpos, v + wpos);
     }
     // The stored planes are those of the final children (free objects may have narrowed the slab).
-    node.a = rec_[s_.lists[2 * w][t.lo + n1]].box.min[w];
-    node.b = rec_[s_.lists[2 * w + 1][t.lo + n1 - 1]].box.max[w];
+    node.a = box_[s_.lists[2 * w][t.lo + n1]].min[w];
+    node.b = box_[s_.lists[2 * w + 1][t.lo + n1 - 1]].max[w];
     uint32_t sm = 0;
     if (node.a < node.b) {
       for (uint32_t idx : overlap_ids_) {
-        const Box3f& bx = rec_[idx].box;
+        const Box3f& bx = box_[idx];
         sm += bx.max[w] > node.a && bx.min[w] < node.b;
       }
       if (!split.empty()) {
@@ -435,12 +466,14 @@ class SubtreeBuilder {
 
  private:
   void ShrinkScratch(size_t n) {
-    if (tmp_.capacity() < 4 * n + (1u << 16)) return;
+    if (tmp_.capacity() < n + n / 2 + (1u << 16)) return;
     const size_t freed = 7 * (tmp_.capacity() - n) * sizeof(float);  // about
     for (auto* v : {&sorted_min_, &prefix_max_, &sorted_max_, &suffix_min_, &margin_pre_, &margin_suf_})
       if (v->capacity() > n + 1) v->Reset(n + 1);
     tmp_.Reset(n);
     split_scratch_.Release();
+    if (items_.capacity() > n) std::vector<SplitItem>().swap(items_);
+    if (overlap_ids_.capacity() > n) std::vector<uint32_t>().swap(overlap_ids_);
     if (freed >= kTrimBytes) TrimHeap();  // trimming is a walk of the heap: only for large frees
   }
 
@@ -531,8 +564,8 @@ class SubtreeBuilder {
     for (int w = 0; w < 3; ++w) {
       const std::vector<uint32_t>& by_min = s_.lists[2 * w];
       const std::vector<uint32_t>& by_max = s_.lists[2 * w + 1];
-      spread[w] = 0.5 * ((double{rec_[by_min[t.hi - 1]].box.min[w]} - rec_[by_min[t.lo]].box.min[w]) +
-                         (double{rec_[by_max[t.hi - 1]].box.max[w]} - rec_[by_max[t.lo]].box.max[w]));
+      spread[w] = 0.5 * ((double{box_[by_min[t.hi - 1]].min[w]} - box_[by_min[t.lo]].min[w]) +
+                         (double{box_[by_max[t.hi - 1]].max[w]} - box_[by_max[t.lo]].max[w]));
       longest = std::max(longest, spread[w]);
     }
     // The longest axis always stays (whatever the ratio), so there is a candidate.
@@ -548,8 +581,8 @@ class SubtreeBuilder {
   float SplitMargin(const Task& t, int list, uint32_t k) const {
     const std::vector<uint32_t>& order = s_.lists[list];
     Box3f lo, hi;
-    for (uint32_t i = t.lo; i < t.lo + k; ++i) lo.Extend(rec_[order[i]].box);
-    for (uint32_t i = t.lo + k; i < t.hi; ++i) hi.Extend(rec_[order[i]].box);
+    for (uint32_t i = t.lo; i < t.lo + k; ++i) lo.Extend(box_[order[i]]);
+    for (uint32_t i = t.lo + k; i < t.hi; ++i) hi.Extend(box_[order[i]]);
     const uint32_t n = t.hi - t.lo;
     return static_cast<float>(static_cast<double>(k) * Margin(lo) + static_cast<double>(n - k) * Margin(hi));
   }
@@ -564,12 +597,12 @@ class SubtreeBuilder {
     margin_suf_.Fit(k_max - k_min + 1);
     Box3f u;
     for (uint32_t i = 0; i < k_max; ++i) {
-      u.Extend(rec_[order[t.lo + i]].box);
+      u.Extend(box_[order[t.lo + i]]);
       if (i + 1 >= k_min) margin_pre_[i + 1 - k_min] = Margin(u);
     }
     u = Box3f();
     for (uint32_t i = n; i-- > k_min;) {
-      u.Extend(rec_[order[t.lo + i]].box);
+      u.Extend(box_[order[t.lo + i]]);
       if (i <= k_max) margin_suf_[i - k_min] = Margin(u);
     }
   }
@@ -606,7 +639,7 @@ class SubtreeBuilder {
   template <bool kFar>
   void GatherRuns(const Task& t, int w, uint32_t k_lo, uint32_t k_hi) {
     const uint32_t n = t.hi - t.lo;
-    const BuildRecord* rec = rec_.data();
+    const Box3f* box = box_.data();
     const uint32_t* by_min = s_.lists[2 * w].data() + t.lo;
     const uint32_t* by_max = s_.lists[2 * w + 1].data() + t.lo;
     float* smin = sorted_min_.data();
@@ -615,8 +648,8 @@ class SubtreeBuilder {
     float* smn = suffix_min_.data();   // [k - k_lo]: min of min_w over objects k..n-1
     float run = -std::numeric_limits<float>::infinity();
     auto up = [&](uint32_t i) {
-      if (kFar && i + kPrefetch < n) __builtin_prefetch(&rec[by_min[i + kPrefetch]]);
-      const Box3f& bx = rec[by_min[i]].box;
+      if (kFar && i + kPrefetch < n) __builtin_prefetch(&box[by_min[i + kPrefetch]]);
+      const Box3f& bx = box[by_min[i]];
       smin[i] = bx.min[w];
       run = std::max(run, bx.max[w]);
     };
@@ -626,8 +659,8 @@ class SubtreeBuilder {
     for (; i < n; ++i) up(i);
     run = std::numeric_limits<float>::infinity();
     auto down = [&](uint32_t i) {
-      if (kFar && i >= kPrefetch) __builtin_prefetch(&rec[by_max[i - kPrefetch]]);
-      const Box3f& bx = rec[by_max[i]].box;
+      if (kFar && i >= kPrefetch) __builtin_prefetch(&box[by_max[i - kPrefetch]]);
+      const Box3f& bx = box[by_max[i]];
       smax[i] = bx.max[w];
       run = std::min(run, bx.min[w]);
     };
@@ -711,7 +744,7 @@ class SubtreeBuilder {
       auto b_of = [&](uint32_t k) { return key == 0 ? prefix_max_[k - window_base_] : smax[k - 1]; };
       uint64_t left_bytes = 0;  // encoded bytes of the first k objects
       if (fill_aware)
-        for (uint32_t i = 0; i + 1 < k_first; ++i) left_bytes += rec_[order[t.lo + i]].encoded_bytes;
+        for (uint32_t i = 0; i + 1 < k_first; ++i) left_bytes += bytes_[order[t.lo + i]];
 
       PageSplit pages(left_bytes, t.bytes, mem_page_);
 
@@ -721,7 +754,7 @@ class SubtreeBuilder {
           // Bytes only matter near the leaves (and are a random read per object, so not gathered above).
           uint64_t waste_key = 0;
           if (fill_aware) {
-            left_bytes += rec_[order[t.lo + k - 1]].encoded_bytes;
+            left_bytes += bytes_[order[t.lo + k - 1]];
             waste_key = pages.Waste(left_bytes);
           }
           const float a = a_of(k);
@@ -853,7 +886,8 @@ class SubtreeBuilder {
   }
 
   Shared& s_;
-  const std::vector<BuildRecord>& rec_;
+  const std::vector<Box3f>& box_;
+  const std::vector<uint32_t>& bytes_;
   const uint64_t mem_page_;
   const bool track_split_count_;
   Scratch<float> sorted_min_, prefix_max_, sorted_max_, suffix_min_;
@@ -1041,9 +1075,9 @@ Result<BuildResult> BuildMKTree(std::vector<ObjectRecord> records, const BuildPa
 
   const int threads =
       tuning.threads > 0 ? tuning.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  std::vector<ObjectId> ids;
-  std::vector<BuildRecord> rec;
-  Shared shared{rec, params, tuning, {}, {}};
+  IdColumn ids;
+  BuildRecords rec;
+  Shared shared{rec.box, rec.bytes, params, tuning, {}, {}};
   {
     std::vector<uint32_t> index_of_input;
     rec = SpatialLayout(std::move(records), &ids, &index_of_input, threads);
@@ -1052,7 +1086,7 @@ Result<BuildResult> BuildMKTree(std::vector<ObjectRecord> records, const BuildPa
     auto sort_lists = [&](int first, int step) {
       std::vector<uint64_t> a, b;
       for (int l = first; l < 6; l += step)
-        SortByKey(rec, index_of_input, l / 2, l % 2 == 1, &a, &b, &shared.lists[l]);
+        SortByKey(rec.box, index_of_input, l / 2, l % 2 == 1, &a, &b, &shared.lists[l]);
     };
     if (threads >= 2) {
       std::thread other(sort_lists, 1, 2);
@@ -1066,7 +1100,7 @@ Result<BuildResult> BuildMKTree(std::vector<ObjectRecord> records, const BuildPa
   lap(&result.timings.sorts);
   shared.side.assign(n, 0);
   uint64_t total_bytes = 0;
-  for (const BuildRecord& r : rec) total_bytes += r.encoded_bytes;
+  for (uint32_t b : rec.bytes) total_bytes += b;
 
   SubtreeOut out;
   const Task root{0, n, 0, kNoIndex, 0, total_bytes};
