@@ -13,6 +13,7 @@ namespace mktree {
 namespace {
 
 constexpr uint8_t kLeftBit = 1, kRightBit = 2;
+constexpr uint32_t kMinRoom = 64;  // Builder::Grow's smallest room (fewer moves of small leaves)
 
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
@@ -131,7 +132,8 @@ Cut BestCut(const Cell& cell) {
 // Buffers one SplitTree build leaves behind for the next (no allocation per cell or per tree).
 struct SplitTreeScratch::Buffers {
   std::vector<Cell> cells;
-  std::vector<uint32_t> pool;  // the cells' item lists, each a range (never shrunk: see Builder::Take)
+  std::unique_ptr<uint32_t[]> pool;  // the cells' item lists, each a range (see Builder::Take)
+  size_t pool_size = 0;
   std::vector<uint32_t> stack, met;
   std::vector<std::pair<double, uint32_t>> open;  // heap of (gain, cell)
 };
@@ -152,27 +154,29 @@ class Builder {
       : items_(*items), budget_(budget), out_(*out), cm_(q), b_(*b) {
     out_.clear();
     b_.cells.clear();
-    // The root's lists: the fixed items (each written to both lists and kept by advancing).
+    // The root's lists: the fixed items, LEFT up from the block's start and RIGHT down from its end (each
+    // item is written to both and kept by advancing: the two never pass each other, and where they meet
+    // both write the same item), then RIGHT turned to item order.
     const uint32_t n = static_cast<uint32_t>(items_.size());
-    const uint32_t at = Take(2 * n);
-    uint32_t* left = b_.pool.data() + at;
-    uint32_t* right = left + n;
+    const uint32_t at = Take(n);
+    uint32_t* block = b_.pool.get() + at;
     uint32_t nl = 0, nr = 0;
     for (uint32_t i = 0; i < n; ++i) {
       const uint8_t side = items_[i].side;
-      left[nl] = i;
+      block[nl] = i;
       nl += side == SplitItem::kLeft;
-      right[nr] = i;
+      block[n - 1 - nr] = i;
       nr += side == SplitItem::kRight;
     }
+    std::reverse(block + n - nr, block + n);
     free_count_ = n - nl - nr;
     Cell root;
     root.region = q;
     root.volume = cm_.Volume(q);
     root.begin[0] = at;
     root.end[0] = at + nl;
-    root.begin[1] = at + n;
-    root.end[1] = at + n + nr;
+    root.begin[1] = at + n - nr;
+    root.end[1] = at + n;
     ComputeExtremes(&root);
     b_.cells.push_back(root);
     out_.push_back(SplitNode{});
@@ -208,31 +212,35 @@ class Builder {
   // Free items take the side that adds the least cost (volume of cells that would gain that side), ties
   // to their default side, within the balance window. Each joins the leaves it meets as it is placed.
   void ResolveFree(BalanceWindow* window) {
+    if (free_count_ == 0) return;
     std::vector<Cell>& cells = b_.cells;
-    // Every leaf's lists move to a block with room for all free items between them: LEFT grows up, RIGHT
-    // down.
+    // Only the leaves' lists are still read: they move to the pool's start, in cell order (which is pool
+    // order, so none is overwritten before it is read).
+    uint32_t* pool = b_.pool.get();
+    used_ = 0;
     for (uint32_t ci = 0; ci < cells.size(); ++ci) {
       if (!out_[ci].is_cell()) continue;
       Cell& c = cells[ci];
-      const uint32_t nl = c.end[0] - c.begin[0], nr = c.end[1] - c.begin[1];
-      const uint32_t at = Take(nl + free_count_ + nr);
-      uint32_t* pool = b_.pool.data();
-      std::copy(pool + c.begin[0], pool + c.end[0], pool + at);
-      std::copy(pool + c.begin[1], pool + c.end[1], pool + at + nl + free_count_);
-      c.begin[0] = at;
-      c.end[0] = at + nl;
-      c.begin[1] = at + nl + free_count_;
-      c.end[1] = c.begin[1] + nr;
+      for (int s = 0; s < 2; ++s) {
+        const uint32_t n = c.end[s] - c.begin[s];
+        std::memmove(pool + used_, pool + c.begin[s], n * sizeof *pool);
+        c.begin[s] = used_;
+        c.end[s] = used_ += n;
+      }
     }
+    // A free item joins a leaf between its lists: LEFT grows up, RIGHT down (the walk makes room, see
+    // Grow).
+    unplaced_ = free_count_;
     b_.stack.resize(out_.size() + 1);
     b_.met.resize(out_.size());
     const uint32_t* met = b_.met.data();
-    uint32_t* pool = b_.pool.data();
     for (uint32_t i = 0; i < items_.size(); ++i) {
       SplitItem& it = items_[i];
       if (it.side != SplitItem::kFree) continue;
       double added[2] = {0, 0};
       const uint32_t nm = CellsMeeting(it.box, added);
+      --unplaced_;
+      pool = b_.pool.get();
       uint8_t want = it.default_side;
       if (added[0] != added[1]) want = added[0] < added[1] ? SplitItem::kLeft : SplitItem::kRight;
       if (want != it.default_side) {
@@ -264,17 +272,48 @@ class Builder {
   }
 
  private:
-  // Room for n more pool entries; returns where it starts. (The pool is never shrunk, so that its
-  // entries are not zeroed again on every call.)
+  // Room for n more pool entries; returns where it starts. (The pool is never shrunk, and grows without
+  // zero-filling: only the entries in use are copied, and only the pages written are resident.)
   uint32_t Take(uint32_t n) {
     const uint32_t at = used_;
     used_ += n;
-    if (b_.pool.size() < used_) b_.pool.resize(std::max<size_t>(used_, 2 * b_.pool.size()));
+    if (b_.pool_size < used_) {
+      const size_t size = std::max<size_t>(used_, 2 * b_.pool_size);
+      std::unique_ptr<uint32_t[]> pool = std::make_unique_for_overwrite<uint32_t[]>(size);
+      std::copy(b_.pool.get(), b_.pool.get() + at, pool.get());
+      b_.pool = std::move(pool);
+      b_.pool_size = size;
+    }
     return at;
   }
 
+  // Gives leaf ci room between its lists: its block doubles (but no more than the unplaced free items can
+  // fill), in place if it is the pool's last block (only RIGHT moves up), else as a new block at the end
+  // (the old one is left unused), so the pool holds O(entries) for it. (Leaves start with no room.)
+  [[gnu::noinline]] void Grow(uint32_t ci) {
+    Cell& c = b_.cells[ci];
+    const uint32_t nl = c.end[0] - c.begin[0], nr = c.end[1] - c.begin[1];
+    const uint32_t room = std::min(unplaced_, std::max(nl + nr, kMinRoom));
+    if (c.end[1] == used_) {
+      Take(room);
+      uint32_t* pool = b_.pool.get();
+      std::copy_backward(pool + c.begin[1], pool + c.end[1], pool + c.end[1] + room);
+      c.begin[1] += room;
+      c.end[1] += room;
+      return;
+    }
+    const uint32_t at = Take(nl + room + nr);
+    uint32_t* pool = b_.pool.get();
+    std::copy(pool + c.begin[0], pool + c.end[0], pool + at);
+    std::copy(pool + c.begin[1], pool + c.end[1], pool + at + nl + room);
+    c.begin[0] = at;
+    c.end[0] = at + nl;
+    c.begin[1] = at + nl + room;
+    c.end[1] = c.begin[1] + nr;
+  }
+
   void ComputeExtremes(Cell* c) const {
-    const uint32_t* pool = b_.pool.data();
+    const uint32_t* pool = b_.pool.get();
     for (int s = 0; s < 2; ++s) {
       Lanes lo = {kInf, kInf, kInf, kInf}, hi = -lo;
       for (uint32_t k = c->begin[s]; k < c->end[s]; ++k) {
@@ -300,7 +339,7 @@ class Builder {
     // predict). Closed cells: an item touching the cut meets both.
     const uint32_t n = parent.end[0] - parent.begin[0] + parent.end[1] - parent.begin[1];
     const uint32_t at = Take(2 * n);
-    uint32_t* pool = b_.pool.data();
+    uint32_t* pool = b_.pool.get();
     uint32_t* to_lower = pool + at;
     uint32_t* to_upper = to_lower + n;
     size_t nl = 0, nu = 0;
@@ -337,7 +376,8 @@ class Builder {
   }
 
   // The leaves meeting box b into b_.met, in tree order (lower child first); returns how many. Adds to
-  // added[s] the volume of each that has no item of side s yet, in that order.
+  // added[s] the volume of each that has no item of side s yet, in that order. Each leaf met is given room
+  // for one more free item.
   uint32_t CellsMeeting(const Box3f& b, double added[2]) {
     uint32_t* stack = b_.stack.data();
     uint32_t* met = b_.met.data();
@@ -349,6 +389,7 @@ class Builder {
       if (sn.is_cell()) {
         met[nm++] = n;
         const Cell& c = b_.cells[n];
+        if (c.end[0] == c.begin[1]) Grow(n);
         if (!c.has(0)) added[0] += c.volume;
         if (!c.has(1)) added[1] += c.volume;
         continue;
@@ -368,6 +409,7 @@ class Builder {
   SplitTreeScratch::Buffers& b_;
   uint32_t used_ = 0;  // pool entries in use
   uint32_t free_count_ = 0;
+  uint32_t unplaced_ = 0;  // free items not yet given a side (ResolveFree)
 };
 
 }  // namespace
