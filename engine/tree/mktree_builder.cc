@@ -74,26 +74,6 @@ struct BuildRecords {
   std::vector<uint32_t> bytes;
 };
 
-// Object ids by record index, 4 bytes each (offsets from the smallest) when they span less than 2^32.
-class IdColumn {
- public:
-  void Init(size_t n, ObjectId min_id, ObjectId max_id) {
-    base_ = min_id;
-    if (max_id - min_id <= UINT32_MAX) narrow_.resize(n);
-    else wide_.resize(n);
-  }
-  void Set(size_t i, ObjectId id) {
-    if (wide_.empty()) narrow_[i] = static_cast<uint32_t>(id - base_);
-    else wide_[i] = id;
-  }
-  ObjectId operator[](size_t i) const { return wide_.empty() ? base_ + narrow_[i] : wide_[i]; }
-
- private:
-  ObjectId base_ = 0;
-  std::vector<uint32_t> narrow_;
-  std::vector<ObjectId> wide_;
-};
-
 // Object indices sorted by one key (axis, min or max), stable: ties in input order, so the lists (and so
 // the tree) do not depend on how the records are laid out in RAM. index_of_input[p]: the record index of
 // the object at input position p.
@@ -138,19 +118,12 @@ inline uint32_t Spread3(uint32_t v) {
 // close together in RAM: the split sweeps and the list partitions read records in key order, which in
 // input order misses the cache all the way down the tree. Frees `records`; *ids: the object ids in the
 // same layout; *index_of_input: the record index of the object at each input position.
-BuildRecords SpatialLayout(std::vector<ObjectRecord> records, IdColumn* ids,
+BuildRecords SpatialLayout(std::vector<ObjectRecord> records, std::vector<ObjectId>* ids,
                           std::vector<uint32_t>* index_of_input, int threads) {
   const size_t n = records.size();
   Box3f half_box[2];
-  ObjectId min_id[2] = {std::numeric_limits<ObjectId>::max(), std::numeric_limits<ObjectId>::max()};
-  ObjectId max_id[2] = {0, 0};
   RunOnHalves(n, threads, [&](size_t lo, size_t hi) {
-    const int h = lo == 0 ? 0 : 1;
-    for (size_t i = lo; i < hi; ++i) {
-      half_box[h].Extend(records[i].box);
-      min_id[h] = std::min(min_id[h], records[i].id);
-      max_id[h] = std::max(max_id[h], records[i].id);
-    }
+    for (size_t i = lo; i < hi; ++i) half_box[lo == 0 ? 0 : 1].Extend(records[i].box);
   });
   Box3f all = half_box[0];
   all.Extend(half_box[1]);
@@ -173,14 +146,14 @@ BuildRecords SpatialLayout(std::vector<ObjectRecord> records, IdColumn* ids,
   BuildRecords rec;
   rec.box.resize(n);
   rec.bytes.resize(n);
-  ids->Init(n, std::min(min_id[0], min_id[1]), std::max(max_id[0], max_id[1]));
+  ids->resize(n);
   index_of_input->resize(n);
   RunOnHalves(n, threads, [&](size_t lo, size_t hi) {
     for (size_t i = lo; i < hi; ++i) {
       const uint32_t from = static_cast<uint32_t>(a[i]);
       rec.box[i] = records[from].box;
       rec.bytes[i] = records[from].encoded_bytes;
-      ids->Set(i, records[from].id);
+      (*ids)[i] = records[from].id;
       (*index_of_input)[from] = static_cast<uint32_t>(i);
     }
   });
@@ -1075,7 +1048,7 @@ Result<BuildResult> BuildMKTree(std::vector<ObjectRecord> records, const BuildPa
 
   const int threads =
       tuning.threads > 0 ? tuning.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  IdColumn ids;
+  std::vector<ObjectId> ids;
   BuildRecords rec;
   Shared shared{rec.box, rec.bytes, params, tuning, {}, {}};
   {
@@ -1108,6 +1081,10 @@ Result<BuildResult> BuildMKTree(std::vector<ObjectRecord> records, const BuildPa
     BuildParallel(&shared, root, threads, &out);
   } else {
     SubtreeBuilder(&shared).Run(root, &out);
+    // The tree stays in RAM for the store's lifetime: no growth slack (the 2-thread stitch sizes it
+    // exactly). Copied once the lists are gone, so under the build's peak.
+    ReleaseBuildLists(&shared);
+    out.ShrinkToFit();
   }
 
   lap(&result.timings.nodes);
@@ -1118,7 +1095,6 @@ Result<BuildResult> BuildMKTree(std::vector<ObjectRecord> records, const BuildPa
     page += lf.page_count;
   }
   // The leaves' ranges of any list hold their objects: list 0 becomes leaf_objects (ids in place).
-  ReleaseBuildLists(&shared);
   result.leaf_objects = std::move(shared.lists[0]);
   for (ObjectId& o : result.leaf_objects) o = ids[o];
   result.leaf_offsets = std::move(out.leaf_begin);
