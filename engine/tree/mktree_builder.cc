@@ -40,10 +40,13 @@ inline uint32_t SortableBits(float f) {
   return (u & 0x80000000u) ? ~u : (u | 0x80000000u);
 }
 
-// LSD radix sort of (key << 32 | payload) pairs by the key's top 32 bits, stable: 3 passes of 11/11/10 bits,
-// far faster than an indirect comparison sort at 10M. The three digits are counted in one pass.
-void RadixSortByHighWord(std::vector<uint64_t>* a, std::vector<uint64_t>* b) {
-  b->resize(a->size());
+// LSD radix sort of (key << 32 | payload) pairs by the key, stable, writing the payloads in that order to
+// *out (resized; a and b are scratch): 3 passes of 11/11/10 bits, far faster than an indirect comparison
+// sort at 10M. The three digits are counted in one pass, and the last pass writes the payloads directly.
+void RadixSortPayloads(std::vector<uint64_t>* a, std::vector<uint64_t>* b, std::vector<uint32_t>* out) {
+  const size_t n = a->size();
+  b->resize(n);
+  out->resize(n);
   constexpr int kShift[3] = {32, 43, 54};
   constexpr size_t kBuckets = size_t{1} << 11;
   std::vector<size_t> count(3 * kBuckets, 0);
@@ -61,8 +64,12 @@ void RadixSortByHighWord(std::vector<uint64_t>* a, std::vector<uint64_t>* b) {
       sum += here;
     }
     const int shift = kShift[pass];
-    for (uint64_t v : *a) (*b)[c[(v >> shift) & 0x7ff]++] = v;
-    a->swap(*b);
+    if (pass < 2) {
+      for (uint64_t v : *a) (*b)[c[(v >> shift) & 0x7ff]++] = v;
+      a->swap(*b);
+    } else {
+      for (uint64_t v : *a) (*out)[c[(v >> shift) & 0x7ff]++] = static_cast<uint32_t>(v);
+    }
   }
 }
 
@@ -86,9 +93,7 @@ void SortByKey(const std::vector<Box3f>& box, const std::vector<uint32_t>& index
     const float k = use_max ? box[i].max[axis] : box[i].min[axis];
     (*a)[p] = (uint64_t{SortableBits(k)} << 32) | i;
   }
-  RadixSortByHighWord(a, b);
-  out->resize(n);
-  for (size_t i = 0; i < n; ++i) (*out)[i] = static_cast<uint32_t>((*a)[i]);
+  RadixSortPayloads(a, b, out);
 }
 
 // fn(lo, hi) over [0, n) in two halves, the first on a thread of its own when there are threads to spare
@@ -141,7 +146,9 @@ BuildRecords SpatialLayout(std::vector<ObjectRecord> records, std::vector<Object
       a[i] = (uint64_t{code} << 32) | i;
     }
   });
-  RadixSortByHighWord(&a, &b);
+  std::vector<uint32_t> order;  // record index -> input position
+  RadixSortPayloads(&a, &b, &order);
+  std::vector<uint64_t>().swap(a);
   std::vector<uint64_t>().swap(b);
   BuildRecords rec;
   rec.box.resize(n);
@@ -150,7 +157,7 @@ BuildRecords SpatialLayout(std::vector<ObjectRecord> records, std::vector<Object
   index_of_input->resize(n);
   RunOnHalves(n, threads, [&](size_t lo, size_t hi) {
     for (size_t i = lo; i < hi; ++i) {
-      const uint32_t from = static_cast<uint32_t>(a[i]);
+      const uint32_t from = order[i];
       rec.box[i] = records[from].box;
       rec.bytes[i] = records[from].encoded_bytes;
       (*ids)[i] = records[from].id;
