@@ -226,6 +226,21 @@ TEST(BuildMKTree, SingleThreadAndTwoThreadsBuildTheSameTree) {
   }
 }
 
+// From 65536 objects on, the records are laid out on two threads as well: still the 1-thread tree.
+TEST(BuildMKTree, LargeInputsBuildTheSameTreeOnTwoThreads) {
+  auto recs = MakeScene(SceneKind::kShip, 70000, 5);
+  BuildTuning one;
+  one.threads = 1;
+  BuildTuning two;
+  two.threads = 2;
+  auto r1 = BuildMKTree(recs, BuildParams(), one);
+  auto r2 = BuildMKTree(recs, BuildParams(), two);
+  ASSERT_TRUE(r1.ok());
+  ASSERT_TRUE(r2.ok());
+  ExpectSameTree(*r1, *r2);
+  CheckTree(recs, *r2, BuildParams());
+}
+
 // Degenerate inputs that would make a quadratic step explode: they must complete quickly (no timing
 // assertion: the test time limit is the guard) and still be correct.
 TEST(BuildMKTree, DegenerateLargeInputsBuildFast) {
