@@ -18,6 +18,7 @@
 #include <malloc.h>
 #endif
 
+#include "engine/tree/box_lanes.h"
 #include "engine/tree/split_tree_builder.h"
 #include "storage/leaf_format.h"
 
@@ -577,22 +578,27 @@ class SubtreeBuilder {
 
   // Margin of the union of the boxes of order[lo .. lo+i] for i in [k_min-1, k_max-1] at
   // margin_pre_[i - (k_min-1)], and of order[lo+i .. hi) for i in [k_min, k_max] at margin_suf_[i - k_min]:
-  // what the cuts k in [k_min, k_max] need.
+  // what the cuts k in [k_min, k_max] need. Each sweep runs in two stretches (without, then with a margin
+  // stored) over the boxes as vectors.
   void PrefixSuffixMargins(const Task& t, const std::vector<uint32_t>& order, uint32_t k_min, uint32_t k_max) {
     const uint32_t n = t.hi - t.lo;
     margin_base_ = k_min;
     margin_pre_.Fit(k_max - k_min + 1);
     margin_suf_.Fit(k_max - k_min + 1);
-    Box3f u;
-    for (uint32_t i = 0; i < k_max; ++i) {
-      u.Extend(box_[order[t.lo + i]]);
-      if (i + 1 >= k_min) margin_pre_[i + 1 - k_min] = Margin(u);
-    }
-    u = Box3f();
-    for (uint32_t i = n; i-- > k_min;) {
-      u.Extend(box_[order[t.lo + i]]);
-      if (i <= k_max) margin_suf_[i - k_min] = Margin(u);
-    }
+    const uint32_t* ord = order.data() + t.lo;
+    const Box3f* box = box_.data();
+    Lanes lo = EmptyMinLanes(), hi = EmptyMaxLanes();
+    auto extend = [&](uint32_t i) {
+      lo = Min(lo, MinLanes(box[ord[i]]));
+      hi = Max(hi, MaxLanes(box[ord[i]]));
+    };
+    uint32_t i = 0;
+    for (; i + 1 < k_min; ++i) extend(i);
+    for (; i < k_max; ++i) extend(i), margin_pre_[i + 1 - k_min] = MarginOfLanes(lo, hi);
+    lo = EmptyMinLanes(), hi = EmptyMaxLanes();
+    i = n;
+    while (i > k_max + 1) extend(--i);
+    while (i > k_min) --i, extend(i), margin_suf_[i - k_min] = MarginOfLanes(lo, hi);
   }
 
   // Gathers axis w and evaluates its candidates (kSoa, and kCompact's |Sm| first pass).

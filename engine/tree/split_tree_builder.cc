@@ -4,17 +4,16 @@
 #include <bit>
 #include <cmath>
 #include <cstddef>
-#include <cstring>
 #include <limits>
 #include <optional>
-#include <type_traits>
+
+#include "engine/tree/box_lanes.h"
 
 namespace mktree {
 namespace {
 
 constexpr uint8_t kLeftBit = 1, kRightBit = 2;
 constexpr uint32_t kMinRoom = 64;  // Builder::Grow's smallest room (fewer moves of small leaves)
-
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
 
@@ -29,28 +28,6 @@ inline float NextUp(float x) {
   const uint32_t u = std::bit_cast<uint32_t>(x);
   return std::bit_cast<float>(x > 0 ? u + 1 : u - 1);
 }
-
-// 4-lane vectors of floats (GCC/Clang vector extension): a cell's extremes take one vector min and one
-// vector max per item.
-typedef float Lanes __attribute__((vector_size(16)));
-
-// A box as two vectors loaded straight from it: its bytes 0-15, whose lanes 0-2 are min[0..2], and its
-// bytes 8-23, whose lanes 1-3 are max[0..2]. (The other lane of each is never read.)
-static_assert(std::is_standard_layout_v<Box3f> && sizeof(Box3f) == 24 && offsetof(Box3f, max) == 12);
-constexpr int kMaxLane = 1;  // max[u] is lane u + kMaxLane
-inline Lanes MinLanes(const Box3f& b) {
-  Lanes v;
-  std::memcpy(&v, &b, sizeof v);
-  return v;
-}
-inline Lanes MaxLanes(const Box3f& b) {
-  Lanes v;
-  std::memcpy(&v, reinterpret_cast<const char*>(&b) + 8, sizeof v);
-  return v;
-}
-// As std::min(acc, x) and std::max(acc, x), lane by lane (so a NaN in x never enters).
-inline Lanes Min(Lanes acc, Lanes x) { return x < acc ? x : acc; }
-inline Lanes Max(Lanes acc, Lanes x) { return x > acc ? x : acc; }
 
 struct Cut {
   int axis = -1;
