@@ -320,7 +320,7 @@ class SubtreeBuilder {
       }
     }
     node.depth = static_cast<uint8_t>(std::min<uint32_t>(t.depth, 255));
-    if (n == 1 || FitsInOnePage(t.bytes, mem_page_)) {
+    if (IsLeaf(n, t.bytes)) {
       node.leaf = static_cast<uint32_t>(out->leaves.size());
       LeafInfo leaf;
       leaf.box = node.box;
@@ -402,8 +402,7 @@ class SubtreeBuilder {
         left_bytes += bytes_[idx] & (r - 1);  // r = 0: all bits
       }
     }
-    auto is_leaf = [&](uint32_t count, uint64_t bytes) { return count == 1 || FitsInOnePage(bytes, mem_page_); };
-    const bool leaf_kids = is_leaf(n1, left_bytes) && is_leaf(n - n1, t.bytes - left_bytes);
+    const bool leaf_kids = IsLeaf(n1, left_bytes) && IsLeaf(n - n1, t.bytes - left_bytes);
     // Stable in-place partition of the lists by side, keeping each half sorted by its key.
     tmp_.Fit(n);
     // Branch-free: the sides of neighbours in key order are not predictable.
@@ -454,6 +453,9 @@ class SubtreeBuilder {
   }
 
  private:
+  // InPage (DESIGN.md §2): a node of `count` objects whose entries take `bytes` is a leaf.
+  bool IsLeaf(uint32_t count, uint64_t bytes) const { return count == 1 || FitsInOnePage(bytes, mem_page_); }
+
   void ShrinkScratch(size_t n) {
     if (tmp_.capacity() < n + n / 2 + (1u << 16)) return;
     const size_t freed = 7 * (tmp_.capacity() - n) * sizeof(float);  // about
