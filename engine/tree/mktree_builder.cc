@@ -388,26 +388,13 @@ class SubtreeBuilder {
       }
     }
 
-    // The children's sizes. When both are leaves, only list 0 (their objects) and the split axis' lists
-    // (the planes below) are partitioned: a leaf takes its box from its objects.
-    uint64_t left_bytes = 0;
-    uint32_t n1 = 0;
-    {
-      const uint32_t* v = s_.lists[0].data();
-      const uint8_t* side = s_.side.data();
-      for (uint32_t i = t.lo; i < t.hi; ++i) {
-        const uint32_t idx = v[i];
-        const uint32_t r = side[idx];
-        n1 += r ^ 1;
-        left_bytes += bytes_[idx] & (r - 1);  // r = 0: all bits
-      }
-    }
-    const bool leaf_kids = IsLeaf(n1, left_bytes) && IsLeaf(n - n1, t.bytes - left_bytes);
-    // Stable in-place partition of the lists by side, keeping each half sorted by its key.
+    // Stable in-place partition of the lists by side, keeping each half sorted by its key. Branch-free:
+    // the sides of neighbours in key order are not predictable. List 0 goes first and also sums the left
+    // child's bytes: when both children are leaves, only list 0 (their objects) and the split axis' lists
+    // (the planes below) are partitioned, as a leaf takes its box from its objects.
     tmp_.Fit(n);
-    // Branch-free: the sides of neighbours in key order are not predictable.
-    for (int l = 0; l < 6; ++l) {
-      if (leaf_kids && l != 0 && l / 2 != w) continue;
+    uint64_t left_bytes = 0;
+    auto partition = [&](int l, bool sum_bytes) {
       uint32_t* v = s_.lists[l].data();
       uint32_t* right = tmp_.data();
       const uint8_t* side = s_.side.data();
@@ -419,9 +406,15 @@ class SubtreeBuilder {
         right[tpos] = idx;
         wpos += r ^ 1;
         tpos += r;
+        if (sum_bytes) left_bytes += bytes_[idx] & (r - 1);  // r = 0: all bits
       }
       std::copy(right, right + tpos, v + wpos);
-    }
+      return wpos - t.lo;
+    };
+    const uint32_t n1 = partition(0, true);
+    const bool leaf_kids = IsLeaf(n1, left_bytes) && IsLeaf(n - n1, t.bytes - left_bytes);
+    for (int l = 1; l < 6; ++l)
+      if (!leaf_kids || l / 2 == w) partition(l, false);
     // The stored planes are those of the final children (free objects may have narrowed the slab).
     node.a = box_[s_.lists[2 * w][t.lo + n1]].min[w];
     node.b = box_[s_.lists[2 * w + 1][t.lo + n1 - 1]].max[w];
