@@ -344,8 +344,9 @@ class SubtreeBuilder {
     const int w = best.list / 2;
     node.axis = static_cast<uint8_t>(w);
 
-    const std::vector<uint32_t>& chosen = s_.lists[best.list];
-    for (uint32_t i = 0; i < n; ++i) s_.side[chosen[t.lo + i]] = i < best.k ? 0 : 1;
+    const uint32_t* chosen = s_.lists[best.list].data() + t.lo;
+    for (uint32_t i = 0; i < best.k; ++i) s_.side[chosen[i]] = 0;
+    for (uint32_t i = best.k; i < n; ++i) s_.side[chosen[i]] = 1;
 
     // Objects meeting the closed slab: they decide the SplitTree, and the free ones among them may move.
     std::vector<SplitNode> split;
