@@ -31,16 +31,19 @@ inline Lanes MaxLanes(const Box3f& b) {
 inline Lanes Min(Lanes acc, Lanes x) { return x < acc ? x : acc; }
 inline Lanes Max(Lanes acc, Lanes x) { return x > acc ? x : acc; }
 
-// The union of no boxes, as (MinLanes, MaxLanes) accumulators.
-inline Lanes EmptyMinLanes() {
-  constexpr float kInf = std::numeric_limits<float>::infinity();
-  return Lanes{kInf, kInf, kInf, kInf};
-}
-inline Lanes EmptyMaxLanes() { return -EmptyMinLanes(); }
-
-// (max[0] - min[0]) + (max[1] - min[1]) + (max[2] - min[2]) of the union, in that order (as a Box3f's).
-inline float MarginOfLanes(Lanes lo, Lanes hi) {
-  return (hi[0 + kMaxLane] - lo[0]) + (hi[1 + kMaxLane] - lo[1]) + (hi[2 + kMaxLane] - lo[2]);
-}
+// A union of boxes as (MinLanes, MaxLanes) accumulators: one vector min and one vector max per box.
+struct LanesUnion {
+  static constexpr float kInf = std::numeric_limits<float>::infinity();
+  Lanes lo = {kInf, kInf, kInf, kInf};
+  Lanes hi = {-kInf, -kInf, -kInf, -kInf};
+  void Add(const Box3f& b) {
+    lo = Min(lo, MinLanes(b));
+    hi = Max(hi, MaxLanes(b));
+  }
+  // (max[0] - min[0]) + (max[1] - min[1]) + (max[2] - min[2]), in that order (as for a Box3f).
+  float Margin() const {
+    return (hi[0 + kMaxLane] - lo[0]) + (hi[1 + kMaxLane] - lo[1]) + (hi[2 + kMaxLane] - lo[2]);
+  }
+};
 
 }  // namespace mktree

@@ -294,8 +294,8 @@ class SubtreeBuilder {
         }
         stack.push_back(kids[0]);  // left next: it becomes node n+1 (DFS preorder)
       }
-      // The scratch arrays were sized for the root; give the memory back once nodes are much smaller,
-      // so that it does not add to the peak when the SplitTrees have grown.
+      // The scratch arrays were sized for the largest node so far; give the memory back once the next
+      // node is under 2/3 of that, so that it does not add to the peak when the SplitTrees have grown.
       if (!stack.empty()) ShrinkScratch(stack.back().hi - stack.back().lo);
     }
   }
@@ -558,18 +558,14 @@ class SubtreeBuilder {
       axis_ok[w] = spread[w] == longest || spread[w] >= s_.tuning.compact_axis_ratio * longest;
   }
 
-  static float Margin(const Box3f& b) {
-    return (b.max[0] - b.min[0]) + (b.max[1] - b.min[1]) + (b.max[2] - b.min[2]);
-  }
-
   // N1 x margin(R(Sn1)) + N2 x margin(R(Sn2)) of one candidate, as ScanKeys computes it.
   float SplitMargin(const Task& t, int list, uint32_t k) const {
     const std::vector<uint32_t>& order = s_.lists[list];
-    Box3f lo, hi;
-    for (uint32_t i = t.lo; i < t.lo + k; ++i) lo.Extend(box_[order[i]]);
-    for (uint32_t i = t.lo + k; i < t.hi; ++i) hi.Extend(box_[order[i]]);
+    LanesUnion lo, hi;
+    for (uint32_t i = t.lo; i < t.lo + k; ++i) lo.Add(box_[order[i]]);
+    for (uint32_t i = t.lo + k; i < t.hi; ++i) hi.Add(box_[order[i]]);
     const uint32_t n = t.hi - t.lo;
-    return static_cast<float>(static_cast<double>(k) * Margin(lo) + static_cast<double>(n - k) * Margin(hi));
+    return static_cast<float>(static_cast<double>(k) * lo.Margin() + static_cast<double>(n - k) * hi.Margin());
   }
 
   // Margin of the union of the boxes of order[lo .. lo+i] for i in [k_min-1, k_max-1] at
@@ -583,18 +579,14 @@ class SubtreeBuilder {
     margin_suf_.Fit(k_max - k_min + 1);
     const uint32_t* ord = order.data() + t.lo;
     const Box3f* box = box_.data();
-    Lanes lo = EmptyMinLanes(), hi = EmptyMaxLanes();
-    auto extend = [&](uint32_t i) {
-      lo = Min(lo, MinLanes(box[ord[i]]));
-      hi = Max(hi, MaxLanes(box[ord[i]]));
-    };
+    LanesUnion pre;
     uint32_t i = 0;
-    for (; i + 1 < k_min; ++i) extend(i);
-    for (; i < k_max; ++i) extend(i), margin_pre_[i + 1 - k_min] = MarginOfLanes(lo, hi);
-    lo = EmptyMinLanes(), hi = EmptyMaxLanes();
+    for (; i + 1 < k_min; ++i) pre.Add(box[ord[i]]);
+    for (; i < k_max; ++i) pre.Add(box[ord[i]]), margin_pre_[i + 1 - k_min] = pre.Margin();
+    LanesUnion suf;
     i = n;
-    while (i > k_max + 1) extend(--i);
-    while (i > k_min) --i, extend(i), margin_suf_[i - k_min] = MarginOfLanes(lo, hi);
+    while (i > k_max + 1) suf.Add(box[ord[--i]]);
+    while (i > k_min) --i, suf.Add(box[ord[i]]), margin_suf_[i - k_min] = suf.Margin();
   }
 
   // Gathers axis w and evaluates its candidates (kSoa, and kCompact's |Sm| first pass).

@@ -4,6 +4,7 @@
 #include <bit>
 #include <cmath>
 #include <cstddef>
+#include <cstring>
 #include <limits>
 #include <optional>
 
@@ -292,14 +293,10 @@ class Builder {
   void ComputeExtremes(Cell* c) const {
     const uint32_t* pool = b_.pool.get();
     for (int s = 0; s < 2; ++s) {
-      Lanes lo = {kInf, kInf, kInf, kInf}, hi = -lo;
-      for (uint32_t k = c->begin[s]; k < c->end[s]; ++k) {
-        const Box3f& b = items_[pool[k]].box;
-        lo = Min(lo, MinLanes(b));
-        hi = Max(hi, MaxLanes(b));
-      }
-      c->lo_of[s] = lo;
-      c->hi_of[s] = hi;
+      LanesUnion u;
+      for (uint32_t k = c->begin[s]; k < c->end[s]; ++k) u.Add(items_[pool[k]].box);
+      c->lo_of[s] = u.lo;
+      c->hi_of[s] = u.hi;
     }
   }
 
