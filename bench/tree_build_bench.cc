@@ -29,16 +29,18 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
-#include <chrono>
-#include <cstdio>
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <random>
 #include <string>
 #include <vector>
 
 #include "engine/generator/tanker_generator.h"
+#include "engine/tree/leaf_filter.h"
 #include "engine/tree/mktree_builder.h"
 #include "storage/leaf_format.h"
 
@@ -104,6 +106,9 @@ struct Quality {
   double mean_answer_leaves = 0;
   double mean_split_nodes = 0;
   double mean_leaf_boxes = 0;  // leaves whose box contains the point (first 1,000 points): routing by boxes only
+  double filtered_leaves = 0;  // leaves the leaf filter lets through (what a query reads)
+  double filtered_extra = 0;   // of those, the ones without an answer (the target: <= 0.2)
+  double filtered_multi_share = 0;
 };
 
 Quality RoutingQuality(const BuildResult& r, const std::vector<ObjectRecord>& recs, int points, uint64_t seed) {
@@ -112,7 +117,8 @@ Quality RoutingQuality(const BuildResult& r, const std::vector<ObjectRecord>& re
   std::mt19937_64 rng(seed);
   const Box3f& root = r.tree.nodes[0].box;
   std::vector<uint32_t> leaves;
-  uint64_t reached = 0, answer = 0, multi = 0, stabbed = 0;
+  uint64_t reached = 0, answer = 0, multi = 0, stabbed = 0, passed = 0, passed_multi = 0;
+  std::vector<uint8_t> quantized;
   const int box_points = std::min(points, 1000);
   QueryStats st;
   for (int i = 0; i < points; ++i) {
@@ -124,6 +130,7 @@ Quality RoutingQuality(const BuildResult& r, const std::vector<ObjectRecord>& re
       for (const LeafInfo& lf : r.tree.leaves) stabbed += lf.box.Contains(p);
     reached += leaves.size();
     multi += leaves.size() > 1;
+    uint64_t passed_here = 0;
     for (uint32_t l : leaves) {
       for (uint64_t k = r.leaf_offsets[l]; k < r.leaf_offsets[l + 1]; ++k) {
         if (recs[r.leaf_objects[k]].box.Contains(p)) {  // ids are record indices here
@@ -131,7 +138,16 @@ Quality RoutingQuality(const BuildResult& r, const std::vector<ObjectRecord>& re
           break;
         }
       }
+      // The leaf filter as the store keeps it: the leaf's object boxes quantized inside its box.
+      const uint64_t count = r.leaf_offsets[l + 1] - r.leaf_offsets[l];
+      quantized.resize(count * kLeafFilterBytesPerObject);
+      for (uint64_t k = 0; k < count; ++k)
+        QuantizeBox(r.tree.leaves[l].box, recs[r.leaf_objects[r.leaf_offsets[l] + k]].box,
+                    &quantized[k * kLeafFilterBytesPerObject]);
+      passed_here += FilterMeetsPoint(r.tree.leaves[l].box, quantized.data(), static_cast<uint32_t>(count), p);
     }
+    passed += passed_here;
+    passed_multi += passed_here > 1;
   }
   q.mean_leaves = double(reached) / points;
   q.mean_answer_leaves = double(answer) / points;
@@ -139,6 +155,9 @@ Quality RoutingQuality(const BuildResult& r, const std::vector<ObjectRecord>& re
   q.multi_leaf_share = double(multi) / points;
   q.mean_split_nodes = double(st.split_nodes_visited) / points;
   q.mean_leaf_boxes = double(stabbed) / box_points;
+  q.filtered_leaves = double(passed) / points;
+  q.filtered_extra = double(passed - answer) / points;  // a leaf with an answer always passes
+  q.filtered_multi_share = double(passed_multi) / points;
   return q;
 }
 
@@ -314,6 +333,20 @@ void Run(const Workload& w) {
   tune.threads = w.threads;
   tune.fill_aware = w.fill_aware;
   tune.split_policy = w.policy;
+  // TREE_BENCH_REPEAT=k: k more builds of copies of the same records first, timed alone (for A/B runs on a
+  // noisy machine; the peak RSS of the main build then includes the copy).
+  if (const char* rep = std::getenv("TREE_BENCH_REPEAT")) {
+    for (int i = 0, k = std::atoi(rep); i < k; ++i) {
+      std::vector<ObjectRecord> copy = recs;
+      const auto r0 = std::chrono::steady_clock::now();
+      auto b = BuildMKTree(std::move(copy), BuildParams(), tune);
+      const double sec = std::chrono::duration<double>(std::chrono::steady_clock::now() - r0).count();
+      if (!b.ok()) std::exit(1);
+      const BuildTimings& tm = b->timings;
+      std::printf("%-14s repeat %6.3f s  (layout %.3f sorts %.3f nodes %.3f finish %.3f s)\n", w.name, sec, tm.layout,
+                  tm.sorts, tm.nodes, tm.finish);
+    }
+  }
   const auto t0 = std::chrono::steady_clock::now();
   auto built = BuildMKTree(std::move(recs), BuildParams(), tune);
   const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -352,6 +385,9 @@ void Run(const Workload& w) {
               "  split nodes/point %.2f  (leaf boxes containing the point %.3f)\n",
               "", q.mean_leaves, q.mean_answer_leaves, q.extra_leaves, 100 * q.multi_leaf_share,
               q.mean_split_nodes, q.mean_leaf_boxes);
+  std::printf("%-14s with the leaf filter (what a query reads): leaves/point %.3f  extra %.3f (target <= 0.2)"
+              "  >1 leaf %.1f%%\n",
+              "", q.filtered_leaves, q.filtered_extra, 100 * q.filtered_multi_share);
   const int box_count = static_cast<int>(std::clamp<uint64_t>(300000000 / w.objects, 30, 300));
   std::printf("%-14s boxes (%d, seed 7): leaves with an answer", "", box_count);
   for (double side : {2.0, 8.0}) {
