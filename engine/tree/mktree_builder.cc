@@ -245,6 +245,7 @@ struct Task {
   int slot = 0;
   uint64_t bytes = 0;          // sum of encoded_bytes of the objects
   bool leaf_lists_only = false;  // a leaf whose range is sorted in list 0 (and the split axis' lists) only
+  bool cooperative = false;  // the root of a multi-thread build: it takes an idle thread along (Together)
 };
 
 struct Candidate {
@@ -269,6 +270,15 @@ struct Candidate {
     return imbalance < o.imbalance;
   }
 };
+
+// Runs a() here and b() on a thread of its own, and waits for both (for the root of a multi-thread build,
+// which runs while the other threads have nothing to do).
+template <typename A, typename B>
+void Together(A&& a, B&& b) {
+  std::thread other(std::forward<B>(b));
+  a();
+  other.join();
+}
 
 class SubtreeBuilder {
  public:
@@ -395,9 +405,8 @@ class SubtreeBuilder {
     // (the planes below) are partitioned, as a leaf takes its box from its objects.
     tmp_.Fit(n);
     uint64_t left_bytes = 0;
-    auto partition = [&](int l, bool sum_bytes) {
+    auto partition = [&]<bool kSumBytes>(int l, uint32_t* right) {
       uint32_t* v = s_.lists[l].data();
-      uint32_t* right = tmp_.data();
       const uint8_t* side = s_.side.data();
       uint32_t wpos = t.lo, tpos = 0;
       for (uint32_t i = t.lo; i < t.hi; ++i) {
@@ -407,15 +416,30 @@ class SubtreeBuilder {
         right[tpos] = idx;
         wpos += r ^ 1;
         tpos += r;
-        if (sum_bytes) left_bytes += bytes_[idx] & (r - 1);  // r = 0: all bits
+        if (kSumBytes) left_bytes += bytes_[idx] & (r - 1);  // r = 0: all bits
       }
       std::copy(right, right + tpos, v + wpos);
       return wpos - t.lo;
     };
-    const uint32_t n1 = partition(0, true);
-    const bool leaf_kids = IsLeaf(n1, left_bytes) && IsLeaf(n - n1, t.bytes - left_bytes);
-    for (int l = 1; l < 6; ++l)
-      if (!leaf_kids || l / 2 == w) partition(l, false);
+    uint32_t n1 = 0;
+    bool leaf_kids = false;
+    auto lists_0_to_2 = [&] {
+      n1 = partition.template operator()<true>(0, tmp_.data());
+      leaf_kids = IsLeaf(n1, left_bytes) && IsLeaf(n - n1, t.bytes - left_bytes);
+      for (int l = 1; l < 3; ++l)
+        if (!leaf_kids || l / 2 == w) partition.template operator()<false>(l, tmp_.data());
+    };
+    if (t.cooperative) {  // lists 3-5 on the other thread (partitioned even for leaf children: harmless)
+      Scratch<uint32_t> other_tmp;
+      other_tmp.Reset(n);
+      Together(lists_0_to_2, [&] {
+        for (int l = 3; l < 6; ++l) partition.template operator()<false>(l, other_tmp.data());
+      });
+    } else {
+      lists_0_to_2();
+      for (int l = 3; l < 6; ++l)
+        if (!leaf_kids || l / 2 == w) partition.template operator()<false>(l, tmp_.data());
+    }
     // The stored planes are those of the final children (free objects may have narrowed the slab).
     node.a = box_[s_.lists[2 * w][t.lo + n1]].min[w];
     node.b = box_[s_.lists[2 * w + 1][t.lo + n1 - 1]].max[w];
@@ -628,28 +652,38 @@ class SubtreeBuilder {
     float* smax = sorted_max_.data();
     float* pmax = prefix_max_.data();  // [k - k_lo]: max of max_w over the first k objects
     float* smn = suffix_min_.data();   // [k - k_lo]: min of min_w over objects k..n-1
-    float run = -std::numeric_limits<float>::infinity();
-    auto up = [&](uint32_t i) {
-      if (kFar && i + kPrefetch < n) __builtin_prefetch(&box[by_min[i + kPrefetch]]);
-      const Box3f& bx = box[by_min[i]];
-      smin[i] = bx.min[w];
-      run = std::max(run, bx.max[w]);
+    auto sweep_up = [&] {
+      float run = -std::numeric_limits<float>::infinity();
+      auto up = [&](uint32_t i) {
+        if (kFar && i + kPrefetch < n) __builtin_prefetch(&box[by_min[i + kPrefetch]]);
+        const Box3f& bx = box[by_min[i]];
+        smin[i] = bx.min[w];
+        run = std::max(run, bx.max[w]);
+      };
+      uint32_t i = 0;
+      for (; i + 1 < k_lo; ++i) up(i);
+      for (; i < k_hi; ++i) up(i), pmax[i + 1 - k_lo] = run;
+      for (; i < n; ++i) up(i);
     };
-    uint32_t i = 0;
-    for (; i + 1 < k_lo; ++i) up(i);
-    for (; i < k_hi; ++i) up(i), pmax[i + 1 - k_lo] = run;
-    for (; i < n; ++i) up(i);
-    run = std::numeric_limits<float>::infinity();
-    auto down = [&](uint32_t i) {
-      if (kFar && i >= kPrefetch) __builtin_prefetch(&box[by_max[i - kPrefetch]]);
-      const Box3f& bx = box[by_max[i]];
-      smax[i] = bx.max[w];
-      run = std::min(run, bx.min[w]);
+    auto sweep_down = [&] {
+      float run = std::numeric_limits<float>::infinity();
+      auto down = [&](uint32_t i) {
+        if (kFar && i >= kPrefetch) __builtin_prefetch(&box[by_max[i - kPrefetch]]);
+        const Box3f& bx = box[by_max[i]];
+        smax[i] = bx.max[w];
+        run = std::min(run, bx.min[w]);
+      };
+      uint32_t i = n;
+      for (; i > k_hi + 1;) down(--i);
+      for (; i > k_lo;) --i, down(i), smn[i - k_lo] = run;
+      for (; i > 0;) down(--i);
     };
-    i = n;
-    for (; i > k_hi + 1;) down(--i);
-    for (; i > k_lo;) --i, down(i), smn[i - k_lo] = run;
-    for (; i > 0;) down(--i);
+    if (t.cooperative) {
+      Together(sweep_up, sweep_down);
+    } else {
+      sweep_up();
+      sweep_down();
+    }
   }
 
   // First index i >= from with arr[i] > x (upper) or arr[i] >= x (lower), by galloping forward: arr is
@@ -1085,8 +1119,9 @@ Result<BuildResult> BuildMKTree(std::vector<ObjectRecord> records, const BuildPa
   for (uint32_t b : rec.bytes) total_bytes += b;
 
   SubtreeOut out;
-  const Task root{0, n, 0, kNoIndex, 0, total_bytes};
+  Task root{0, n, 0, kNoIndex, 0, total_bytes};
   if (threads >= 2) {
+    root.cooperative = n >= tuning.cooperative_root_objects;
     BuildParallel(&shared, root, threads, &out);
   } else {
     SubtreeBuilder(&shared).Run(root, &out);

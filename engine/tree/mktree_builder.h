@@ -90,6 +90,9 @@ struct BuildTuning {
   // see bench/tree_build_bench.cc (tanker_1m: 1 thread, tanker_1m_2t: 2 threads).
   int threads = 0;
   uint32_t parallel_task_objects = 0;
+  // With 2 threads or more, a root of at least this many objects shares its key sweeps and list partitions
+  // with a second thread (the others have nothing to do until it is split).
+  uint32_t cooperative_root_objects = 1u << 17;
 };
 
 // REQUIRES nothing of `records` beyond the checks below, which return InvalidArgument naming the object:

@@ -241,6 +241,26 @@ TEST(BuildMKTree, LargeInputsBuildTheSameTreeOnTwoThreads) {
   CheckTree(recs, *r2, BuildParams());
 }
 
+// The root of a 2-thread build shares its sweeps and partitions with the second thread: same tree.
+TEST(BuildMKTree, CooperativeRootBuildsTheSameTree) {
+  for (SplitPolicy policy : kAllPolicies) {
+    SCOPED_TRACE(testing::Name(policy));
+    for (SceneKind kind : {SceneKind::kShip, SceneKind::kClustered}) {
+      auto recs = MakeScene(kind, 20000, 9);
+      BuildTuning one = WithPolicy(policy);
+      one.threads = 1;
+      BuildTuning two = WithPolicy(policy);
+      two.threads = 2;
+      two.cooperative_root_objects = 1;
+      auto r1 = BuildMKTree(recs, BuildParams(), one);
+      auto r2 = BuildMKTree(recs, BuildParams(), two);
+      ASSERT_TRUE(r1.ok());
+      ASSERT_TRUE(r2.ok());
+      ExpectSameTree(*r1, *r2);
+    }
+  }
+}
+
 // Degenerate inputs that would make a quadratic step explode: they must complete quickly (no timing
 // assertion: the test time limit is the guard) and still be correct.
 TEST(BuildMKTree, DegenerateLargeInputsBuildFast) {
