@@ -18,6 +18,9 @@ constexpr uint32_t kMinRoom = 64;  // Builder::Grow's smallest room (fewer moves
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
 
+typedef int MaskLanes __attribute__((vector_size(16)));  // a lane-wise comparison of two Lanes
+static_assert(offsetof(SplitItem, box) == 0 && sizeof(SplitItem) >= offsetof(Box3f, max) + sizeof(Lanes));
+
 // Float neighbours of a finite x (std::nextafter without the library call: BestCut asks for 12 a cell).
 inline float NextDown(float x) {
   if (x == 0) return -std::numeric_limits<float>::denorm_min();
@@ -139,13 +142,22 @@ class Builder {
     const uint32_t at = Take(n);
     uint32_t* block = b_.pool.get() + at;
     uint32_t nl = 0, nr = 0;
+    // (Also checks min <= max on every axis of every box, as (min[0..2], max[0]) <= (max[0..2], side..),
+    // lanes 0-2: see valid_.)
+    MaskLanes ok = {-1, -1, -1, -1};
     for (uint32_t i = 0; i < n; ++i) {
       const uint8_t side = items_[i].side;
       block[nl] = i;
       nl += side == SplitItem::kLeft;
       block[n - 1 - nr] = i;
       nr += side == SplitItem::kRight;
+      Lanes mn, mx;
+      const char* p = reinterpret_cast<const char*>(&items_[i]);
+      std::memcpy(&mn, p, sizeof mn);
+      std::memcpy(&mx, p + offsetof(Box3f, max), sizeof mx);
+      ok &= mn <= mx;
     }
+    valid_ = (ok[0] & ok[1] & ok[2]) != 0;
     std::reverse(block + n - nr, block + n);
     free_count_ = n - nl - nr;
     Cell root;
@@ -155,7 +167,8 @@ class Builder {
     root.end[0] = at + nl;
     root.begin[1] = at + n - nr;
     root.end[1] = at + n;
-    ComputeExtremes(&root);
+    ComputeExtremes(&root, 0);
+    ComputeExtremes(&root, 1);
     b_.cells.push_back(root);
     out_.push_back(SplitNode{});
   }
@@ -290,23 +303,28 @@ class Builder {
     c.end[1] = c.begin[1] + nr;
   }
 
-  void ComputeExtremes(Cell* c) const {
+  void ComputeExtremes(Cell* c, int s) const {
     const uint32_t* pool = b_.pool.get();
-    for (int s = 0; s < 2; ++s) {
-      LanesUnion u;
-      for (uint32_t k = c->begin[s]; k < c->end[s]; ++k) u.Add(items_[pool[k]].box);
-      c->lo_of[s] = u.lo;
-      c->hi_of[s] = u.hi;
-    }
+    LanesUnion u;
+    for (uint32_t k = c->begin[s]; k < c->end[s]; ++k) u.Add(items_[pool[k]].box);
+    c->lo_of[s] = u.lo;
+    c->hi_of[s] = u.hi;
   }
 
   // Cuts cell ci at its cut; returns the lower child (the upper one follows it).
   uint32_t Split(uint32_t ci) {
-    const Cell& parent = b_.cells[ci];
+    std::vector<Cell>& cells = b_.cells;
+    if (cells.capacity() < cells.size() + 2) cells.reserve(std::max<size_t>(2 * cells.capacity(), 16));
+    const uint32_t first = static_cast<uint32_t>(cells.size());
+    // The children start as copies of the parent (no reallocation: the room is there), every field but
+    // the region's cut side and `cut` (set by the next BestCut before it is read) then overwritten.
+    cells.push_back(cells[ci]);
+    cells.push_back(cells[ci]);
+    const Cell& parent = cells[ci];
+    Cell& lower = cells[first];
+    Cell& upper = cells[first + 1];
     const int axis = parent.cut.axis;
     const float pos = parent.cut.pos;
-    Cell lower, upper;
-    lower.region = upper.region = parent.region;
     lower.region.max[axis] = pos;
     upper.region.min[axis] = pos;
     // Each item is written to both children's lists and kept by advancing (the tests are hard to
@@ -322,30 +340,47 @@ class Builder {
       upper.begin[s] = static_cast<uint32_t>(at + n + nu);
       const uint32_t* from = pool + parent.begin[s];
       const uint32_t* const to = pool + parent.end[s];
-      for (; from < to; ++from) {
-        const uint32_t i = *from;
-        const Box3f& b = items_[i].box;
-        to_lower[nl] = i;
-        nl += b.min[axis] <= pos;
-        to_upper[nu] = i;
-        nu += b.max[axis] >= pos;
+      const size_t ns = static_cast<size_t>(to - from);
+      // A side whose items all lie on one side of the cut (as the side that gave the cut does) moves
+      // whole: with every box valid (min <= max), min >= lo_of > pos puts each in the upper child only,
+      // max <= hi_of < pos in the lower one only. The child it moves to has the same set, so the same
+      // extremes (up to the sign of a zero, which no test and no NextDown / NextUp tells apart).
+      if (valid_ && parent.lo_of[s][axis] > pos) {
+        std::memcpy(to_upper + nu, from, ns * sizeof *from);
+        nu += ns;
+      } else if (valid_ && parent.hi_of[s][axis + kMaxLane] < pos) {
+        std::memcpy(to_lower + nl, from, ns * sizeof *from);
+        nl += ns;
+      } else {
+        for (; from < to; ++from) {
+          const uint32_t i = *from;
+          const Box3f& b = items_[i].box;
+          to_lower[nl] = i;
+          nl += b.min[axis] <= pos;
+          to_upper[nu] = i;
+          nu += b.max[axis] >= pos;
+        }
       }
       lower.end[s] = static_cast<uint32_t>(at + nl);
       upper.end[s] = static_cast<uint32_t>(at + n + nu);
+      for (Cell* c : {&lower, &upper}) {
+        const uint32_t count = c->end[s] - c->begin[s];
+        if (count == ns) {
+          c->lo_of[s] = parent.lo_of[s];
+          c->hi_of[s] = parent.hi_of[s];
+        } else {
+          ComputeExtremes(c, s);
+        }
+      }
     }
     lower.volume = cm_.Volume(lower.region);
     upper.volume = cm_.Volume(upper.region);
-    ComputeExtremes(&lower);
-    ComputeExtremes(&upper);
-    const uint32_t first = static_cast<uint32_t>(out_.size());
-    out_[ci].axis = static_cast<uint8_t>(axis);
-    out_[ci].cut = pos;
-    out_[ci].child[0] = first;
-    out_[ci].child[1] = first + 1;
-    out_.push_back(SplitNode{});
-    out_.push_back(SplitNode{});
-    b_.cells.push_back(lower);
-    b_.cells.push_back(upper);
+    SplitNode& sn = out_[ci];
+    sn.axis = static_cast<uint8_t>(axis);
+    sn.cut = pos;
+    sn.child[0] = first;
+    sn.child[1] = first + 1;
+    out_.resize(first + 2);
     return first;
   }
 
@@ -384,6 +419,7 @@ class Builder {
   uint32_t used_ = 0;  // pool entries in use
   uint32_t free_count_ = 0;
   uint32_t unplaced_ = 0;  // free items not yet given a side (ResolveFree)
+  bool valid_ = false;     // every item's box has min <= max on every axis (no NaN)
 };
 
 }  // namespace
