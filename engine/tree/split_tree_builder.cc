@@ -82,6 +82,7 @@ Cut BestCut(const Cell& cell) {
   const double vol = cell.volume;
   const int cost_now = cell.has(0) + cell.has(1);
   if (vol <= 0 || cost_now == 0) return best;
+  const double cost = cost_now;
   for (int u = 0; u < 3; ++u) {
     const float lo = cell.region.min[u], hi = cell.region.max[u];
     if (!(lo < hi)) continue;
@@ -90,18 +91,25 @@ Cut BestCut(const Cell& cell) {
     const float lo_of[2] = {cell.lo_of[0][u], cell.lo_of[1][u]};
     const float top[2] = {lo_of[0] == kInf ? -kInf : cell.hi_of[0][u + kMaxLane],
                           lo_of[1] == kInf ? -kInf : cell.hi_of[1][u + kMaxLane]};
+    const double lo_d = lo, extent = double{hi} - lo;
+    auto consider = [&](float c) {  // a cut c with lo < c < hi
+      const int below = (lo_of[0] <= c) + (lo_of[1] <= c);
+      const int above = (top[0] >= c) + (top[1] >= c);
+      const double f = (double{c} - lo_d) / extent;
+      const double gain = vol * (cost - (f * below + (1 - f) * above));
+      if (gain > best.gain) best = Cut{u, c, gain};
+    };
     for (int s = 0; s < 2; ++s) {
       if (lo_of[s] == kInf) continue;
-      // (A float just below lo_of can only lie in (lo, hi) if lo_of is in (lo, hi], one just above top
-      // only if top is in [lo, hi): the others are not worth their NextDown / NextUp.)
-      const bool down = lo_of[s] > lo && lo_of[s] <= hi, up = top[s] >= lo && top[s] < hi;
-      for (const float c : {down ? NextDown(lo_of[s]) : lo, up ? NextUp(top[s]) : lo}) {
-        if (!(c > lo && c < hi)) continue;
-        const int below = (lo_of[0] <= c) + (lo_of[1] <= c);
-        const int above = (top[0] >= c) + (top[1] >= c);
-        const double f = (double{c} - lo) / (double{hi} - lo);
-        const double gain = vol * (cost_now - (f * below + (1 - f) * above));
-        if (gain > best.gain) best = Cut{u, c, gain};
+      // A float just below lo_of can only lie in (lo, hi) if lo_of is in (lo, hi] (and then it is < hi),
+      // one just above top only if top is in [lo, hi) (and then it is > lo).
+      if (lo_of[s] > lo && lo_of[s] <= hi) {
+        const float c = NextDown(lo_of[s]);
+        if (c > lo) consider(c);
+      }
+      if (top[s] >= lo && top[s] < hi) {
+        const float c = NextUp(top[s]);
+        if (c < hi) consider(c);
       }
     }
   }
