@@ -15,6 +15,7 @@ namespace {
 
 constexpr uint8_t kLeftBit = 1, kRightBit = 2;
 constexpr uint32_t kMinRoom = 64;  // Builder::Grow's smallest room (fewer moves of small leaves)
+constexpr uint32_t kOutReserve = 256;  // SplitNodes reserved up front (no regrowth up to that budget)
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
 
@@ -120,7 +121,7 @@ Cut BestCut(const Cell& cell) {
 
 // Buffers one SplitTree build leaves behind for the next (no allocation per cell or per tree).
 struct SplitTreeScratch::Buffers {
-  std::vector<Cell> cells;
+  std::vector<Cell> cells;  // cells[0, out.size()) are the tree's (never shrunk)
   std::unique_ptr<uint32_t[]> pool;  // the cells' item lists, each a range (see Builder::Take)
   size_t pool_size = 0;
   std::vector<uint32_t> stack, met;
@@ -142,7 +143,7 @@ class Builder {
           SplitTreeScratch::Buffers* b)
       : items_(*items), budget_(budget), out_(*out), cm_(q), b_(*b) {
     out_.clear();
-    b_.cells.clear();
+    out_.reserve(std::min<uint32_t>(budget_, kOutReserve));
     // The root's lists: the fixed items, LEFT up from the block's start and RIGHT down from its end (each
     // item is written to both and kept by advancing: the two never pass each other, and where they meet
     // both write the same item), then RIGHT turned to item order.
@@ -177,7 +178,8 @@ class Builder {
     root.end[1] = at + n;
     ComputeExtremes(&root, 0);
     ComputeExtremes(&root, 1);
-    b_.cells.push_back(root);
+    if (b_.cells.empty()) b_.cells.resize(1);
+    b_.cells[0] = root;
     out_.push_back(SplitNode{});
   }
 
@@ -196,7 +198,7 @@ class Builder {
       }
     };
     // (The heap pops by (gain, cell), so the order in which cells are considered does not matter.)
-    for (uint32_t ci = 0; ci < b_.cells.size(); ++ci)
+    for (uint32_t ci = 0; ci < out_.size(); ++ci)
       if (out_[ci].is_cell()) consider(ci);
     while (!open.empty() && out_.size() + 2 <= node_limit) {
       std::pop_heap(open.begin(), open.end());
@@ -217,7 +219,7 @@ class Builder {
     // order, so none is overwritten before it is read).
     uint32_t* pool = b_.pool.get();
     used_ = 0;
-    for (uint32_t ci = 0; ci < cells.size(); ++ci) {
+    for (uint32_t ci = 0; ci < out_.size(); ++ci) {
       if (!out_[ci].is_cell()) continue;
       Cell& c = cells[ci];
       for (int s = 0; s < 2; ++s) {
@@ -266,7 +268,7 @@ class Builder {
 
   // Every leaf's label names the sides of the items in its lists: the invariant by construction.
   void WriteLabels() {
-    for (uint32_t ci = 0; ci < b_.cells.size(); ++ci)
+    for (uint32_t ci = 0; ci < out_.size(); ++ci)
       if (out_[ci].is_cell()) out_[ci].label = static_cast<CellLabel>(b_.cells[ci].label());
   }
 
@@ -321,18 +323,15 @@ class Builder {
 
   // Cuts cell ci at its cut; returns the lower child (the upper one follows it).
   uint32_t Split(uint32_t ci) {
-    std::vector<Cell>& cells = b_.cells;
-    if (cells.capacity() < cells.size() + 2) cells.reserve(std::max<size_t>(2 * cells.capacity(), 16));
-    const uint32_t first = static_cast<uint32_t>(cells.size());
-    // The children start as copies of the parent (no reallocation: the room is there), every field but
-    // the region's cut side and `cut` (set by the next BestCut before it is read) then overwritten.
-    cells.push_back(cells[ci]);
-    cells.push_back(cells[ci]);
-    const Cell& parent = cells[ci];
-    Cell& lower = cells[first];
-    Cell& upper = cells[first + 1];
+    const uint32_t first = static_cast<uint32_t>(out_.size());
+    if (b_.cells.size() < first + 2) b_.cells.resize(std::max<size_t>(first + 2, 2 * b_.cells.size()));
+    // (Every field of the children is set here but `cut`, which the next BestCut sets before it is read.)
+    const Cell& parent = b_.cells[ci];
+    Cell& lower = b_.cells[first];
+    Cell& upper = b_.cells[first + 1];
     const int axis = parent.cut.axis;
     const float pos = parent.cut.pos;
+    lower.region = upper.region = parent.region;
     lower.region.max[axis] = pos;
     upper.region.min[axis] = pos;
     // Each item is written to both children's lists and kept by advancing (the tests are hard to
@@ -388,7 +387,8 @@ class Builder {
     sn.cut = pos;
     sn.child[0] = first;
     sn.child[1] = first + 1;
-    out_.resize(first + 2);
+    out_.push_back(SplitNode{});
+    out_.push_back(SplitNode{});
     return first;
   }
 
