@@ -125,6 +125,7 @@ struct SplitTreeScratch::Buffers {
   std::unique_ptr<uint32_t[]> pool;  // the cells' item lists, each a range (see Builder::Take)
   size_t pool_size = 0;
   std::vector<uint32_t> stack, met;
+  std::vector<uint8_t> changed;  // per cell: ResolveFree gave it an item
   std::vector<std::pair<double, uint32_t>> open;  // heap of (gain, cell)
 };
 
@@ -185,21 +186,33 @@ class Builder {
 
   // Best-first: cut the cell with the largest gain until the budget is spent or no cut gains at least
   // `min_gain` (a share of Q's volume): small gains are not worth 32 bytes of RAM per cut.
-  void Refine(uint32_t node_limit, double min_gain) {
+  // `again`: the leaves already have their best cuts, from the last Refine, except those in b_.changed
+  // (ResolveFree), so only those are asked for theirs again.
+  void Refine(uint32_t node_limit, double min_gain, bool again) {
     node_limit = std::min(node_limit, budget_);
     std::vector<std::pair<double, uint32_t>>& open = b_.open;
     open.clear();
-    auto consider = [&](uint32_t ci) {
-      Cell& c = b_.cells[ci];
-      c.cut = BestCut(c);
+    auto push = [&](uint32_t ci) {
+      const Cell& c = b_.cells[ci];
       if (c.cut.axis >= 0 && c.cut.gain >= min_gain) {
         open.push_back({c.cut.gain, ci});
         std::push_heap(open.begin(), open.end());
       }
     };
+    auto consider = [&](uint32_t ci) {
+      b_.cells[ci].cut = BestCut(b_.cells[ci]);
+      push(ci);
+    };
     // (The heap pops by (gain, cell), so the order in which cells are considered does not matter.)
-    for (uint32_t ci = 0; ci < out_.size(); ++ci)
-      if (out_[ci].is_cell()) consider(ci);
+    const uint8_t* changed = again && free_count_ > 0 ? b_.changed.data() : nullptr;
+    for (uint32_t ci = 0; ci < out_.size(); ++ci) {
+      if (!out_[ci].is_cell()) continue;
+      if (again && !(changed && changed[ci])) {
+        push(ci);
+      } else {
+        consider(ci);
+      }
+    }
     while (!open.empty() && out_.size() + 2 <= node_limit) {
       std::pop_heap(open.begin(), open.end());
       const uint32_t ci = open.back().second;
@@ -234,6 +247,8 @@ class Builder {
     unplaced_ = free_count_;
     b_.stack.resize(out_.size() + 1);
     b_.met.resize(out_.size());
+    b_.changed.assign(out_.size(), 0);
+    uint8_t* changed = b_.changed.data();
     const uint32_t* met = b_.met.data();
     for (uint32_t i = 0; i < items_.size(); ++i) {
       SplitItem& it = items_[i];
@@ -258,6 +273,7 @@ class Builder {
       it.side = want;
       const Lanes lo = MinLanes(it.box), hi = MaxLanes(it.box);
       for (uint32_t k = 0; k < nm; ++k) {
+        changed[met[k]] = 1;
         Cell& c = cells[met[k]];
         pool[want == SplitItem::kLeft ? c.end[0]++ : --c.begin[1]] = i;
         c.lo_of[want] = Min(c.lo_of[want], lo);
@@ -439,9 +455,9 @@ void BuildSplitTree(const Box3f& q, std::vector<SplitItem>* items, uint32_t budg
   Builder b(q, items, std::max<uint32_t>(budget, 1), out, scratch->buffers.get());
   // First carve with the fixed items alone, then place the free items against those cells, then spend
   // what is left of the budget with every item placed.
-  b.Refine(std::max<uint32_t>(1, budget / 2) | 1, min_gain);
+  b.Refine(std::max<uint32_t>(1, budget / 2) | 1, min_gain, false);
   b.ResolveFree(window);
-  b.Refine(budget, min_gain);
+  b.Refine(budget, min_gain, true);
   b.WriteLabels();
 }
 
