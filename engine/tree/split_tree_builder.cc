@@ -10,6 +10,10 @@
 
 #include "engine/tree/box_lanes.h"
 
+#if defined(__SSE__)
+#include <xmmintrin.h>
+#endif
+
 namespace mktree {
 namespace {
 
@@ -20,6 +24,15 @@ constexpr uint32_t kOutReserve = 256;  // SplitNodes reserved up front (no regro
 constexpr float kInf = std::numeric_limits<float>::infinity();
 
 typedef int MaskLanes __attribute__((vector_size(16)));  // a lane-wise comparison of two Lanes
+
+// Whether every lane of a comparison holds.
+inline bool All(MaskLanes m) {
+#if defined(__SSE__)
+  return _mm_movemask_ps(reinterpret_cast<__m128>(m)) == 0xf;
+#else
+  return (m[0] & m[1] & m[2] & m[3]) != 0;
+#endif
+}
 static_assert(offsetof(SplitItem, box) == 0 && sizeof(SplitItem) >= offsetof(Box3f, max) + sizeof(Lanes));
 
 // Float neighbours of a finite x (std::nextafter without the library call: BestCut asks for 12 a cell).
@@ -249,12 +262,41 @@ class Builder {
     b_.met.resize(out_.size());
     b_.changed.assign(out_.size(), 0);
     uint8_t* changed = b_.changed.data();
-    const uint32_t* met = b_.met.data();
+    uint32_t* met = b_.met.data();
+    // The last leaf that an item met alone, and a box that a box with min <= max (valid_) strictly
+    // inside meets that leaf alone (each cut on the way to the leaf sends the walk to its side only), so
+    // that it need not walk: the bounds of the leaf's region that are cuts (Q's bounds are none: no walk
+    // tests them), as (MinLanes, MaxLanes). Consecutive items often meet the same leaf alone.
+    uint32_t alone = 0;
+    // (None yet: lanes 0-2 of alone_lo are kInf. Lane 3 of alone_lo and lane 0 of alone_hi, which are
+    // no bounds, never fail the test.)
+    Lanes alone_lo = {kInf, kInf, kInf, -kInf}, alone_hi = {kInf, -kInf, -kInf, -kInf};
+    const Box3f& q = cells[0].region;
     for (uint32_t i = 0; i < items_.size(); ++i) {
       SplitItem& it = items_[i];
       if (it.side != SplitItem::kFree) continue;
       double added[2] = {0, 0};
-      const uint32_t nm = CellsMeeting(it.box, added);
+      uint32_t nm;
+      if (valid_ && All((alone_lo < MinLanes(it.box)) & (MaxLanes(it.box) < alone_hi))) {
+        met[0] = alone;
+        nm = 1;
+        MeetLeaf(alone, added);
+      } else {
+        nm = CellsMeeting(it.box, added);
+        if (valid_ && nm == 1) {
+          alone = met[0];
+          const Box3f& r = cells[alone].region;
+          float lo[4], hi[4];
+          for (int u = 0; u < 3; ++u) {
+            lo[u] = r.min[u] == q.min[u] ? -kInf : r.min[u];
+            hi[u + kMaxLane] = r.max[u] == q.max[u] ? kInf : r.max[u];
+          }
+          lo[3] = -kInf;
+          hi[0] = kInf;
+          std::memcpy(&alone_lo, lo, sizeof lo);
+          std::memcpy(&alone_hi, hi, sizeof hi);
+        }
+      }
       --unplaced_;
       pool = b_.pool.get();
       uint8_t want = it.default_side;
@@ -408,6 +450,15 @@ class Builder {
     return first;
   }
 
+  // Box b meets leaf n: gives it room for one more free item, adds its volume to added[s] if it has no
+  // item of side s yet.
+  void MeetLeaf(uint32_t n, double added[2]) {
+    const Cell& c = b_.cells[n];
+    if (c.end[0] == c.begin[1]) Grow(n);
+    if (!c.has(0)) added[0] += c.volume;
+    if (!c.has(1)) added[1] += c.volume;
+  }
+
   // The leaves meeting box b into b_.met, in tree order (lower child first); returns how many. Adds to
   // added[s] the volume of each that has no item of side s yet, in that order. Each leaf met is given room
   // for one more free item.
@@ -421,10 +472,7 @@ class Builder {
       const SplitNode& sn = out_[n];
       if (sn.is_cell()) {
         met[nm++] = n;
-        const Cell& c = b_.cells[n];
-        if (c.end[0] == c.begin[1]) Grow(n);
-        if (!c.has(0)) added[0] += c.volume;
-        if (!c.has(1)) added[1] += c.volume;
+        MeetLeaf(n, added);
         continue;
       }
       stack[depth] = sn.child[1];
