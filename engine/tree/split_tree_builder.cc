@@ -401,6 +401,7 @@ class Builder {
     uint32_t* to_upper = to_lower + n;
     size_t nl = 0, nu = 0;
     for (int s = 0; s < 2; ++s) {
+      const size_t nl0 = nl, nu0 = nu;
       lower.begin[s] = static_cast<uint32_t>(at + nl);
       upper.begin[s] = static_cast<uint32_t>(at + n + nu);
       const uint32_t* from = pool + parent.begin[s];
@@ -428,14 +429,17 @@ class Builder {
       }
       lower.end[s] = static_cast<uint32_t>(at + nl);
       upper.end[s] = static_cast<uint32_t>(at + n + nu);
-      for (Cell* c : {&lower, &upper}) {
-        const uint32_t count = c->end[s] - c->begin[s];
-        if (count == ns) {
-          c->lo_of[s] = parent.lo_of[s];
-          c->hi_of[s] = parent.hi_of[s];
-        } else {
-          ComputeExtremes(c, s);
-        }
+      if (nl - nl0 == ns) {
+        lower.lo_of[s] = parent.lo_of[s];
+        lower.hi_of[s] = parent.hi_of[s];
+      } else {
+        ComputeExtremes(&lower, s);
+      }
+      if (nu - nu0 == ns) {
+        upper.lo_of[s] = parent.lo_of[s];
+        upper.hi_of[s] = parent.hi_of[s];
+      } else {
+        ComputeExtremes(&upper, s);
       }
     }
     lower.volume = cm_.Volume(lower.region);
