@@ -261,8 +261,16 @@ class Builder {
     b_.stack.resize(out_.size() + 1);
     b_.met.resize(out_.size());
     b_.changed.assign(out_.size(), 0);
-    uint8_t* changed = b_.changed.data();
-    uint32_t* met = b_.met.data();
+    // (Local copies of the pointers and flags the loop reads: its byte stores, `changed` and the items'
+    // sides, could alias the members, which the compiler would then read again after each.)
+    uint8_t* const changed = b_.changed.data();
+    uint32_t* const met = b_.met.data();
+    uint32_t* const stack = b_.stack.data();
+    Cell* const cell = cells.data();
+    const SplitNode* const nodes = out_.data();
+    SplitItem* const items = items_.data();
+    const uint32_t n_items = static_cast<uint32_t>(items_.size());
+    const bool valid = valid_;
     // The last leaf that an item met alone, and a box that a box with min <= max (valid_) strictly
     // inside meets that leaf alone (each cut on the way to the leaf sends the walk to its side only), so
     // that it need not walk: the bounds of the leaf's region that are cuts (Q's bounds are none: no walk
@@ -272,20 +280,20 @@ class Builder {
     // no bounds, never fail the test.)
     Lanes alone_lo = {kInf, kInf, kInf, -kInf}, alone_hi = {kInf, -kInf, -kInf, -kInf};
     const Box3f& q = cells[0].region;
-    for (uint32_t i = 0; i < items_.size(); ++i) {
-      SplitItem& it = items_[i];
+    for (uint32_t i = 0; i < n_items; ++i) {
+      SplitItem& it = items[i];
       if (it.side != SplitItem::kFree) continue;
       double added[2] = {0, 0};
       uint32_t nm;
-      if (valid_ && All((alone_lo < MinLanes(it.box)) & (MaxLanes(it.box) < alone_hi))) {
+      if (valid && All((alone_lo < MinLanes(it.box)) & (MaxLanes(it.box) < alone_hi))) {
         met[0] = alone;
         nm = 1;
-        MeetLeaf(alone, added);
+        MeetLeaf(cell, alone, added);
       } else {
-        nm = CellsMeeting(it.box, added);
-        if (valid_ && nm == 1) {
+        nm = CellsMeeting(it.box, cell, nodes, stack, met, added);
+        if (valid && nm == 1) {
           alone = met[0];
-          const Box3f& r = cells[alone].region;
+          const Box3f& r = cell[alone].region;
           float lo[4], hi[4];
           for (int u = 0; u < 3; ++u) {
             lo[u] = r.min[u] == q.min[u] ? -kInf : r.min[u];
@@ -316,7 +324,7 @@ class Builder {
       const Lanes lo = MinLanes(it.box), hi = MaxLanes(it.box);
       for (uint32_t k = 0; k < nm; ++k) {
         changed[met[k]] = 1;
-        Cell& c = cells[met[k]];
+        Cell& c = cell[met[k]];
         pool[want == SplitItem::kLeft ? c.end[0]++ : --c.begin[1]] = i;
         c.lo_of[want] = Min(c.lo_of[want], lo);
         c.hi_of[want] = Max(c.hi_of[want], hi);
@@ -456,27 +464,26 @@ class Builder {
 
   // Box b meets leaf n: gives it room for one more free item, adds its volume to added[s] if it has no
   // item of side s yet.
-  void MeetLeaf(uint32_t n, double added[2]) {
-    const Cell& c = b_.cells[n];
+  void MeetLeaf(const Cell* cells, uint32_t n, double added[2]) {
+    const Cell& c = cells[n];
     if (c.end[0] == c.begin[1]) Grow(n);
     if (!c.has(0)) added[0] += c.volume;
     if (!c.has(1)) added[1] += c.volume;
   }
 
-  // The leaves meeting box b into b_.met, in tree order (lower child first); returns how many. Adds to
+  // The leaves meeting box b into met, in tree order (lower child first); returns how many. Adds to
   // added[s] the volume of each that has no item of side s yet, in that order. Each leaf met is given room
   // for one more free item.
-  uint32_t CellsMeeting(const Box3f& b, double added[2]) {
-    uint32_t* stack = b_.stack.data();
-    uint32_t* met = b_.met.data();
+  uint32_t CellsMeeting(const Box3f& b, const Cell* cells, const SplitNode* nodes, uint32_t* stack,
+                        uint32_t* met, double added[2]) {
     uint32_t depth = 1, nm = 0;
     stack[0] = 0;
     while (depth > 0) {
       const uint32_t n = stack[--depth];
-      const SplitNode& sn = out_[n];
+      const SplitNode& sn = nodes[n];
       if (sn.is_cell()) {
         met[nm++] = n;
-        MeetLeaf(n, added);
+        MeetLeaf(cells, n, added);
         continue;
       }
       stack[depth] = sn.child[1];
