@@ -343,8 +343,8 @@ void Run(const Workload& w) {
       const double sec = std::chrono::duration<double>(std::chrono::steady_clock::now() - r0).count();
       if (!b.ok()) std::exit(1);
       const BuildTimings& tm = b->timings;
-      std::printf("%-14s repeat %6.3f s  (layout %.3f sorts %.3f nodes %.3f finish %.3f s)\n", w.name, sec, tm.layout,
-                  tm.sorts, tm.nodes, tm.finish);
+      std::printf("%-14s repeat %6.3f s  (layout %.3f sorts %.3f nodes %.3f finish %.3f s; stitch %.3f)\n", w.name, sec,
+                  tm.layout, tm.sorts, tm.nodes, tm.finish, tm.stitch);
     }
   }
   const auto t0 = std::chrono::steady_clock::now();
@@ -360,9 +360,10 @@ void Run(const Workload& w) {
   if (std::getenv("TREE_BENCH_HASH")) {
     const BuildTimings& tm = built->timings;
     std::printf("%-14s %6.2f s  %6.2f Mobj/s  peak %6.1f B/obj  tree hash %016llx  nodes %zu  split nodes %zu"
-                "  leaves %zu  (layout %.3f sorts %.3f nodes %.3f finish %.3f s)\n",
+                "  leaves %zu  (layout %.3f sorts %.3f nodes %.3f finish %.3f s; stitch %.3f of nodes)\n",
                 w.name, secs, n / secs / 1e6, peak / n, (unsigned long long)TreeHash(*built), built->tree.nodes.size(),
-                built->tree.split_nodes.size(), built->tree.leaves.size(), tm.layout, tm.sorts, tm.nodes, tm.finish);
+                built->tree.split_nodes.size(), built->tree.leaves.size(), tm.layout, tm.sorts, tm.nodes, tm.finish,
+                tm.stitch);
     std::fflush(stdout);
     if (std::getenv("TREE_BENCH_HASH_ONLY")) return;
   }
@@ -373,8 +374,9 @@ void Run(const Workload& w) {
               "  tree %5.2f B/obj\n",
               w.name, (unsigned long long)w.objects, secs, n / secs / 1e6, peak / n, rss_records / n,
               s.index_bytes_per_object, s.tree_bytes_per_object);
-  std::printf("%-14s phases: layout %.3f s  sorts %.3f s  nodes %.3f s  finish %.3f s\n", "", built->timings.layout,
-              built->timings.sorts, built->timings.nodes, built->timings.finish);
+  std::printf("%-14s phases: layout %.3f s  sorts %.3f s  nodes %.3f s (of which stitch %.3f s)  finish %.3f s\n", "",
+              built->timings.layout, built->timings.sorts, built->timings.nodes, built->timings.stitch,
+              built->timings.finish);
   std::printf("%-14s height %u  leaves %llu  obj/leaf %.2f  fill mean %.1f%% min %.1f%%  multi-page %llu"
               "  |Sm| %llu  SplitTree nodes %llu (max %u)  BOTH cells %llu/%llu\n",
               "", s.height, (unsigned long long)s.leaves, s.mean_objects_per_leaf, 100 * s.mean_page_fill,

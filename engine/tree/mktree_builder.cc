@@ -6,16 +6,21 @@
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
+#include <cstdlib>
 #include <deque>
 #include <limits>
 #include <memory>
 #include <mutex>
+#include <new>
 #include <string>
 #include <thread>
 #include <type_traits>
 
 #ifdef __GLIBC__
 #include <malloc.h>
+#endif
+#ifdef __linux__
+#include <sys/mman.h>
 #endif
 
 #include "engine/tree/box_lanes.h"
@@ -41,10 +46,61 @@ inline uint32_t SortableBits(float f) {
   return (u & 0x80000000u) ? ~u : (u | 0x80000000u);
 }
 
+// The allocator of the build's large arrays.
+// - No zero-fill: resize() default-initializes (every element is written before it is read), so the page
+//   faults happen in the loops that fill the arrays (on two threads for the layout), not in a serial memset.
+// - Arrays of 1 MiB or more are mapped on their own, so freeing one gives its memory back at once (not to
+//   a heap whose holes the next allocations may not fit): 1M tanker, 1 thread, peak 93.3 -> 90.2 B/object.
+// (Transparent huge pages for them were tried: the sorts' TLB misses drop, but on this VM a 2 MiB page
+// costs more to fault in than 512 small ones: 10M layout 0.39 -> 0.93 s, sorts 0.52 -> 1.0 s.)
+template <typename T>
+struct BuildAllocator {
+  using value_type = T;
+  static constexpr size_t kMapBytes = size_t{1} << 20;  // smaller arrays come from malloc
+  BuildAllocator() = default;
+  template <typename U>
+  BuildAllocator(const BuildAllocator<U>&) noexcept {}
+  T* allocate(size_t n) {
+#ifdef __linux__
+    if (n * sizeof(T) >= kMapBytes) {
+      void* p = mmap(nullptr, n * sizeof(T), PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+      if (p == MAP_FAILED) throw std::bad_alloc();
+      return static_cast<T*>(p);
+    }
+#endif
+    void* p = std::malloc(std::max<size_t>(n * sizeof(T), 1));
+    if (p == nullptr) throw std::bad_alloc();
+    return static_cast<T*>(p);
+  }
+  void deallocate(T* p, size_t n) noexcept {
+#ifdef __linux__
+    if (n * sizeof(T) >= kMapBytes) {
+      munmap(p, n * sizeof(T));
+      return;
+    }
+#endif
+    std::free(p);
+  }
+  template <typename U>
+  void construct(U* p) noexcept {
+    ::new (static_cast<void*>(p)) U;
+  }
+  template <typename U, typename... Args>
+  void construct(U* p, Args&&... args) {
+    ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
+  }
+  template <typename U>
+  bool operator==(const BuildAllocator<U>&) const noexcept {
+    return true;
+  }
+};
+template <typename T>
+using BuildVector = std::vector<T, BuildAllocator<T>>;
+
 // LSD radix sort of (key << 32 | payload) pairs by the key, stable, writing the payloads in that order to
 // *out (resized; a and b are scratch): 3 passes of 11/11/10 bits, far faster than an indirect comparison
 // sort at 10M. The three digits are counted in one pass, and the last pass writes the payloads directly.
-void RadixSortPayloads(std::vector<uint64_t>* a, std::vector<uint64_t>* b, std::vector<uint32_t>* out) {
+void RadixSortPayloads(BuildVector<uint64_t>* a, BuildVector<uint64_t>* b, BuildVector<uint32_t>* out) {
   const size_t n = a->size();
   b->resize(n);
   out->resize(n);
@@ -78,15 +134,15 @@ void RadixSortPayloads(std::vector<uint64_t>* a, std::vector<uint64_t>* b, std::
 // and the encoded sizes (read alone when a node sums its bytes, 16 to a cache line). The ids are kept
 // apart, for the end only.
 struct BuildRecords {
-  std::vector<Box3f> box;
-  std::vector<uint32_t> bytes;
+  BuildVector<Box3f> box;
+  BuildVector<uint32_t> bytes;
 };
 
 // Object indices sorted by one key (axis, min or max), stable: ties in input order, so the lists (and so
 // the tree) do not depend on how the records are laid out in RAM. index_of_input[p]: the record index of
 // the object at input position p.
-void SortByKey(const std::vector<Box3f>& box, const std::vector<uint32_t>& index_of_input, int axis,
-               bool use_max, std::vector<uint64_t>* a, std::vector<uint64_t>* b, std::vector<uint32_t>* out) {
+void SortByKey(const BuildVector<Box3f>& box, const BuildVector<uint32_t>& index_of_input, int axis,
+               bool use_max, BuildVector<uint64_t>* a, BuildVector<uint64_t>* b, BuildVector<uint32_t>* out) {
   const size_t n = box.size();
   a->resize(n);
   for (size_t p = 0; p < n; ++p) {
@@ -126,8 +182,8 @@ inline uint32_t Spread3(uint32_t v) {
 // Cells this coarse cost one counting pass, and keep what locality the input order has (the key sorts
 // read the records in input order). Frees `records`; *ids: the object ids in the same layout;
 // *index_of_input: the record index of the object at each input position.
-BuildRecords SpatialLayout(std::vector<ObjectRecord> records, std::vector<ObjectId>* ids,
-                          std::vector<uint32_t>* index_of_input, int threads) {
+BuildRecords SpatialLayout(std::vector<ObjectRecord> records, BuildVector<ObjectId>* ids,
+                          BuildVector<uint32_t>* index_of_input, int threads) {
   const size_t n = records.size();
   Box3f half_box[2];
   RunOnHalves(n, threads, [&](size_t lo, size_t hi) {
@@ -136,7 +192,7 @@ BuildRecords SpatialLayout(std::vector<ObjectRecord> records, std::vector<Object
   Box3f all = half_box[0];
   all.Extend(half_box[1]);
   constexpr uint32_t kCellsPerAxis = 16;
-  std::vector<uint16_t> cell(n);
+  BuildVector<uint16_t> cell(n);
   RunOnHalves(n, threads, [&](size_t lo, size_t hi) {
     for (size_t i = lo; i < hi; ++i) {
       const Box3f& bx = records[i].box;
@@ -151,14 +207,14 @@ BuildRecords SpatialLayout(std::vector<ObjectRecord> records, std::vector<Object
       cell[i] = static_cast<uint16_t>(code);
     }
   });
-  std::vector<uint32_t> order(n);  // record index -> input position
+  BuildVector<uint32_t> order(n);  // record index -> input position
   {
     std::vector<size_t> start(kCellsPerAxis * kCellsPerAxis * kCellsPerAxis + 1, 0);
     for (uint16_t c : cell) ++start[c + 1];
     for (size_t i = 1; i < start.size(); ++i) start[i] += start[i - 1];
     for (size_t i = 0; i < n; ++i) order[start[cell[i]]++] = static_cast<uint32_t>(i);
   }
-  std::vector<uint16_t>().swap(cell);
+  BuildVector<uint16_t>().swap(cell);
   BuildRecords rec;
   rec.box.resize(n);
   rec.bytes.resize(n);
@@ -207,12 +263,12 @@ class Scratch {
 };
 
 struct Shared {
-  const std::vector<Box3f>& box;
-  const std::vector<uint32_t>& bytes;
+  const BuildVector<Box3f>& box;
+  const BuildVector<uint32_t>& bytes;
   BuildParams params;
   BuildTuning tuning;
   // lists[2*w + key]: the objects of every node, each node's range sorted by min_w (key 0) / max_w (key 1).
-  std::array<std::vector<uint32_t>, 6> lists;
+  std::array<BuildVector<uint32_t>, 6> lists;
   std::vector<uint8_t> side;  // per object: 0 = Sn1, 1 = Sn2 at the node being split
 };
 
@@ -270,6 +326,22 @@ struct Candidate {
     return imbalance < o.imbalance;
   }
 };
+
+// Appends the `count` nodes of a SplitTree that starts at index `at` of the array `tree` points into
+// (tree[0] is its root) to *out, its child indices moved to their new place; returns the new root index.
+// One copy, then a branch-free pass (cells keep their kNoIndex children): a 1M-object tree has 865k of
+// these nodes, and a push_back per node was most of the 2-thread stitch.
+uint32_t AppendSplitTree(const SplitNode* tree, uint32_t count, uint32_t at, std::vector<SplitNode>* out) {
+  const uint32_t base = static_cast<uint32_t>(out->size());
+  out->insert(out->end(), tree, tree + count);
+  const uint32_t delta = base - at;  // modulo 2^32, like the indices
+  for (SplitNode* sn = out->data() + base, *end = sn + count; sn < end; ++sn) {
+    const uint32_t d = sn->is_cell() ? 0 : delta;
+    sn->child[0] += d;
+    sn->child[1] += d;
+  }
+  return base;
+}
 
 // Runs a() here and b() on a thread of its own, and waits for both (for the root of a multi-thread build,
 // which runs while the other threads have nothing to do).
@@ -449,17 +521,8 @@ class SubtreeBuilder {
         const Box3f& bx = box_[idx];
         sm += bx.max[w] > node.a && bx.min[w] < node.b;
       }
-      if (!split.empty()) {
-        const uint32_t base = static_cast<uint32_t>(out->split_nodes.size());
-        node.split_root = base;
-        for (SplitNode sn : split) {
-          if (!sn.is_cell()) {
-            sn.child[0] += base;
-            sn.child[1] += base;
-          }
-          out->split_nodes.push_back(sn);
-        }
-      }
+      if (!split.empty())
+        node.split_root = AppendSplitTree(split.data(), static_cast<uint32_t>(split.size()), 0, &out->split_nodes);
     }
     out->nodes.push_back(node);
     out->overlap.push_back(sm);
@@ -571,8 +634,8 @@ class SubtreeBuilder {
   void CompactAxes(const Task& t, bool axis_ok[3]) const {
     double spread[3], longest = 0;
     for (int w = 0; w < 3; ++w) {
-      const std::vector<uint32_t>& by_min = s_.lists[2 * w];
-      const std::vector<uint32_t>& by_max = s_.lists[2 * w + 1];
+      const BuildVector<uint32_t>& by_min = s_.lists[2 * w];
+      const BuildVector<uint32_t>& by_max = s_.lists[2 * w + 1];
       spread[w] = 0.5 * ((double{box_[by_min[t.hi - 1]].min[w]} - box_[by_min[t.lo]].min[w]) +
                          (double{box_[by_max[t.hi - 1]].max[w]} - box_[by_max[t.lo]].max[w]));
       longest = std::max(longest, spread[w]);
@@ -584,7 +647,7 @@ class SubtreeBuilder {
 
   // N1 x margin(R(Sn1)) + N2 x margin(R(Sn2)) of one candidate, as ScanKeys computes it.
   float SplitMargin(const Task& t, int list, uint32_t k) const {
-    const std::vector<uint32_t>& order = s_.lists[list];
+    const BuildVector<uint32_t>& order = s_.lists[list];
     LanesUnion lo, hi;
     for (uint32_t i = t.lo; i < t.lo + k; ++i) lo.Add(box_[order[i]]);
     for (uint32_t i = t.lo + k; i < t.hi; ++i) hi.Add(box_[order[i]]);
@@ -596,7 +659,7 @@ class SubtreeBuilder {
   // margin_pre_[i - (k_min-1)], and of order[lo+i .. hi) for i in [k_min, k_max] at margin_suf_[i - k_min]:
   // what the cuts k in [k_min, k_max] need. Each sweep runs in two stretches (without, then with a margin
   // stored) over the boxes as vectors.
-  void PrefixSuffixMargins(const Task& t, const std::vector<uint32_t>& order, uint32_t k_min, uint32_t k_max) {
+  void PrefixSuffixMargins(const Task& t, const BuildVector<uint32_t>& order, uint32_t k_min, uint32_t k_max) {
     const uint32_t n = t.hi - t.lo;
     margin_base_ = k_min;
     margin_pre_.Fit(k_max - k_min + 1);
@@ -734,8 +797,8 @@ class SubtreeBuilder {
                 const ListTies* tied = nullptr, uint64_t bound = std::numeric_limits<uint64_t>::max()) {
     const bool fill_aware = m.fill_aware;
     const uint32_t n = t.hi - t.lo;
-    const std::vector<uint32_t>& by_min = s_.lists[2 * w];
-    const std::vector<uint32_t>& by_max = s_.lists[2 * w + 1];
+    const BuildVector<uint32_t>& by_min = s_.lists[2 * w];
+    const BuildVector<uint32_t>& by_max = s_.lists[2 * w + 1];
     const double slack = s_.tuning.fill_sm_slack + s_.tuning.fill_sm_slack_rel * m.sm_min;
     const float* smin = sorted_min_.data();
     const float* smax = sorted_max_.data();
@@ -747,7 +810,7 @@ class SubtreeBuilder {
     // Per key, with the key a constant: the cut loop reads a(k) and b(k) without a select.
     auto scan_key = [&](auto key_constant) {
       constexpr int key = decltype(key_constant)::value;
-      const std::vector<uint32_t>& order = key == 0 ? by_min : by_max;
+      const BuildVector<uint32_t>& order = key == 0 ? by_min : by_max;
       if (only != nullptr) {
         if (tied[key].count == 0 || tied[key].key != *only) return;
         PrefixSuffixMargins(t, order, tied[key].k_min, tied[key].k_max);
@@ -902,8 +965,8 @@ class SubtreeBuilder {
   }
 
   Shared& s_;
-  const std::vector<Box3f>& box_;
-  const std::vector<uint32_t>& bytes_;
+  const BuildVector<Box3f>& box_;
+  const BuildVector<uint32_t>& bytes_;
   const uint64_t mem_page_;
   const bool track_split_count_;
   Scratch<float> sorted_min_, prefix_max_, sorted_max_, suffix_min_;
@@ -919,7 +982,7 @@ class SubtreeBuilder {
 
 // Frees what only the splits needed: lists 1-5 and the side flags (list 0 gives the leaves' objects).
 void ReleaseBuildLists(Shared* shared) {
-  for (int l = 1; l < 6; ++l) std::vector<uint32_t>().swap(shared->lists[l]);
+  for (int l = 1; l < 6; ++l) BuildVector<uint32_t>().swap(shared->lists[l]);
   std::vector<uint8_t>().swap(shared->side);
   TrimHeap();
 }
@@ -928,7 +991,7 @@ void ReleaseBuildLists(Shared* shared) {
 // its own fragment, handing the right child of every large node back to the queue. The fragments are then
 // stitched in DFS preorder (nodes, SplitTree nodes and leaves renumbered), which gives exactly the tree
 // that one thread builds: every node's split depends only on its own objects.
-void BuildParallel(Shared* shared, const Task& root, int threads, SubtreeOut* out) {
+void BuildParallel(Shared* shared, const Task& root, int threads, SubtreeOut* out, double* stitch_seconds) {
   const uint32_t n = root.hi - root.lo;
   // Tasks of at least this many objects are shared; smaller ones are not worth a fragment.
   const uint32_t min_spawn = shared->tuning.parallel_task_objects > 0 ? shared->tuning.parallel_task_objects
@@ -973,6 +1036,7 @@ void BuildParallel(Shared* shared, const Task& root, int threads, SubtreeOut* ou
   ReleaseBuildLists(shared);  // before stitching, which holds the fragments and the tree at once
 
   // Stitch in DFS preorder.
+  const auto stitch_start = std::chrono::steady_clock::now();
   size_t nodes = 0, splits = 0, leaves = 0;
   for (const auto& f : frags) nodes += f->nodes.size(), splits += f->split_nodes.size(), leaves += f->leaves.size();
   out->nodes.reserve(nodes);
@@ -1003,19 +1067,9 @@ void BuildParallel(Shared* shared, const Task& root, int threads, SubtreeOut* ou
       lf.node = g;
       out->leaves.push_back(lf);
     } else {
-      if (nd.split_root != kNoIndex) {
-        const uint32_t base = static_cast<uint32_t>(out->split_nodes.size());
-        const uint32_t old = nd.split_root;
-        for (uint32_t i = 0; i < f.split_count[r.node]; ++i) {
-          SplitNode sn = f.split_nodes[old + i];
-          if (!sn.is_cell()) {
-            sn.child[0] = sn.child[0] - old + base;
-            sn.child[1] = sn.child[1] - old + base;
-          }
-          out->split_nodes.push_back(sn);
-        }
-        nd.split_root = base;
-      }
+      if (nd.split_root != kNoIndex)
+        nd.split_root = AppendSplitTree(f.split_nodes.data() + nd.split_root, f.split_count[r.node], nd.split_root,
+                                        &out->split_nodes);
       const uint32_t right = nd.child[1];
       stack.push_back(right & kFragmentRef ? Ref{right & ~kFragmentRef, 0, g, 1} : Ref{r.frag, right, g, 1});
       stack.push_back(Ref{r.frag, nd.child[0], g, 0});
@@ -1024,6 +1078,7 @@ void BuildParallel(Shared* shared, const Task& root, int threads, SubtreeOut* ou
     out->overlap.push_back(f.overlap[r.node]);
     if (--left_to_stitch[r.frag] == 0) frags[r.frag].reset();
   }
+  *stitch_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - stitch_start).count();
 }
 
 std::string Describe(const ObjectRecord& r) { return "object " + std::to_string(r.id); }
@@ -1091,16 +1146,16 @@ Result<BuildResult> BuildMKTree(std::vector<ObjectRecord> records, const BuildPa
 
   const int threads =
       tuning.threads > 0 ? tuning.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  std::vector<ObjectId> ids;
+  BuildVector<ObjectId> ids;
   BuildRecords rec;
   Shared shared{rec.box, rec.bytes, params, tuning, {}, {}};
   {
-    std::vector<uint32_t> index_of_input;
+    BuildVector<uint32_t> index_of_input;
     rec = SpatialLayout(std::move(records), &ids, &index_of_input, threads);
     lap(&result.timings.layout);
     // With two threads or more, the six sorts run on two (each thread with its own radix buffers).
     auto sort_lists = [&](int first, int step) {
-      std::vector<uint64_t> a, b;
+      BuildVector<uint64_t> a, b;
       for (int l = first; l < 6; l += step)
         SortByKey(rec.box, index_of_input, l / 2, l % 2 == 1, &a, &b, &shared.lists[l]);
     };
@@ -1122,7 +1177,7 @@ Result<BuildResult> BuildMKTree(std::vector<ObjectRecord> records, const BuildPa
   Task root{0, n, 0, kNoIndex, 0, total_bytes};
   if (threads >= 2) {
     root.cooperative = n >= tuning.cooperative_root_objects;
-    BuildParallel(&shared, root, threads, &out);
+    BuildParallel(&shared, root, threads, &out, &result.timings.stitch);
   } else {
     SubtreeBuilder(&shared).Run(root, &out);
     // The tree stays in RAM for the store's lifetime: no growth slack (the 2-thread stitch sizes it
@@ -1138,15 +1193,26 @@ Result<BuildResult> BuildMKTree(std::vector<ObjectRecord> records, const BuildPa
     lf.first_page = page;
     page += lf.page_count;
   }
-  // The leaves' ranges of any list hold their objects: list 0 becomes leaf_objects (ids in place).
-  result.leaf_objects = std::move(shared.lists[0]);
-  for (ObjectId& o : result.leaf_objects) o = ids[o];
   result.leaf_offsets = std::move(out.leaf_begin);
   result.leaf_offsets.push_back(n);
   result.tree.nodes = std::move(out.nodes);
   result.tree.split_nodes = std::move(out.split_nodes);
   result.tree.leaves = std::move(out.leaves);
-  result.stats = ComputeTreeStats(result.tree, n, out.overlap);
+  // The leaves' ranges of any list hold their objects: list 0, as ids, becomes leaf_objects (with two
+  // threads, while the other computes the statistics).
+  auto leaf_objects = [&] {
+    result.leaf_objects.resize(n);
+    const uint32_t* leaf_order = shared.lists[0].data();
+    for (uint32_t i = 0; i < n; ++i) result.leaf_objects[i] = ids[leaf_order[i]];
+  };
+  auto stats = [&] { result.stats = ComputeTreeStats(result.tree, n, out.overlap); };
+  if (threads >= 2) {
+    Together(stats, leaf_objects);
+  } else {
+    leaf_objects();
+    stats();
+  }
+  BuildVector<uint32_t>().swap(shared.lists[0]);
   lap(&result.timings.finish);
   return result;
 }

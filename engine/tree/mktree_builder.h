@@ -34,6 +34,7 @@ struct BuildTimings {
   double layout = 0;  // checks, Morton layout of the records
   double sorts = 0;   // the 6 key orders
   double nodes = 0;   // SOA splits, SplitTrees, list partitions (and the 2-thread stitch)
+  double stitch = 0;  // of `nodes`: joining the 2-thread build's fragments into one tree
   double finish = 0;  // pages, leaf objects, statistics
 };
 
