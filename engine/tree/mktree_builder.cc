@@ -1198,21 +1198,14 @@ Result<BuildResult> BuildMKTree(std::vector<ObjectRecord> records, const BuildPa
   result.tree.nodes = std::move(out.nodes);
   result.tree.split_nodes = std::move(out.split_nodes);
   result.tree.leaves = std::move(out.leaves);
-  // The leaves' ranges of any list hold their objects: list 0, as ids, becomes leaf_objects (with two
-  // threads, while the other computes the statistics).
-  auto leaf_objects = [&] {
-    result.leaf_objects.resize(n);
-    const uint32_t* leaf_order = shared.lists[0].data();
-    for (uint32_t i = 0; i < n; ++i) result.leaf_objects[i] = ids[leaf_order[i]];
-  };
-  auto stats = [&] { result.stats = ComputeTreeStats(result.tree, n, out.overlap); };
-  if (threads >= 2) {
-    Together(stats, leaf_objects);
-  } else {
-    leaf_objects();
-    stats();
-  }
+  // The leaves' ranges of any list hold their objects: list 0, as ids, becomes leaf_objects.
+  result.leaf_objects.resize(n);
+  const uint32_t* leaf_order = shared.lists[0].data();
+  RunOnHalves(n, threads, [&](size_t lo, size_t hi) {
+    for (size_t i = lo; i < hi; ++i) result.leaf_objects[i] = ids[leaf_order[i]];
+  });
   BuildVector<uint32_t>().swap(shared.lists[0]);
+  result.stats = ComputeTreeStats(result.tree, n, out.overlap, threads);
   lap(&result.timings.finish);
   return result;
 }

@@ -56,7 +56,9 @@ struct TreeStats {
 };
 
 // `overlap_counts[n]` = |Sm| of node n (0 for leaves), as the builder reports it; empty when unknown.
-TreeStats ComputeTreeStats(const MKTree& tree, uint64_t object_count, std::span<const uint32_t> overlap_counts);
+// threads >= 2: the SplitTrees are measured on two threads (the same statistics, bit for bit).
+TreeStats ComputeTreeStats(const MKTree& tree, uint64_t object_count, std::span<const uint32_t> overlap_counts,
+                           int threads = 1);
 
 // The level-k colouring of DESIGN.md §2.4. The group of an object stored in leaf `leaf`, at the ancestor of
 // that leaf at depth k: kOverlap when it is in that node's overlap set Sm (max_w > a and min_w < b), else

@@ -53,6 +53,17 @@ TEST(TreeStats, CountsAgreeWithTheTree) {
   EXPECT_EQ(loaded.leaves, s.leaves);
 }
 
+// Two threads measure the SplitTrees in two halves: the same statistics, bit for bit.
+TEST(TreeStats, TwoThreadsGiveTheSameStatistics) {
+  auto recs = MakeScene(SceneKind::kShip, 20000, 4);
+  auto r = BuildMKTree(recs, BuildParams());
+  ASSERT_TRUE(r.ok());
+  ASSERT_GE(r->tree.split_nodes.size(), 4096u);  // where the second thread starts
+  std::vector<uint32_t> overlap(r->tree.nodes.size(), 1);
+  EXPECT_EQ(ComputeTreeStats(r->tree, recs.size(), overlap, 1).ToJson(),
+            ComputeTreeStats(r->tree, recs.size(), overlap, 2).ToJson());
+}
+
 // GroupAtLevel against the definitions: at the depth-k ancestor, Sm membership first, else the side.
 TEST(TreeStats, GroupAtLevelFollowsTheDefinition) {
   auto recs = MakeScene(SceneKind::kUniform, 3000, 8);
