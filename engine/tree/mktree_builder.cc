@@ -327,6 +327,16 @@ struct Candidate {
   }
 };
 
+// Adds delta (modulo 2^32, like the indices) to the child indices of the `count` SplitNodes at `nodes`
+// (cells keep their kNoIndex children), branch-free.
+void RebaseSplitTree(SplitNode* nodes, uint32_t count, uint32_t delta) {
+  for (SplitNode* sn = nodes, *end = sn + count; sn < end; ++sn) {
+    const uint32_t d = sn->is_cell() ? 0 : delta;
+    sn->child[0] += d;
+    sn->child[1] += d;
+  }
+}
+
 // Appends the `count` nodes of a SplitTree that starts at index `at` of the array `tree` points into
 // (tree[0] is its root) to *out, its child indices moved to their new place; returns the new root index.
 // One copy, then a branch-free pass (cells keep their kNoIndex children): a 1M-object tree has 865k of
@@ -334,12 +344,7 @@ struct Candidate {
 uint32_t AppendSplitTree(const SplitNode* tree, uint32_t count, uint32_t at, std::vector<SplitNode>* out) {
   const uint32_t base = static_cast<uint32_t>(out->size());
   out->insert(out->end(), tree, tree + count);
-  const uint32_t delta = base - at;  // modulo 2^32, like the indices
-  for (SplitNode* sn = out->data() + base, *end = sn + count; sn < end; ++sn) {
-    const uint32_t d = sn->is_cell() ? 0 : delta;
-    sn->child[0] += d;
-    sn->child[1] += d;
-  }
+  RebaseSplitTree(out->data() + base, count, base - at);
   return base;
 }
 
@@ -1035,12 +1040,19 @@ void BuildParallel(Shared* shared, const Task& root, int threads, SubtreeOut* ou
   for (std::thread& th : pool) th.join();
   ReleaseBuildLists(shared);  // before stitching, which holds the fragments and the tree at once
 
-  // Stitch in DFS preorder.
+  // Stitch in DFS preorder. The SplitTrees (most of the bytes) are only placed by the walk and copied
+  // after it, on two threads; the other thread sizes their array meanwhile.
   const auto stitch_start = std::chrono::steady_clock::now();
   size_t nodes = 0, splits = 0, leaves = 0;
   for (const auto& f : frags) nodes += f->nodes.size(), splits += f->split_nodes.size(), leaves += f->leaves.size();
+  std::thread sizing([&] { out->split_nodes.resize(splits); });
+  struct SplitCopy {
+    const SplitNode* from;
+    uint32_t count, at, base;
+  };
+  std::vector<SplitCopy> split_copies;
+  uint32_t split_end = 0;
   out->nodes.reserve(nodes);
-  out->split_nodes.reserve(splits);
   out->leaves.reserve(leaves);
   out->leaf_begin.reserve(leaves + 1);
   out->overlap.reserve(nodes);
@@ -1048,10 +1060,6 @@ void BuildParallel(Shared* shared, const Task& root, int threads, SubtreeOut* ou
     uint32_t frag, node, parent;
     int slot;
   };
-  // A fragment is freed once all its nodes are stitched (fragments are small: most of the memory is
-  // released well before the end).
-  std::vector<size_t> left_to_stitch(frags.size());
-  for (size_t i = 0; i < frags.size(); ++i) left_to_stitch[i] = frags[i]->nodes.size();
   std::vector<Ref> stack{{0, 0, kNoIndex, 0}};
   while (!stack.empty()) {
     const Ref r = stack.back();
@@ -1067,17 +1075,35 @@ void BuildParallel(Shared* shared, const Task& root, int threads, SubtreeOut* ou
       lf.node = g;
       out->leaves.push_back(lf);
     } else {
-      if (nd.split_root != kNoIndex)
-        nd.split_root = AppendSplitTree(f.split_nodes.data() + nd.split_root, f.split_count[r.node], nd.split_root,
-                                        &out->split_nodes);
+      if (nd.split_root != kNoIndex) {
+        const uint32_t count = f.split_count[r.node];
+        split_copies.push_back({f.split_nodes.data() + nd.split_root, count, nd.split_root, split_end});
+        nd.split_root = split_end;
+        split_end += count;
+      }
       const uint32_t right = nd.child[1];
       stack.push_back(right & kFragmentRef ? Ref{right & ~kFragmentRef, 0, g, 1} : Ref{r.frag, right, g, 1});
       stack.push_back(Ref{r.frag, nd.child[0], g, 0});
     }
     out->nodes.push_back(nd);
     out->overlap.push_back(f.overlap[r.node]);
-    if (--left_to_stitch[r.frag] == 0) frags[r.frag].reset();
   }
+  sizing.join();
+  // The copies in two runs of about equal SplitNode counts.
+  auto copy = [&](size_t lo, size_t hi) {
+    for (size_t i = lo; i < hi; ++i) {
+      const SplitCopy& c = split_copies[i];
+      SplitNode* to = out->split_nodes.data() + c.base;
+      std::copy(c.from, c.from + c.count, to);
+      RebaseSplitTree(to, c.count, c.base - c.at);
+    }
+  };
+  const size_t middle = std::partition_point(split_copies.begin(), split_copies.end(),
+                                             [&](const SplitCopy& c) { return c.base < split_end / 2; }) -
+                        split_copies.begin();
+  std::thread first(copy, size_t{0}, middle);
+  copy(middle, split_copies.size());
+  first.join();
   *stitch_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - stitch_start).count();
 }
 
