@@ -195,8 +195,9 @@ void ExpectSameTree(const BuildResult& r1, const BuildResult& r2) {
   EXPECT_EQ(r1.stats.overlap_objects, r2.stats.overlap_objects);
 }
 
-// The multi-thread build (task queue, fragments stitched in DFS order) gives exactly the 1-thread tree:
-// default task size, and tiny tasks (many fragments, 2-4 threads) on smaller pages.
+// The multi-thread build (task queue, fragments stitched in DFS order, a root that shares its sweeps and
+// partitions with a second thread) gives exactly the 1-thread tree: default task size, and tiny tasks
+// (many fragments, 2-4 threads) on smaller pages. (LargeInputs... covers a root that does not share.)
 TEST(BuildMKTree, SingleThreadAndTwoThreadsBuildTheSameTree) {
   for (SplitPolicy policy : kAllPolicies) {
     for (SceneKind kind : {SceneKind::kShip, SceneKind::kClustered, SceneKind::kOversized}) {
@@ -216,6 +217,7 @@ TEST(BuildMKTree, SingleThreadAndTwoThreadsBuildTheSameTree) {
           BuildTuning many = one;
           many.threads = threads;
           many.parallel_task_objects = task;
+          many.cooperative_root_objects = 1;
           auto r2 = BuildMKTree(recs, p, many);
           ASSERT_TRUE(r2.ok());
           ExpectSameTree(*r1, *r2);
@@ -239,26 +241,6 @@ TEST(BuildMKTree, LargeInputsBuildTheSameTreeOnTwoThreads) {
   ASSERT_TRUE(r2.ok());
   ExpectSameTree(*r1, *r2);
   CheckTree(recs, *r2, BuildParams());
-}
-
-// The root of a 2-thread build shares its sweeps and partitions with the second thread: same tree.
-TEST(BuildMKTree, CooperativeRootBuildsTheSameTree) {
-  for (SplitPolicy policy : kAllPolicies) {
-    SCOPED_TRACE(testing::Name(policy));
-    for (SceneKind kind : {SceneKind::kShip, SceneKind::kClustered}) {
-      auto recs = MakeScene(kind, 20000, 9);
-      BuildTuning one = WithPolicy(policy);
-      one.threads = 1;
-      BuildTuning two = WithPolicy(policy);
-      two.threads = 2;
-      two.cooperative_root_objects = 1;
-      auto r1 = BuildMKTree(recs, BuildParams(), one);
-      auto r2 = BuildMKTree(recs, BuildParams(), two);
-      ASSERT_TRUE(r1.ok());
-      ASSERT_TRUE(r2.ok());
-      ExpectSameTree(*r1, *r2);
-    }
-  }
 }
 
 // Degenerate inputs that would make a quadratic step explode: they must complete quickly (no timing
