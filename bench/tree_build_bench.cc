@@ -118,7 +118,16 @@ Quality RoutingQuality(const BuildResult& r, const std::vector<ObjectRecord>& re
   const Box3f& root = r.tree.nodes[0].box;
   std::vector<uint32_t> leaves;
   uint64_t reached = 0, answer = 0, multi = 0, stabbed = 0, passed = 0, passed_multi = 0;
-  std::vector<uint8_t> quantized;
+  // The tree with its leaf filter, as the store builder fills it (each leaf's objects quantized inside its
+  // box): its RoutePoint drops the leaves the filter rules out, as a point query does.
+  MKTree filtered = r.tree;
+  filtered.leaf_filter.resize(uint64_t{kLeafFilterBytesPerObject} * r.leaf_objects.size());
+  for (size_t l = 0; l < r.tree.leaves.size(); ++l)
+    for (uint64_t k = r.leaf_offsets[l]; k < r.leaf_offsets[l + 1]; ++k)
+      QuantizeBox(r.tree.leaves[l].box, recs[r.leaf_objects[k]].box,
+                  &filtered.leaf_filter[k * kLeafFilterBytesPerObject]);
+  if (!filtered.IndexLeafFilter()) std::abort();
+  std::vector<uint32_t> passed_leaves;
   const int box_points = std::min(points, 1000);
   QueryStats st;
   for (int i = 0; i < points; ++i) {
@@ -130,7 +139,6 @@ Quality RoutingQuality(const BuildResult& r, const std::vector<ObjectRecord>& re
       for (const LeafInfo& lf : r.tree.leaves) stabbed += lf.box.Contains(p);
     reached += leaves.size();
     multi += leaves.size() > 1;
-    uint64_t passed_here = 0;
     for (uint32_t l : leaves) {
       for (uint64_t k = r.leaf_offsets[l]; k < r.leaf_offsets[l + 1]; ++k) {
         if (recs[r.leaf_objects[k]].box.Contains(p)) {  // ids are record indices here
@@ -138,16 +146,11 @@ Quality RoutingQuality(const BuildResult& r, const std::vector<ObjectRecord>& re
           break;
         }
       }
-      // The leaf filter as the store keeps it: the leaf's object boxes quantized inside its box.
-      const uint64_t count = r.leaf_offsets[l + 1] - r.leaf_offsets[l];
-      quantized.resize(count * kLeafFilterBytesPerObject);
-      for (uint64_t k = 0; k < count; ++k)
-        QuantizeBox(r.tree.leaves[l].box, recs[r.leaf_objects[r.leaf_offsets[l] + k]].box,
-                    &quantized[k * kLeafFilterBytesPerObject]);
-      passed_here += FilterMeetsPoint(r.tree.leaves[l].box, quantized.data(), static_cast<uint32_t>(count), p);
     }
-    passed += passed_here;
-    passed_multi += passed_here > 1;
+    passed_leaves.clear();
+    filtered.RoutePoint(p, &passed_leaves, nullptr);
+    passed += passed_leaves.size();
+    passed_multi += passed_leaves.size() > 1;
   }
   q.mean_leaves = double(reached) / points;
   q.mean_answer_leaves = double(answer) / points;
