@@ -21,8 +21,8 @@ struct SplitTreeShape {
 
 using ShapeStack = std::vector<std::pair<uint32_t, Box3f>>;
 
-// Walks one SplitTree, clipping each cell to the overlap region q. (`stack` is reused from tree to tree:
-// a 1M-object tree has some 38,000 SplitTrees.)
+// Walks one SplitTree, clipping each cell to the overlap region q. (*stack_buffer is reused from tree to
+// tree: a 1M-object tree has some 38,000 SplitTrees.)
 SplitTreeShape Shape(const MKTree& t, uint32_t root, const Box3f& q, ShapeStack* stack_buffer) {
   SplitTreeShape s;
   ShapeStack& stack = *stack_buffer;
