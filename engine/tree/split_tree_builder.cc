@@ -153,9 +153,9 @@ namespace {
 // join the leaves they meet when ResolveFree places them.
 class Builder {
  public:
-  Builder(const Box3f& q, std::vector<SplitItem>* items, uint32_t budget, std::vector<SplitNode>* out,
+  Builder(const Box3f& q, std::span<SplitItem> items, uint32_t budget, std::vector<SplitNode>* out,
           SplitTreeScratch::Buffers* b)
-      : items_(*items), budget_(budget), out_(*out), cm_(q), b_(*b) {
+      : items_(items), budget_(budget), out_(*out), cm_(q), b_(*b) {
     out_.clear();
     out_.reserve(std::min<uint32_t>(budget_, kOutReserve));
     // The root's lists: the fixed items, LEFT up from the block's start and RIGHT down from its end (each
@@ -494,7 +494,7 @@ class Builder {
     return nm;
   }
 
-  std::vector<SplitItem>& items_;
+  std::span<SplitItem> items_;
   uint32_t budget_;
   std::vector<SplitNode>& out_;
   CostModel cm_;
@@ -507,7 +507,7 @@ class Builder {
 
 }  // namespace
 
-void BuildSplitTree(const Box3f& q, std::vector<SplitItem>* items, uint32_t budget, BalanceWindow* window,
+void BuildSplitTree(const Box3f& q, std::span<SplitItem> items, uint32_t budget, BalanceWindow* window,
                     std::vector<SplitNode>* out, double min_gain, SplitTreeScratch* scratch) {
   std::optional<SplitTreeScratch> local;
   if (!scratch) scratch = &local.emplace();

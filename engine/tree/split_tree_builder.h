@@ -19,6 +19,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <vector>
 
 #include "engine/tree/mktree.h"
@@ -63,7 +64,7 @@ struct SplitTreeScratch {
 // with at most `budget` nodes (budget >= 1), and resolves every kFree item to kLeft or kRight. A cut is
 // only made when it lowers the routing cost by at least `min_gain` (a share of Q's volume, see .cc).
 // `scratch` (optional) keeps the working buffers between calls.
-void BuildSplitTree(const Box3f& q, std::vector<SplitItem>* items, uint32_t budget, BalanceWindow* window,
+void BuildSplitTree(const Box3f& q, std::span<SplitItem> items, uint32_t budget, BalanceWindow* window,
                     std::vector<SplitNode>* out, double min_gain, SplitTreeScratch* scratch = nullptr);
 
 }  // namespace mktree
