@@ -841,16 +841,25 @@ class SubtreeBuilder {
   class PageSplit {
    public:
     PageSplit(uint64_t left, uint64_t total, uint64_t mem_page)
-        : total_(total), cap_(PagePayloadCapacity(mem_page)), left_pages_(PagesForLeaf(left, mem_page)),
-          right_pages_(PagesForLeaf(total - left, mem_page)), total_pages_(PagesForLeaf(total, mem_page)) {}
+        : cap_(PagePayloadCapacity(mem_page)), left_pages_(PagesForLeaf(left, mem_page)),
+          right_pages_(PagesForLeaf(total - left, mem_page)), total_pages_(PagesForLeaf(total, mem_page)) {
+      // The left side takes another page once left > left_limit_; the right one gives one back once
+      // left >= right_limit_ (never below one page).
+      left_limit_ = left_pages_ * cap_ - kLeafHeaderBytes;
+      right_limit_ = right_pages_ > 1 ? LeafPayloadBytes(total) - (right_pages_ - 1) * cap_
+                                      : std::numeric_limits<uint64_t>::max();
+    }
     uint64_t Waste(uint64_t left) {  // left never decreases from one call to the next
-      while (LeafPayloadBytes(left) > left_pages_ * cap_) ++left_pages_;
-      while (right_pages_ > 1 && LeafPayloadBytes(total_ - left) <= (right_pages_ - 1) * cap_) --right_pages_;
+      while (left > left_limit_) ++left_pages_, left_limit_ += cap_;
+      while (left >= right_limit_) {
+        --right_pages_;
+        right_limit_ = right_pages_ > 1 ? right_limit_ + cap_ : std::numeric_limits<uint64_t>::max();
+      }
       return left_pages_ + right_pages_ - total_pages_;
     }
 
    private:
-    uint64_t total_, cap_, left_pages_, right_pages_, total_pages_;
+    uint64_t cap_, left_pages_, right_pages_, total_pages_, left_limit_, right_limit_;
   };
 
   // Evaluates the candidates of both keys of axis w (GatherAxis(t, w) done). In O(n): along either order,
@@ -894,7 +903,9 @@ class SubtreeBuilder {
       auto a_of = [&](uint32_t k) { return key == 0 ? smin[k] : suffix_min_[k - window_base_]; };
       auto b_of = [&](uint32_t k) { return key == 0 ? prefix_max_[k - window_base_] : smax[k - 1]; };
       uint64_t left_bytes = 0;  // encoded bytes of the first k objects
-      if (fill_aware)
+      if (fill_aware && only != nullptr)  // the first pass's candidate at k_first has them
+        left_bytes = tied[key].first.left_bytes - bytes_[order[t.lo + k_first - 1]];
+      else if (fill_aware)
         for (uint32_t i = 0; i + 1 < k_first; ++i) left_bytes += bytes_[order[t.lo + i]];
 
       PageSplit pages(left_bytes, t.bytes, mem_page_);
