@@ -486,42 +486,72 @@ class SubtreeBuilder {
 
     const uint32_t* chosen = s_.lists[best.list].data() + t.lo;
     uint8_t* const side = s_.side.data();  // local: a byte store may alias any pointer the loop would reload
-    for (uint32_t i = 0; i < best.k; ++i) side[chosen[i]] = 0;
-    for (uint32_t i = best.k; i < n; ++i) side[chosen[i]] = 1;
+    auto mark_sides = [side, chosen, k = best.k, n] {  // by value: the byte stores may alias anything
+      for (uint32_t i = 0; i < k; ++i) side[chosen[i]] = 0;
+      for (uint32_t i = k; i < n; ++i) side[chosen[i]] = 1;
+    };
 
     // Objects meeting the closed slab: they decide the SplitTree, and the free ones among them may move.
+    // When the split is by min_w (key 0), the loop below walks the chosen list itself, so an object's side
+    // is its position (no read of side[], and the sides may be marked meanwhile).
+    const bool key0 = best.list % 2 == 0;
     std::vector<SplitNode> split;
     uint32_t n_items = 0;
-    if (best.a < best.b) {
+    auto gather_items = [&]<bool kKey0>() {
       // Branch-free: every object up to the slab's far end is written, and kept (the count advanced) when
       // it meets the slab, which is not predictable (in large nodes about half do). The arrays are sized
-      // for the whole node, but only the pages written are touched.
+      // for the whole node, but only the pages written are touched. (Locals: the item stores could alias
+      // what the closure refers to.)
       items_.Fit(n);
       overlap_ids_.Fit(n);
       SplitItem* const items = items_.data();
       uint32_t* const ids = overlap_ids_.data();
       const uint32_t* const by_min = s_.lists[2 * w].data();
-      const uint32_t prefetch_end = n >= kPrefetchObjects ? t.hi - kPrefetch : t.lo;
-      for (uint32_t i = t.lo; i < t.hi; ++i) {
+      const Box3f* const box = box_.data();
+      const uint32_t* const bytes = bytes_.data();
+      const uint8_t* const sides = side;
+      const float a = best.a, b = best.b;
+      const int axis = w;
+      const uint32_t lo = t.lo, hi = t.hi;
+      const uint32_t prefetch_end = n >= kPrefetchObjects ? hi - kPrefetch : lo;
+      const uint32_t first_right = lo + best.k;
+      uint32_t count = 0;
+      for (uint32_t i = lo; i < hi; ++i) {
         if (i < prefetch_end) {  // (box, bytes and side are each a random read in a large node)
           const uint32_t ahead = by_min[i + kPrefetch];
-          __builtin_prefetch(&box_[ahead]);
-          __builtin_prefetch(&bytes_[ahead]);
-          __builtin_prefetch(&side[ahead]);
+          __builtin_prefetch(&box[ahead]);
+          __builtin_prefetch(&bytes[ahead]);
+          if (!kKey0) __builtin_prefetch(&sides[ahead]);
         }
         const uint32_t idx = by_min[i];
-        const Box3f& bx = box_[idx];
-        if (bx.min[w] > best.b) break;  // sorted by min_w
-        SplitItem& it = items[n_items];
+        const Box3f& bx = box[idx];
+        if (bx.min[axis] > b) break;  // sorted by min_w
+        SplitItem& it = items[count];
         it.box = bx;
-        it.box.min[w] = std::max(bx.min[w], best.a);
-        it.box.max[w] = std::min(bx.max[w], best.b);
-        it.default_side = side[idx];
-        it.bytes = bytes_[idx];
-        it.side = bx.min[w] < best.a ? SplitItem::kLeft : (bx.max[w] > best.b ? SplitItem::kRight : SplitItem::kFree);
-        ids[n_items] = idx;
-        n_items += bx.max[w] >= best.a;
+        it.box.min[axis] = std::max(bx.min[axis], a);
+        it.box.max[axis] = std::min(bx.max[axis], b);
+        it.default_side = kKey0 ? i >= first_right : sides[idx];
+        it.bytes = bytes[idx];
+        it.side = bx.min[axis] < a ? SplitItem::kLeft : (bx.max[axis] > b ? SplitItem::kRight : SplitItem::kFree);
+        ids[count] = idx;
+        count += bx.max[axis] >= a;
       }
+      n_items = count;
+    };
+    if (!(best.a < best.b)) {
+      mark_sides();
+    } else if (!key0) {
+      mark_sides();
+      gather_items.template operator()<false>();
+    } else if (t.cooperative) {
+      Together(mark_sides, [&] { gather_items.template operator()<true>(); });
+    } else {
+      mark_sides();
+      gather_items.template operator()<true>();
+    }
+    if (best.a < best.b) {
+      SplitItem* const items = items_.data();
+      const uint32_t* const ids = overlap_ids_.data();
       if (s_.params.split_tree_node_budget > 0) {
         Box3f q = node.box;
         q.min[w] = best.a;
@@ -537,8 +567,8 @@ class SubtreeBuilder {
           window.max_left_bytes = Pages(best.left_bytes) * cap - kLeafHeaderBytes;
           window.max_right_bytes = Pages(t.bytes - best.left_bytes) * cap - kLeafHeaderBytes;
         }
-        BuildSplitTree(q, std::span<SplitItem>(items, n_items), s_.params.split_tree_node_budget, &window, &split, s_.tuning.split_min_gain,
-                       &split_scratch_);
+        BuildSplitTree(q, std::span<SplitItem>(items, n_items), s_.params.split_tree_node_budget, &window, &split,
+                       s_.tuning.split_min_gain, &split_scratch_);
         for (uint32_t i = 0; i < n_items; ++i) side[ids[i]] = items[i].side;
       }
     }
