@@ -580,20 +580,25 @@ class SubtreeBuilder {
     tmp_.Fit(n);
     uint64_t left_bytes = 0;
     auto partition = [&]<bool kSumBytes>(int l, uint32_t* right) {
+      // (Locals: the list stores could alias the task's bounds and the byte sum.)
       uint32_t* v = s_.lists[l].data();
       const uint8_t* side = s_.side.data();
-      uint32_t wpos = t.lo, tpos = 0;
-      for (uint32_t i = t.lo; i < t.hi; ++i) {
+      const uint32_t* bytes = bytes_.data();
+      const uint32_t lo = t.lo, hi = t.hi;
+      uint32_t wpos = lo, tpos = 0;
+      uint64_t sum = 0;
+      for (uint32_t i = lo; i < hi; ++i) {
         const uint32_t idx = v[i];
         const uint32_t r = side[idx];
         v[wpos] = idx;
         right[tpos] = idx;
         wpos += r ^ 1;
         tpos += r;
-        if (kSumBytes) left_bytes += bytes_[idx] & (r - 1);  // r = 0: all bits
+        if (kSumBytes) sum += bytes[idx] & (r - 1);  // r = 0: all bits
       }
       std::copy(right, right + tpos, v + wpos);
-      return wpos - t.lo;
+      if (kSumBytes) left_bytes = sum;
+      return wpos - lo;
     };
     uint32_t n1 = 0;
     bool leaf_kids = false;
@@ -930,13 +935,19 @@ class SubtreeBuilder {
       const uint32_t k_first = only != nullptr ? tied[key].k_min : k_lo;
       const uint32_t k_last = only != nullptr ? tied[key].k_max : k_hi;
       const int list = 2 * w + key;
-      auto a_of = [&](uint32_t k) { return key == 0 ? smin[k] : suffix_min_[k - window_base_]; };
-      auto b_of = [&](uint32_t k) { return key == 0 ? prefix_max_[k - window_base_] : smax[k - 1]; };
+      // (Locals, not members or the task's fields, which the ties' counters could alias.)
+      const float* const pmax = prefix_max_.data();
+      const float* const smn = suffix_min_.data();
+      const uint32_t base = window_base_;
+      auto a_of = [smin, smn, base](uint32_t k) { return key == 0 ? smin[k] : smn[k - base]; };
+      auto b_of = [smax, pmax, base](uint32_t k) { return key == 0 ? pmax[k - base] : smax[k - 1]; };
+      const uint32_t* const ord = order.data() + t.lo;
+      const uint32_t* const bytes = bytes_.data();
       uint64_t left_bytes = 0;  // encoded bytes of the first k objects
       if (fill_aware && only != nullptr)  // the first pass's candidate at k_first has them
-        left_bytes = tied[key].first.left_bytes - bytes_[order[t.lo + k_first - 1]];
+        left_bytes = tied[key].first.left_bytes - bytes[ord[k_first - 1]];
       else if (fill_aware)
-        for (uint32_t i = 0; i + 1 < k_first; ++i) left_bytes += bytes_[order[t.lo + i]];
+        for (uint32_t i = 0; i + 1 < k_first; ++i) left_bytes += bytes[ord[i]];
 
       PageSplit pages(left_bytes, t.bytes, mem_page_);
 
@@ -946,7 +957,7 @@ class SubtreeBuilder {
           // Bytes only matter near the leaves (and are a random read per object, so not gathered above).
           uint64_t waste_key = 0;
           if (fill_aware) {
-            left_bytes += bytes_[order[t.lo + k - 1]];
+            left_bytes += bytes[ord[k - 1]];
             waste_key = pages.Waste(left_bytes);
           }
           const float a = a_of(k);
