@@ -40,9 +40,12 @@ struct LanesUnion {
     lo = Min(lo, MinLanes(b));
     hi = Max(hi, MaxLanes(b));
   }
-  // (max[0] - min[0]) + (max[1] - min[1]) + (max[2] - min[2]), in that order (as for a Box3f).
+  // (max[0] - min[0]) + (max[1] - min[1]) + (max[2] - min[2]), in that order (as for a Box3f): the three
+  // differences as one vector subtraction (the same IEEE operations lane by lane), then the two adds.
   float Margin() const {
-    return (hi[0 + kMaxLane] - lo[0]) + (hi[1 + kMaxLane] - lo[1]) + (hi[2 + kMaxLane] - lo[2]);
+    static_assert(kMaxLane == 1);
+    const Lanes extent = __builtin_shufflevector(hi, hi, 1, 2, 3, 3) - lo;
+    return (extent[0] + extent[1]) + extent[2];
   }
 };
 

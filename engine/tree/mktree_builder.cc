@@ -960,8 +960,7 @@ class SubtreeBuilder {
             left_bytes += bytes[ord[k - 1]];
             waste_key = pages.Waste(left_bytes);
           }
-          const float a = a_of(k);
-          const float b = b_of(k);
+          float a, b;  // the cut's planes, read once the cut is known to matter
           uint32_t sm = 0;
           float margin = 0;
           if (sm_free) {  // the key is the waste alone: |Sm| only for a cut that may win or tie
@@ -978,26 +977,32 @@ class SubtreeBuilder {
             } else if (waste_key > bound) {
               continue;
             }
+            a = a_of(k);
+            b = b_of(k);
             if (a < b) {
               pa = Gallop<true>(smax, n, pa, a);
               pb = Gallop<false>(smin, n, pb, b);
               sm = pb - pa;
             }
-          } else if (a < b) {
-            if (!placed) {  // first use: a binary search instead of walking past the first ~k_lo objects
-              pa = static_cast<uint32_t>(std::upper_bound(smax, smax + n, a) - smax);
-              pb = static_cast<uint32_t>(std::lower_bound(smin, smin + n, b) - smin);
-              placed = true;
+          } else {
+            a = a_of(k);
+            b = b_of(k);
+            if (a < b) {
+              if (!placed) {  // first use: a binary search instead of walking past the first ~k_lo objects
+                pa = static_cast<uint32_t>(std::upper_bound(smax, smax + n, a) - smax);
+                pb = static_cast<uint32_t>(std::lower_bound(smin, smin + n, b) - smin);
+                placed = true;
+              }
+              // The cursors mostly move by 0-2 a step: two branch-free moves, then a loop that rarely runs
+              // (+inf sentinels at [n] stop them).
+              pa += smax[pa] <= a;
+              pa += smax[pa] <= a;
+              while (smax[pa] <= a) ++pa;
+              pb += smin[pb] < b;
+              pb += smin[pb] < b;
+              while (smin[pb] < b) ++pb;
+              sm = pb - pa;
             }
-            // The cursors mostly move by 0-2 a step: two branch-free moves, then a loop that rarely runs
-            // (+inf sentinels at [n] stop them).
-            pa += smax[pa] <= a;
-            pa += smax[pa] <= a;
-            while (smax[pa] <= a) ++pa;
-            pb += smin[pb] < b;
-            pb += smin[pb] < b;
-            while (smin[pb] < b) ++pb;
-            sm = pb - pa;
           }
           if (sm_min_out != nullptr) {
             *sm_min_out = std::min(*sm_min_out, sm);
