@@ -486,9 +486,9 @@ class SubtreeBuilder {
 
     const uint32_t* chosen = s_.lists[best.list].data() + t.lo;
     uint8_t* const side = s_.side.data();  // local: a byte store may alias any pointer the loop would reload
-    auto mark_sides = [side, chosen, k = best.k, n] {  // by value: the byte stores may alias anything
-      for (uint32_t i = 0; i < k; ++i) side[chosen[i]] = 0;
-      for (uint32_t i = k; i < n; ++i) side[chosen[i]] = 1;
+    auto mark_sides = [side, chosen, k = size_t{best.k}, n = size_t{n}] {  // by value: byte stores alias all
+      for (size_t i = 0; i < k; ++i) side[chosen[i]] = 0;
+      for (size_t i = k; i < n; ++i) side[chosen[i]] = 1;
     };
 
     // Objects meeting the closed slab: they decide the SplitTree, and the free ones among them may move.
@@ -512,11 +512,11 @@ class SubtreeBuilder {
       const uint8_t* const sides = side;
       const float a = best.a, b = best.b;
       const int axis = w;
-      const uint32_t lo = t.lo, hi = t.hi;
-      const uint32_t prefetch_end = n >= kPrefetchObjects ? hi - kPrefetch : lo;
-      const uint32_t first_right = lo + best.k;
-      uint32_t count = 0;
-      for (uint32_t i = lo; i < hi; ++i) {
+      const size_t lo = t.lo, hi = t.hi;  // (64-bit: no zero-extensions in the loop)
+      const size_t prefetch_end = n >= kPrefetchObjects ? hi - kPrefetch : lo;
+      const size_t first_right = lo + best.k;
+      size_t count = 0;
+      for (size_t i = lo; i < hi; ++i) {
         if (i < prefetch_end) {  // (box, bytes and side are each a random read in a large node)
           const uint32_t ahead = by_min[i + kPrefetch];
           __builtin_prefetch(&box[ahead]);
@@ -536,7 +536,7 @@ class SubtreeBuilder {
         ids[count] = idx;
         count += bx.max[axis] >= a;
       }
-      n_items = count;
+      n_items = static_cast<uint32_t>(count);
     };
     if (!(best.a < best.b)) {
       mark_sides();
@@ -584,21 +584,22 @@ class SubtreeBuilder {
       uint32_t* v = s_.lists[l].data();
       const uint8_t* side = s_.side.data();
       const uint32_t* bytes = bytes_.data();
-      const uint32_t lo = t.lo, hi = t.hi;
-      uint32_t wpos = lo, tpos = 0;
+      // 64-bit positions and 1 - r: no zero-extensions in the loop.
+      const size_t lo = t.lo, hi = t.hi;
+      size_t wpos = lo, tpos = 0;
       uint64_t sum = 0;
-      for (uint32_t i = lo; i < hi; ++i) {
+      for (size_t i = lo; i < hi; ++i) {
         const uint32_t idx = v[i];
-        const uint32_t r = side[idx];
+        const size_t r = side[idx];
         v[wpos] = idx;
         right[tpos] = idx;
-        wpos += r ^ 1;
+        wpos += 1 - r;
         tpos += r;
         if (kSumBytes) sum += bytes[idx] & (r - 1);  // r = 0: all bits
       }
       std::copy(right, right + tpos, v + wpos);
       if (kSumBytes) left_bytes = sum;
-      return wpos - lo;
+      return static_cast<uint32_t>(wpos - lo);
     };
     uint32_t n1 = 0;
     bool leaf_kids = false;
@@ -766,21 +767,23 @@ class SubtreeBuilder {
   // margin_pre_[i - (k_min-1)], and of order[lo+i .. hi) for i in [k_min, k_max] at margin_suf_[i - k_min]:
   // what the cuts k in [k_min, k_max] need. Each sweep runs in two stretches (without, then with a margin
   // stored) over the boxes as vectors.
-  void PrefixSuffixMargins(const Task& t, const BuildVector<uint32_t>& order, uint32_t k_min, uint32_t k_max) {
-    const uint32_t n = t.hi - t.lo;
-    margin_base_ = k_min;
+  void PrefixSuffixMargins(const Task& t, const BuildVector<uint32_t>& order, uint32_t k_min32, uint32_t k_max32) {
+    const size_t n = t.hi - t.lo, k_min = k_min32, k_max = k_max32;  // (64-bit: no zero-extensions)
+    margin_base_ = k_min32;
     margin_pre_.Fit(k_max - k_min + 1);
     margin_suf_.Fit(k_max - k_min + 1);
     const uint32_t* ord = order.data() + t.lo;
     const Box3f* box = box_.data();
+    float* const pre_out = margin_pre_.data();
+    float* const suf_out = margin_suf_.data();
     LanesUnion pre;
-    uint32_t i = 0;
+    size_t i = 0;
     for (; i + 1 < k_min; ++i) pre.Add(box[ord[i]]);
-    for (; i < k_max; ++i) pre.Add(box[ord[i]]), margin_pre_[i + 1 - k_min] = pre.Margin();
+    for (; i < k_max; ++i) pre.Add(box[ord[i]]), pre_out[i + 1 - k_min] = pre.Margin();
     LanesUnion suf;
     i = n;
     while (i > k_max + 1) suf.Add(box[ord[--i]]);
-    while (i > k_min) --i, suf.Add(box[ord[i]]), margin_suf_[i - k_min] = suf.Margin();
+    while (i > k_min) --i, suf.Add(box[ord[i]]), suf_out[i - k_min] = suf.Margin();
   }
 
   // Gathers axis w and evaluates its candidates (kSoa, and kCompact's |Sm| first pass).
@@ -813,8 +816,9 @@ class SubtreeBuilder {
   // window test is not made per object. kFar: the records are read in key order, scattered over RAM in
   // large nodes, so each is prefetched kPrefetch objects ahead.
   template <bool kFar>
-  void GatherRuns(const Task& t, int w, uint32_t k_lo, uint32_t k_hi) {
-    const uint32_t n = t.hi - t.lo;
+  void GatherRuns(const Task& t, int w, uint32_t k_lo32, uint32_t k_hi32) {
+    // (64-bit positions: no zero-extensions in the loops.)
+    const size_t n = t.hi - t.lo, k_lo = k_lo32, k_hi = k_hi32;
     const Box3f* box = box_.data();
     const uint32_t* by_min = s_.lists[2 * w].data() + t.lo;
     const uint32_t* by_max = s_.lists[2 * w + 1].data() + t.lo;
@@ -824,26 +828,26 @@ class SubtreeBuilder {
     float* smn = suffix_min_.data();   // [k - k_lo]: min of min_w over objects k..n-1
     auto sweep_up = [&] {
       float run = -std::numeric_limits<float>::infinity();
-      auto up = [&](uint32_t i) {
+      auto up = [&](size_t i) {
         if (kFar && i + kPrefetch < n) __builtin_prefetch(&box[by_min[i + kPrefetch]]);
         const Box3f& bx = box[by_min[i]];
         smin[i] = bx.min[w];
         run = std::max(run, bx.max[w]);
       };
-      uint32_t i = 0;
+      size_t i = 0;
       for (; i + 1 < k_lo; ++i) up(i);
       for (; i < k_hi; ++i) up(i), pmax[i + 1 - k_lo] = run;
       for (; i < n; ++i) up(i);
     };
     auto sweep_down = [&] {
       float run = std::numeric_limits<float>::infinity();
-      auto down = [&](uint32_t i) {
+      auto down = [&](size_t i) {
         if (kFar && i >= kPrefetch) __builtin_prefetch(&box[by_max[i - kPrefetch]]);
         const Box3f& bx = box[by_max[i]];
         smax[i] = bx.max[w];
         run = std::min(run, bx.min[w]);
       };
-      uint32_t i = n;
+      size_t i = n;
       for (; i > k_hi + 1;) down(--i);
       for (; i > k_lo;) --i, down(i), smn[i - k_lo] = run;
       for (; i > 0;) down(--i);
@@ -953,7 +957,7 @@ class SubtreeBuilder {
 
       // Cuts [k_begin, k_end]; pa, pb: the counts at k_begin when `placed`.
       auto eval = [&](uint32_t k_begin, uint32_t k_end, uint32_t pa, uint32_t pb, bool placed) {
-        for (uint32_t k = k_begin; k <= k_end; ++k) {
+        for (size_t k = k_begin; k <= k_end; ++k) {  // (64-bit: no zero-extensions)
           // Bytes only matter near the leaves (and are a random read per object, so not gathered above).
           uint64_t waste_key = 0;
           if (fill_aware) {
