@@ -164,31 +164,32 @@ class Builder {
     const uint32_t n = static_cast<uint32_t>(items_.size());
     const uint32_t at = Take(n);
     uint32_t* block = b_.pool.get() + at;
-    uint32_t nl = 0, nr = 0;
+    size_t nl = 0, nr = 0;  // (64-bit: no zero-extensions)
     // (Also checks min <= max on every axis of every box, as (min[0..2], max[0]) <= (max[0..2], side..),
     // lanes 0-2: see valid_.)
     MaskLanes ok = {-1, -1, -1, -1};
-    for (uint32_t i = 0; i < n; ++i) {
-      const uint8_t side = items_[i].side;
-      block[nl] = i;
+    const SplitItem* const item = items_.data();
+    for (size_t i = 0; i < n; ++i) {
+      const uint8_t side = item[i].side;
+      block[nl] = static_cast<uint32_t>(i);
       nl += side == SplitItem::kLeft;
-      block[n - 1 - nr] = i;
+      block[n - 1 - nr] = static_cast<uint32_t>(i);
       nr += side == SplitItem::kRight;
       Lanes mn, mx;
-      const char* p = reinterpret_cast<const char*>(&items_[i]);
+      const char* p = reinterpret_cast<const char*>(&item[i]);
       std::memcpy(&mn, p, sizeof mn);
       std::memcpy(&mx, p + offsetof(Box3f, max), sizeof mx);
       ok &= mn <= mx;
     }
     valid_ = (ok[0] & ok[1] & ok[2]) != 0;
     std::reverse(block + n - nr, block + n);
-    free_count_ = n - nl - nr;
+    free_count_ = static_cast<uint32_t>(n - nl - nr);
     Cell root;
     root.region = q;
     root.volume = cm_.Volume(q);
     root.begin[0] = at;
-    root.end[0] = at + nl;
-    root.begin[1] = at + n - nr;
+    root.end[0] = static_cast<uint32_t>(at + nl);
+    root.begin[1] = static_cast<uint32_t>(at + n - nr);
     root.end[1] = at + n;
     ComputeExtremes(&root, 0);
     ComputeExtremes(&root, 1);
@@ -382,7 +383,8 @@ class Builder {
   void ComputeExtremes(Cell* c, int s) const {
     const uint32_t* pool = b_.pool.get();
     LanesUnion u;
-    for (uint32_t k = c->begin[s]; k < c->end[s]; ++k) u.Add(items_[pool[k]].box);
+    const SplitItem* const items = items_.data();
+    for (size_t k = c->begin[s], end = c->end[s]; k < end; ++k) u.Add(items[pool[k]].box);
     c->lo_of[s] = u.lo;
     c->hi_of[s] = u.hi;
   }
@@ -476,7 +478,7 @@ class Builder {
   // for one more free item.
   uint32_t CellsMeeting(const Box3f& b, const Cell* cells, const SplitNode* nodes, uint32_t* stack,
                         uint32_t* met, double added[2]) {
-    uint32_t depth = 1, nm = 0;
+    size_t depth = 1, nm = 0;  // (64-bit: no zero-extensions)
     stack[0] = 0;
     while (depth > 0) {
       const uint32_t n = stack[--depth];
@@ -491,7 +493,7 @@ class Builder {
       stack[depth] = sn.child[0];
       depth += b.min[sn.axis] <= sn.cut;
     }
-    return nm;
+    return static_cast<uint32_t>(nm);
   }
 
   std::span<SplitItem> items_;
