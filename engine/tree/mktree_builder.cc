@@ -181,20 +181,19 @@ inline uint32_t Spread3(uint32_t v) {
 // within a cell, so that a node's objects lie close together in RAM: the split sweeps and the list
 // partitions read records in key order, which in input order misses the cache all the way down the tree.
 // Cells this coarse cost one counting pass, and keep what locality the input order has (the key sorts
-// read the records in input order). Frees `records`; *ids: the object ids in the same layout;
-// *index_of_input: the record index of the object at each input position.
-BuildRecords SpatialLayout(std::vector<ObjectRecord> records, BuildVector<ObjectId>* ids,
+// read the records in input order). `all`: the union of the boxes. Frees `records`; *ids: the object ids
+// in the same layout; *index_of_input: the record index of the object at each input position.
+BuildRecords SpatialLayout(std::vector<ObjectRecord> records, const Box3f& all, BuildVector<ObjectId>* ids,
                           BuildVector<uint32_t>* index_of_input, int threads) {
   const size_t n = records.size();
-  Box3f half_box[2];
-  RunOnHalves(n, threads, [&](size_t lo, size_t hi) {
-    for (size_t i = lo; i < hi; ++i) half_box[lo == 0 ? 0 : 1].Extend(records[i].box);
-  });
-  Box3f all = half_box[0];
-  all.Extend(half_box[1]);
   constexpr uint32_t kCellsPerAxis = 16;
+  constexpr size_t kCells = kCellsPerAxis * kCellsPerAxis * kCellsPerAxis;
   BuildVector<uint16_t> cell(n);
+  // A counting sort by cell on the two halves: each counts its own objects, and a cell's objects from the
+  // first half go before those from the second (input order within a cell).
+  std::vector<size_t> count(2 * kCells, 0);
   RunOnHalves(n, threads, [&](size_t lo, size_t hi) {
+    size_t* const counts = count.data() + (lo == 0 ? 0 : kCells);
     for (size_t i = lo; i < hi; ++i) {
       const Box3f& bx = records[i].box;
       uint32_t code = 0;
@@ -206,15 +205,22 @@ BuildRecords SpatialLayout(std::vector<ObjectRecord> records, BuildVector<Object
         code |= Spread3(q) << w;
       }
       cell[i] = static_cast<uint16_t>(code);
+      ++counts[code];
     }
   });
-  BuildVector<uint32_t> order(n);  // record index -> input position
-  {
-    std::vector<size_t> start(kCellsPerAxis * kCellsPerAxis * kCellsPerAxis + 1, 0);
-    for (uint16_t c : cell) ++start[c + 1];
-    for (size_t i = 1; i < start.size(); ++i) start[i] += start[i - 1];
-    for (size_t i = 0; i < n; ++i) order[start[cell[i]]++] = static_cast<uint32_t>(i);
+  size_t start = 0;  // count[half * kCells + c] becomes where that half's objects of cell c go
+  for (size_t c = 0; c < kCells; ++c) {
+    for (size_t half : {size_t{0}, kCells}) {
+      const size_t here = count[half + c];
+      count[half + c] = start;
+      start += here;
+    }
   }
+  BuildVector<uint32_t> order(n);  // record index -> input position
+  RunOnHalves(n, threads, [&](size_t lo, size_t hi) {
+    size_t* const next = count.data() + (lo == 0 ? 0 : kCells);
+    for (size_t i = lo; i < hi; ++i) order[next[cell[i]]++] = static_cast<uint32_t>(i);
+  });
   BuildVector<uint16_t>().swap(cell);
   BuildRecords rec;
   rec.box.resize(n);
@@ -1243,7 +1249,10 @@ void BuildParallel(Shared* shared, const Task& root, int threads, SubtreeOut* ou
 
 std::string Describe(const ObjectRecord& r) { return "object " + std::to_string(r.id); }
 
-Status Validate(const std::vector<ObjectRecord>& records, const BuildParams& params) {
+// The checks of BuildMKTree's REQUIRES but unique ids (CheckUniqueIds), the per-record ones on two halves;
+// an error names the first bad record in input order. *bounds: the union of the boxes (the layout's).
+Status Validate(const std::vector<ObjectRecord>& records, const BuildParams& params, int threads,
+                Box3f* bounds, ObjectId* max_id) {
   if (!(params.balance_r >= 0 && params.balance_r < 0.5))
     return Status::InvalidArgument("balance ratio r = " + std::to_string(params.balance_r) +
                                    " outside [0, 0.5)");
@@ -1253,34 +1262,75 @@ Status Validate(const std::vector<ObjectRecord>& records, const BuildParams& par
                                    " bytes is not larger than its headers (" +
                                    std::to_string(kPageHeaderBytes + kLeafHeaderBytes) + " bytes)");
   if (records.size() >= kNoIndex) return Status::InvalidArgument("too many objects for 32-bit indices");
-  ObjectId max_id = 0;
-  for (const ObjectRecord& r : records) {
+  struct Half {
+    size_t bad = std::numeric_limits<size_t>::max();  // its first record with a bad box
+    ObjectId max_id = 0;
+    Box3f box;
+  };
+  Half half[2];
+  RunOnHalves(records.size(), threads, [&](size_t lo, size_t hi) {
+    Half& h = half[lo == 0 ? 0 : 1];
+    for (size_t i = lo; i < hi; ++i) {
+      const Box3f& b = records[i].box;
+      // Finite with min <= max is -inf < min <= max < inf (NaN fails every comparison).
+      constexpr float kInf = std::numeric_limits<float>::infinity();
+      bool ok = true;
+      for (int a = 0; a < 3; ++a) ok &= (b.min[a] > -kInf) & (b.min[a] <= b.max[a]) & (b.max[a] < kInf);
+      if (!ok) {
+        h.bad = i;
+        break;
+      }
+      h.max_id = std::max(h.max_id, records[i].id);
+      h.box.Extend(b);
+    }
+  });
+  if (const size_t bad = std::min(half[0].bad, half[1].bad); bad < records.size()) {
+    const ObjectRecord& r = records[bad];
     for (int i = 0; i < 3; ++i) {
       if (!std::isfinite(r.box.min[i]) || !std::isfinite(r.box.max[i]))
         return Status::InvalidArgument(Describe(r) + ": bounding box is not finite");
       if (r.box.min[i] > r.box.max[i])
         return Status::InvalidArgument(Describe(r) + ": bounding box has min > max on axis " + std::to_string(i));
     }
-    max_id = std::max(max_id, r.id);
   }
-  // Duplicate ids: a bitmap when ids are dense (the normal 0-based case), else a sorted copy.
-  if (uint64_t{max_id} <= 64 * uint64_t{records.size()}) {
-    std::vector<uint64_t> seen(max_id / 64 + 1, 0);
-    for (const ObjectRecord& r : records) {
-      uint64_t& word = seen[r.id / 64];
-      const uint64_t bit = uint64_t{1} << (r.id % 64);
-      if (word & bit) return Status::InvalidArgument(Describe(r) + ": duplicate object id");
-      word |= bit;
-    }
-  } else {
-    std::vector<ObjectId> ids;
-    ids.reserve(records.size());
-    for (const ObjectRecord& r : records) ids.push_back(r.id);
-    std::sort(ids.begin(), ids.end());
-    auto dup = std::adjacent_find(ids.begin(), ids.end());
-    if (dup != ids.end()) return Status::InvalidArgument("object " + std::to_string(*dup) + ": duplicate object id");
-  }
+  *max_id = std::max(half[0].max_id, half[1].max_id);
+  *bounds = half[0].box;
+  bounds->Extend(half[1].box);
   return Status::Ok();
+}
+
+// Unique ids, checked on the laid-out ids (8 bytes an object, not the 40 of a record): a bitmap when ids
+// are dense (the normal 0-based case), else a sorted copy. An error names the first object in input order
+// whose id came before (index_of_input gives the input order; only then is it needed).
+Status CheckUniqueIds(const BuildVector<ObjectId>& ids, const BuildVector<uint32_t>& index_of_input,
+                      ObjectId max_id) {
+  const size_t n = ids.size();
+  if (uint64_t{max_id} > 64 * uint64_t{n}) {
+    std::vector<ObjectId> sorted(ids.begin(), ids.end());
+    std::sort(sorted.begin(), sorted.end());
+    auto dup = std::adjacent_find(sorted.begin(), sorted.end());
+    if (dup != sorted.end())
+      return Status::InvalidArgument("object " + std::to_string(*dup) + ": duplicate object id");
+    return Status::Ok();
+  }
+  std::vector<uint64_t> seen(max_id / 64 + 1, 0);
+  bool found = false;
+  for (const ObjectId id : ids) {
+    uint64_t& word = seen[id / 64];
+    const uint64_t bit = uint64_t{1} << (id % 64);
+    found |= (word & bit) != 0;
+    word |= bit;
+  }
+  if (!found) return Status::Ok();
+  std::fill(seen.begin(), seen.end(), 0);
+  for (size_t p = 0; p < n; ++p) {
+    const ObjectId id = ids[index_of_input[p]];
+    uint64_t& word = seen[id / 64];
+    const uint64_t bit = uint64_t{1} << (id % 64);
+    if (word & bit) return Status::InvalidArgument("object " + std::to_string(id) + ": duplicate object id");
+    word |= bit;
+  }
+  return Status::Internal("a duplicate object id was not found again");
 }
 
 }  // namespace
@@ -1294,7 +1344,11 @@ Result<BuildResult> BuildMKTree(std::vector<ObjectRecord> records, const BuildPa
     *phase = std::chrono::duration<double>(now - mark).count();
     mark = now;
   };
-  MKTREE_RETURN_IF_ERROR(Validate(records, params));
+  const int threads =
+      tuning.threads > 0 ? tuning.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  Box3f bounds;
+  ObjectId max_id = 0;
+  MKTREE_RETURN_IF_ERROR(Validate(records, params, threads, &bounds, &max_id));
   BuildResult result;
   result.tree.params = params;
   result.leaf_offsets.push_back(0);
@@ -1304,14 +1358,13 @@ Result<BuildResult> BuildMKTree(std::vector<ObjectRecord> records, const BuildPa
     return result;
   }
 
-  const int threads =
-      tuning.threads > 0 ? tuning.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   BuildVector<ObjectId> ids;
   BuildRecords rec;
   Shared shared{rec.box, rec.bytes, params, tuning, {}, {}};
   {
     BuildVector<uint32_t> index_of_input;
-    rec = SpatialLayout(std::move(records), &ids, &index_of_input, threads);
+    rec = SpatialLayout(std::move(records), bounds, &ids, &index_of_input, threads);
+    MKTREE_RETURN_IF_ERROR(CheckUniqueIds(ids, index_of_input, max_id));
     lap(&result.timings.layout);
     // With two threads or more, the six sorts run on two (each thread with its own radix buffers).
     auto sort_lists = [&](int first, int step) {

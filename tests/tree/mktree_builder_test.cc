@@ -84,6 +84,39 @@ TEST(BuildMKTree, RejectsBadInputNamingTheObject) {
   }
 }
 
+// Large enough for the checks to run on two halves: the error still names the first bad object in input
+// order, wherever the halves split.
+TEST(BuildMKTree, RejectsTheFirstBadObjectOfALargeInput) {
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const uint32_t n = 200000;
+  std::vector<ObjectRecord> good;
+  for (uint32_t i = 0; i < n; ++i) good.push_back(Rec(i, B(i % 97, i % 89, i % 83, i % 97 + 1, i % 89 + 1, i % 83 + 1)));
+  BuildTuning two;
+  two.threads = 2;
+  const float inf = std::numeric_limits<float>::infinity();
+  struct Case {
+    std::vector<std::pair<uint32_t, Box3f>> bad;  // (position, bad box)
+    uint32_t first;
+  } cases[] = {
+      {{{150000, B(0, 0, nan, 1, 1, 1)}}, 150000},                                // second half only
+      {{{170000, B(0, 2, 0, 1, 1, 1)}, {30000, B(0, 0, 0, inf, 1, 1)}}, 30000},  // both halves
+      {{{99999, B(0, 0, 0, 1, 1, nan)}, {100000, B(0, 0, 3, 1, 1, 1)}}, 99999},  // either side of the middle
+  };
+  for (const Case& c : cases) {
+    std::vector<ObjectRecord> recs = good;
+    for (const auto& [at, box] : c.bad) recs[at].box = box;
+    auto r = BuildMKTree(recs, BuildParams(), two);
+    ASSERT_FALSE(r.ok());
+    EXPECT_NE(r.status().message().find("object " + std::to_string(c.first) + ":"), std::string::npos)
+        << r.status().message();
+  }
+  std::vector<ObjectRecord> dup = good;
+  dup[180000].id = 20000;  // the duplicate is found at the later of the two
+  auto r = BuildMKTree(dup, BuildParams(), two);
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.status().message().find("object 20000: duplicate"), std::string::npos) << r.status().message();
+}
+
 TEST(BuildMKTree, RejectsBadParams) {
   std::vector<ObjectRecord> recs{Rec(0, B(0, 0, 0, 1, 1, 1))};
   for (double bad_r : {-0.1, 0.5, 0.7, std::nan("")}) {
