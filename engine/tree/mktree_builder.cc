@@ -961,8 +961,69 @@ class SubtreeBuilder {
 
       PageSplit pages(left_bytes, t.bytes, mem_page_);
 
+      // Near the leaves, kCompact's tie pass (the most common scan): the key is the page waste alone
+      // (primary 0), and most cuts only lose to or tie with this list's best so far, so the loop keeps that
+      // best in registers and evaluates a cut fully only when it is a new best. The same as eval below.
+      auto ties_by_waste = [&](size_t k_begin, size_t k_end, uint32_t pa, uint32_t pb) {
+        ListTies& lt = ties[key];
+        uint64_t best_key = lt.key;
+        uint32_t count = lt.count, k_max = lt.k_max;
+        for (size_t k = k_begin; k <= k_end; ++k) {
+          left_bytes += bytes[ord[k - 1]];
+          const uint64_t waste = pages.Waste(left_bytes);
+          if (count != 0 && waste >= best_key) {
+            if (waste == best_key) ++count, k_max = static_cast<uint32_t>(k);
+            continue;
+          }
+          const float a = a_of(static_cast<uint32_t>(k)), b = b_of(static_cast<uint32_t>(k));
+          uint32_t sm = 0;
+          if (a < b) {
+            pa = Gallop<true>(smax, n, pa, a);
+            pb = Gallop<false>(smin, n, pb, b);
+            sm = pb - pa;
+          }
+          best_key = waste;
+          count = 1;
+          k_max = static_cast<uint32_t>(k);
+          lt.k_min = k_max;
+          lt.first = MakeCandidate(list, k_max, n, a, b, sm, 0, static_cast<uint32_t>(waste), left_bytes, true);
+          bound = std::min(bound, waste);
+        }
+        lt.key = best_key;
+        lt.count = count;
+        lt.k_max = k_max;
+      };
+
+      // Its margin pass: only the cuts with the tied waste, ranked by margin, then as BetterThan says.
+      auto margins_by_waste = [&](size_t k_begin, size_t k_end, uint32_t pa, uint32_t pb) {
+        const uint64_t tied_waste = *only;
+        for (size_t k = k_begin; k <= k_end; ++k) {
+          left_bytes += bytes[ord[k - 1]];
+          const uint64_t waste = pages.Waste(left_bytes);
+          if (waste != tied_waste) continue;
+          const uint32_t k32 = static_cast<uint32_t>(k);
+          const float margin = CutMargin(k32, n);
+          if (best->list >= 0 && margin > best->margin) continue;
+          const float a = a_of(k32), b = b_of(k32);
+          uint32_t sm = 0;
+          if (a < b) {
+            pa = Gallop<true>(smax, n, pa, a);
+            pb = Gallop<false>(smin, n, pb, b);
+            sm = pb - pa;
+          }
+          Candidate c = MakeCandidate(list, k32, n, a, b, sm, 0, static_cast<uint32_t>(waste), left_bytes, true);
+          c.margin = margin;
+          if (c.BetterThan(*best)) {
+            *best = c;
+            bound = std::min(bound, waste);
+          }
+        }
+      };
+
       // Cuts [k_begin, k_end]; pa, pb: the counts at k_begin when `placed`.
       auto eval = [&](uint32_t k_begin, uint32_t k_end, uint32_t pa, uint32_t pb, bool placed) {
+        if (sm_free && ties != nullptr) return ties_by_waste(k_begin, k_end, pa, pb);
+        if (sm_free && only != nullptr) return margins_by_waste(k_begin, k_end, pa, pb);
         for (size_t k = k_begin; k <= k_end; ++k) {  // (64-bit: no zero-extensions)
           // Bytes only matter near the leaves (and are a random read per object, so not gathered above).
           uint64_t waste_key = 0;
@@ -972,21 +1033,8 @@ class SubtreeBuilder {
           }
           float a, b;  // the cut's planes, read once the cut is known to matter
           uint32_t sm = 0;
-          float margin = 0;
-          if (sm_free) {  // the key is the waste alone: |Sm| only for a cut that may win or tie
-            if (only != nullptr) {  // all tie with `best` on the key: the margin ranks next
-              if (waste_key != *only) continue;
-              margin = CutMargin(k, n);
-              if (best->list >= 0 && margin > best->margin) continue;
-            } else if (ties != nullptr) {
-              ListTies& lt = ties[key];
-              if (lt.count != 0 && waste_key >= lt.key) {
-                if (waste_key == lt.key) ++lt.count, lt.k_max = k;
-                continue;
-              }
-            } else if (waste_key > bound) {
-              continue;
-            }
+          if (sm_free) {  // the key is the waste alone: |Sm| only for a cut that may win or tie (kSoa)
+            if (waste_key > bound) continue;
             a = a_of(k);
             b = b_of(k);
             if (a < b) {
@@ -1040,7 +1088,7 @@ class SubtreeBuilder {
           }
           if (only != nullptr && tie_key != *only) continue;
           Candidate c = MakeCandidate(list, k, n, a, b, sm, primary, waste, left_bytes, fill_aware);
-          if (only != nullptr) c.margin = sm_free ? margin : CutMargin(k, n);
+          if (only != nullptr) c.margin = CutMargin(k, n);
           if (c.BetterThan(*best)) {
             *best = c;
             bound = std::min(bound, tie_key);
