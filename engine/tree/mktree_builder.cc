@@ -38,6 +38,8 @@ constexpr double kGuardBalance = 0.25;
 // ones are in cache).
 constexpr uint32_t kPrefetch = 16;
 constexpr uint32_t kPrefetchObjects = 8192;
+// The scratch arrays keep room for a node still to come of up to this many objects (RunSpawning).
+constexpr uint32_t kRetainObjects = 1u << 20;
 // Cuts per block of the pruned candidate scan (ScanKeys).
 constexpr uint32_t kPruneBlock = 64;
 
@@ -437,11 +439,12 @@ class SubtreeBuilder {
       }
       // The scratch arrays were sized for the largest node so far; give the memory back once every node
       // still to come is under 2/3 of that, so that it does not add to the peak when the SplitTrees have
-      // grown. (Not just the next node: pages given back and taken again are faulted in again.)
+      // grown. (Not just the next node: pages given back and taken again are faulted in again. But only up
+      // to kRetainObjects: keeping more costs RAM for the whole left subtree and saves few faults.)
       if (!stack.empty()) {
         uint32_t largest = queued_largest != nullptr ? queued_largest->load(std::memory_order_relaxed) : 0;
         for (const Task& p : stack) largest = std::max(largest, p.hi - p.lo);
-        ShrinkScratch(largest);
+        ShrinkScratch(std::max(stack.back().hi - stack.back().lo, std::min(largest, kRetainObjects)));
       }
     }
   }
