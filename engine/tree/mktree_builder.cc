@@ -964,6 +964,15 @@ class SubtreeBuilder {
 
       PageSplit pages(left_bytes, t.bytes, mem_page_);
 
+      // |Sm| of the cut with planes a, b, the cursors pa, pb galloping on from where they are: near the
+      // leaves, where only a few cuts need it.
+      auto sm_galloping = [&](float a, float b, uint32_t& pa, uint32_t& pb) __attribute__((always_inline)) {
+        if (!(a < b)) return uint32_t{0};
+        pa = Gallop<true>(smax, n, pa, a);
+        pb = Gallop<false>(smin, n, pb, b);
+        return pb - pa;
+      };
+
       // Near the leaves, kCompact's tie pass (the most common scan): the key is the page waste alone
       // (primary 0), and most cuts only lose to or tie with this list's best so far, so the loop keeps that
       // best in registers and evaluates a cut fully only when it is a new best. The same as eval below.
@@ -979,12 +988,7 @@ class SubtreeBuilder {
             continue;
           }
           const float a = a_of(static_cast<uint32_t>(k)), b = b_of(static_cast<uint32_t>(k));
-          uint32_t sm = 0;
-          if (a < b) {
-            pa = Gallop<true>(smax, n, pa, a);
-            pb = Gallop<false>(smin, n, pb, b);
-            sm = pb - pa;
-          }
+          const uint32_t sm = sm_galloping(a, b, pa, pb);
           best_key = waste;
           count = 1;
           k_max = static_cast<uint32_t>(k);
@@ -1008,12 +1012,7 @@ class SubtreeBuilder {
           const float margin = CutMargin(k32, n);
           if (best->list >= 0 && margin > best->margin) continue;
           const float a = a_of(k32), b = b_of(k32);
-          uint32_t sm = 0;
-          if (a < b) {
-            pa = Gallop<true>(smax, n, pa, a);
-            pb = Gallop<false>(smin, n, pb, b);
-            sm = pb - pa;
-          }
+          const uint32_t sm = sm_galloping(a, b, pa, pb);
           Candidate c = MakeCandidate(list, k32, n, a, b, sm, 0, static_cast<uint32_t>(waste), left_bytes, true);
           c.margin = margin;
           if (c.BetterThan(*best)) {
@@ -1040,11 +1039,7 @@ class SubtreeBuilder {
             if (waste_key > bound) continue;
             a = a_of(k);
             b = b_of(k);
-            if (a < b) {
-              pa = Gallop<true>(smax, n, pa, a);
-              pb = Gallop<false>(smin, n, pb, b);
-              sm = pb - pa;
-            }
+            sm = sm_galloping(a, b, pa, pb);
           } else {
             a = a_of(k);
             b = b_of(k);
