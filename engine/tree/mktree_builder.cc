@@ -38,8 +38,10 @@ constexpr double kGuardBalance = 0.25;
 // ones are in cache).
 constexpr uint32_t kPrefetch = 16;
 constexpr uint32_t kPrefetchObjects = 8192;
-// The scratch arrays keep room for a node still to come of up to this many objects (RunSpawning).
-constexpr uint32_t kRetainObjects = 1u << 20;
+// The scratch arrays keep room for a node still to come of up to this many objects (RunSpawning). At 1M,
+// 2 threads: 2^16 keeps most of the faults saved (57k a build, against 56k unbounded and 63k without) at
+// the old peak; 2^18 and more keep room the peak pays for (97 B/obj).
+constexpr uint32_t kRetainObjects = 1u << 16;
 // Cuts per block of the pruned candidate scan (ScanKeys).
 constexpr uint32_t kPruneBlock = 64;
 
