@@ -1035,32 +1035,27 @@ class SubtreeBuilder {
             left_bytes += bytes[ord[k - 1]];
             waste_key = pages.Waste(left_bytes);
           }
-          float a, b;  // the cut's planes, read once the cut is known to matter
+          // With the waste alone as the key (kSoa near the leaves), only a cut that may win or tie matters.
+          if (sm_free && waste_key > bound) continue;
+          const float a = a_of(k), b = b_of(k);  // the cut's planes
           uint32_t sm = 0;
-          if (sm_free) {  // the key is the waste alone: |Sm| only for a cut that may win or tie (kSoa)
-            if (waste_key > bound) continue;
-            a = a_of(k);
-            b = b_of(k);
+          if (sm_free) {
             sm = sm_galloping(a, b, pa, pb);
-          } else {
-            a = a_of(k);
-            b = b_of(k);
-            if (a < b) {
-              if (!placed) {  // first use: a binary search instead of walking past the first ~k_lo objects
-                pa = static_cast<uint32_t>(std::upper_bound(smax, smax + n, a) - smax);
-                pb = static_cast<uint32_t>(std::lower_bound(smin, smin + n, b) - smin);
-                placed = true;
-              }
-              // The cursors mostly move by 0-2 a step: two branch-free moves, then a loop that rarely runs
-              // (+inf sentinels at [n] stop them).
-              pa += smax[pa] <= a;
-              pa += smax[pa] <= a;
-              while (smax[pa] <= a) ++pa;
-              pb += smin[pb] < b;
-              pb += smin[pb] < b;
-              while (smin[pb] < b) ++pb;
-              sm = pb - pa;
+          } else if (a < b) {
+            if (!placed) {  // first use: a binary search instead of walking past the first ~k_lo objects
+              pa = static_cast<uint32_t>(std::upper_bound(smax, smax + n, a) - smax);
+              pb = static_cast<uint32_t>(std::lower_bound(smin, smin + n, b) - smin);
+              placed = true;
             }
+            // The cursors mostly move by 0-2 a step: two branch-free moves, then a loop that rarely runs
+            // (+inf sentinels at [n] stop them).
+            pa += smax[pa] <= a;
+            pa += smax[pa] <= a;
+            while (smax[pa] <= a) ++pa;
+            pb += smin[pb] < b;
+            pb += smin[pb] < b;
+            while (smin[pb] < b) ++pb;
+            sm = pb - pa;
           }
           if (sm_min_out != nullptr) {
             *sm_min_out = std::min(*sm_min_out, sm);
@@ -1362,21 +1357,20 @@ Status CheckUniqueIds(const BuildVector<ObjectId>& ids, const BuildVector<uint32
     return Status::Ok();
   }
   std::vector<uint64_t> seen(max_id / 64 + 1, 0);
-  bool found = false;
-  for (const ObjectId id : ids) {
+  auto seen_before = [&seen](ObjectId id) {  // marks id seen; whether it was already
     uint64_t& word = seen[id / 64];
     const uint64_t bit = uint64_t{1} << (id % 64);
-    found |= (word & bit) != 0;
+    const bool was = (word & bit) != 0;
     word |= bit;
-  }
+    return was;
+  };
+  bool found = false;
+  for (const ObjectId id : ids) found |= seen_before(id);
   if (!found) return Status::Ok();
   std::fill(seen.begin(), seen.end(), 0);
   for (size_t p = 0; p < n; ++p) {
     const ObjectId id = ids[index_of_input[p]];
-    uint64_t& word = seen[id / 64];
-    const uint64_t bit = uint64_t{1} << (id % 64);
-    if (word & bit) return Status::InvalidArgument("object " + std::to_string(id) + ": duplicate object id");
-    word |= bit;
+    if (seen_before(id)) return Status::InvalidArgument("object " + std::to_string(id) + ": duplicate object id");
   }
   return Status::Internal("a duplicate object id was not found again");
 }
