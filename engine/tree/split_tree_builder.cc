@@ -35,18 +35,6 @@ inline bool All(MaskLanes m) {
 }
 static_assert(offsetof(SplitItem, box) == 0 && sizeof(SplitItem) >= offsetof(Box3f, max) + sizeof(Lanes));
 
-// Float neighbours of a finite x (std::nextafter without the library call: BestCut asks for 12 a cell).
-inline float NextDown(float x) {
-  if (x == 0) return -std::numeric_limits<float>::denorm_min();
-  const uint32_t u = std::bit_cast<uint32_t>(x);
-  return std::bit_cast<float>(x > 0 ? u - 1 : u + 1);
-}
-inline float NextUp(float x) {
-  if (x == 0) return std::numeric_limits<float>::denorm_min();
-  const uint32_t u = std::bit_cast<uint32_t>(x);
-  return std::bit_cast<float>(x > 0 ? u + 1 : u - 1);
-}
-
 struct Cut {
   int axis = -1;
   float pos = 0;
@@ -88,43 +76,88 @@ class CostModel {
   double inv_extent_[3];
 };
 
+typedef int IntLanes __attribute__((vector_size(16)));
+
+// The float neighbours of each lane, below and above (std::nextafter without the library call and without
+// branches). An infinite lane gives a finite neighbour, which BestCut's tests then reject.
+inline Lanes NextDownLanes(Lanes x) {
+  const IntLanes u = reinterpret_cast<IntLanes>(x);
+  const IntLanes moved = u + (x > 0) - (x < 0);  // (a true comparison is -1)
+  const IntLanes zero = x == 0;
+  return reinterpret_cast<Lanes>((zero & IntLanes{INT32_MIN | 1, INT32_MIN | 1, INT32_MIN | 1, INT32_MIN | 1}) |
+                                 (~zero & moved));
+}
+inline Lanes NextUpLanes(Lanes x) {
+  const IntLanes u = reinterpret_cast<IntLanes>(x);
+  const IntLanes moved = u - (x > 0) + (x < 0);
+  const IntLanes zero = x == 0;
+  return reinterpret_cast<Lanes>((zero & IntLanes{1, 1, 1, 1}) | (~zero & moved));
+}
+
+// The max lanes (1-3) of a box union or MaxLanes moved to lanes 0-2, as the min lanes are.
+inline Lanes MaxToMinLanes(Lanes hi) {
+  static_assert(kMaxLane == 1);
+  return __builtin_shufflevector(hi, hi, 1, 2, 3, 3);
+}
+
+// Bits 0-2: which of lanes 0-2 of a comparison hold.
+inline uint32_t LaneBits(IntLanes m) {
+#if defined(__SSE__)
+  return static_cast<uint32_t>(_mm_movemask_ps(reinterpret_cast<__m128>(m))) & 7;
+#else
+  return (m[0] != 0) | (m[1] != 0) << 1 | (m[2] != 0) << 2;
+#endif
+}
+
 // The best cut of a cell: the label of the part below a cut c has L iff some L item has min <= c, and
 // the part above has L iff some L item has max >= c, so the cost only changes just past the extremes of
-// each side's items; the candidates are the floats just outside them.
+// each side's items; the candidates are the floats just outside them: per axis u and side s, just below
+// its items' least min and just above their greatest max (in that order; the first of the best gains
+// wins). Which candidates lie inside the region is tested on all axes at once (those tests were the
+// cost: a cell has about 2 of its 12), and only those are evaluated.
 Cut BestCut(const Cell& cell) {
   Cut best;
   const double vol = cell.volume;
   const int cost_now = cell.has(0) + cell.has(1);
   if (vol <= 0 || cost_now == 0) return best;
   const double cost = cost_now;
-  for (int u = 0; u < 3; ++u) {
-    const float lo = cell.region.min[u], hi = cell.region.max[u];
-    if (!(lo < hi)) continue;
-    // A side without items has lo_of = kInf (never <= a cut inside the region); `top` gives it -kInf
-    // (never >= a cut) whatever its hi_of.
-    const float lo_of[2] = {cell.lo_of[0][u], cell.lo_of[1][u]};
-    const float top[2] = {lo_of[0] == kInf ? -kInf : cell.hi_of[0][u + kMaxLane],
-                          lo_of[1] == kInf ? -kInf : cell.hi_of[1][u + kMaxLane]};
-    const double lo_d = lo, extent = double{hi} - lo;
-    auto consider = [&](float c) {  // a cut c with lo < c < hi
-      const int below = (lo_of[0] <= c) + (lo_of[1] <= c);
-      const int above = (top[0] >= c) + (top[1] >= c);
-      const double f = (double{c} - lo_d) / extent;
-      const double gain = vol * (cost - (f * below + (1 - f) * above));
-      if (gain > best.gain) best = Cut{u, c, gain};
-    };
-    for (int s = 0; s < 2; ++s) {
-      if (lo_of[s] == kInf) continue;
-      // A float just below lo_of can only lie in (lo, hi) if lo_of is in (lo, hi] (and then it is < hi),
-      // one just above top only if top is in [lo, hi) (and then it is > lo).
-      if (lo_of[s] > lo && lo_of[s] <= hi) {
-        const float c = NextDown(lo_of[s]);
-        if (c > lo) consider(c);
-      }
-      if (top[s] >= lo && top[s] < hi) {
-        const float c = NextUp(top[s]);
-        if (c < hi) consider(c);
-      }
+  const Lanes lo = MinLanes(cell.region), hi = MaxToMinLanes(MaxLanes(cell.region));
+  const IntLanes axis_ok = lo < hi;
+  // A side without items has lo_of = kInf (never <= a cut inside the region); `top` gives it -kInf
+  // (never >= a cut) whatever its hi_of.
+  constexpr Lanes kInfLanes = {kInf, kInf, kInf, kInf};
+  const Lanes lo_of[2] = {cell.lo_of[0], cell.lo_of[1]};
+  Lanes top[2];
+  for (int s = 0; s < 2; ++s) {
+    const IntLanes none = lo_of[s] == kInfLanes;
+    top[s] = reinterpret_cast<Lanes>((none & reinterpret_cast<IntLanes>(-kInfLanes)) |
+                                     (~none & reinterpret_cast<IntLanes>(MaxToMinLanes(cell.hi_of[s]))));
+  }
+  // Candidate k = 2 s + (0: below lo_of[s], 1: above top[s]), lane u. A float just below lo_of can only
+  // lie in (lo, hi) if lo_of is in (lo, hi], one just above top only if top is in [lo, hi).
+  Lanes cand[4];
+  uint32_t valid = 0;
+  for (int s = 0; s < 2; ++s) {
+    cand[2 * s] = NextDownLanes(lo_of[s]);
+    cand[2 * s + 1] = NextUpLanes(top[s]);
+    valid |= LaneBits(axis_ok & (lo_of[s] > lo) & (lo_of[s] <= hi) & (cand[2 * s] > lo)) << (8 * s);
+    valid |= LaneBits(axis_ok & (top[s] >= lo) & (top[s] < hi) & (cand[2 * s + 1] < hi)) << (8 * s + 4);
+  }
+  double best_gain = 0;
+  int best_order = -1;  // u * 4 + k of the best: the order of the candidates
+  for (; valid != 0; valid &= valid - 1) {
+    const int bit = std::countr_zero(valid), k = bit >> 2, u = bit & 3;
+    const float c = cand[k][u];
+    const int below = (lo_of[0][u] <= c) + (lo_of[1][u] <= c);
+    const int above = (top[0][u] >= c) + (top[1][u] >= c);
+    const double lo_d = lo[u];
+    const double f = (double{c} - lo_d) / (double{hi[u]} - lo_d);
+    const double gain = vol * (cost - (f * below + (1 - f) * above));
+    const int order = 4 * u + k;
+    if (gain > best_gain || (gain == best_gain && order < best_order)) {
+      best_gain = gain;
+      best_order = order;
+      best = Cut{u, c, gain};
     }
   }
   return best;
