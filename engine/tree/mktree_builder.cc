@@ -506,7 +506,8 @@ class SubtreeBuilder {
     // When the split is by min_w (key 0), the loop below walks the chosen list itself, so an object's side
     // is its position (no read of side[], and the sides may be marked meanwhile).
     const bool key0 = best.list % 2 == 0;
-    std::vector<SplitNode> split;
+    std::vector<SplitNode>& split = split_;  // (reused: no allocation a node)
+    split.clear();
     uint32_t n_items = 0;
     auto gather_items = [&]<bool kKey0>() {
       // Branch-free: every object up to the slab's far end is written, and kept (the count advanced) when
@@ -636,10 +637,10 @@ class SubtreeBuilder {
     node.b = box_[s_.lists[2 * w + 1][t.lo + n1 - 1]].max[w];
     uint32_t sm = 0;
     if (node.a < node.b) {
-      for (uint32_t i = 0; i < n_items; ++i) {
-        const Box3f& bx = box_[overlap_ids_[i]];
-        sm += bx.max[w] > node.a && bx.min[w] < node.b;
-      }
+      // The items' boxes are clipped to [best.a, best.b] on w, which holds [node.a, node.b] (the children
+      // only lost or took free objects, which lie in it), so they meet the final slab as the objects do.
+      const SplitItem* const items = items_.data();
+      for (size_t i = 0; i < n_items; ++i) sm += items[i].box.max[w] > node.a && items[i].box.min[w] < node.b;
       if (!split.empty())
         node.split_root = AppendSplitTree(split.data(), static_cast<uint32_t>(split.size()), 0, &out->split_nodes);
     }
@@ -1158,6 +1159,7 @@ class SubtreeBuilder {
   uint32_t margin_base_ = 0;  // margin_pre_ / margin_suf_ index of the cut k_min
   Scratch<uint32_t> tmp_;
   Scratch<SplitItem> items_;  // the slab's objects (SplitTree items), at overlap_ids_ in the records
+  std::vector<SplitNode> split_;  // the node's SplitTree
   SplitTreeScratch split_scratch_;
   Scratch<uint32_t> overlap_ids_;
 };
