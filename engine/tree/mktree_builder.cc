@@ -983,9 +983,13 @@ class SubtreeBuilder {
         ListTies& lt = ties[key];
         uint64_t best_key = lt.key;
         uint32_t count = lt.count, k_max = lt.k_max;
+        // (Locals: the stores of a new best could alias the byte sum and the page limits, which would then
+        // live in memory, a store-to-load chain through every cut.)
+        uint64_t sum = left_bytes;
+        PageSplit pg = pages;
         for (size_t k = k_begin; k <= k_end; ++k) {
-          left_bytes += bytes[ord[k - 1]];
-          const uint64_t waste = pages.Waste(left_bytes);
+          sum += bytes[ord[k - 1]];
+          const uint64_t waste = pg.Waste(sum);
           if (count != 0 && waste >= best_key) {
             if (waste == best_key) ++count, k_max = static_cast<uint32_t>(k);
             continue;
@@ -996,9 +1000,11 @@ class SubtreeBuilder {
           count = 1;
           k_max = static_cast<uint32_t>(k);
           lt.k_min = k_max;
-          lt.first = MakeCandidate(list, k_max, n, a, b, sm, 0, static_cast<uint32_t>(waste), left_bytes, true);
+          lt.first = MakeCandidate(list, k_max, n, a, b, sm, 0, static_cast<uint32_t>(waste), sum, true);
           bound = std::min(bound, waste);
         }
+        left_bytes = sum;
+        pages = pg;
         lt.key = best_key;
         lt.count = count;
         lt.k_max = k_max;
@@ -1007,22 +1013,26 @@ class SubtreeBuilder {
       // Its margin pass: only the cuts with the tied waste, ranked by margin, then as BetterThan says.
       auto margins_by_waste = [&](size_t k_begin, size_t k_end, uint32_t pa, uint32_t pb) {
         const uint64_t tied_waste = *only;
+        uint64_t sum = left_bytes;  // (locals, as in ties_by_waste)
+        PageSplit pg = pages;
         for (size_t k = k_begin; k <= k_end; ++k) {
-          left_bytes += bytes[ord[k - 1]];
-          const uint64_t waste = pages.Waste(left_bytes);
+          sum += bytes[ord[k - 1]];
+          const uint64_t waste = pg.Waste(sum);
           if (waste != tied_waste) continue;
           const uint32_t k32 = static_cast<uint32_t>(k);
           const float margin = CutMargin(k32, n);
           if (best->list >= 0 && margin > best->margin) continue;
           const float a = a_of(k32), b = b_of(k32);
           const uint32_t sm = sm_galloping(a, b, pa, pb);
-          Candidate c = MakeCandidate(list, k32, n, a, b, sm, 0, static_cast<uint32_t>(waste), left_bytes, true);
+          Candidate c = MakeCandidate(list, k32, n, a, b, sm, 0, static_cast<uint32_t>(waste), sum, true);
           c.margin = margin;
           if (c.BetterThan(*best)) {
             *best = c;
             bound = std::min(bound, waste);
           }
         }
+        left_bytes = sum;
+        pages = pg;
       };
 
       // Cuts [k_begin, k_end]; pa, pb: the counts at k_begin when `placed`.
