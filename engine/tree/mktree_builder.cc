@@ -1010,29 +1010,47 @@ class SubtreeBuilder {
         lt.k_max = k_max;
       };
 
-      // Its margin pass: only the cuts with the tied waste, ranked by margin, then as BetterThan says.
+      // Its margin pass: only the cuts with the tied waste, ranked by margin, then as BetterThan says. BetterThan
+      // ranks the margin right after the waste, so the least margin is found first (no candidate built), and
+      // only the cuts reaching it, and not beaten by the best so far, are evaluated: the same choice as
+      // evaluating every cut that improves on the best so far, which near the leaves is most of them.
       auto margins_by_waste = [&](size_t k_begin, size_t k_end, uint32_t pa, uint32_t pb) {
         const uint64_t tied_waste = *only;
-        uint64_t sum = left_bytes;  // (locals, as in ties_by_waste)
-        PageSplit pg = pages;
+        const uint64_t sum_begin = left_bytes;
+        const PageSplit pg_begin = pages;
+        uint64_t sum = sum_begin;  // (locals, as in ties_by_waste)
+        PageSplit pg = pg_begin;
+        float least = std::numeric_limits<float>::infinity();
+        size_t least_k = 0, least_count = 0;
+        uint64_t least_sum = 0;
         for (size_t k = k_begin; k <= k_end; ++k) {
           sum += bytes[ord[k - 1]];
-          const uint64_t waste = pg.Waste(sum);
-          if (waste != tied_waste) continue;
-          const uint32_t k32 = static_cast<uint32_t>(k);
-          const float margin = CutMargin(k32, n);
-          if (best->list >= 0 && margin > best->margin) continue;
-          const float a = a_of(k32), b = b_of(k32);
-          const uint32_t sm = sm_galloping(a, b, pa, pb);
-          Candidate c = MakeCandidate(list, k32, n, a, b, sm, 0, static_cast<uint32_t>(waste), sum, true);
-          c.margin = margin;
-          if (c.BetterThan(*best)) {
-            *best = c;
-            bound = std::min(bound, waste);
-          }
+          if (pg.Waste(sum) != tied_waste) continue;
+          const float margin = CutMargin(static_cast<uint32_t>(k), n);
+          if (margin < least) least = margin, least_k = k, least_sum = sum, least_count = 0;
+          least_count += margin == least;
         }
         left_bytes = sum;
         pages = pg;
+        if (least_count == 0 || (best->list >= 0 && least > best->margin)) return;
+        auto evaluate = [&](size_t k, uint64_t left) {
+          const uint32_t k32 = static_cast<uint32_t>(k);
+          const float a = a_of(k32), b = b_of(k32);
+          const uint32_t sm = sm_galloping(a, b, pa, pb);
+          Candidate c = MakeCandidate(list, k32, n, a, b, sm, 0, static_cast<uint32_t>(tied_waste), left, true);
+          c.margin = least;
+          if (c.BetterThan(*best)) {
+            *best = c;
+            bound = std::min(bound, tied_waste);
+          }
+        };
+        if (least_count == 1) return evaluate(least_k, least_sum);
+        sum = sum_begin;  // several cuts reach it: again, in order
+        pg = pg_begin;
+        for (size_t k = k_begin; k <= k_end; ++k) {
+          sum += bytes[ord[k - 1]];
+          if (pg.Waste(sum) == tied_waste && CutMargin(static_cast<uint32_t>(k), n) == least) evaluate(k, sum);
+        }
       };
 
       // Cuts [k_begin, k_end]; pa, pb: the counts at k_begin when `placed`.
