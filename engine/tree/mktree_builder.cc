@@ -196,17 +196,20 @@ BuildRecords SpatialLayout(std::vector<ObjectRecord> records, const Box3f& all, 
   // A counting sort by cell on the two halves: each counts its own objects, and a cell's objects from the
   // first half go before those from the second (input order within a cell).
   std::vector<size_t> count(2 * kCells, 0);
+  double scale[3];  // cells per metre (a multiply per axis, not a division: the cells only group)
+  for (int w = 0; w < 3; ++w) {
+    const double ext = double{all.max[w]} - all.min[w];
+    scale[w] = ext > 0 ? kCellsPerAxis / ext : 0;
+  }
   RunOnHalves(n, threads, [&](size_t lo, size_t hi) {
     size_t* const counts = count.data() + (lo == 0 ? 0 : kCells);
     for (size_t i = lo; i < hi; ++i) {
       const Box3f& bx = records[i].box;
       uint32_t code = 0;
       for (int w = 0; w < 3; ++w) {
-        const double ext = double{all.max[w]} - all.min[w];
         const double c = 0.5 * (double{bx.min[w]} + bx.max[w]) - all.min[w];
-        const double top = kCellsPerAxis - 1;
-        const uint32_t q = ext > 0 ? static_cast<uint32_t>(std::clamp(c / ext * kCellsPerAxis, 0.0, top)) : 0;
-        code |= Spread3(q) << w;
+        constexpr double kTop = kCellsPerAxis - 1;
+        code |= Spread3(static_cast<uint32_t>(std::clamp(c * scale[w], 0.0, kTop))) << w;
       }
       cell[i] = static_cast<uint16_t>(code);
       ++counts[code];
