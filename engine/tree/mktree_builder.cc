@@ -705,6 +705,17 @@ class SubtreeBuilder {
         if (axis_ok[w]) Sweep(t, w, k_lo, k_hi, m, &best, nullptr);
       return best;
     }
+    // Near the leaves every |Sm| is within the fill slack (by default): the key is the page waste, then
+    // the margin, and nearly every list ties on the waste, so the margins are computed with it.
+    const double slack = tu.fill_sm_slack + tu.fill_sm_slack_rel * m.sm_min;
+    if (m.fill_aware && m.sm_min + slack >= t.hi - t.lo) {
+      for (int w = 0; w < 3; ++w) {
+        if (!axis_ok[w]) continue;
+        GatherAxis(t, w, k_lo, k_hi);
+        ScanWasteMargins(t, w, k_lo, k_hi, &best);
+      }
+      return best;
+    }
     // kCompact: the margin only breaks ties on (primary, waste). Per axis, while its keys are gathered:
     // per list, the best (primary, waste) and the range of k reaching it; margins are computed only for
     // the candidates that tie with the best so far, and not at all when one candidate alone is best. Same
@@ -742,6 +753,69 @@ class SubtreeBuilder {
       ScanKeys(t, w, k_lo, k_hi, m, &best, nullptr, nullptr, &top, ties);
     }
     return best;
+  }
+
+  // kCompact near the leaves, when every |Sm| is within the fill slack (primary 0): the cuts of both keys
+  // of axis w (GatherAxis(t, w) done) ranked by page waste, then margin, then as BetterThan says. Per list
+  // the least (waste, margin) is found first, with no candidate built, and only the cuts reaching it are
+  // evaluated, in order: the same choice as evaluating every cut, as BetterThan ranks those two first.
+  void ScanWasteMargins(const Task& t, int w, uint32_t k_lo, uint32_t k_hi, Candidate* best) {
+    const uint32_t n = t.hi - t.lo;
+    const float* const smin = sorted_min_.data();
+    const float* const smax = sorted_max_.data();
+    const float* const pmax = prefix_max_.data();
+    const float* const smn = suffix_min_.data();
+    const uint32_t* const bytes = bytes_.data();
+    for (int key = 0; key < 2; ++key) {
+      const int list = 2 * w + key;
+      const BuildVector<uint32_t>& order = s_.lists[list];
+      PrefixSuffixMargins(t, order, k_lo, k_hi);
+      const uint32_t* const ord = order.data() + t.lo;
+      uint64_t sum = 0;  // encoded bytes of the first k objects
+      for (uint32_t i = 0; i + 1 < k_lo; ++i) sum += bytes[ord[i]];
+      const uint64_t sum_begin = sum;
+      const PageSplit pages_begin(sum, t.bytes, mem_page_);
+      PageSplit pages = pages_begin;
+      uint64_t least_waste = std::numeric_limits<uint64_t>::max();
+      float least_margin = std::numeric_limits<float>::infinity();
+      size_t least_k = 0, least_count = 0;
+      uint64_t least_sum = 0;
+      for (size_t k = k_lo; k <= k_hi; ++k) {  // (64-bit: no zero-extensions)
+        sum += bytes[ord[k - 1]];
+        const uint64_t waste = pages.Waste(sum);
+        if (waste > least_waste) continue;
+        const float margin = CutMargin(static_cast<uint32_t>(k), n);
+        if (waste < least_waste || margin < least_margin) {
+          least_waste = waste, least_margin = margin, least_k = k, least_sum = sum, least_count = 1;
+        } else {
+          least_count += margin == least_margin;
+        }
+      }
+      if (least_count == 0 || (best->list >= 0 && (least_waste > best->waste ||
+                                                    (least_waste == best->waste && least_margin > best->margin))))
+        continue;
+      uint32_t pa = 0, pb = 0;  // the |Sm| counts, galloping on from cut to cut
+      auto evaluate = [&](size_t k, uint64_t left) {
+        const uint32_t k32 = static_cast<uint32_t>(k);
+        const float a = key == 0 ? smin[k32] : smn[k32 - k_lo];
+        const float b = key == 0 ? pmax[k32 - k_lo] : smax[k32 - 1];
+        const uint32_t sm = SmGalloping(smin, smax, n, a, b, pa, pb);
+        Candidate c = MakeCandidate(list, k32, n, a, b, sm, 0, static_cast<uint32_t>(least_waste), left, true);
+        c.margin = least_margin;
+        if (c.BetterThan(*best)) *best = c;
+      };
+      if (least_count == 1) {
+        evaluate(least_k, least_sum);
+        continue;
+      }
+      sum = sum_begin;  // several cuts reach it: again, in order
+      pages = pages_begin;
+      for (size_t k = k_lo; k <= k_hi; ++k) {
+        sum += bytes[ord[k - 1]];
+        if (pages.Waste(sum) == least_waste && CutMargin(static_cast<uint32_t>(k), n) == least_margin)
+          evaluate(k, sum);
+      }
+    }
   }
 
   // Per sort list, the candidates with the list's best (primary, waste) (kCompact's first pass).
@@ -890,6 +964,16 @@ class SubtreeBuilder {
     return static_cast<uint32_t>(r - arr);
   }
 
+  // |Sm| of the cut with planes a, b over the sorted min_w / max_w arrays, the counts pa, pb galloping on
+  // from where they are (cuts visited in increasing order): near the leaves, where only a few cuts need it.
+  static uint32_t SmGalloping(const float* smin, const float* smax, uint32_t n, float a, float b, uint32_t& pa,
+                              uint32_t& pb) {
+    if (!(a < b)) return 0;
+    pa = Gallop<true>(smax, n, pa, a);
+    pb = Gallop<false>(smin, n, pb, b);
+    return pb - pa;
+  }
+
   // Page waste Pages(left) + Pages(total - left) - Pages(total) of cuts in increasing order of their left
   // bytes, without a division per cut: the page counts only step where the bytes cross a page.
   class PageSplit {
@@ -970,96 +1054,8 @@ class SubtreeBuilder {
 
       PageSplit pages(left_bytes, t.bytes, mem_page_);
 
-      // |Sm| of the cut with planes a, b, the cursors pa, pb galloping on from where they are: near the
-      // leaves, where only a few cuts need it.
-      auto sm_galloping = [&](float a, float b, uint32_t& pa, uint32_t& pb) __attribute__((always_inline)) {
-        if (!(a < b)) return uint32_t{0};
-        pa = Gallop<true>(smax, n, pa, a);
-        pb = Gallop<false>(smin, n, pb, b);
-        return pb - pa;
-      };
-
-      // Near the leaves, kCompact's tie pass (the most common scan): the key is the page waste alone
-      // (primary 0), and most cuts only lose to or tie with this list's best so far, so the loop keeps that
-      // best in registers and evaluates a cut fully only when it is a new best. The same as eval below.
-      auto ties_by_waste = [&](size_t k_begin, size_t k_end, uint32_t pa, uint32_t pb) {
-        ListTies& lt = ties[key];
-        uint64_t best_key = lt.key;
-        uint32_t count = lt.count, k_max = lt.k_max;
-        // (Locals: the stores of a new best could alias the byte sum and the page limits, which would then
-        // live in memory, a store-to-load chain through every cut.)
-        uint64_t sum = left_bytes;
-        PageSplit pg = pages;
-        for (size_t k = k_begin; k <= k_end; ++k) {
-          sum += bytes[ord[k - 1]];
-          const uint64_t waste = pg.Waste(sum);
-          if (count != 0 && waste >= best_key) {
-            if (waste == best_key) ++count, k_max = static_cast<uint32_t>(k);
-            continue;
-          }
-          const float a = a_of(static_cast<uint32_t>(k)), b = b_of(static_cast<uint32_t>(k));
-          const uint32_t sm = sm_galloping(a, b, pa, pb);
-          best_key = waste;
-          count = 1;
-          k_max = static_cast<uint32_t>(k);
-          lt.k_min = k_max;
-          lt.first = MakeCandidate(list, k_max, n, a, b, sm, 0, static_cast<uint32_t>(waste), sum, true);
-          bound = std::min(bound, waste);
-        }
-        left_bytes = sum;
-        pages = pg;
-        lt.key = best_key;
-        lt.count = count;
-        lt.k_max = k_max;
-      };
-
-      // Its margin pass: only the cuts with the tied waste, ranked by margin, then as BetterThan says. BetterThan
-      // ranks the margin right after the waste, so the least margin is found first (no candidate built), and
-      // only the cuts reaching it, and not beaten by the best so far, are evaluated: the same choice as
-      // evaluating every cut that improves on the best so far, which near the leaves is most of them.
-      auto margins_by_waste = [&](size_t k_begin, size_t k_end, uint32_t pa, uint32_t pb) {
-        const uint64_t tied_waste = *only;
-        const uint64_t sum_begin = left_bytes;
-        const PageSplit pg_begin = pages;
-        uint64_t sum = sum_begin;  // (locals, as in ties_by_waste)
-        PageSplit pg = pg_begin;
-        float least = std::numeric_limits<float>::infinity();
-        size_t least_k = 0, least_count = 0;
-        uint64_t least_sum = 0;
-        for (size_t k = k_begin; k <= k_end; ++k) {
-          sum += bytes[ord[k - 1]];
-          if (pg.Waste(sum) != tied_waste) continue;
-          const float margin = CutMargin(static_cast<uint32_t>(k), n);
-          if (margin < least) least = margin, least_k = k, least_sum = sum, least_count = 0;
-          least_count += margin == least;
-        }
-        left_bytes = sum;
-        pages = pg;
-        if (least_count == 0 || (best->list >= 0 && least > best->margin)) return;
-        auto evaluate = [&](size_t k, uint64_t left) {
-          const uint32_t k32 = static_cast<uint32_t>(k);
-          const float a = a_of(k32), b = b_of(k32);
-          const uint32_t sm = sm_galloping(a, b, pa, pb);
-          Candidate c = MakeCandidate(list, k32, n, a, b, sm, 0, static_cast<uint32_t>(tied_waste), left, true);
-          c.margin = least;
-          if (c.BetterThan(*best)) {
-            *best = c;
-            bound = std::min(bound, tied_waste);
-          }
-        };
-        if (least_count == 1) return evaluate(least_k, least_sum);
-        sum = sum_begin;  // several cuts reach it: again, in order
-        pg = pg_begin;
-        for (size_t k = k_begin; k <= k_end; ++k) {
-          sum += bytes[ord[k - 1]];
-          if (pg.Waste(sum) == tied_waste && CutMargin(static_cast<uint32_t>(k), n) == least) evaluate(k, sum);
-        }
-      };
-
       // Cuts [k_begin, k_end]; pa, pb: the counts at k_begin when `placed`.
       auto eval = [&](uint32_t k_begin, uint32_t k_end, uint32_t pa, uint32_t pb, bool placed) {
-        if (sm_free && ties != nullptr) return ties_by_waste(k_begin, k_end, pa, pb);
-        if (sm_free && only != nullptr) return margins_by_waste(k_begin, k_end, pa, pb);
         for (size_t k = k_begin; k <= k_end; ++k) {  // (64-bit: no zero-extensions)
           // Bytes only matter near the leaves (and are a random read per object, so not gathered above).
           uint64_t waste_key = 0;
@@ -1072,7 +1068,7 @@ class SubtreeBuilder {
           const float a = a_of(k), b = b_of(k);  // the cut's planes
           uint32_t sm = 0;
           if (sm_free) {
-            sm = sm_galloping(a, b, pa, pb);
+            sm = SmGalloping(smin, smax, n, a, b, pa, pb);
           } else if (a < b) {
             if (!placed) {  // first use: a binary search instead of walking past the first ~k_lo objects
               pa = static_cast<uint32_t>(std::upper_bound(smax, smax + n, a) - smax);
