@@ -865,14 +865,29 @@ class SubtreeBuilder {
     const Box3f* box = box_.data();
     float* const pre_out = margin_pre_.data();
     float* const suf_out = margin_suf_.data();
-    LanesUnion pre;
-    size_t i = 0;
-    for (; i + 1 < k_min; ++i) pre.Add(box[ord[i]]);
-    for (; i < k_max; ++i) pre.Add(box[ord[i]]), pre_out[i + 1 - k_min] = pre.Margin();
-    LanesUnion suf;
-    i = n;
-    while (i > k_max + 1) suf.Add(box[ord[--i]]);
-    while (i > k_min) --i, suf.Add(box[ord[i]]), suf_out[i - k_min] = suf.Margin();
+    // kFar: as in GatherRuns (large nodes tie on |Sm| = 0 over long runs of cuts, whose boxes are far apart).
+    auto sweeps = [&]<bool kFar>() {
+      LanesUnion pre;
+      auto add_pre = [&](size_t j) {
+        if (kFar && j + kPrefetch < n) __builtin_prefetch(&box[ord[j + kPrefetch]]);
+        pre.Add(box[ord[j]]);
+      };
+      size_t i = 0;
+      for (; i + 1 < k_min; ++i) add_pre(i);
+      for (; i < k_max; ++i) add_pre(i), pre_out[i + 1 - k_min] = pre.Margin();
+      LanesUnion suf;
+      auto add_suf = [&](size_t j) {
+        if (kFar && j >= kPrefetch) __builtin_prefetch(&box[ord[j - kPrefetch]]);
+        suf.Add(box[ord[j]]);
+      };
+      i = n;
+      while (i > k_max + 1) add_suf(--i);
+      while (i > k_min) --i, add_suf(i), suf_out[i - k_min] = suf.Margin();
+    };
+    if (n >= kPrefetchObjects)
+      sweeps.template operator()<true>();
+    else
+      sweeps.template operator()<false>();
   }
 
   // Gathers axis w and evaluates its candidates (kSoa, and kCompact's |Sm| first pass).
