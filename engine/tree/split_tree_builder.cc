@@ -511,20 +511,25 @@ class Builder {
   // for one more free item.
   uint32_t CellsMeeting(const Box3f& b, const Cell* cells, const SplitNode* nodes, uint32_t* stack,
                         uint32_t* met, double added[2]) {
-    size_t depth = 1, nm = 0;  // (64-bit: no zero-extensions)
-    stack[0] = 0;
-    while (depth > 0) {
-      const uint32_t n = stack[--depth];
+    // Down the one child a box meets without the stack (most boxes meet one leaf); the upper child is
+    // stacked only when the box meets both.
+    size_t depth = 0, nm = 0;  // (64-bit: no zero-extensions)
+    uint32_t n = 0;
+    for (;;) {
       const SplitNode& sn = nodes[n];
       if (sn.is_cell()) {
         met[nm++] = n;
         MeetLeaf(cells, n, added);
-        continue;
+      } else {
+        const bool lower = b.min[sn.axis] <= sn.cut, upper = b.max[sn.axis] >= sn.cut;
+        if (lower | upper) {  // (neither: a NaN box, which meets no cell below)
+          if (lower & upper) stack[depth++] = sn.child[1];
+          n = lower ? sn.child[0] : sn.child[1];
+          continue;
+        }
       }
-      stack[depth] = sn.child[1];
-      depth += b.max[sn.axis] >= sn.cut;
-      stack[depth] = sn.child[0];
-      depth += b.min[sn.axis] <= sn.cut;
+      if (depth == 0) break;
+      n = stack[--depth];
     }
     return static_cast<uint32_t>(nm);
   }
