@@ -152,6 +152,7 @@ void SortByKey(const BuildVector<Box3f>& box, const BuildVector<uint32_t>& index
   const size_t n = box.size();
   a->resize(n);
   for (size_t p = 0; p < n; ++p) {
+    if (p + kPrefetch < n) __builtin_prefetch(&box[index_of_input[p + kPrefetch]]);  // (a random read each)
     const uint32_t i = index_of_input[p];
     const float k = use_max ? box[i].max[axis] : box[i].min[axis];
     (*a)[p] = (uint64_t{SortableBits(k)} << 32) | i;
@@ -237,6 +238,7 @@ BuildRecords SpatialLayout(std::vector<ObjectRecord> records, const Box3f& all, 
   index_of_input->resize(n);
   RunOnHalves(n, threads, [&](size_t lo, size_t hi) {
     for (size_t i = lo; i < hi; ++i) {
+      if (i + kPrefetch < hi) __builtin_prefetch(&records[order[i + kPrefetch]]);  // (a random read each)
       const uint32_t from = order[i];
       rec.box[i] = records[from].box;
       rec.bytes[i] = records[from].encoded_bytes;
