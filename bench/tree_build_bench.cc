@@ -13,6 +13,11 @@
 //   tanker_1m_packing  (only when named) the MKtree's leaves against Morton and STR packings of the same
 //                    records into pages of the same budget: leaves holding an answer per point / box query
 //                    against the floor ceil(hits / B)
+//   random_tunings   (only when named) one hash over 400 small builds (seed 11): random scenes of 1 to 6000
+//                    objects (uniform, gridded with many ties, clustered with long objects, all identical at
+//                    +-0) under random BuildParams / BuildTuning (r, page size, fill slack, fill pages, kSoa,
+//                    axis ratio 0), so that a change meant to keep the tree (a speed-up) is checked beyond the
+//                    default tuning of the workloads above. Hash 2b8f318b586d54fc (the same from cbcf6d9 on)
 // Usage: tree_build_bench [workload...]   (default: all of them)
 //
 // Records: id, Aabb() and encoded_bytes = 64 + mesh.RawGeometryBytes() / 2, a stand-in for the compressed
@@ -450,6 +455,59 @@ void RunPacking(uint64_t objects) {
   }
 }
 
+// See random_tunings in the header.
+void RunRandomTunings() {
+  std::mt19937_64 rng(11);
+  Fnv all;
+  constexpr int kBuilds = 400;
+  for (int t = 0; t < kBuilds; ++t) {
+    const int n = 1 + static_cast<int>(rng() % 6000);
+    const int kind = static_cast<int>(rng() % 4);
+    std::vector<ObjectRecord> recs(n);
+    for (int i = 0; i < n; ++i) {
+      ObjectRecord& r = recs[i];
+      r.id = static_cast<ObjectId>(i);
+      for (int u = 0; u < 3; ++u) {
+        float c, e;
+        switch (kind) {
+          case 0:
+            c = std::uniform_real_distribution<float>(-50, 50)(rng), e = std::uniform_real_distribution<float>(0, 3)(rng);
+            break;
+          case 1:
+            c = static_cast<float>(rng() % 20), e = static_cast<float>(rng() % 3);
+            break;
+          case 2:
+            c = std::normal_distribution<float>(0, 5)(rng), e = rng() % 10 == 0 ? 40.0f : 0.2f;
+            break;
+          default:
+            c = rng() % 2 ? 0.0f : -0.0f, e = 0;
+        }
+        r.box.min[u] = c;
+        r.box.max[u] = c + e;
+      }
+      r.encoded_bytes = static_cast<uint32_t>(64 + rng() % 3000);
+    }
+    BuildParams params;
+    params.balance_r = rng() % 3 == 0 ? 0.0 : (rng() % 2 ? 0.3 : 0.45);
+    params.blocks_per_page = static_cast<uint32_t>(1 + rng() % 3);
+    BuildTuning tuning;
+    tuning.threads = 1;
+    if (rng() % 2) tuning.fill_sm_slack = static_cast<uint32_t>(rng() % 8);
+    if (rng() % 3 == 0) tuning.fill_sm_slack_rel = 0.05;
+    if (rng() % 4 == 0) tuning.fill_aware_pages = static_cast<uint32_t>(2 + rng() % 30);
+    if (rng() % 5 == 0) tuning.split_policy = SplitPolicy::kSoa;
+    if (rng() % 5 == 0) tuning.compact_axis_ratio = 0.0;
+    auto built = BuildMKTree(std::move(recs), params, tuning);
+    if (!built.ok()) {
+      std::fprintf(stderr, "error: random_tunings build %d: %s\n", t, built.status().ToString().c_str());
+      std::exit(1);
+    }
+    all.Add(TreeHash(*built));
+  }
+  std::printf("random_tunings: %d builds, hash %016llx\n", kBuilds, static_cast<unsigned long long>(all.h));
+  std::fflush(stdout);
+}
+
 }  // namespace
 }  // namespace mktree
 
@@ -474,6 +532,8 @@ int main(int argc, char** argv) {
   std::printf("records: tanker generator seed 1, encoded_bytes = 64 + RawGeometryBytes/2; 10,000 query points seed 99\n");
   for (int i = 1; i < argc; ++i)
     if (std::strcmp(argv[i], "tanker_1m_packing") == 0) mktree::RunPacking(1000000);
+  for (int i = 1; i < argc; ++i)
+    if (std::strcmp(argv[i], "random_tunings") == 0) mktree::RunRandomTunings();
   for (const Workload& w : all) {
     bool wanted = argc == 1;
     for (int i = 1; i < argc; ++i) wanted |= std::strcmp(argv[i], w.name) == 0;
