@@ -299,6 +299,7 @@ class Scratch {
   }
   size_t capacity() const { return capacity_; }
   T* data() { return data_; }
+  const T* data() const { return data_; }
   T& operator[](size_t i) { return data_[i]; }
   const T& operator[](size_t i) const { return data_[i]; }
 
@@ -758,16 +759,26 @@ class SubtreeBuilder {
     return best;
   }
 
+  // The planes of cut k from GatherAxis' arrays (copied pointers: locals the compiler need not reload).
+  // Key 0 (min_w order): a is the k-th object's min_w, b the max of max_w before it; key 1 (max_w order):
+  // b is the (k-1)-th object's max_w, a the min of min_w from the k-th on.
+  struct CutPlanes {
+    const float *smin, *smax, *pmax, *smn;
+    uint32_t base;  // the window's first cut (window_base_)
+    float A(int key, uint32_t k) const { return key == 0 ? smin[k] : smn[k - base]; }
+    float B(int key, uint32_t k) const { return key == 0 ? pmax[k - base] : smax[k - 1]; }
+  };
+  CutPlanes Planes() const {
+    return {sorted_min_.data(), sorted_max_.data(), prefix_max_.data(), suffix_min_.data(), window_base_};
+  }
+
   // kCompact near the leaves, when every |Sm| is within the fill slack (primary 0): the cuts of both keys
   // of axis w (GatherAxis(t, w) done) ranked by page waste, then margin, then as BetterThan says. Per list
   // the least (waste, margin) is found first, with no candidate built, and only the cuts reaching it are
   // evaluated, in order: the same choice as evaluating every cut, as BetterThan ranks those two first.
   void ScanWasteMargins(const Task& t, int w, uint32_t k_lo, uint32_t k_hi, Candidate* best) {
     const uint32_t n = t.hi - t.lo;
-    const float* const smin = sorted_min_.data();
-    const float* const smax = sorted_max_.data();
-    const float* const pmax = prefix_max_.data();
-    const float* const smn = suffix_min_.data();
+    const CutPlanes planes = Planes();
     const uint32_t* const bytes = bytes_.data();
     for (int key = 0; key < 2; ++key) {
       const int list = 2 * w + key;
@@ -800,9 +811,8 @@ class SubtreeBuilder {
       uint32_t pa = 0, pb = 0;  // the |Sm| counts, galloping on from cut to cut
       auto evaluate = [&](size_t k, uint64_t left) {
         const uint32_t k32 = static_cast<uint32_t>(k);
-        const float a = key == 0 ? smin[k32] : smn[k32 - k_lo];
-        const float b = key == 0 ? pmax[k32 - k_lo] : smax[k32 - 1];
-        const uint32_t sm = SmGalloping(smin, smax, n, a, b, pa, pb);
+        const float a = planes.A(key, k32), b = planes.B(key, k32);
+        const uint32_t sm = SmGalloping(planes.smin, planes.smax, n, a, b, pa, pb);
         Candidate c = MakeCandidate(list, k32, n, a, b, sm, 0, static_cast<uint32_t>(least_waste), left, true);
         c.margin = least_margin;
         if (c.BetterThan(*best)) *best = c;
@@ -1057,11 +1067,9 @@ class SubtreeBuilder {
       const uint32_t k_last = only != nullptr ? tied[key].k_max : k_hi;
       const int list = 2 * w + key;
       // (Locals, not members or the task's fields, which the ties' counters could alias.)
-      const float* const pmax = prefix_max_.data();
-      const float* const smn = suffix_min_.data();
-      const uint32_t base = window_base_;
-      auto a_of = [smin, smn, base](uint32_t k) { return key == 0 ? smin[k] : smn[k - base]; };
-      auto b_of = [smax, pmax, base](uint32_t k) { return key == 0 ? pmax[k - base] : smax[k - 1]; };
+      const CutPlanes planes = Planes();
+      auto a_of = [planes](uint32_t k) { return planes.A(key, k); };
+      auto b_of = [planes](uint32_t k) { return planes.B(key, k); };
       const uint32_t* const ord = order.data() + t.lo;
       const uint32_t* const bytes = bytes_.data();
       uint64_t left_bytes = 0;  // encoded bytes of the first k objects
