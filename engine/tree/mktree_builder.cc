@@ -299,7 +299,6 @@ class Scratch {
   }
   size_t capacity() const { return capacity_; }
   T* data() { return data_; }
-  const T* data() const { return data_; }
   T& operator[](size_t i) { return data_[i]; }
   const T& operator[](size_t i) const { return data_[i]; }
 
@@ -401,13 +400,13 @@ void RebaseSplitTree(SplitNode* nodes, uint32_t count, uint32_t delta) {
   }
 }
 
-// Appends the `count` nodes of a SplitTree that starts at index `at` of the array `tree` points into
-// (tree[0] is its root) to *out, its child indices moved to their new place; returns the new root index.
-// One copy, then the rebase (a 1M-object tree has 865k SplitNodes: a push_back each costs more).
-uint32_t AppendSplitTree(const SplitNode* tree, uint32_t count, uint32_t at, std::vector<SplitNode>* out) {
+// Appends the `count` nodes of a SplitTree whose child indices count from tree[0] (its root) to *out, the
+// indices moved to their new place; returns the new root index. One copy, then the rebase (a 1M-object
+// tree has 865k SplitNodes: a push_back each costs more).
+uint32_t AppendSplitTree(const SplitNode* tree, uint32_t count, std::vector<SplitNode>* out) {
   const uint32_t base = static_cast<uint32_t>(out->size());
   out->insert(out->end(), tree, tree + count);
-  RebaseSplitTree(out->data() + base, count, base - at);
+  RebaseSplitTree(out->data() + base, count, base);
   return base;
 }
 
@@ -649,7 +648,7 @@ class SubtreeBuilder {
       const SplitItem* const items = items_.data();
       for (size_t i = 0; i < n_items; ++i) sm += items[i].box.max[w] > node.a && items[i].box.min[w] < node.b;
       if (!split.empty())
-        node.split_root = AppendSplitTree(split.data(), static_cast<uint32_t>(split.size()), 0, &out->split_nodes);
+        node.split_root = AppendSplitTree(split.data(), static_cast<uint32_t>(split.size()), &out->split_nodes);
     }
     out->nodes.push_back(node);
     out->overlap.push_back(sm);
@@ -756,23 +755,10 @@ class SubtreeBuilder {
     return best;
   }
 
-  // The planes of cut k from GatherAxis' arrays (copied pointers: locals the compiler need not reload).
-  // Key 0 (min_w order): a is the k-th object's min_w, b the max of max_w before it; key 1 (max_w order):
-  // b is the (k-1)-th object's max_w, a the min of min_w from the k-th on.
-  struct CutPlanes {
-    const float *smin, *smax, *pmax, *smn;
-    uint32_t base;  // the window's first cut (window_base_)
-    float A(int key, uint32_t k) const { return key == 0 ? smin[k] : smn[k - base]; }
-    float B(int key, uint32_t k) const { return key == 0 ? pmax[k - base] : smax[k - 1]; }
-  };
-  CutPlanes Planes() const {
-    return {sorted_min_.data(), sorted_max_.data(), prefix_max_.data(), suffix_min_.data(), window_base_};
-  }
-
   // kCompact near the leaves, when every |Sm| is within the fill slack (primary 0): the cuts of both keys
-  // of axis w ranked by page waste, then margin, then as BetterThan says. Per list
-  // the least (waste, margin) is found first, with no candidate built, and only the cuts reaching it are
-  // evaluated, in order: the same choice as evaluating every cut, as BetterThan ranks those two first.
+  // of axis w ranked by page waste, then margin, then as BetterThan says. Per list the least (waste,
+  // margin) is found first, with no candidate built, and only the cuts reaching it are evaluated, in
+  // order: the same choice as evaluating every cut, as BetterThan ranks those two first.
   void ScanWasteMargins(const Task& t, int w, uint32_t k_lo, uint32_t k_hi, Candidate* best) {
     const uint32_t n = t.hi - t.lo;
     const uint32_t* const bytes = bytes_.data();
@@ -1074,9 +1060,11 @@ class SubtreeBuilder {
       const uint32_t k_last = only != nullptr ? tied[key].k_max : k_hi;
       const int list = 2 * w + key;
       // (Locals, not members or the task's fields, which the ties' counters could alias.)
-      const CutPlanes planes = Planes();
-      auto a_of = [planes](uint32_t k) { return planes.A(key, k); };
-      auto b_of = [planes](uint32_t k) { return planes.B(key, k); };
+      const float* const pmax = prefix_max_.data();
+      const float* const smn = suffix_min_.data();
+      const uint32_t base = window_base_;
+      auto a_of = [smin, smn, base](uint32_t k) { return key == 0 ? smin[k] : smn[k - base]; };
+      auto b_of = [smax, pmax, base](uint32_t k) { return key == 0 ? pmax[k - base] : smax[k - 1]; };
       const uint32_t* const ord = order.data() + t.lo;
       const uint32_t* const bytes = bytes_.data();
       uint64_t left_bytes = 0;  // encoded bytes of the first k objects

@@ -453,7 +453,7 @@ class Builder {
       // A side whose items all lie on one side of the cut (as the side that gave the cut does) moves
       // whole: with every box valid (min <= max), min >= lo_of > pos puts each in the upper child only,
       // max <= hi_of < pos in the lower one only. The child it moves to has the same set, so the same
-      // extremes (up to the sign of a zero, which no test and no NextDown / NextUp tells apart).
+      // extremes (up to the sign of a zero, which no test and no NextDownLanes / NextUpLanes tells apart).
       if (valid_ && parent.lo_of[s][axis] > pos) {
         std::memcpy(to_upper + nu, from, ns * sizeof *from);
         nu += ns;
