@@ -60,7 +60,9 @@ inline uint32_t SortableBits(float f) {
 // - Arrays of 1 MiB or more are mapped on their own, so freeing one gives its memory back at once (not to
 //   a heap whose holes the next allocations may not fit): 1M tanker, 1 thread, peak 93.3 -> 91.4 B/object.
 // (Transparent huge pages for them were tried: the sorts' TLB misses drop, but on this VM a 2 MiB page
-// costs more to fault in than 512 small ones: 10M layout 0.39 -> 0.93 s, sorts 0.52 -> 1.0 s.)
+// costs more to fault in than 512 small ones: 10M layout 0.39 -> 0.93 s, sorts 0.52 -> 1.0 s. A 2 MiB
+// page new to the process costs ~6 ms, one it freed moments before ~0.25 ms, 512 small ones ~1 ms; and
+// random reads over a 24 MiB array take as long with huge pages: the key sweeps are not bound by the TLB.)
 template <typename T>
 struct BuildAllocator {
   using value_type = T;
