@@ -92,10 +92,9 @@ struct BuildAllocator {
     std::free(p);
   }
   template <typename U>
-  void construct(U* p) noexcept {
+  void construct(U*) noexcept {
     // Implicit-lifetime element types only (as for Scratch): the storage's objects exist once written.
     static_assert(std::is_trivially_copyable_v<U> && std::is_trivially_destructible_v<U>);
-    (void)p;
   }
   template <typename U, typename... Args>
   void construct(U* p, Args&&... args) {
