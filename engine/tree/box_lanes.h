@@ -27,6 +27,11 @@ inline Lanes MaxLanes(const Box3f& b) {
   std::memcpy(&v, reinterpret_cast<const char*>(&b) + 8, sizeof v);
   return v;
 }
+// The max lanes (1-3) of MaxLanes or of a union's `hi` moved to lanes 0-2, as the min lanes are.
+inline Lanes MaxToMinLanes(Lanes hi) {
+  static_assert(kMaxLane == 1);
+  return __builtin_shufflevector(hi, hi, 1, 2, 3, 3);
+}
 // As std::min(acc, x) and std::max(acc, x), lane by lane (so a NaN in x never enters).
 inline Lanes Min(Lanes acc, Lanes x) { return x < acc ? x : acc; }
 inline Lanes Max(Lanes acc, Lanes x) { return x > acc ? x : acc; }
@@ -43,8 +48,7 @@ struct LanesUnion {
   // (max[0] - min[0]) + (max[1] - min[1]) + (max[2] - min[2]), in that order (as for a Box3f): the three
   // differences as one vector subtraction (the same IEEE operations lane by lane), then the two adds.
   float Margin() const {
-    static_assert(kMaxLane == 1);
-    const Lanes extent = __builtin_shufflevector(hi, hi, 1, 2, 3, 3) - lo;
+    const Lanes extent = MaxToMinLanes(hi) - lo;
     return (extent[0] + extent[1]) + extent[2];
   }
 };

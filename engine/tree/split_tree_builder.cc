@@ -94,12 +94,6 @@ inline Lanes NextUpLanes(Lanes x) {
   return reinterpret_cast<Lanes>((zero & IntLanes{1, 1, 1, 1}) | (~zero & moved));
 }
 
-// The max lanes (1-3) of a box union or MaxLanes moved to lanes 0-2, as the min lanes are.
-inline Lanes MaxToMinLanes(Lanes hi) {
-  static_assert(kMaxLane == 1);
-  return __builtin_shufflevector(hi, hi, 1, 2, 3, 3);
-}
-
 // Bits 0-2: which of lanes 0-2 of a comparison hold.
 inline uint32_t LaneBits(IntLanes m) {
 #if defined(__SSE__)
