@@ -109,24 +109,20 @@ template <typename T>
 using BuildVector = std::vector<T, BuildAllocator<T>>;
 
 // LSD radix sort of (key << 32 | payload) pairs by the key, stable, writing the payloads in that order to
-// *out (resized; a and b are scratch): 3 passes of 11/11/10 bits, far faster than an indirect comparison
-// sort at 10M. The three digits are counted in one pass, and the last pass writes the payloads directly.
-void RadixSortPayloads(BuildVector<uint64_t>* a, BuildVector<uint64_t>* b, BuildVector<uint32_t>* out) {
+// *out (resized; b is scratch): 3 passes of 11/11/10 bits, far faster than an indirect comparison sort at
+// 10M. `count` holds the three digits' counts (kRadixBuckets each), counted as *a was written; the last pass
+// writes the payloads directly.
+constexpr size_t kRadixBuckets = size_t{1} << 11;
+void RadixSortPayloads(BuildVector<uint64_t>* a, BuildVector<uint64_t>* b, size_t* count,
+                       BuildVector<uint32_t>* out) {
   const size_t n = a->size();
   b->resize(n);
   out->resize(n);
   constexpr int kShift[3] = {32, 43, 54};
-  constexpr size_t kBuckets = size_t{1} << 11;
-  std::vector<size_t> count(3 * kBuckets, 0);
-  for (uint64_t v : *a) {
-    ++count[(v >> 32) & 0x7ff];
-    ++count[kBuckets + ((v >> 43) & 0x7ff)];
-    ++count[2 * kBuckets + (v >> 54)];
-  }
   for (int pass = 0; pass < 3; ++pass) {
-    size_t* c = count.data() + pass * kBuckets;
+    size_t* c = count + pass * kRadixBuckets;
     size_t sum = 0;
-    for (size_t i = 0; i < kBuckets; ++i) {
+    for (size_t i = 0; i < kRadixBuckets; ++i) {
       const size_t here = c[i];
       c[i] = sum;
       sum += here;
@@ -149,20 +145,25 @@ struct BuildRecords {
   BuildVector<uint32_t> bytes;
 };
 
-// Object indices sorted by one key (axis, min or max), stable: ties in input order, so the lists (and so
-// the tree) do not depend on how the records are laid out in RAM. index_of_input[p]: the record index of
-// the object at input position p.
-void SortByKey(const BuildVector<Box3f>& box, const BuildVector<uint32_t>& index_of_input, int axis,
-               bool use_max, BuildVector<uint64_t>* a, BuildVector<uint64_t>* b, BuildVector<uint32_t>* out) {
+// Object indices sorted by one key (axis, min or max), stable: ties in layout order, which the input
+// decides as it decides the layout. (In input order, the boxes were gathered: a random read an object, and
+// the layout wrote the input's positions at random.) The digits are counted as the keys are written.
+void SortByKey(const BuildVector<Box3f>& box, int axis, bool use_max, BuildVector<uint64_t>* a,
+               BuildVector<uint64_t>* b, BuildVector<uint32_t>* out) {
   const size_t n = box.size();
   a->resize(n);
-  for (size_t p = 0; p < n; ++p) {
-    if (p + kPrefetch < n) __builtin_prefetch(&box[index_of_input[p + kPrefetch]]);  // (a random read each)
-    const uint32_t i = index_of_input[p];
+  std::vector<size_t> count(3 * kRadixBuckets, 0);
+  size_t* const c = count.data();
+  uint64_t* const keys = a->data();
+  for (size_t i = 0; i < n; ++i) {
     const float k = use_max ? box[i].max[axis] : box[i].min[axis];
-    (*a)[p] = (uint64_t{SortableBits(k)} << 32) | i;
+    const uint32_t bits = SortableBits(k);
+    keys[i] = (uint64_t{bits} << 32) | i;
+    ++c[bits & 0x7ff];
+    ++c[kRadixBuckets + ((bits >> 11) & 0x7ff)];
+    ++c[2 * kRadixBuckets + (bits >> 22)];
   }
-  RadixSortPayloads(a, b, out);
+  RadixSortPayloads(a, b, c, out);
 }
 
 // fn(lo, hi) over [0, n) in two halves, the first on a thread of its own when there are threads to spare
@@ -191,11 +192,11 @@ inline uint32_t Spread3(uint32_t v) {
 // The builder's records, grouped by the Morton cell of their box centres (16 cells an axis), in input order
 // within a cell, so that a node's objects lie close together in RAM: the split sweeps and the list
 // partitions read records in key order, which in input order misses the cache all the way down the tree.
-// Cells this coarse cost one counting pass, and keep what locality the input order has (the key sorts
-// read the records in input order). `all`: the union of the boxes. Frees `records`; *ids: the object ids
-// in the same layout; *index_of_input: the record index of the object at each input position.
+// Cells this coarse cost one counting pass, and keep what locality the input order has. `all`: the union
+// of the boxes. Frees `records`; *ids: the object ids in the same layout; *input_position: the input
+// position of the object at each layout position.
 BuildRecords SpatialLayout(std::vector<ObjectRecord> records, const Box3f& all, BuildVector<ObjectId>* ids,
-                          BuildVector<uint32_t>* index_of_input, int threads) {
+                          BuildVector<uint32_t>* input_position, int threads) {
   const size_t n = records.size();
   constexpr uint32_t kCellsPerAxis = 16;
   constexpr size_t kCells = kCellsPerAxis * kCellsPerAxis * kCellsPerAxis;
@@ -240,7 +241,7 @@ BuildRecords SpatialLayout(std::vector<ObjectRecord> records, const Box3f& all, 
   rec.box.resize(n);
   rec.bytes.resize(n);
   ids->resize(n);
-  index_of_input->resize(n);
+  input_position->resize(n);
   RunOnHalves(n, threads, [&](size_t lo, size_t hi) {
     for (size_t i = lo; i < hi; ++i) {
       if (i + kPrefetch < hi) __builtin_prefetch(&records[order[i + kPrefetch]]);  // (a random read each)
@@ -248,7 +249,7 @@ BuildRecords SpatialLayout(std::vector<ObjectRecord> records, const Box3f& all, 
       rec.box[i] = records[from].box;
       rec.bytes[i] = records[from].encoded_bytes;
       (*ids)[i] = records[from].id;
-      (*index_of_input)[from] = static_cast<uint32_t>(i);
+      (*input_position)[i] = from;
     }
   });
   return rec;
@@ -1399,8 +1400,8 @@ Status Validate(const std::vector<ObjectRecord>& records, const BuildParams& par
 
 // Unique ids, checked on the laid-out ids (8 bytes an object, not the 40 of a record): a bitmap when ids
 // are dense (the normal 0-based case), else a sorted copy. An error names the first object in input order
-// whose id came before (index_of_input gives the input order; only then is it needed).
-Status CheckUniqueIds(const BuildVector<ObjectId>& ids, const BuildVector<uint32_t>& index_of_input,
+// whose id came before (input_position gives the input order; only then is it needed).
+Status CheckUniqueIds(const BuildVector<ObjectId>& ids, const BuildVector<uint32_t>& input_position,
                       ObjectId max_id) {
   const size_t n = ids.size();
   if (uint64_t{max_id} > 64 * uint64_t{n}) {
@@ -1423,8 +1424,10 @@ Status CheckUniqueIds(const BuildVector<ObjectId>& ids, const BuildVector<uint32
   for (const ObjectId id : ids) found |= seen_before(id);
   if (!found) return Status::Ok();
   std::fill(seen.begin(), seen.end(), 0);
+  std::vector<uint32_t> at_input(n);  // input position -> layout position
+  for (size_t i = 0; i < n; ++i) at_input[input_position[i]] = static_cast<uint32_t>(i);
   for (size_t p = 0; p < n; ++p) {
-    const ObjectId id = ids[index_of_input[p]];
+    const ObjectId id = ids[at_input[p]];
     if (seen_before(id)) return Status::InvalidArgument("object " + std::to_string(id) + ": duplicate object id");
   }
   return Status::Internal("a duplicate object id was not found again");
@@ -1459,15 +1462,16 @@ Result<BuildResult> BuildMKTree(std::vector<ObjectRecord> records, const BuildPa
   BuildRecords rec;
   Shared shared{rec.box, rec.bytes, params, tuning, {}, {}};
   {
-    BuildVector<uint32_t> index_of_input;
-    rec = SpatialLayout(std::move(records), bounds, &ids, &index_of_input, threads);
-    MKTREE_RETURN_IF_ERROR(CheckUniqueIds(ids, index_of_input, max_id));
-    lap(&result.timings.layout);
+    BuildVector<uint32_t> input_position;
+    rec = SpatialLayout(std::move(records), bounds, &ids, &input_position, threads);
+    MKTREE_RETURN_IF_ERROR(CheckUniqueIds(ids, input_position, max_id));
+  }
+  lap(&result.timings.layout);
+  {
     // With two threads or more, the six sorts run on two (each thread with its own radix buffers).
     auto sort_lists = [&](int first, int step) {
       BuildVector<uint64_t> a, b;
-      for (int l = first; l < 6; l += step)
-        SortByKey(rec.box, index_of_input, l / 2, l % 2 == 1, &a, &b, &shared.lists[l]);
+      for (int l = first; l < 6; l += step) SortByKey(rec.box, l / 2, l % 2 == 1, &a, &b, &shared.lists[l]);
     };
     if (threads >= 2) {
       std::thread other(sort_lists, 1, 2);
