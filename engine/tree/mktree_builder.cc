@@ -152,18 +152,30 @@ void SortByKey(const BuildVector<Box3f>& box, int axis, bool use_max, BuildVecto
                BuildVector<uint64_t>* b, BuildVector<uint32_t>* out) {
   const size_t n = box.size();
   a->resize(n);
-  std::vector<size_t> count(3 * kRadixBuckets, 0);
-  size_t* const c = count.data();
+  // The top digit (sign, exponent) takes few values: neighbours' counts go to four copies, or each
+  // increment would wait for the last one.
+  constexpr size_t kTop = kRadixBuckets / 2;
+  std::vector<uint32_t> counts(2 * kRadixBuckets + 4 * kTop, 0);
+  uint32_t* const low = counts.data();
+  uint32_t* const mid = low + kRadixBuckets;
+  uint32_t* const top = mid + kRadixBuckets;
   uint64_t* const keys = a->data();
-  for (size_t i = 0; i < n; ++i) {
+  auto add = [&](size_t i, size_t copy) {
     const float k = use_max ? box[i].max[axis] : box[i].min[axis];
     const uint32_t bits = SortableBits(k);
     keys[i] = (uint64_t{bits} << 32) | i;
-    ++c[bits & 0x7ff];
-    ++c[kRadixBuckets + ((bits >> 11) & 0x7ff)];
-    ++c[2 * kRadixBuckets + (bits >> 22)];
-  }
-  RadixSortPayloads(a, b, c, out);
+    ++low[bits & 0x7ff];
+    ++mid[(bits >> 11) & 0x7ff];
+    ++top[copy * kTop + (bits >> 22)];
+  };
+  size_t i = 0;
+  for (; i + 4 <= n; i += 4) add(i, 0), add(i + 1, 1), add(i + 2, 2), add(i + 3, 3);
+  for (; i < n; ++i) add(i, 0);
+  std::vector<size_t> count(3 * kRadixBuckets, 0);
+  for (size_t d = 0; d < kRadixBuckets; ++d) count[d] = low[d], count[kRadixBuckets + d] = mid[d];
+  for (size_t d = 0; d < kTop; ++d)
+    count[2 * kRadixBuckets + d] = size_t{top[d]} + top[kTop + d] + top[2 * kTop + d] + top[3 * kTop + d];
+  RadixSortPayloads(a, b, count.data(), out);
 }
 
 // fn(lo, hi) over [0, n) in two halves, the first on a thread of its own when there are threads to spare
@@ -231,7 +243,7 @@ BuildRecords SpatialLayout(std::vector<ObjectRecord> records, const Box3f& all, 
       start += here;
     }
   }
-  BuildVector<uint32_t> order(n);  // record index -> input position
+  BuildVector<uint32_t> order(n);  // layout position -> input position (record index)
   RunOnHalves(n, threads, [&](size_t lo, size_t hi) {
     size_t* const next = count.data() + (lo == 0 ? 0 : kCells);
     for (size_t i = lo; i < hi; ++i) order[next[cell[i]]++] = static_cast<uint32_t>(i);
@@ -241,7 +253,6 @@ BuildRecords SpatialLayout(std::vector<ObjectRecord> records, const Box3f& all, 
   rec.box.resize(n);
   rec.bytes.resize(n);
   ids->resize(n);
-  input_position->resize(n);
   RunOnHalves(n, threads, [&](size_t lo, size_t hi) {
     for (size_t i = lo; i < hi; ++i) {
       if (i + kPrefetch < hi) __builtin_prefetch(&records[order[i + kPrefetch]]);  // (a random read each)
@@ -249,9 +260,9 @@ BuildRecords SpatialLayout(std::vector<ObjectRecord> records, const Box3f& all, 
       rec.box[i] = records[from].box;
       rec.bytes[i] = records[from].encoded_bytes;
       (*ids)[i] = records[from].id;
-      (*input_position)[i] = from;
     }
   });
+  *input_position = std::move(order);
   return rec;
 }
 
@@ -1368,7 +1379,9 @@ Status Validate(const std::vector<ObjectRecord>& records, const BuildParams& par
   };
   Half half[2];
   RunOnHalves(records.size(), threads, [&](size_t lo, size_t hi) {
-    Half& h = half[lo == 0 ? 0 : 1];
+    // Kept here and stored once: the two halves' results share a cache line, and stores to it from both
+    // threads in the loop made each half slower than the whole on one thread (1M: 7 ms against 3.8).
+    Half h;
     for (size_t i = lo; i < hi; ++i) {
       const Box3f& b = records[i].box;
       // Finite with min <= max is -inf < min <= max < inf (NaN fails every comparison).
@@ -1382,6 +1395,7 @@ Status Validate(const std::vector<ObjectRecord>& records, const BuildParams& par
       h.max_id = std::max(h.max_id, records[i].id);
       h.box.Extend(b);
     }
+    half[lo == 0 ? 0 : 1] = h;
   });
   if (const size_t bad = std::min(half[0].bad, half[1].bad); bad < records.size()) {
     const ObjectRecord& r = records[bad];
