@@ -352,8 +352,10 @@ struct Shared {
   std::vector<uint8_t> side;  // per object: 0 = Sn1, 1 = Sn2 at the node being split
 };
 
-// What one builder produces for a subtree; indices are local to it until merged.
-struct SubtreeOut {
+// What one builder produces for a subtree; indices are local to it until merged. Aligned to cache lines:
+// two threads' fragments, allocated side by side, would otherwise share one, and every node pushed
+// writes a vector's end pointer.
+struct alignas(64) SubtreeOut {
   std::vector<TreeNode> nodes;
   std::vector<SplitNode> split_nodes;
   std::vector<LeafInfo> leaves;
