@@ -145,9 +145,9 @@ struct BuildRecords {
   BuildVector<uint32_t> bytes;
 };
 
-// Object indices sorted by one key (axis, min or max), stable: ties in layout order, which the input
-// decides as it decides the layout. (In input order, the boxes were gathered: a random read an object, and
-// the layout wrote the input's positions at random.) The digits are counted as the keys are written.
+// Object indices sorted by one key (axis, min or max), stable: ties in layout order (which the input
+// decides, as it decides the layout), so the boxes are read in order, not gathered. The radix digits are
+// counted as the keys are written.
 void SortByKey(const BuildVector<Box3f>& box, int axis, bool use_max, BuildVector<uint64_t>* a,
                BuildVector<uint64_t>* b, BuildVector<uint32_t>* out) {
   const size_t n = box.size();
