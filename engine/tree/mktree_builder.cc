@@ -113,17 +113,17 @@ using BuildVector = std::vector<T, BuildAllocator<T>>;
 // 10M. `count` holds the three digits' counts (kRadixBuckets each), counted as *a was written; the last pass
 // writes the payloads directly.
 constexpr size_t kRadixBuckets = size_t{1} << 11;
-void RadixSortPayloads(BuildVector<uint64_t>* a, BuildVector<uint64_t>* b, size_t* count,
+void RadixSortPayloads(BuildVector<uint64_t>* a, BuildVector<uint64_t>* b, uint32_t* count,
                        BuildVector<uint32_t>* out) {
   const size_t n = a->size();
   b->resize(n);
   out->resize(n);
   constexpr int kShift[3] = {32, 43, 54};
   for (int pass = 0; pass < 3; ++pass) {
-    size_t* c = count + pass * kRadixBuckets;
-    size_t sum = 0;
+    uint32_t* c = count + pass * kRadixBuckets;
+    uint32_t sum = 0;  // (fewer than 2^32 objects: BuildMKTree's REQUIRES)
     for (size_t i = 0; i < kRadixBuckets; ++i) {
-      const size_t here = c[i];
+      const uint32_t here = c[i];
       c[i] = sum;
       sum += here;
     }
@@ -152,13 +152,14 @@ void SortByKey(const BuildVector<Box3f>& box, int axis, bool use_max, BuildVecto
                BuildVector<uint64_t>* b, BuildVector<uint32_t>* out) {
   const size_t n = box.size();
   a->resize(n);
-  // The top digit (sign, exponent) takes few values: neighbours' counts go to four copies, or each
-  // increment would wait for the last one.
+  // The top digit (sign, exponent) takes few values: neighbours' counts go to four copies (the last
+  // three after the three digits' blocks), or each increment would wait for the last one.
   constexpr size_t kTop = kRadixBuckets / 2;
-  std::vector<uint32_t> counts(2 * kRadixBuckets + 4 * kTop, 0);
-  uint32_t* const low = counts.data();
+  std::vector<uint32_t> count(3 * kRadixBuckets + 3 * kTop, 0);
+  uint32_t* const low = count.data();
   uint32_t* const mid = low + kRadixBuckets;
   uint32_t* const top = mid + kRadixBuckets;
+  auto top_copy = [&](size_t copy) { return copy == 0 ? top : top + kRadixBuckets + (copy - 1) * kTop; };
   uint64_t* const keys = a->data();
   auto add = [&](size_t i, size_t copy) {
     const float k = use_max ? box[i].max[axis] : box[i].min[axis];
@@ -166,15 +167,13 @@ void SortByKey(const BuildVector<Box3f>& box, int axis, bool use_max, BuildVecto
     keys[i] = (uint64_t{bits} << 32) | i;
     ++low[bits & 0x7ff];
     ++mid[(bits >> 11) & 0x7ff];
-    ++top[copy * kTop + (bits >> 22)];
+    ++top_copy(copy)[bits >> 22];
   };
   size_t i = 0;
   for (; i + 4 <= n; i += 4) add(i, 0), add(i + 1, 1), add(i + 2, 2), add(i + 3, 3);
   for (; i < n; ++i) add(i, 0);
-  std::vector<size_t> count(3 * kRadixBuckets, 0);
-  for (size_t d = 0; d < kRadixBuckets; ++d) count[d] = low[d], count[kRadixBuckets + d] = mid[d];
-  for (size_t d = 0; d < kTop; ++d)
-    count[2 * kRadixBuckets + d] = size_t{top[d]} + top[kTop + d] + top[2 * kTop + d] + top[3 * kTop + d];
+  for (size_t copy = 1; copy < 4; ++copy)
+    for (size_t d = 0; d < kTop; ++d) top[d] += top_copy(copy)[d];
   RadixSortPayloads(a, b, count.data(), out);
 }
 
