@@ -115,6 +115,14 @@ TEST(BuildMKTree, RejectsTheFirstBadObjectOfALargeInput) {
   auto r = BuildMKTree(dup, BuildParams(), two);
   ASSERT_FALSE(r.ok());
   EXPECT_NE(r.status().message().find("object 20000: duplicate"), std::string::npos) << r.status().message();
+  // Two duplicated ids: the one named is the one whose second use comes first in input order (position
+  // 6000), not the first met in the builder's own (spatial) order of the objects, where it is id 10.
+  dup = good;
+  dup[150000].id = 10;
+  dup[6000].id = 5999;
+  r = BuildMKTree(dup, BuildParams(), two);
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.status().message().find("object 5999: duplicate"), std::string::npos) << r.status().message();
 }
 
 TEST(BuildMKTree, RejectsBadParams) {
