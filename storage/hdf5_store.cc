@@ -30,7 +30,7 @@ namespace mktree {
 namespace {
 
 constexpr const char* kHdf5Magic = "MKTREE-HDF5";
-constexpr uint32_t kHdf5FormatVersion = 1;
+constexpr uint32_t kHdf5FormatVersion = 2;  // 2: the leaf filter holds 10-bit levels in 8 bytes an object
 constexpr hsize_t kObjectChunkRows = 8192;
 
 std::recursive_mutex& Hdf5Mutex() {

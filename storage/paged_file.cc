@@ -30,7 +30,7 @@ using storage_internal::PwriteFull;
 
 namespace {
 
-constexpr uint32_t kPagedFileVersion = 1;
+constexpr uint32_t kPagedFileVersion = 2;  // 2: the leaf filter holds 10-bit levels in 8 bytes an object
 constexpr uint32_t kFixedHeaderBytes = 512;  // the smallest page the builder accepts
 constexpr uint32_t kParamsOffset = 16;
 constexpr uint32_t kSectionCount = 8;

@@ -33,7 +33,7 @@ TEST(LeafFilter, QuantizedBoxContainsTheObjectBox) {
       leaf.max[a] = lo + ext;
     }
     const Box3f obj = t % 5 == 0 ? leaf : RandomBoxIn(leaf, rng);
-    uint8_t q[6];
+    uint8_t q[kLeafFilterBytesPerObject];
     QuantizeBox(leaf, obj, q);
     const Box3d d = DequantizeBox(leaf, q);
     for (int a = 0; a < 3; ++a) {
@@ -60,14 +60,14 @@ TEST(LeafFilter, FiltersFreeSpace) {
   Box3f leaf;
   leaf.min = {0, 0, 0};
   leaf.max = {100, 100, 100};
-  std::vector<uint8_t> q(6 * 2);
+  std::vector<uint8_t> q(kLeafFilterBytesPerObject * 2);
   Box3f a, b;
   a.min = {0, 0, 0};
   a.max = {10, 10, 10};
   b.min = {90, 90, 90};
   b.max = {100, 100, 100};
   QuantizeBox(leaf, a, q.data());
-  QuantizeBox(leaf, b, q.data() + 6);
+  QuantizeBox(leaf, b, q.data() + kLeafFilterBytesPerObject);
   EXPECT_TRUE(FilterMeetsPoint(leaf, q.data(), 2, {5, 5, 5}));
   EXPECT_TRUE(FilterMeetsPoint(leaf, q.data(), 2, {95, 95, 95}));
   EXPECT_FALSE(FilterMeetsPoint(leaf, q.data(), 2, {50, 50, 50}));
@@ -79,6 +79,27 @@ TEST(LeafFilter, FiltersFreeSpace) {
   EXPECT_FALSE(FilterMeetsBox(leaf, q.data(), 2, mid));
   mid.max = {91, 91, 91};
   EXPECT_TRUE(FilterMeetsBox(leaf, q.data(), 2, mid));
+  // 10 bits a bound: a's max (10) rounds up to level 103 (10.068), so 10.15 is filtered (8 bits rounded
+  // it up to 10.196).
+  EXPECT_FALSE(FilterMeetsPoint(leaf, q.data(), 2, {10.15, 5, 5}));
+  EXPECT_TRUE(FilterMeetsPoint(leaf, q.data(), 2, {10.05, 5, 5}));
+}
+
+TEST(LeafFilter, EntryLayout) {
+  // Levels 0..1023 at bits 10 k (min x, y, z, max x, y, z), little-endian, the top 4 bits zero.
+  Box3f leaf;
+  leaf.min = {0, 0, 0};
+  leaf.max = {1023, 1023, 1023};
+  Box3f obj;
+  obj.min = {1, 2, 3};
+  obj.max = {1020, 1021, 1023};
+  uint8_t q[kLeafFilterBytesPerObject];
+  QuantizeBox(leaf, obj, q);
+  uint64_t v = 0;
+  for (int i = 0; i < 8; ++i) v |= uint64_t{q[i]} << (8 * i);
+  const uint64_t want = 1 | 2 << 10 | 3 << 20 | uint64_t{1020} << 30 | uint64_t{1021} << 40 | uint64_t{1023} << 50;
+  EXPECT_EQ(v, want);
+  EXPECT_EQ(v >> 60, 0u);
 }
 
 TEST(LeafFilter, RandomPointsAgainstBruteForce) {
@@ -91,8 +112,8 @@ TEST(LeafFilter, RandomPointsAgainstBruteForce) {
   std::vector<uint8_t> q;
   for (int i = 0; i < 40; ++i) {
     objs.push_back(RandomBoxIn(leaf, rng));
-    q.resize(q.size() + 6);
-    QuantizeBox(leaf, objs.back(), q.data() + q.size() - 6);
+    q.resize(q.size() + kLeafFilterBytesPerObject);
+    QuantizeBox(leaf, objs.back(), q.data() + q.size() - kLeafFilterBytesPerObject);
   }
   int filtered = 0;
   for (int t = 0; t < 20000; ++t) {
