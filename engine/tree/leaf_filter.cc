@@ -20,7 +20,9 @@ constexpr std::array<double, kTop + 1> kLevelFraction = [] {
 
 // The value level q stands for on an axis [lo, hi]. Both the quantizer and the tests use this one
 // function, so "rounded outward" is checked against exactly what queries compare with.
-inline double Level(double lo, double hi, int q) { return q == kTop ? hi : lo + (hi - lo) * kLevelFraction[q]; }
+inline double Level(double lo, double hi, int q) {
+  return q == kTop ? hi : lo + (hi - lo) * kLevelFraction[q];
+}
 
 inline uint64_t LoadEntry(const uint8_t* q) {
   uint64_t v = 0;

@@ -97,7 +97,8 @@ TEST(LeafFilter, EntryLayout) {
   QuantizeBox(leaf, obj, q);
   uint64_t v = 0;
   for (int i = 0; i < 8; ++i) v |= uint64_t{q[i]} << (8 * i);
-  const uint64_t want = 1 | 2 << 10 | 3 << 20 | uint64_t{1020} << 30 | uint64_t{1021} << 40 | uint64_t{1023} << 50;
+  const uint64_t want =
+      1 | 2 << 10 | 3 << 20 | uint64_t{1020} << 30 | uint64_t{1021} << 40 | uint64_t{1023} << 50;
   EXPECT_EQ(v, want);
   EXPECT_EQ(v >> 60, 0u);
 }
