@@ -245,7 +245,8 @@ Result<OpenedStore> OpenPagedFile(const std::string& path, const ReadOptions& op
   const uint32_t version = Get<uint32_t>(fixed + 8);
   if (version != kPagedFileVersion)
     return Status::Unsupported(path + ": paged-file format version " + std::to_string(version) +
-                               " (this build reads version " + std::to_string(kPagedFileVersion) + ")");
+                               " (this build reads version " + std::to_string(kPagedFileVersion) +
+                               "): build the store again from its scene");
   Status st = DecodeParams(std::span<const uint8_t>(fixed + kParamsOffset, kParamsRecordBytes), &out.contents.params,
                            &out.contents.codec);
   if (!st.ok()) return bad("header: " + st.message());
