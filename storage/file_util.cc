@@ -78,4 +78,11 @@ Result<size_t> ReadPrefix(const std::string& path, void* buf, size_t n) {
   return done;
 }
 
+Status UnsupportedFormatVersion(const std::string& path, const std::string& format, uint32_t found,
+                                uint32_t reads) {
+  return Status::Unsupported(path + ": " + format + " format version " + std::to_string(found) +
+                             " (this build reads version " + std::to_string(reads) +
+                             "): build the store again from its scene");
+}
+
 }  // namespace mktree::storage_internal

@@ -18,5 +18,9 @@ Result<uint64_t> FileSize(int fd, const std::string& name);
 Status SyncParentDir(const std::string& path);
 // Reads up to n bytes from the start of `path`; returns how many were read.
 Result<size_t> ReadPrefix(const std::string& path, void* buf, size_t n);
+// The error of a store whose format version (`found`) is not the one this build reads: Unsupported,
+// naming the file, the format, both versions, and what to do.
+Status UnsupportedFormatVersion(const std::string& path, const std::string& format, uint32_t found,
+                                uint32_t reads);
 
 }  // namespace mktree::storage_internal

@@ -647,9 +647,7 @@ Result<OpenedStore> OpenHdf5(const std::string& path, const ReadOptions& opts) {
   uint32_t version = 0;
   MKTREE_RETURN_IF_ERROR(ReadAttr(f, "format_version", H5T_NATIVE_UINT32, &version, path));
   if (version != kHdf5FormatVersion)
-    return Status::Unsupported(path + ": HDF5 store format version " + std::to_string(version) +
-                               " (this build reads version " + std::to_string(kHdf5FormatVersion) +
-                               "): build the store again from its scene");
+    return storage_internal::UnsupportedFormatVersion(path, "HDF5 store", version, kHdf5FormatVersion);
   OpenedStore out;
   StoreContents& c = out.contents;
   uint64_t page_count = 0, object_count = 0;

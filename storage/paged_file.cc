@@ -244,9 +244,7 @@ Result<OpenedStore> OpenPagedFile(const std::string& path, const ReadOptions& op
   if (std::memcmp(fixed, kPagedFileMagic, 8) != 0) return bad("not an mktree paged-file store (bad magic)");
   const uint32_t version = Get<uint32_t>(fixed + 8);
   if (version != kPagedFileVersion)
-    return Status::Unsupported(path + ": paged-file format version " + std::to_string(version) +
-                               " (this build reads version " + std::to_string(kPagedFileVersion) +
-                               "): build the store again from its scene");
+    return storage_internal::UnsupportedFormatVersion(path, "paged-file", version, kPagedFileVersion);
   Status st = DecodeParams(std::span<const uint8_t>(fixed + kParamsOffset, kParamsRecordBytes), &out.contents.params,
                            &out.contents.codec);
   if (!st.ok()) return bad("header: " + st.message());

@@ -212,7 +212,8 @@ TEST_P(StoreFileTest, OlderFormatVersionIsRefused) {
   ASSERT_FALSE(r.ok());
   EXPECT_EQ(r.status().code(), Status::Code::kUnsupported) << r.status().ToString();
   EXPECT_NE(r.status().message().find(path), std::string::npos) << r.status().message();
-  EXPECT_NE(r.status().message().find("format version 1 (this build reads version 2): build the store again"), std::string::npos)
+  EXPECT_NE(r.status().message().find("format version 1 (this build reads version 2): build the store again"),
+            std::string::npos)
       << r.status().message();
 }
 
