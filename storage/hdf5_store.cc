@@ -16,6 +16,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cmath>
 #include <cstddef>
 #include <cstring>
 #include <memory>
@@ -30,7 +31,9 @@ namespace mktree {
 namespace {
 
 constexpr const char* kHdf5Magic = "MKTREE-HDF5";
-constexpr uint32_t kHdf5FormatVersion = 2;  // 2: the leaf filter holds 10-bit levels in 8 bytes an object
+// 2: the leaf filter holds 10-bit levels in 8 bytes an object; 3: the store frame (the origin attribute,
+// boxes relative to it, vertices in each object's local frame).
+constexpr uint32_t kHdf5FormatVersion = 3;
 constexpr hsize_t kObjectChunkRows = 8192;
 
 std::recursive_mutex& Hdf5Mutex() {
@@ -304,14 +307,44 @@ Result<std::string> ReadStringAttr(hid_t loc, const char* name, const std::strin
   return s;
 }
 
-// XXH3 of the header fields: parameters, codec, counts, version.
-uint64_t HeaderChecksum(const BuildParams& p, const CodecOptions& c, uint64_t pages, uint64_t objects) {
+// XXH3 of the header fields: parameters, codec, counts, version, origin.
+uint64_t HeaderChecksum(const BuildParams& p, const CodecOptions& c, uint64_t pages, uint64_t objects,
+                        const Vec3d& origin) {
   std::vector<uint8_t> b = EncodeParams(p, c);
   storage_internal::ByteWriter w(&b);
   w.Put<uint64_t>(pages);
   w.Put<uint64_t>(objects);
   w.Put<uint32_t>(kHdf5FormatVersion);
+  for (int i = 0; i < 3; ++i) w.Put<double>(origin[i]);
   return Checksum(b);
+}
+
+// The store frame's origin: an attribute of three doubles.
+Status WriteOrigin(hid_t loc, const Vec3d& origin, const std::string& path) {
+  const hsize_t n = 3;
+  const double v[3] = {origin.x, origin.y, origin.z};
+  H5Id space(H5Screate_simple(1, &n, nullptr), H5Sclose);
+  H5Id a(H5Acreate2(loc, "origin", H5T_IEEE_F64LE, space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
+  if (!a.ok() || H5Awrite(a.get(), H5T_NATIVE_DOUBLE, v) < 0)
+    return Status::IOError(path + ": writing attribute origin: " + Hdf5ErrorText());
+  return Status::Ok();
+}
+Status ReadOrigin(hid_t loc, Vec3d* origin, const std::string& path) {
+  if (H5Aexists(loc, "origin") <= 0) return Status::Corruption(path + ": missing attribute origin");
+  H5Id a(H5Aopen(loc, "origin", H5P_DEFAULT), H5Aclose);
+  H5Id space(H5Aget_space(a.get()), H5Sclose);
+  hsize_t n = 0;
+  if (!a.ok() || H5Sget_simple_extent_ndims(space.get()) != 1 ||
+      H5Sget_simple_extent_dims(space.get(), &n, nullptr) < 0 || n != 3)
+    return Status::Corruption(path + ": attribute origin is not three numbers");
+  double v[3];
+  if (H5Aread(a.get(), H5T_NATIVE_DOUBLE, v) < 0)
+    return Status::Corruption(path + ": reading attribute origin: " + Hdf5ErrorText());
+  for (int i = 0; i < 3; ++i) {
+    if (!std::isfinite(v[i])) return Status::Corruption(path + ": attribute origin is not finite");
+    (*origin)[i] = v[i];
+  }
+  return Status::Ok();
 }
 // XXH3 of the object leaves, name ends and names concatenated, streamed part by part (the same value,
 // without a copy of the whole table).
@@ -480,7 +513,7 @@ class Hdf5Writer : public StoreWriter::Impl {
     const uint8_t shuffle = c.codec.shuffle ? 1 : 0;
     // One encoded section alive at a time (an initializer list would keep every temporary to its end).
     uint64_t sums[kChecksumCount];
-    sums[0] = HeaderChecksum(c.params, c.codec, pages, objects);
+    sums[0] = HeaderChecksum(c.params, c.codec, pages, objects, c.tree.origin);
     sums[1] = Checksum(EncodeNodes(c.tree.nodes));
     sums[2] = Checksum(EncodeSplitNodes(c.tree.split_nodes));
     sums[3] = Checksum(EncodeLeaves(c.tree.leaves));
@@ -502,6 +535,7 @@ class Hdf5Writer : public StoreWriter::Impl {
     MKTREE_RETURN_IF_ERROR(WriteAttr(f, "shuffle", H5T_STD_U8LE, H5T_NATIVE_UINT8, shuffle, path_));
     MKTREE_RETURN_IF_ERROR(WriteAttr(f, "page_count", H5T_STD_U64LE, H5T_NATIVE_UINT64, pages, path_));
     MKTREE_RETURN_IF_ERROR(WriteAttr(f, "object_count", H5T_STD_U64LE, H5T_NATIVE_UINT64, objects, path_));
+    MKTREE_RETURN_IF_ERROR(WriteOrigin(f, c.tree.origin, path_));
     for (int i = 0; i < kChecksumCount; ++i)
       MKTREE_RETURN_IF_ERROR(WriteAttr(f, sum_names[i], H5T_STD_U64LE, H5T_NATIVE_UINT64, sums[i], path_));
     // Last: the magic that makes the file a store.
@@ -672,7 +706,9 @@ Result<OpenedStore> OpenHdf5(const std::string& path, const ReadOptions& opts) {
                                            "checksum_leaf_filter"};
   uint64_t sums[kChecksumCount];
   for (int i = 0; i < kChecksumCount; ++i) MKTREE_RETURN_IF_ERROR(ReadAttr(f, sum_names[i], H5T_NATIVE_UINT64, &sums[i], path));
-  if (HeaderChecksum(c.params, c.codec, page_count, object_count) != sums[0]) return bad("header checksum mismatch");
+  MKTREE_RETURN_IF_ERROR(ReadOrigin(f, &c.tree.origin, path));
+  if (HeaderChecksum(c.params, c.codec, page_count, object_count, c.tree.origin) != sums[0])
+    return bad("header checksum mismatch");
   BuildParams check_params;
   CodecOptions check_codec;
   Status st = DecodeParams(EncodeParams(c.params, c.codec), &check_params, &check_codec);

@@ -2,9 +2,11 @@
 
 #include <zstd.h>
 
+#include <cmath>
 #include <cstring>
 #include <limits>
 #include <memory>
+#include <string>
 
 #include "storage/byte_io.h"
 
@@ -48,39 +50,40 @@ void Unshuffle4(const uint8_t* in, size_t n, uint32_t* out) {
              uint32_t{in[3 * n + i]} << 24;
 }
 
-// Transform 1 (see the header): raw geometry -> transformed bytes of the same size.
-void ForwardTransform(const Mesh& m, uint8_t* out) {
-  const size_t vc = m.vertex_count(), nt = m.triangles.size();
+// Transform 1 (see the header): raw geometry (local vertices, triangles) -> transformed bytes of the
+// same size.
+void ForwardTransform(const std::vector<float>& local, const std::vector<uint32_t>& triangles, uint8_t* out) {
+  const size_t vc = local.size() / 3, nt = triangles.size();
   std::vector<uint32_t> w(3 * vc + nt);
   for (int c = 0; c < 3; ++c) {
     uint32_t prev = 0;
     for (size_t i = 0; i < vc; ++i) {
       uint32_t bits;
-      std::memcpy(&bits, &m.vertices[3 * i + c], 4);
+      std::memcpy(&bits, &local[3 * i + c], 4);
       w[c * vc + i] = bits ^ prev;
       prev = bits;
     }
   }
   uint32_t prev = 0;
   for (size_t i = 0; i < nt; ++i) {
-    const int32_t d = static_cast<int32_t>(m.triangles[i] - prev);
+    const int32_t d = static_cast<int32_t>(triangles[i] - prev);
     w[3 * vc + i] = (static_cast<uint32_t>(d) << 1) ^ static_cast<uint32_t>(d >> 31);
-    prev = m.triangles[i];
+    prev = triangles[i];
   }
   Shuffle4(w.data(), 3 * vc, out);
   Shuffle4(w.data() + 3 * vc, nt, out + 12 * vc);
 }
 
-void InverseTransform(const uint8_t* in, size_t vc, size_t nt, Mesh* m) {
+void InverseTransform(const uint8_t* in, size_t vc, size_t nt, std::vector<float>* local, Mesh* m) {
   std::vector<uint32_t> w(3 * vc + nt);
   Unshuffle4(in, 3 * vc, w.data());
   Unshuffle4(in + 12 * vc, nt, w.data() + 3 * vc);
-  m->vertices.resize(3 * vc);
+  local->resize(3 * vc);
   for (int c = 0; c < 3; ++c) {
     uint32_t prev = 0;
     for (size_t i = 0; i < vc; ++i) {
       prev ^= w[c * vc + i];
-      std::memcpy(&m->vertices[3 * i + c], &prev, 4);
+      std::memcpy(&(*local)[3 * i + c], &prev, 4);
     }
   }
   m->triangles.resize(nt);
@@ -93,15 +96,62 @@ void InverseTransform(const uint8_t* in, size_t vc, size_t nt, Mesh* m) {
   }
 }
 
+// Every local coordinate on an axis lies in [2^k, 2^k + extent] with 2^k the power of two just above the
+// box's extent on that axis (2^-100 for a flat axis): one exponent for all, so that float32 holds them as
+// fixed point (the XOR transform then zeroes their high bits as it did for world coordinates; measured in
+// bench/coordinate_bench.cc) and rounding costs at most extent * 2^-22.
+double LocalBase(float lo, float hi) {
+  const double extent = static_cast<double>(hi) - lo;
+  return std::ldexp(1.0, extent > 0 ? std::max(std::ilogb(extent) + 1, -100) : -100);
+}
+
+// The object's AABB in the store frame and its vertices in its local frame (see the header).
+Status LocalFrame(const SceneObject& obj, const Vec3d& origin, std::vector<float>* local, Box3f* box) {
+  const Mesh& m = obj.mesh;
+  auto fail = [&](const std::string& what) {
+    return Status::InvalidArgument("object " + std::to_string(obj.id) + " ('" + obj.name + "'): " + what);
+  };
+  if (m.vertices.empty()) return fail("no vertices");
+  const size_t n = m.vertices.size();
+  Box3d b;  // store frame
+  for (size_t i = 0; i < n; i += 3) {
+    for (int c = 0; c < 3; ++c)
+      if (!std::isfinite(m.vertices[i + c])) return fail("non-finite coordinate");
+    b.Extend(m.vertices[i] - origin.x, m.vertices[i + 1] - origin.y, m.vertices[i + 2] - origin.z);
+  }
+  // Within 2^125 of the origin, so that 2^k + extent stays a finite float32.
+  for (int c = 0; c < 3; ++c)
+    if (!(std::fabs(b.min[c]) < 0x1p125 && std::fabs(b.max[c]) < 0x1p125))
+      return fail("coordinates beyond float32's range from the store's origin");
+  *box = RoundOutward(b);
+  double base[3], extent[3];
+  for (int c = 0; c < 3; ++c) {
+    base[c] = LocalBase(box->min[c], box->max[c]);
+    extent[c] = static_cast<double>(box->max[c]) - box->min[c];
+  }
+  local->resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    const int c = static_cast<int>(i % 3);
+    float l = static_cast<float>(((m.vertices[i] - origin[c]) - box->min[c]) + base[c]);
+    if (static_cast<double>(l) - base[c] > extent[c]) l = std::nextafter(l, 0.0f);  // stay in the box
+    (*local)[i] = l;
+  }
+  return Status::Ok();
+}
+
 }  // namespace
 
-uint32_t EncodeObjectEntry(const SceneObject& obj, const CodecOptions& opts, std::vector<uint8_t>* out,
-                           uint8_t shape_flags) {
+Result<uint32_t> EncodeObjectEntry(const SceneObject& obj, const Vec3d& origin, const CodecOptions& opts,
+                                   std::vector<uint8_t>* out, uint8_t shape_flags, Box3f* box_out) {
   const Mesh& m = obj.mesh;
   const uint64_t raw64 = 4 * uint64_t{m.vertices.size()} + 4 * uint64_t{m.triangles.size()};
   if (raw64 + kObjectEntryHeaderBytes > std::numeric_limits<uint32_t>::max() || m.vertices.size() % 3 != 0 ||
       m.triangles.size() % 3 != 0)
-    return 0;
+    return Status::InvalidArgument("object " + std::to_string(obj.id) + " ('" + obj.name +
+                                   "'): geometry cannot be encoded (larger than 4 GiB or malformed)");
+  std::vector<float> local;
+  Box3f box;
+  MKTREE_RETURN_IF_ERROR(LocalFrame(obj, origin, &local, &box));
   const uint32_t raw = static_cast<uint32_t>(raw64);
   const size_t start = out->size();
 
@@ -112,10 +162,11 @@ uint32_t EncodeObjectEntry(const SceneObject& obj, const CodecOptions& opts, std
   if (opts.codec == Codec::kZstd && raw > 0) {
     packed.resize(raw);
     if (opts.shuffle) {
-      ForwardTransform(m, packed.data());
+      ForwardTransform(local, m.triangles, packed.data());
     } else {
-      std::memcpy(packed.data(), m.vertices.data(), 4 * m.vertices.size());
-      std::memcpy(packed.data() + 4 * m.vertices.size(), m.triangles.data(), 4 * m.triangles.size());
+      std::memcpy(packed.data(), local.data(), 4 * local.size());
+      if (!m.triangles.empty())
+        std::memcpy(packed.data() + 4 * local.size(), m.triangles.data(), 4 * m.triangles.size());
     }
     compressed.resize(ZSTD_compressBound(raw));
     ZSTD_CCtx* cctx = ThreadCCtx();
@@ -133,7 +184,6 @@ uint32_t EncodeObjectEntry(const SceneObject& obj, const CodecOptions& opts, std
   const uint32_t stored = codec == Codec::kZstd ? static_cast<uint32_t>(compressed.size()) : raw;
   out->resize(start + kObjectEntryHeaderBytes + stored);
   uint8_t* p = out->data() + start;
-  const Box3f box = obj.Aabb();
   Put<uint32_t>(p + 0, obj.id);
   for (int i = 0; i < 3; ++i) {
     Put<float>(p + 4 + 4 * i, box.min[i]);
@@ -150,11 +200,18 @@ uint32_t EncodeObjectEntry(const SceneObject& obj, const CodecOptions& opts, std
   uint8_t* g = p + kObjectEntryHeaderBytes;
   if (codec == Codec::kZstd) {
     std::memcpy(g, compressed.data(), stored);
-  } else if (raw > 0) {
-    std::memcpy(g, m.vertices.data(), 4 * m.vertices.size());
-    std::memcpy(g + 4 * m.vertices.size(), m.triangles.data(), 4 * m.triangles.size());
+  } else {
+    std::memcpy(g, local.data(), 4 * local.size());
+    if (!m.triangles.empty()) std::memcpy(g + 4 * local.size(), m.triangles.data(), 4 * m.triangles.size());
   }
+  if (box_out != nullptr) *box_out = box;
   return kObjectEntryHeaderBytes + stored;
+}
+
+uint32_t EncodeObjectEntry(const SceneObject& obj, const CodecOptions& opts, std::vector<uint8_t>* out,
+                           uint8_t shape_flags) {
+  auto n = EncodeObjectEntry(obj, Vec3d{}, opts, out, shape_flags);
+  return n.ok() ? *n : 0;
 }
 
 Result<ObjectEntryView> ParseObjectEntry(const uint8_t* data, size_t n) {
@@ -202,12 +259,13 @@ Status DecodeObjectMesh(const ObjectEntryView& e, Mesh* mesh) {
     return Status::Corruption("object " + std::to_string(e.id) + ": " + what);
   };
   const size_t vc = e.vertex_count, nt = 3 * size_t{e.triangle_count};
+  thread_local std::vector<float> local;
   if (e.codec == Codec::kNone) {
     if (e.geometry.size() != e.raw_bytes) return fail("geometry size mismatch");
-    mesh->vertices.resize(3 * vc);
+    local.resize(3 * vc);
     mesh->triangles.resize(nt);
-    std::memcpy(mesh->vertices.data(), e.geometry.data(), 12 * vc);
-    std::memcpy(mesh->triangles.data(), e.geometry.data() + 12 * vc, 4 * nt);
+    if (vc > 0) std::memcpy(local.data(), e.geometry.data(), 12 * vc);
+    if (nt > 0) std::memcpy(mesh->triangles.data(), e.geometry.data() + 12 * vc, 4 * nt);
   } else {
     thread_local std::vector<uint8_t> buf;
     buf.resize(e.raw_bytes);
@@ -215,16 +273,28 @@ Status DecodeObjectMesh(const ObjectEntryView& e, Mesh* mesh) {
     if (ZSTD_isError(r)) return fail(std::string("zstd: ") + ZSTD_getErrorName(r));
     if (r != e.raw_bytes) return fail("decompressed size mismatch");
     if (e.transform == 1) {
-      InverseTransform(buf.data(), vc, nt, mesh);
+      InverseTransform(buf.data(), vc, nt, &local, mesh);
     } else {
-      mesh->vertices.resize(3 * vc);
+      local.resize(3 * vc);
       mesh->triangles.resize(nt);
-      std::memcpy(mesh->vertices.data(), buf.data(), 12 * vc);
-      std::memcpy(mesh->triangles.data(), buf.data() + 12 * vc, 4 * nt);
+      if (vc > 0) std::memcpy(local.data(), buf.data(), 12 * vc);
+      if (nt > 0) std::memcpy(mesh->triangles.data(), buf.data() + 12 * vc, 4 * nt);
     }
   }
   for (uint32_t t : mesh->triangles)
     if (t >= vc) return fail("triangle index out of range");
+  double base[3], extent[3];
+  for (int c = 0; c < 3; ++c) {
+    base[c] = LocalBase(e.box.min[c], e.box.max[c]);
+    extent[c] = static_cast<double>(e.box.max[c]) - e.box.min[c];
+  }
+  mesh->vertices.resize(3 * vc);
+  for (size_t i = 0; i < 3 * vc; ++i) {
+    const int c = static_cast<int>(i % 3);
+    const double offset = static_cast<double>(local[i]) - base[c];  // exact: one exponent
+    if (!(offset >= 0 && offset <= extent[c])) return fail("a vertex lies outside the object's box");
+    mesh->vertices[i] = e.box.min[c] + offset;
+  }
   return Status::Ok();
 }
 

@@ -2,10 +2,19 @@
 // Every object is encoded alone at ingest, so its entry size (ObjectRecord::encoded_bytes) is exact and a
 // leaf's size is the sum of its entries (storage/leaf_format.h).
 //
+// Coordinates. A store has a frame: store coordinates = world coordinates - the store's origin (a double
+// triple chosen at ingest, kept in the store header). The entry's AABB is in the store frame, float32,
+// rounded outward. The vertices are float32 in the object's local frame: per axis, local = vertex -
+// box.min + 2^k, with 2^k the power of two just above the box's extent (2^-100 when it is 0), so every
+// local coordinate of an axis has the same exponent and the decoder recovers vertex = box.min + (local -
+// 2^k) in double. A vertex so keeps 2^-22 of the object's own size wherever the object lies, and stays in
+// its box. Measured (bench/coordinate_bench.cc): as small as world float32 on the tanker, whose world
+// float32 coordinates move a small object's corners by 82 % of its size at UTM-sized coordinates.
+//
 // Entry layout (little-endian):
 //   offset size field
 //   0      4    object id
-//   4      24   float32 AABB: min x, y, z, max x, y, z (rounded outward, SceneObject::Aabb)
+//   4      24   float32 AABB in the store frame: min x, y, z, max x, y, z (rounded outward)
 //   28     1    codec: 0 none, 1 zstd
 //   29     1    transform: 0 none, 1 shuffle (see below)
 //   30     1    shape flags (ShapeFlags): what ingest learnt of the mesh; 0 = unknown
@@ -15,7 +24,7 @@
 //   40     4    raw geometry bytes = 12 * (vertex count + triangle count)
 //   44     4    stored geometry bytes (what follows the header)
 //   48     ...  geometry
-// Raw geometry: float32 vertices (x, y, z interleaved), then uint32 triangle indices.
+// Raw geometry: float32 local vertices (x, y, z interleaved), then uint32 triangle indices.
 // Transform 1 (lossless, applied before zstd; measured to shrink pipe prisms ~1.4x and boxes ~1.3x
 // further): vertex floats are split into x, y, z planes and each value's bits are XORed with the previous
 // value in its plane (repeated coordinates become zero); triangle indices become zigzag-encoded deltas;
@@ -58,9 +67,13 @@ enum ShapeFlags : uint8_t {
   kShapeClosed = 4,     // every edge used exactly twice, with opposite orientations
 };
 
-// Appends the entry for `obj` (its id, obj.Aabb(), its geometry) to *out; returns the entry size, which
-// is ObjectRecord::encoded_bytes. Objects whose geometry exceeds 4 GiB cannot be encoded (returns 0 and
-// appends nothing; callers treat 0 as an error).
+// Appends the entry for `obj` (world coordinates) in the frame of a store whose origin is `origin` to
+// *out; returns the entry size (ObjectRecord::encoded_bytes) and sets *box to the entry's AABB (store
+// frame). InvalidArgument, naming the object, for an empty mesh, a non-finite coordinate, a coordinate
+// beyond float32's range in the store frame, or geometry over 4 GiB; nothing is appended then.
+Result<uint32_t> EncodeObjectEntry(const SceneObject& obj, const Vec3d& origin, const CodecOptions& opts,
+                                   std::vector<uint8_t>* out, uint8_t shape_flags = 0, Box3f* box = nullptr);
+// The same for a store whose origin is (0, 0, 0); returns 0 (appending nothing) where that fails.
 uint32_t EncodeObjectEntry(const SceneObject& obj, const CodecOptions& opts, std::vector<uint8_t>* out,
                            uint8_t shape_flags = 0);
 
@@ -85,8 +98,9 @@ Result<ObjectEntryView> ParseObjectEntry(const uint8_t* data, size_t n);
 // build and copy per entry).
 Status ParseObjectEntry(const uint8_t* data, size_t n, ObjectEntryView* out);
 
-// Decompresses and un-transforms an entry's geometry into *mesh. Corruption on bad data (zstd failure,
-// size mismatch, a triangle index out of range).
+// Decompresses and un-transforms an entry's geometry into *mesh, in the store frame (box.min + local).
+// Corruption on bad data (zstd failure, size mismatch, a triangle index out of range, a vertex outside the
+// entry's box).
 Status DecodeObjectMesh(const ObjectEntryView& e, Mesh* mesh);
 
 }  // namespace mktree

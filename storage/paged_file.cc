@@ -7,11 +7,12 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <boost/interprocess/exceptions.hpp>
 #include <boost/interprocess/file_mapping.hpp>
 #include <boost/interprocess/mapped_region.hpp>
-#include <atomic>
 #include <cerrno>
+#include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <memory>
@@ -30,14 +31,17 @@ using storage_internal::PwriteFull;
 
 namespace {
 
-constexpr uint32_t kPagedFileVersion = 2;  // 2: the leaf filter holds 10-bit levels in 8 bytes an object
+// 2: the leaf filter holds 10-bit levels in 8 bytes an object; 3: the store frame (an origin in the header,
+// boxes relative to it, vertices in each object's local frame).
+constexpr uint32_t kPagedFileVersion = 3;
 constexpr uint32_t kFixedHeaderBytes = 512;  // the smallest page the builder accepts
 constexpr uint32_t kParamsOffset = 16;
 constexpr uint32_t kSectionCount = 8;
 constexpr uint32_t kSectionTableOffset = 80;
 constexpr uint32_t kHeaderChecksumOffset = kSectionTableOffset + kSectionCount * 24;  // 272
+constexpr uint32_t kOriginOffset = kHeaderChecksumOffset + 8;                         // 280: 3 x f64
 constexpr size_t kDirectAlign = 4096;
-static_assert(kHeaderChecksumOffset + 8 <= kFixedHeaderBytes);
+static_assert(kOriginOffset + 24 <= kFixedHeaderBytes);
 static_assert(kParamsOffset + kParamsRecordBytes <= 48);
 
 const char* const kSectionNames[kSectionCount] = {"nodes",           "split nodes",  "leaves",    "object leaves",
@@ -182,6 +186,7 @@ class PagedFileWriter : public StoreWriter::Impl {
     Put<uint64_t>(h + 48, store_.page_count());
     Put<uint64_t>(h + 56, c.objects.size());
     Put<uint32_t>(h + 72, kSectionCount);
+    for (int i = 0; i < 3; ++i) Put<double>(h + kOriginOffset + 8 * i, c.tree.origin[i]);
 
     uint64_t offset = (1 + store_.page_count()) * mem_page;
     for (uint32_t i = 0; i < kSectionCount; ++i) {
@@ -279,6 +284,10 @@ Result<OpenedStore> OpenPagedFile(const std::string& path, const ReadOptions& op
 
   StoreContents& c = out.contents;
   c.tree.params = c.params;
+  for (int i = 0; i < 3; ++i) {
+    c.tree.origin[i] = Get<double>(h + kOriginOffset + 8 * i);
+    if (!std::isfinite(c.tree.origin[i])) return bad("header: origin is not finite");
+  }
   if (!(st = DecodeNodes(sections[0], &c.tree.nodes)).ok() ||
       !(st = DecodeSplitNodes(sections[1], &c.tree.split_nodes)).ok() ||
       !(st = DecodeLeaves(sections[2], &c.tree.leaves)).ok() ||

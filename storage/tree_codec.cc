@@ -250,9 +250,11 @@ Status ValidateStructure(const MKTree& tree, const ObjectTable& objects, uint64_
 }
 
 bool SameTree(const MKTree& a, const MKTree& b) {
-  return EncodeNodes(a.nodes) == EncodeNodes(b.nodes) && EncodeSplitNodes(a.split_nodes) == EncodeSplitNodes(b.split_nodes) &&
+  return EncodeNodes(a.nodes) == EncodeNodes(b.nodes) &&
+         EncodeSplitNodes(a.split_nodes) == EncodeSplitNodes(b.split_nodes) &&
          EncodeLeaves(a.leaves) == EncodeLeaves(b.leaves) && a.leaf_filter == b.leaf_filter &&
-         EncodeParams(a.params, {}) == EncodeParams(b.params, {});
+         EncodeParams(a.params, {}) == EncodeParams(b.params, {}) && a.origin.x == b.origin.x &&
+         a.origin.y == b.origin.y && a.origin.z == b.origin.z;
 }
 
 }  // namespace mktree

@@ -86,12 +86,16 @@ int RunBuild(const BuildArgs& a) {
   progress.Done();
   if (!report.ok()) return Fail(report.status().message());
   const IngestReport& r = *report;
+  for (const std::string& w : r.warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
   if (!a.quiet) {
     std::printf("built %s: %llu objects, %llu triangles, %llu leaves, %llu pages of %llu B, height %u\n",
                 a.output.c_str(), static_cast<unsigned long long>(r.objects),
                 static_cast<unsigned long long>(r.triangles),
                 static_cast<unsigned long long>(r.tree_stats.leaves), static_cast<unsigned long long>(r.pages),
                 static_cast<unsigned long long>(opts.store.params.mem_page()), r.tree_stats.height);
+    if (r.origin.x != 0 || r.origin.y != 0 || r.origin.z != 0)
+      std::printf("store frame: origin (%.17g, %.17g, %.17g); boxes are kept relative to it\n", r.origin.x,
+                  r.origin.y, r.origin.z);
     std::printf("store %s (raw geometry %s, encoded %s, ratio %.2f), page fill %.1f%%\n",
                 HumanBytes(r.store_bytes).c_str(), HumanBytes(r.raw_geometry_bytes).c_str(),
                 HumanBytes(r.encoded_bytes).c_str(),

@@ -1,7 +1,7 @@
 // ObjWriter: streams scene objects into a Wavefront OBJ file.
 //
 // Output: a comment header, then per object `o NAME`, its `v x y z` lines and its `f a b c` lines.
-// Coordinates are float32 printed with std::to_chars (shortest text that reads back to the same float).
+// Coordinates are printed with std::to_chars (the shortest text that reads back to the same double).
 //
 // Face indices are negative (relative): -1 is the object's last vertex, -vertex_count its first. Why:
 //   - an object's text does not depend on how many vertices came before it, so objects can be formatted

@@ -53,14 +53,14 @@ void CosSin(double theta, double* c, double* s) {
   *s = theta * sn;
 }
 
-// Rounded to 0.1 mm: exact in float at hull scale to well under the rounding, and short in text.
+// Rounded to 0.1 mm: short in text, which reads back to the same doubles.
 double Quantize(double v) { return std::nearbyint(v * 1e4) / 1e4; }
 
 // ---- Closed meshes -------------------------------------------------------------------------------------
 void AddVertex(Mesh* m, const double p[3]) {
-  m->vertices.push_back(static_cast<float>(Quantize(p[0])));
-  m->vertices.push_back(static_cast<float>(Quantize(p[1])));
-  m->vertices.push_back(static_cast<float>(Quantize(p[2])));
+  m->vertices.push_back(Quantize(p[0]));
+  m->vertices.push_back(Quantize(p[1]));
+  m->vertices.push_back(Quantize(p[2]));
 }
 
 void AddTriangle(Mesh* m, uint32_t a, uint32_t b, uint32_t c) {

@@ -1,9 +1,8 @@
 // Exact orientation predicates (Shewchuk style): a floating-point filter decides the sign when the
 // rounded determinant is clearly away from zero; otherwise the determinant is recomputed exactly with
-// floating-point expansions. Inputs are arbitrary doubles (mesh vertices are float32, so they are exact
-// doubles; query points are doubles). The sign returned is the sign of the exact determinant of the
-// inputs as given, barring overflow and underflow (coordinates beyond ~1e150 or below ~1e-150 in
-// magnitude, which no scene uses).
+// floating-point expansions. Inputs are arbitrary doubles (mesh vertices and query points). The sign
+// returned is the sign of the exact determinant of the inputs as given, barring overflow and underflow
+// (coordinates beyond ~1e150 or below ~1e-150 in magnitude, which no scene uses).
 //
 // Thread-safety: pure functions.
 #pragma once

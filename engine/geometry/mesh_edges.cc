@@ -29,10 +29,10 @@ struct Scratch {
 constexpr size_t kHashedEdgeUses = size_t{1} << 16;
 
 // Bits of a coordinate such that equal values give equal bits (-0 and +0 are one position).
-uint32_t PositionBits(float f) {
-  if (f == 0.0f) return 0;
-  uint32_t b;
-  std::memcpy(&b, &f, 4);
+uint64_t PositionBits(double f) {
+  if (f == 0.0) return 0;
+  uint64_t b;
+  std::memcpy(&b, &f, 8);
   return b;
 }
 
@@ -47,20 +47,20 @@ int Log2(size_t pow2) { return std::countr_zero(pow2); }
 // indexed by position, instead of a sort: O(V), and the first index inserted is the smallest.
 void WeldByPosition(const Mesh& mesh, Scratch* s) {
   const size_t n = mesh.vertex_count();
-  const float* v = mesh.vertices.data();
+  const double* v = mesh.vertices.data();
   s->canon.resize(n);
   const size_t cap = std::bit_ceil(2 * n + 16);
   s->slots.assign(cap, 0);
   const size_t mask = cap - 1;
   const int bits = Log2(cap);
   for (size_t i = 0; i < n; ++i) {
-    const float* p = v + 3 * i;
+    const double* p = v + 3 * i;
     if (std::isnan(p[0]) || std::isnan(p[1]) || std::isnan(p[2])) {
       s->canon[i] = static_cast<uint32_t>(i);
       continue;
     }
-    const uint32_t x = PositionBits(p[0]), y = PositionBits(p[1]), z = PositionBits(p[2]);
-    size_t h = HashTop((uint64_t{x} << 32 | y) ^ (uint64_t{z} * 0xC2B2AE3D27D4EB4FULL), bits);
+    const uint64_t x = PositionBits(p[0]), y = PositionBits(p[1]), z = PositionBits(p[2]);
+    size_t h = HashTop(x ^ std::rotl(y, 21) ^ (z * 0xC2B2AE3D27D4EB4FULL), bits);
     for (;; h = (h + 1) & mask) {
       const uint32_t slot = s->slots[h];
       if (slot == 0) {
@@ -68,7 +68,7 @@ void WeldByPosition(const Mesh& mesh, Scratch* s) {
         s->canon[i] = static_cast<uint32_t>(i);
         break;
       }
-      const float* q = v + 3 * (slot - 1);
+      const double* q = v + 3 * (slot - 1);
       if (PositionBits(q[0]) == x && PositionBits(q[1]) == y && PositionBits(q[2]) == z) {
         s->canon[i] = slot - 1;
         break;

@@ -18,7 +18,7 @@ inline Vec3d Cross(const Vec3d& a, const Vec3d& b) {
   return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
 }
 inline Vec3d Vertex(const Mesh& m, uint32_t i) {
-  const float* v = &m.vertices[3 * size_t{i}];
+  const double* v = &m.vertices[3 * size_t{i}];
   return {v[0], v[1], v[2]};
 }
 
@@ -44,7 +44,8 @@ enum class RayHit { kMiss, kCross, kSurface };
 
 // One triangle against the +x ray from p: on the surface (within tol), crossed ahead of p, or neither.
 // See the header for the perturbation argument.
-RayHit CastAlongX(const float* A, const float* B, const float* C, const Vec3d& p, double tol, double tol2) {
+RayHit CastAlongX(const double* A, const double* B, const double* C, const Vec3d& p, double tol,
+                  double tol2) {
   const double ymin = std::min({A[1], B[1], C[1]}), ymax = std::max({A[1], B[1], C[1]});
   const double zmin = std::min({A[2], B[2], C[2]}), zmax = std::max({A[2], B[2], C[2]});
   if (p.y < ymin - tol || p.y > ymax + tol || p.z < zmin - tol || p.z > zmax + tol) return RayHit::kMiss;
@@ -57,7 +58,7 @@ RayHit CastAlongX(const float* A, const float* B, const float* C, const Vec3d& p
   if (p.y < ymin || p.y > ymax || p.z < zmin || p.z > zmax || p.x > xmax) return RayHit::kMiss;
   const int s = Orient2dSign(A[1], A[2], B[1], B[2], C[1], C[2]);
   if (s == 0) return RayHit::kMiss;  // parallel to the ray: zero-area projection, never crossed
-  const float* edge[3][2] = {{A, B}, {B, C}, {C, A}};
+  const double* edge[3][2] = {{A, B}, {B, C}, {C, A}};
   for (const auto& [U, V] : edge) {
     int e = Orient2dSign(U[1], U[2], V[1], V[2], p.y, p.z);
     // (y, z) on the edge's line: side of (y + e, z + e^2), i.e. sign of (V - U) x (e, e^2). U != V in
@@ -163,8 +164,8 @@ void SolidClassifier::BuildGrid() {
   cell_start_.assign(static_cast<size_t>(ny_) * nz_ + 1, 0);
   const uint32_t* t = mesh_.triangles.data();
   for (size_t i = 0; i < n; ++i, t += 3) {
-    const float* v[3] = {&mesh_.vertices[3 * size_t{t[0]}], &mesh_.vertices[3 * size_t{t[1]}],
-                         &mesh_.vertices[3 * size_t{t[2]}]};
+    const double* v[3] = {&mesh_.vertices[3 * size_t{t[0]}], &mesh_.vertices[3 * size_t{t[1]}],
+                          &mesh_.vertices[3 * size_t{t[2]}]};
     CellRange& r = ranges[i];
     r.y0 = CellY(std::min({v[0][1], v[1][1], v[2][1]}) - tol_);
     r.y1 = CellY(std::max({v[0][1], v[1][1], v[2][1]}) + tol_);
@@ -191,7 +192,7 @@ bool SolidClassifier::Contains(const Vec3d& p) const {
 
 bool SolidClassifier::ParityContains(const Vec3d& p) const {
   const double tol2 = tol_ * tol_;
-  const float* v = mesh_.vertices.data();
+  const double* v = mesh_.vertices.data();
   const uint32_t* tris = mesh_.triangles.data();
   bool inside = false;
   auto visit = [&](size_t i) {  // false: stop, p is on the surface

@@ -24,9 +24,9 @@
 //
 // Surface contact (both methods): a point within `tolerance()` of a triangle is on the surface and
 //   therefore inside (closed solid). tolerance = 1e-9 x bounding-box diagonal + 4 ulp(largest
-//   coordinate): far below the float32 resolution of the vertices (6e-8 relative), far above double
-//   rounding. Points farther than that from the surface are classified exactly (parity) or by |w| (open
-//   meshes; w is accurate there because each solid angle is computed from vectors of length > tol).
+//   coordinate): far below the float32 resolution of stored vertices (6e-8 of an object's size), far
+//   above double rounding. Points farther than that from the surface are classified exactly (parity) or by
+//   |w| (open meshes; w is accurate there because each solid angle is computed from vectors of length > tol).
 //
 // Boxes: MeetsBox(box) = some triangle meets the closed box (TriangleMeetsBox), or Contains(a corner of
 //   the box). One point suffices: if no triangle meets the box, the box (connected) lies in one

@@ -23,12 +23,6 @@ constexpr uint64_t kBatchRawBytes = 2 << 20;
 // so that a few big objects do not leave every slot holding a big buffer.
 constexpr size_t kKeepMeshBytes = 64 << 10;
 
-bool FiniteBox(const Box3f& b) {
-  for (int i = 0; i < 3; ++i)
-    if (!std::isfinite(b.min[i]) || !std::isfinite(b.max[i])) return false;
-  return !b.empty();
-}
-
 struct Batch {
   std::vector<SceneObject> objects;  // slots reused across batches; objects[0, count) are live
   size_t count = 0;
@@ -41,25 +35,19 @@ struct Batch {
 };
 
 // Encodes objects[0, count) in order, stopping at the first failure.
-void EncodeBatch(const CodecOptions& codec, Batch* b) {
+void EncodeBatch(const EncoderOptions& options, Batch* b) {
   b->entries.clear();
   b->entry_end.clear();
   b->boxes.clear();
   b->error_at = std::numeric_limits<size_t>::max();
   for (size_t i = 0; i < b->count; ++i) {
     const SceneObject& obj = b->objects[i];
-    const Box3f box = obj.Aabb();
-    if (!FiniteBox(box)) {
-      b->error = Status::InvalidArgument("object " + std::to_string(obj.id) + " ('" + obj.name +
-                                         "'): empty or non-finite bounds");
-      b->error_at = i;
-      return;
-    }
     const EdgeCheck edges = CheckEdges(obj.mesh);
     const uint8_t shape = kShapeKnown | (edges.even ? kShapeEvenEdges : 0) | (edges.closed ? kShapeClosed : 0);
-    if (EncodeObjectEntry(obj, codec, &b->entries, shape) == 0) {
-      b->error = Status::InvalidArgument("object " + std::to_string(obj.id) + " ('" + obj.name +
-                                         "'): geometry cannot be encoded (larger than 4 GiB or malformed)");
+    Box3f box;
+    auto encoded = EncodeObjectEntry(obj, options.origin, options.codec, &b->entries, shape, &box);
+    if (!encoded.ok()) {
+      b->error = encoded.status();
       b->error_at = i;
       return;
     }
@@ -72,7 +60,7 @@ void EncodeBatch(const CodecOptions& codec, Batch* b) {
 // batch), so an early return from EncodeObjects leaves no thread behind.
 class WorkerPool {
  public:
-  WorkerPool(const CodecOptions& codec, uint32_t workers) : codec_(codec) {
+  WorkerPool(const EncoderOptions& options, uint32_t workers) : options_(options) {
     for (uint32_t i = 0; i < workers; ++i) threads_.emplace_back([this] { Run(); });
   }
   ~WorkerPool() {
@@ -86,7 +74,7 @@ class WorkerPool {
 
   void Submit(Batch* b) {
     if (threads_.empty()) {  // single-threaded: encode right here
-      EncodeBatch(codec_, b);
+      EncodeBatch(options_, b);
       b->done = true;
       return;
     }
@@ -106,7 +94,7 @@ class WorkerPool {
         Batch* mine = pending_.front();
         pending_.pop_front();
         lock.unlock();
-        EncodeBatch(codec_, mine);
+        EncodeBatch(options_, mine);
         lock.lock();
         mine->done = true;
         continue;
@@ -129,14 +117,14 @@ class WorkerPool {
       Batch* b = pending_.front();
       pending_.pop_front();
       lock.unlock();
-      EncodeBatch(codec_, b);
+      EncodeBatch(options_, b);
       lock.lock();
       b->done = true;
       done_cv_.notify_all();
     }
   }
 
-  const CodecOptions codec_;
+  const EncoderOptions options_;
   std::mutex mu_;
   std::condition_variable work_cv_, done_cv_;
   std::deque<Batch*> pending_;
@@ -155,7 +143,7 @@ Status EncodeObjects(const EncoderOptions& options, const ObjectReader& read, co
   const uint32_t threads = EncoderThreads(options.threads);
   std::vector<std::unique_ptr<Batch>> all;  // declared before the pool: workers may use them until joined
   // The calling thread reads, drains and helps encode, so threads - 1 workers keep every core busy.
-  WorkerPool pool(options.codec, threads - 1);
+  WorkerPool pool(options, threads - 1);
   // Enough batches in flight that no worker waits for the reader, few enough to bound memory.
   const size_t max_in_flight = threads == 1 ? 1 : threads + 2;
   std::vector<Batch*> free_batches;
@@ -171,7 +159,7 @@ Status EncodeObjects(const EncoderOptions& options, const ObjectReader& read, co
       const EncodedObject e{b->boxes[i], std::span<const uint8_t>(b->entries.data() + begin, b->entry_end[i] - begin)};
       MKTREE_RETURN_IF_ERROR(sink(b->objects[i], e));
       Mesh& m = b->objects[i].mesh;
-      if (4 * (m.vertices.capacity() + m.triangles.capacity()) > kKeepMeshBytes) m = Mesh{};
+      if (8 * m.vertices.capacity() + 4 * m.triangles.capacity() > kKeepMeshBytes) m = Mesh{};
     }
     if (b->entries.capacity() > 2 * kBatchRawBytes) b->entries = {};
     b->count = 0;

@@ -19,7 +19,7 @@ namespace mktree {
 
 // What the encoder learnt of one object.
 struct EncodedObject {
-  Box3f box;                       // obj.Aabb(), checked finite and non-empty
+  Box3f box;                       // the entry's AABB, in the store frame
   std::span<const uint8_t> entry;  // the leaf entry; valid only during the sink call
 };
 
@@ -28,6 +28,7 @@ struct EncoderOptions {
   // Threads working on ingest, the calling thread included: 1 encodes on the calling thread (no
   // workers); 0 means one per core.
   uint32_t threads = 0;
+  Vec3d origin;  // the store frame's origin (storage/object_codec.h)
 };
 
 // Fills *obj with the next object; false at the end of the input. Called on the calling thread only.
@@ -37,8 +38,8 @@ using EncodedSink = std::function<Status(const SceneObject& obj, const EncodedOb
 
 // Reads every object, encodes it and passes it to `sink`, in order. Stops at the first error, which is
 // the one a sequential loop would meet first (an object's encoding error before a later read error).
-// Errors: InvalidArgument for an object with empty or non-finite bounds or geometry that cannot be
-// encoded; otherwise what `read` or `sink` returned.
+// Errors: InvalidArgument for an object EncodeObjectEntry refuses (no vertices, non-finite or out-of-range
+// coordinates, geometry over 4 GiB); otherwise what `read` or `sink` returned.
 Status EncodeObjects(const EncoderOptions& options, const ObjectReader& read, const EncodedSink& sink);
 
 // The number of threads EncodeObjects uses for options.threads (0 -> the number of cores).

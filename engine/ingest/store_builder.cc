@@ -2,8 +2,12 @@
 
 #include <sys/stat.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
+#include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <span>
 
 #include "engine/ingest/object_encoder.h"
@@ -31,7 +35,62 @@ std::string SpillDir(const std::string& store_path, const std::string& requested
   return parent.empty() ? std::string(".") : parent.string();
 }
 
+// Boxes rounded by more than this fraction of their object's size draw a warning.
+constexpr double kBoxRoundingWarnFraction = 1.0 / 16;
+
+// Objects whose float32 box in the store frame is coarse against their size: counted, and the worst kept.
+struct CoarseBoxes {
+  uint64_t count = 0;
+  double worst_ratio = 0;
+  ObjectId worst_id = 0;
+  std::string worst_name;
+  double worst_size = 0, worst_rounding = 0;
+
+  void Check(const SceneObject& obj, const Box3f& box) {
+    double size = 0, far = 0;
+    for (int i = 0; i < 3; ++i) {
+      size = std::max(size, static_cast<double>(box.max[i]) - box.min[i]);
+      far = std::max({far, std::fabs(double{box.min[i]}), std::fabs(double{box.max[i]})});
+    }
+    const double rounding = far * 0x1p-23;  // float32's spacing near `far`, within a factor of 2
+    if (rounding <= kBoxRoundingWarnFraction * size) return;
+    ++count;
+    const double ratio = size > 0 ? rounding / size : std::numeric_limits<double>::infinity();
+    if (count == 1 || ratio > worst_ratio) {
+      worst_ratio = ratio;
+      worst_id = obj.id;
+      worst_name = obj.name;
+      worst_size = size;
+      worst_rounding = rounding;
+    }
+  }
+  std::string Warning(const Vec3d& origin) const {
+    std::string name = worst_name.substr(0, 100);
+    for (char& c : name)
+      if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) c = '?';  // one line, whatever the name holds
+    char buf[512];
+    std::snprintf(
+        buf, sizeof buf,
+        "%llu objects lie so far from the store's origin (%.17g, %.17g, %.17g) that their float32 boxes "
+        "are rounded by more than 1/16 of their size (worst: object %u '%.100s', size %.3g, rounding "
+        "%.3g): AABB-mode answers and routing treat them as that much larger; exact answers are not "
+        "affected",
+        static_cast<unsigned long long>(count), origin.x, origin.y, origin.z, worst_id, name.c_str(),
+        worst_size, worst_rounding);
+    return buf;
+  }
+};
+
 }  // namespace
+
+Vec3d ChooseStoreOrigin(const Box3d& first) {
+  Vec3d origin;
+  for (int i = 0; i < 3; ++i) {
+    const double centre = (first.min[i] + first.max[i]) / 2;
+    if (std::isfinite(centre) && std::fabs(centre) >= 0x1p16) origin[i] = std::nearbyint(centre);
+  }
+  return origin;
+}
 
 const char* IngestStageName(IngestStage stage) {
   switch (stage) {
@@ -76,6 +135,7 @@ Result<IngestReport> BuildStore(const std::vector<SceneOpener>& inputs, const st
       auto more = source->Next(obj);
       if (!more.ok()) return more.status();
       if (*more) break;
+      for (std::string& w : source->TakeWarnings()) report.warnings.push_back(std::move(w));
       source.reset();
       ++input;
     }
@@ -86,7 +146,9 @@ Result<IngestReport> BuildStore(const std::vector<SceneOpener>& inputs, const st
     ++next_id;
     return true;
   };
+  CoarseBoxes coarse;
   auto spill = [&](const SceneObject& obj, const EncodedObject& encoded) -> Status {
+    coarse.Check(obj, encoded.box);
     ObjectRecord rec;
     rec.id = obj.id;
     rec.box = encoded.box;
@@ -104,7 +166,24 @@ Result<IngestReport> BuildStore(const std::vector<SceneOpener>& inputs, const st
     if (records.size() % kProgressEvery == 0) progress(IngestStage::kRead, records.size(), 0);
     return Status::Ok();
   };
-  MKTREE_RETURN_IF_ERROR(EncodeObjects({options.store.codec, options.threads}, read, spill));
+  // The store frame, chosen from the first object before any is encoded (entries hold boxes in it).
+  SceneObject first;
+  auto got_first = read(&first);
+  if (!got_first.ok()) return got_first.status();
+  bool first_pending = *got_first;
+  report.origin = first_pending ? ChooseStoreOrigin(first.mesh.Bounds()) : Vec3d{};
+  auto read_all = [&](SceneObject* obj) -> Result<bool> {
+    if (!first_pending) return read(obj);
+    std::swap(*obj, first);
+    first_pending = false;
+    return true;
+  };
+  EncoderOptions encoder;
+  encoder.codec = options.store.codec;
+  encoder.origin = report.origin;
+  encoder.threads = options.threads;
+  MKTREE_RETURN_IF_ERROR(EncodeObjects(encoder, read_all, spill));
+  if (coarse.count > 0) report.warnings.push_back(coarse.Warning(report.origin));
   report.objects = next_id;
   progress(IngestStage::kRead, next_id, next_id);
   if (report.objects == 0) return Status::InvalidArgument("empty scene: no object with geometry in the input");
@@ -142,6 +221,7 @@ Result<IngestReport> BuildStore(const std::vector<SceneOpener>& inputs, const st
   StoreWriter& writer = **writer_or;
   const uint64_t mem_page = options.store.params.mem_page();
   MKTree& tree = result.tree;
+  tree.origin = report.origin;
   const uint32_t leaf_count = static_cast<uint32_t>(tree.leaves.size());
   tree.leaf_filter.resize(uint64_t{kLeafFilterBytesPerObject} * report.objects);
   uint64_t filter_at = 0;

@@ -42,6 +42,8 @@ struct IngestOptions {
 
 struct IngestReport {
   uint64_t objects = 0;
+  Vec3d origin;                       // the store frame's origin (ChooseStoreOrigin)
+  std::vector<std::string> warnings;  // the readers' and the build's, one line each
   uint64_t triangles = 0;
   uint64_t raw_geometry_bytes = 0;   // Mesh::RawGeometryBytes summed
   uint64_t encoded_bytes = 0;        // leaf entry bytes summed (after the codec)
@@ -50,6 +52,13 @@ struct IngestReport {
   double read_seconds = 0, build_seconds = 0, write_seconds = 0, total_seconds = 0;
   TreeStats tree_stats;
 };
+
+// The store frame's origin for a scene whose first object has bounds `first`: per axis 0 while the
+// object's centre lies within 2^16 of 0 (float32's spacing there is at most 2^-7 of a unit, and scenes
+// modelled near 0 keep their coordinates), otherwise the centre rounded to an integer. Boxes are
+// kept in float32 relative to it, so UTM-sized coordinates keep float32's precision of the scene's
+// extent, not of its distance from 0; vertices are in each object's local frame regardless.
+Vec3d ChooseStoreOrigin(const Box3d& first);
 
 // Reads every input in order, builds the MKtree and writes the store at `store_path`.
 // An empty scene (no object with geometry) is an InvalidArgument error; nothing is left behind.

@@ -68,20 +68,26 @@ class StoreDatabase final : public Database {
         options_(options),
         cache_(&reader_->pages(), options.cache_pages) {}
 
-  Status QueryPoint(const Vec3d& p, QueryMode mode, std::vector<ObjectId>* hits,
+  Status QueryPoint(const Vec3d& world, QueryMode mode, std::vector<ObjectId>* hits,
                     QueryStats* stats) const override {
-    if (!Finite(p)) return Status::InvalidArgument("point query with a non-finite coordinate");
+    if (!Finite(world)) return Status::InvalidArgument("point query with a non-finite coordinate");
+    const Vec3d p = ToStoreFrame(world);
     return Answer([&](std::vector<uint32_t>* leaves, QueryStats* s) { reader_->tree().RoutePoint(p, leaves, s); },
                   mode, [&](const ObjectEntryView& e) { return e.box.Contains(p); },
                   [&](const SolidClassifier& solid) { return solid.Contains(p); }, hits, stats);
   }
 
-  Status QueryBox(const Box3d& box, QueryMode mode, std::vector<ObjectId>* hits,
+  Status QueryBox(const Box3d& world, QueryMode mode, std::vector<ObjectId>* hits,
                   QueryStats* stats) const override {
     for (int i = 0; i < 3; ++i) {
-      if (!std::isfinite(box.min[i]) || !std::isfinite(box.max[i]))
+      if (!std::isfinite(world.min[i]) || !std::isfinite(world.max[i]))
         return Status::InvalidArgument("box query with a non-finite coordinate");
-      if (box.min[i] > box.max[i]) return Status::InvalidArgument("box query with min > max");
+      if (world.min[i] > world.max[i]) return Status::InvalidArgument("box query with min > max");
+    }
+    Box3d box;
+    for (int i = 0; i < 3; ++i) {
+      box.min[i] = world.min[i] - reader_->tree().origin[i];
+      box.max[i] = world.max[i] - reader_->tree().origin[i];
     }
     return Answer([&](std::vector<uint32_t>* leaves, QueryStats* s) { reader_->tree().RouteBox(box, leaves, s); },
                   mode, [&](const ObjectEntryView& e) { return e.box.Intersects(box); },
@@ -122,8 +128,15 @@ class StoreDatabase final : public Database {
   void ClearCache() override { cache_.Clear(); }
   uint64_t object_count() const override { return reader_->object_count(); }
   Result<std::string> ObjectName(ObjectId id) const override { return reader_->ObjectName(id); }
-  Box3f bounds() const override {
-    return reader_->tree().empty() ? Box3f{} : reader_->tree().nodes[0].box;
+  Box3d bounds() const override {
+    const MKTree& t = reader_->tree();
+    Box3d b;
+    if (t.empty()) return b;
+    for (int i = 0; i < 3; ++i) {
+      b.min[i] = t.origin[i] + t.nodes[0].box.min[i];
+      b.max[i] = t.origin[i] + t.nodes[0].box.max[i];
+    }
+    return b;
   }
   double objects_per_page() const override {
     const MKTree& t = reader_->tree();
@@ -134,6 +147,13 @@ class StoreDatabase final : public Database {
   const std::string& stats_json() const override { return reader_->stats_json(); }
 
  private:
+  // The store frame (MKTree::origin). Subtraction rounds monotonically, and object boxes were moved into the
+  // frame by the same subtraction at ingest, so a point on a box's face stays on it.
+  Vec3d ToStoreFrame(const Vec3d& p) const {
+    const Vec3d& o = reader_->tree().origin;
+    return {p.x - o.x, p.y - o.y, p.z - o.z};
+  }
+
   // Pins the leaf's pages, verifies and parses them, and tests every object; `test` says whether an
   // object answers: a bool, or a Result<bool> where the test can fail (exact geometry).
   template <typename Test>

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <bit>
 #include <cctype>
+#include <charconv>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -38,6 +39,12 @@ Result<ExportFormat> ExportFormatFor(const std::string& path) {
 
 namespace {
 
+// Shortest text that reads back to the same double.
+std::string Num(double v) {
+  char b[32];
+  return std::string(b, std::to_chars(b, b + sizeof b, v).ptr);
+}
+
 // Where exported objects go: one call per object, then Finish.
 class GeometrySink {
  public:
@@ -55,14 +62,15 @@ Status SpoolError(const std::string& path) {
 // PLY wants after all vertices) go to a scratch file that is appended.
 class PlySink final : public GeometrySink {
  public:
-  static Result<std::unique_ptr<PlySink>> Create(AtomicOutputFile* out, int level) {
+  static Result<std::unique_ptr<PlySink>> Create(AtomicOutputFile* out, int level, const Vec3d& origin) {
     auto faces = OpenSpoolFile(out->path());
     if (!faces.ok()) return faces.status();
     auto sink = std::unique_ptr<PlySink>(new PlySink(out, std::move(*faces)));
     std::string h = "ply\nformat binary_little_endian 1.0\ncomment mktree export: level " +
                     std::to_string(level) +
                     " colouring: blue Sn1 side, red Sn2 side, green overlap set Sm, grey leaf at depth <= " +
-                    std::to_string(level) + "\nelement vertex ";
+                    std::to_string(level) + "\ncomment origin " + Num(origin.x) + " " + Num(origin.y) + " " +
+                    Num(origin.z) + " (world = vertex + origin)\nelement vertex ";
     sink->vertex_count_at_ = h.size();
     h += std::string(kDigits, '0');
     h += "\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\nproperty uchar green\n"
@@ -137,18 +145,12 @@ double SrgbToLinear(uint8_t c) {
   return s <= 0.04045 ? s / 12.92 : std::pow((s + 0.055) / 1.055, 2.4);
 }
 
-std::string Num(double v) {
-  char b[32];
-  std::snprintf(b, sizeof b, "%.9g", v);
-  return b;
-}
-
 // GLB: per group, positions and indices spool to their own scratch files; Finish writes the JSON (which
 // needs every size) and then the binary chunk from the spools.
 class GlbSink final : public GeometrySink {
  public:
-  static Result<std::unique_ptr<GlbSink>> Create(const std::string& path, int level) {
-    auto sink = std::unique_ptr<GlbSink>(new GlbSink(path, level));
+  static Result<std::unique_ptr<GlbSink>> Create(const std::string& path, int level, const Vec3d& origin) {
+    auto sink = std::unique_ptr<GlbSink>(new GlbSink(path, level, origin));
     for (Group& g : sink->groups_) {
       auto p = OpenSpoolFile(path);
       if (!p.ok()) return p.status();
@@ -191,7 +193,8 @@ class GlbSink final : public GeometrySink {
       const std::string name = GroupName(lg), sep = n ? "," : "";
       const std::string s = std::to_string(n);
       scene_nodes += sep + s;
-      nodes += sep + "{\"name\":\"" + name + "\",\"mesh\":" + s + "}";
+      nodes += sep + "{\"name\":\"" + name + "\",\"mesh\":" + s + ",\"translation\":[" + Num(origin_.x) +
+               "," + Num(origin_.y) + "," + Num(origin_.z) + "]}";
       meshes += sep + "{\"name\":\"" + name +
                 "\",\"primitives\":[{\"attributes\":{\"POSITION\":" + std::to_string(2 * n) +
                 "},\"indices\":" + std::to_string(2 * n + 1) + ",\"material\":" + s + ",\"mode\":4}]}";
@@ -253,9 +256,11 @@ class GlbSink final : public GeometrySink {
     float max[3] = {std::numeric_limits<float>::lowest(), std::numeric_limits<float>::lowest(),
                     std::numeric_limits<float>::lowest()};
   };
-  GlbSink(std::string path, int level) : path_(std::move(path)), level_(level) {}
+  GlbSink(std::string path, int level, const Vec3d& origin)
+      : path_(std::move(path)), level_(level), origin_(origin) {}
   std::string path_;
   int level_;
+  Vec3d origin_;
   Group groups_[kLevelGroups];
   std::vector<uint32_t> idx_;
 };
@@ -270,16 +275,17 @@ Result<ExportReport> ExportLevel(const StoreReader& store, const std::string& ou
   if (!out.ok()) return out.status();
   std::unique_ptr<GeometrySink> sink;
   if (options.format == ExportFormat::kPly) {
-    auto s = PlySink::Create(out->get(), options.level);
+    auto s = PlySink::Create(out->get(), options.level, store.tree().origin);
     if (!s.ok()) return s.status();
     sink = std::move(*s);
   } else {
-    auto s = GlbSink::Create(out_path, options.level);
+    auto s = GlbSink::Create(out_path, options.level, store.tree().origin);
     if (!s.ok()) return s.status();
     sink = std::move(*s);
   }
   ExportReport report;
   Mesh mesh;
+  std::vector<float> xyz;  // store frame, float32 as both formats hold positions
   float corners[24];
   Status st = ForEachObjectAtLevel(
       store, options.level,
@@ -297,7 +303,8 @@ Result<ExportReport> ExportLevel(const StoreReader& store, const std::string& ou
                    nt = static_cast<uint32_t>(mesh.triangle_count());
         report.vertices[gi] += nv;
         report.triangles[gi] += nt;
-        return sink->Add(g, mesh.vertices.data(), nv, mesh.triangles.data(), nt);
+        xyz.assign(mesh.vertices.begin(), mesh.vertices.end());
+        return sink->Add(g, xyz.data(), nv, mesh.triangles.data(), nt);
       },
       options.progress);
   if (!st.ok()) return st;

@@ -157,9 +157,9 @@ struct Frame {
   double u0 = 0, v1 = 0, scale = 1, ox = 0, oy = 0;
   double X(double u) const { return ox + (u - u0) * scale; }
   double Y(double v) const { return oy + (v1 - v) * scale; }
-  double U(const float* p) const { return axes.right_sign * p[axes.right]; }
-  double V(const float* p) const { return p[axes.up]; }
-  double D(const float* p) const { return axes.toward_sign * p[axes.toward]; }
+  double U(const double* p) const { return axes.right_sign * p[axes.right]; }
+  double V(const double* p) const { return p[axes.up]; }
+  double D(const double* p) const { return axes.toward_sign * p[axes.toward]; }
   // Projected rectangle of a box, in pixels (x0 <= x1, y0 <= y1).
   void Rect(const Box3f& b, double* x0, double* y0, double* x1, double* y1) const {
     const double ua = axes.right_sign * b.min[axes.right], ub = axes.right_sign * b.max[axes.right];
@@ -523,7 +523,7 @@ Result<RenderReport> RenderLevel(const StoreReader& store, const std::string& pn
         MKTREE_RETURN_IF_ERROR(DecodeObjectMesh(e, &mesh));
         const Rgb base = GroupColour(g);
         for (size_t t = 0; t < mesh.triangle_count(); ++t) {
-          const float* p[3];
+          const double* p[3];
           for (int k = 0; k < 3; ++k) p[k] = &mesh.vertices[3 * size_t{mesh.triangles[3 * t + k]}];
           double e1[3], e2[3];
           for (int k = 0; k < 3; ++k) e1[k] = p[1][k] - p[0][k], e2[k] = p[2][k] - p[0][k];

@@ -4,9 +4,11 @@
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 
+#include <algorithm>
 #include <array>
 #include <assimp/Importer.hpp>
 #include <cmath>
+#include <cstdio>
 #include <exception>
 #include <filesystem>
 #include <limits>
@@ -79,15 +81,61 @@ class AssimpReader final : public SceneSource {
       out->name =
           node->mName.length > 0 ? std::string(node->mName.C_Str()) : "object_" + std::to_string(out->id);
       out->mesh = std::move(mesh);
+      coarse_.Check(*out);
       return true;
     }
     return false;
+  }
+
+  std::vector<std::string> TakeWarnings() override {
+    std::vector<std::string> w;
+    if (coarse_.count > 0) w.push_back(coarse_.Warning(path_));
+    coarse_ = {};
+    return w;
   }
 
  private:
   struct Pending {
     const aiNode* node;
     Transform world;
+  };
+
+  // Objects whose coordinates, as the float32 values assimp holds them in, resolve less than 2^-10 of
+  // their size: the detail was lost in the reader, before mktree's double-precision path.
+  struct CoarseObjects {
+    uint64_t count = 0;
+    double worst_ratio = 0, worst_size = 0, worst_distance = 0;
+    std::string worst_name;
+
+    void Check(const SceneObject& obj) {
+      const Box3d b = obj.mesh.Bounds();
+      double size = 0, distance = 0;
+      for (int i = 0; i < 3; ++i) {
+        size = std::max(size, b.max[i] - b.min[i]);
+        distance = std::max({distance, std::fabs(b.min[i]), std::fabs(b.max[i])});
+      }
+      const double resolution = distance * 0x1p-24;
+      if (resolution <= size * 0x1p-10) return;
+      ++count;
+      const double ratio = size > 0 ? resolution / size : std::numeric_limits<double>::infinity();
+      if (count == 1 || ratio > worst_ratio) {
+        worst_ratio = ratio;
+        worst_size = size;
+        worst_distance = distance;
+        worst_name = obj.name.substr(0, 100);
+        for (char& c : worst_name)
+          if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) c = '?';
+      }
+    }
+    std::string Warning(const std::string& path) const {
+      char buf[256];
+      std::snprintf(buf, sizeof buf, " (worst: '%s', size %.3g at %.3g from 0, float32 resolution %.3g)",
+                    worst_name.c_str(), worst_size, worst_distance, worst_distance * 0x1p-24);
+      return path + ": " + std::to_string(count) +
+             " objects lie too far from 0 for the float32 coordinates assimp reads them in to keep 1/1024 of "
+             "their size" +
+             buf + ": convert the scene to OBJ or .mks to keep double precision";
+    }
   };
 
   // Merges the node's triangle meshes into `out`, keeping only vertices that triangles use.
@@ -113,15 +161,14 @@ class AssimpReader final : public SceneSource {
             const aiVector3D& p = mesh.mVertices[v];
             double w[3];
             world.Apply(p, w);
-            float f3[3] = {static_cast<float>(w[0]), static_cast<float>(w[1]), static_cast<float>(w[2])};
-            if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z) || !std::isfinite(f3[0]) ||
-                !std::isfinite(f3[1]) || !std::isfinite(f3[2])) {
+            if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z) || !std::isfinite(w[0]) ||
+                !std::isfinite(w[1]) || !std::isfinite(w[2])) {
               return Status::Corruption(
                   path_ + ": node '" + node.mName.C_Str() +
                   "': non-finite vertex coordinate (in the file or after its transform)");
             }
             remap_[v] = static_cast<uint32_t>(out->vertex_count());
-            out->vertices.insert(out->vertices.end(), f3, f3 + 3);
+            out->vertices.insert(out->vertices.end(), w, w + 3);
           }
           local_.push_back(remap_[v]);
         }
@@ -143,6 +190,7 @@ class AssimpReader final : public SceneSource {
   std::vector<Pending> stack_;   // nodes still to visit, with their world transforms
   std::vector<uint32_t> remap_;  // scratch: source vertex -> local index
   std::vector<uint32_t> local_;  // scratch: one face's local indices
+  CoarseObjects coarse_;
 };
 
 }  // namespace

@@ -8,7 +8,9 @@
 //     AC3D per back-face-culling flag, SortByPType per primitive type), so the node, not the mesh, is the
 //     object the file's author made. A mesh referenced by several nodes gives one object per node.
 //   - The world transform (the product of the node's and its ancestors' transforms, in double precision)
-//     is applied to the vertices, which are then stored as float32.
+//     is applied to the vertices. Debian's assimp holds coordinates and transforms in float32, so objects
+//     far from 0 for their size (UTM-sized coordinates) have lost detail before mktree sees them: such
+//     objects are counted and reported as a warning (SceneSource::TakeWarnings) naming the worst.
 //   - Line and point primitives (e.g. AC3D SURF type 1/2 line surfaces) are dropped; a node left without
 //     triangles gives no object and consumes no id. Polygons are triangulated by assimp (ear clipping,
 //     which omits zero-area ears, so a polygon with collinear vertices may give fewer than n - 2 triangles).

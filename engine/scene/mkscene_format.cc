@@ -14,7 +14,8 @@ namespace mktree {
 namespace {
 
 constexpr char kMagic[8] = {'M', 'K', 'S', 'C', 'E', 'N', 'E', '\0'};
-constexpr uint32_t kVersion = 1;
+// 1: float32 vertices (still read); 2: float64 vertices, so scenes keep their input's precision.
+constexpr uint32_t kVersion = 2;
 constexpr uint32_t kObjectTag = 0x424f4b4d;  // "MKOB" in file order
 constexpr uint32_t kEndTag = 0x4e454b4d;     // "MKEN" in file order
 constexpr size_t kHeaderBytes = 16;
@@ -44,18 +45,17 @@ void Append(std::vector<uint8_t>* out, T v) {
   std::memcpy(out->data() + at, &v, sizeof(T));
 }
 
-// Appends an array of 4-byte values; one memcpy on little-endian hosts.
+// Appends an array of fixed-width values; one memcpy on little-endian hosts.
 template <typename T>
 void AppendArray(std::vector<uint8_t>* out, const std::vector<T>& values) {
-  static_assert(sizeof(T) == 4);
   const size_t at = out->size();
-  out->resize(at + 4 * values.size());
+  out->resize(at + sizeof(T) * values.size());
   if constexpr (std::endian::native == std::endian::little) {
-    if (!values.empty()) std::memcpy(out->data() + at, values.data(), 4 * values.size());
+    if (!values.empty()) std::memcpy(out->data() + at, values.data(), sizeof(T) * values.size());
   } else {
     for (size_t i = 0; i < values.size(); ++i) {
       const T v = ToLittle(values[i]);
-      std::memcpy(out->data() + at + 4 * i, &v, 4);
+      std::memcpy(out->data() + at + sizeof(T) * i, &v, sizeof(T));
     }
   }
 }
@@ -71,19 +71,20 @@ template <typename T>
 void LoadArray(const uint8_t* p, size_t count, std::vector<T>* out) {
   out->resize(count);
   if constexpr (std::endian::native == std::endian::little) {
-    if (count) std::memcpy(out->data(), p, 4 * count);
+    if (count) std::memcpy(out->data(), p, sizeof(T) * count);
   } else {
-    for (size_t i = 0; i < count; ++i) (*out)[i] = Load<T>(p + 4 * i);
+    for (size_t i = 0; i < count; ++i) (*out)[i] = Load<T>(p + sizeof(T) * i);
   }
 }
 
 class MkSceneSource final : public SceneSource {
  public:
-  MkSceneSource(std::string path, std::FILE* file, uint64_t file_size, ObjectId first_id)
+  MkSceneSource(std::string path, std::FILE* file, uint64_t file_size, ObjectId first_id, uint32_t version)
       : path_(std::move(path)),
         file_(file),
         file_size_(file_size),
         first_id_(first_id),
+        coordinate_bytes_(version == 1 ? 4 : 8),
         offset_(kHeaderBytes) {}
   ~MkSceneSource() override { std::fclose(file_); }
 
@@ -143,7 +144,7 @@ class MkSceneSource final : public SceneSource {
     MKTREE_RETURN_IF_ERROR(Read(uint64_t{name_bytes} + 8));
     const uint8_t* counts = record_.data() + 8 + name_bytes;
     const uint64_t nv = Load<uint32_t>(counts), nt = Load<uint32_t>(counts + 4);
-    const uint64_t payload = 12 * nv + 12 * nt + 8;
+    const uint64_t payload = 3 * coordinate_bytes_ * nv + 12 * nt + 8;
     if (payload > file_size_ - offset_ - record_.size())
       return Corrupt("truncated: " + std::to_string(nv) + " vertices and " + std::to_string(nt) +
                      " triangles need " + std::to_string(payload) + " bytes, file has " +
@@ -156,9 +157,14 @@ class MkSceneSource final : public SceneSource {
     const uint8_t* p = record_.data() + 8;
     out->name.assign(reinterpret_cast<const char*>(p), name_bytes);
     p += name_bytes + 8;
-    LoadArray(p, 3 * nv, &out->mesh.vertices);
-    LoadArray(p + 12 * nv, 3 * nt, &out->mesh.triangles);
-    for (float v : out->mesh.vertices)
+    if (coordinate_bytes_ == 4) {
+      LoadArray(p, 3 * nv, &floats_);
+      out->mesh.vertices.assign(floats_.begin(), floats_.end());
+    } else {
+      LoadArray(p, 3 * nv, &out->mesh.vertices);
+    }
+    LoadArray(p + 3 * coordinate_bytes_ * nv, 3 * nt, &out->mesh.triangles);
+    for (double v : out->mesh.vertices)
       if (!std::isfinite(v)) return Corrupt("non-finite vertex coordinate");
     for (uint32_t t : out->mesh.triangles)
       if (t >= nv) return Corrupt("triangle index " + std::to_string(t) + " out of range");
@@ -172,11 +178,13 @@ class MkSceneSource final : public SceneSource {
   std::FILE* const file_;
   const uint64_t file_size_;
   const ObjectId first_id_;
+  const uint64_t coordinate_bytes_;  // 4 (version 1) or 8
   uint64_t offset_;       // file offset of the current record
   uint64_t objects_ = 0;  // records read so far
   bool done_ = false;
   bool failed_ = false;
   std::vector<uint8_t> record_;
+  std::vector<float> floats_;  // version 1 coordinates
 };
 
 }  // namespace
@@ -201,16 +209,16 @@ Result<std::unique_ptr<SceneSource>> OpenMkSceneFile(const std::string& path, Ob
                              " bytes)");
   } else if (std::memcmp(header, kMagic, sizeof(kMagic)) != 0) {
     bad = Status::Corruption(path + ": not an .mks scene: bad magic");
-  } else if (const uint32_t version = Load<uint32_t>(header + 8); version != kVersion) {
-    bad = Status::Unsupported(path + ": .mks version " + std::to_string(version) + " (this build reads " +
-                              std::to_string(kVersion) + ")");
+  } else if (const uint32_t version = Load<uint32_t>(header + 8); version != 1 && version != kVersion) {
+    bad = Status::Unsupported(path + ": .mks version " + std::to_string(version) +
+                              " (this build reads 1 and " + std::to_string(kVersion) + ")");
   }
   if (!bad.ok()) {
     std::fclose(f);
     return bad;
   }
-  return std::unique_ptr<SceneSource>(
-      std::make_unique<MkSceneSource>(path, f, static_cast<uint64_t>(st.st_size), first_id));
+  return std::unique_ptr<SceneSource>(std::make_unique<MkSceneSource>(
+      path, f, static_cast<uint64_t>(st.st_size), first_id, Load<uint32_t>(header + 8)));
 }
 
 MkSceneWriter::MkSceneWriter(std::string path, std::string temp_path, std::FILE* file)

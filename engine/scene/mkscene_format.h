@@ -2,22 +2,24 @@
 // large for OBJ.
 //
 // Why a binary format: OBJ face indices are global to the file, so a streaming OBJ reader must keep every
-// vertex it has read (12 bytes per vertex: gigabytes at 10 M objects) to resolve the indices of later faces;
-// and it spends most of its time parsing decimal text. An .mks object record is self-contained (its
-// triangles index its own vertices), so the reader keeps exactly one object in memory, copies float32 and
-// uint32 arrays without parsing, and verifies each record with a checksum, so a damaged file is refused
-// with the object and byte offset that is wrong instead of producing a silently wrong scene.
+// vertex it has read (gigabytes at 10 M objects) to resolve the indices of later faces; and it spends most
+// of its time parsing decimal text. An .mks object record is self-contained (its triangles index its own
+// vertices), so the reader keeps exactly one object in memory, copies float64 and uint32 arrays without
+// parsing, and verifies each record with a checksum, so a damaged file is refused with the object and byte
+// offset that is wrong instead of producing a silently wrong scene. Vertices are float64, so coordinates
+// far from 0 (UTM, geocentric) keep their precision.
 //
 // Layout (all integers and floats little-endian):
-//   header   : magic "MKSCENE\0" (8 bytes), u32 version (= 1), u32 flags (= 0)
+//   header   : magic "MKSCENE\0" (8 bytes), u32 version (= 2), u32 flags (= 0)
 //   object   : u32 tag "MKOB", u32 name_bytes, name (UTF-8, no terminator), u32 vertex_count,
-//              u32 triangle_count, f32 vertices[3 * vertex_count], u32 triangles[3 * triangle_count],
+//              u32 triangle_count, f64 vertices[3 * vertex_count], u32 triangles[3 * triangle_count],
 //              u64 XXH3-64 (seed 0) of every preceding byte of this record, from the tag on
 //   ... one record per object, in id order ...
 //   end      : u32 tag "MKEN", u32 reserved (= 0), u64 object_count, u64 XXH3-64 of the 16 bytes before it
 //   Nothing may follow the end record. Triangle indices are < vertex_count; vertices are finite.
 //
 // Ids are not stored: as for every scene file, object k of the file gets id first_id + k.
+// Version 1 files (f32 vertices, otherwise the same) are still read.
 #pragma once
 
 #include <cstdint>

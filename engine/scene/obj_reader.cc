@@ -110,23 +110,24 @@ class VertexIndexMap {
 };
 
 // The global vertex table, in fixed-size blocks: growth never copies the table or needs twice its size,
-// so its footprint stays 12 bytes per vertex (plus at most one partly filled block).
+// so its footprint stays 24 bytes per vertex (plus at most one partly filled block). Doubles, because
+// coordinates far from 0 (UTM, geocentric) lose their detail in float32.
 class VertexTable {
  public:
   size_t size() const { return size_; }
-  void Push(const float xyz[3]) {
+  void Push(const double xyz[3]) {
     if ((size_ & kBlockMask) == 0)
-      blocks_.emplace_back(new float[3 * kBlockVertices]);  // uninitialised: filled by Push
-    std::memcpy(&blocks_.back()[3 * (size_ & kBlockMask)], xyz, 3 * sizeof(float));
+      blocks_.emplace_back(new double[3 * kBlockVertices]);  // uninitialised: filled by Push
+    std::memcpy(&blocks_.back()[3 * (size_ & kBlockMask)], xyz, 3 * sizeof(double));
     ++size_;
   }
-  const float* At(uint32_t v) const { return &blocks_[v >> kBlockShift][3 * (v & kBlockMask)]; }
+  const double* At(uint32_t v) const { return &blocks_[v >> kBlockShift][3 * (v & kBlockMask)]; }
 
  private:
   static constexpr int kBlockShift = 16;
   static constexpr size_t kBlockVertices = size_t{1} << kBlockShift;
   static constexpr size_t kBlockMask = kBlockVertices - 1;
-  std::vector<std::unique_ptr<float[]>> blocks_;
+  std::vector<std::unique_ptr<double[]>> blocks_;
   size_t size_ = 0;
 };
 
@@ -258,29 +259,22 @@ Result<bool> ObjReader::NextRecord(std::string_view* line) {
   }
 }
 
-// Parses one float token. Out-of-float-range values are errors, except underflow, which reads as the
-// nearest float (0 or a subnormal) like any other rounding.
-bool ParseFloat(std::string_view tok, float* out, std::string* why) {
+// Parses one coordinate token as a double. Overflow is an error; underflow reads as the nearest double (0
+// or a subnormal) like any other rounding.
+bool ParseCoordinate(std::string_view tok, double* out, std::string* why) {
   const char* b = tok.data();
   const char* e = tok.data() + tok.size();
   if (b != e && *b == '+') ++b;  // from_chars rejects a leading '+'; OBJ writers sometimes emit it
-  float v = 0;
+  double v = 0;
   auto [p, ec] = std::from_chars(b, e, v);
   if (ec == std::errc::result_out_of_range && p == e) {
-    double d = 0;
-    auto [pd, ecd] = std::from_chars(b, e, d);
-    if (ecd == std::errc() && std::fabs(d) <= std::numeric_limits<float>::max()) {
-      v = static_cast<float>(d);  // underflow: the nearest float, 0 or subnormal
-    } else {
-      size_t exp = tok.find_first_of("eE");
-      bool underflow = ecd == std::errc::result_out_of_range && exp != std::string_view::npos &&
-                       exp + 1 < tok.size() && tok[exp + 1] == '-';
-      if (!underflow) {
-        *why = "coordinate out of float range " + Quote(tok);
-        return false;
-      }
-      v = tok.front() == '-' ? -0.0f : 0.0f;
+    const size_t exp = tok.find_first_of("eE");
+    const bool underflow = exp != std::string_view::npos && exp + 1 < tok.size() && tok[exp + 1] == '-';
+    if (!underflow) {
+      *why = "coordinate out of range " + Quote(tok);
+      return false;
     }
+    v = tok.front() == '-' ? -0.0 : 0.0;
   } else if (ec != std::errc() || p != e) {
     *why = "bad number " + Quote(tok);
     return false;
@@ -294,13 +288,13 @@ bool ParseFloat(std::string_view tok, float* out, std::string* why) {
 }
 
 Status ObjReader::ParseVertex(std::string_view rest) {
-  float xyz[3];
+  double xyz[3];
   int n = 0;
   std::string why;
   for (std::string_view tok = NextToken(&rest); !tok.empty(); tok = NextToken(&rest), ++n) {
-    float v;
+    double v;
     // Values past z (w, or r g b [a] colours) are checked as numbers but not kept.
-    if (!ParseFloat(tok, &v, &why)) return Error("vertex: " + why);
+    if (!ParseCoordinate(tok, &v, &why)) return Error("vertex: " + why);
     if (n < 3) xyz[n] = v;
   }
   if (n < 3) return Error("vertex: too few coordinates (" + std::to_string(n) + ", need x y z)");
@@ -365,7 +359,7 @@ Status ObjReader::ParseFace(std::string_view rest) {
     bool inserted = false;
     uint32_t local = local_of_global_.FindOrInsert(v, static_cast<uint32_t>(mesh_.vertex_count()), &inserted);
     if (inserted) {
-      const float* p = positions_.At(v);
+      const double* p = positions_.At(v);
       mesh_.vertices.insert(mesh_.vertices.end(), p, p + 3);
     }
     face_.push_back(local);

@@ -14,15 +14,17 @@
 //   - Each emitted mesh holds only the vertices its faces use, re-indexed compactly in first-use order.
 //
 // Errors (never a silently wrong scene): every malformed line is an error naming `file:line` and what was
-// wrong: a bad number, too few or too many coordinates, NaN/Inf or out-of-float-range coordinates, an index
+// wrong: a bad number, too few or too many coordinates, NaN/Inf or out-of-range coordinates, an index
 // that is 0 or out of range, a face with fewer than 3 vertices, free-form geometry (`curv`, `surf`, ...,
 // which would otherwise be silently dropped), and any unknown directive. Unknown directives are errors
 // rather than warnings because SceneSource has no warning channel and an unknown keyword means either a
 // non-OBJ file or geometry we would drop; the harmless spec directives are listed above. A last line that
 // fails to parse and lacks its newline is reported as a truncated file.
 //
+// Coordinates are read as doubles (the input's precision, whatever the distance from 0).
+//
 // Memory: OBJ vertex indices are global to the file, so the reader keeps the global vertex table
-// (float32 x, y, z: 12 bytes per `v` line) plus the current object's mesh and its re-indexing map. Nothing
+// (double x, y, z: 24 bytes per `v` line) plus the current object's mesh and its re-indexing map. Nothing
 // else grows with the file: the read buffer is fixed (it grows only to hold the longest line).
 //
 // `g` versus `o` is decided lazily: if an `o` line comes before any `g` line, nothing more is needed. Only

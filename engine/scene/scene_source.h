@@ -4,6 +4,7 @@
 
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "mktree/scene.h"
 #include "mktree/status.h"
@@ -17,6 +18,9 @@ class SceneSource {
   // Errors name the file and line. Object ids are assigned by the source: 0-based, in input order,
   // starting at `first_id` given at construction (so several files continue one numbering).
   virtual Result<bool> Next(SceneObject* out) = 0;
+  // Remarks on input that was read but may not be what the file meant (e.g. coordinates a reader could
+  // keep only at float32 precision), one line each, naming the file. Taken once the stream ends.
+  virtual std::vector<std::string> TakeWarnings() { return {}; }
 };
 
 // Opens `path` by extension: .obj with the streaming OBJ reader; everything else through assimp.

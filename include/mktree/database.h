@@ -24,7 +24,8 @@
 namespace mktree {
 
 enum class QueryMode {
-  kAabb,   // an object answers when its stored (float32, outward-rounded) AABB meets the query
+  kAabb,   // an object answers when its stored AABB (float32 in the store's frame, rounded outward) meets
+           // the query
   kExact,  // an object answers when its closed solid meets the query; see engine/geometry for meshes
            // that are not closed (open surfaces)
 };
@@ -78,8 +79,9 @@ class Database {
 
   virtual uint64_t object_count() const = 0;
   virtual Result<std::string> ObjectName(ObjectId id) const = 0;
-  // Scene bounds (the root's box); empty for an empty store.
-  virtual Box3f bounds() const = 0;
+  // Scene bounds in world coordinates (the root's box, which is rounded outward to float32 in the store's
+  // frame); empty for an empty store.
+  virtual Box3d bounds() const = 0;
   // Mean objects per leaf page (B of the I/O floor ceil(T / B), DESIGN.md §4).
   virtual double objects_per_page() const = 0;
   // The builder's statistics as JSON (what `mktree info --json` prints under "tree").

@@ -64,17 +64,25 @@ struct Box3f {
   bool operator==(const Box3f&) const = default;
 };
 
+// The largest float32 <= x and the smallest float32 >= x (x finite and within float32's range).
+inline float RoundDownToFloat(double x) {
+  float f = static_cast<float>(x);
+  if (static_cast<double>(f) > x) f = std::nextafter(f, -std::numeric_limits<float>::infinity());
+  return f;
+}
+inline float RoundUpToFloat(double x) {
+  float f = static_cast<float>(x);
+  if (static_cast<double>(f) < x) f = std::nextafter(f, std::numeric_limits<float>::infinity());
+  return f;
+}
+
 // The float32 box that contains `b`: each bound is rounded outward (down for min, up for max), so that
 // every point of the double-precision box lies inside the stored box.
 inline Box3f RoundOutward(const Box3d& b) {
   Box3f r;
   for (int i = 0; i < 3; ++i) {
-    float lo = static_cast<float>(b.min[i]);
-    if (static_cast<double>(lo) > b.min[i]) lo = std::nextafter(lo, -std::numeric_limits<float>::infinity());
-    float hi = static_cast<float>(b.max[i]);
-    if (static_cast<double>(hi) < b.max[i]) hi = std::nextafter(hi, std::numeric_limits<float>::infinity());
-    r.min[i] = lo;
-    r.max[i] = hi;
+    r.min[i] = RoundDownToFloat(b.min[i]);
+    r.max[i] = RoundUpToFloat(b.max[i]);
   }
   return r;
 }

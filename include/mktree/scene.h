@@ -11,15 +11,18 @@ namespace mktree {
 
 using ObjectId = uint32_t;
 
-// Triangle mesh: float32 vertices (x, y, z interleaved), uint32 triangles (three vertex indices each).
+// Triangle mesh: double-precision vertices (x, y, z interleaved), uint32 triangles (three vertex indices
+// each). Readers give world coordinates at the precision of their input; a mesh decoded from a store is in
+// the store's frame (world minus the store's origin, see storage/object_codec.h).
 struct Mesh {
-  std::vector<float> vertices;       // 3 * vertex_count()
+  std::vector<double> vertices;      // 3 * vertex_count()
   std::vector<uint32_t> triangles;   // 3 * triangle_count()
   size_t vertex_count() const { return vertices.size() / 3; }
   size_t triangle_count() const { return triangles.size() / 3; }
   // Bounds of the vertices, computed in double precision. Empty box for an empty mesh.
   Box3d Bounds() const;
-  // Bytes of the raw (uncompressed) geometry encoding: the two counts, vertices and triangles.
+  // Bytes of the raw (uncompressed) geometry encoding in a leaf entry: the two counts, float32 vertices
+  // (in the object's local frame) and triangles.
   uint64_t RawGeometryBytes() const { return 8 + 4 * vertices.size() + 4 * triangles.size(); }
 };
 
@@ -27,7 +30,7 @@ struct SceneObject {
   ObjectId id = 0;
   std::string name;
   Mesh mesh;
-  // The stored AABB: Bounds() rounded outward to float32.
+  // Bounds() rounded outward to float32, in world coordinates (a store keeps boxes in its own frame).
   Box3f Aabb() const { return RoundOutward(mesh.Bounds()); }
 };
 

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 #include <unistd.h>
+#include <xxhash.h>
 
 #include <cstring>
 #include <filesystem>
@@ -118,6 +119,64 @@ TEST_F(MkSceneFormatTest, EmptySceneAndUnusualObjects) {
   EXPECT_EQ(n, 0u);
 }
 
+// Scenes far from 0 keep every digit: float64 vertices (format version 2).
+TEST_F(MkSceneFormatTest, UtmCoordinatesRoundTripExactly) {
+  const std::string path = dir_ / "utm.mks";
+  SceneObject o;
+  o.name = "bolt";
+  o.mesh.vertices = {500000.1234, 5000000.0001, 100.001,      500000.1244, 5000000.0001,
+                     100.001,     500000.1234,  5000000.0011, 100.002};
+  o.mesh.triangles = {0, 1, 2};
+  auto writer = MkSceneWriter::Create(path);
+  ASSERT_TRUE(writer.ok());
+  ASSERT_TRUE((*writer)->Write(o).ok());
+  ASSERT_TRUE((*writer)->Finish().ok());
+  auto source = OpenMkSceneFile(path);
+  ASSERT_TRUE(source.ok());
+  SceneObject back;
+  auto more = (*source)->Next(&back);
+  ASSERT_TRUE(more.ok() && *more) << more.status().ToString();
+  EXPECT_EQ(back.mesh.vertices, o.mesh.vertices);
+}
+
+// Files of format version 1 (float32 vertices) written by earlier builds are still read.
+TEST_F(MkSceneFormatTest, Version1FilesAreStillRead) {
+  const std::string path = dir_ / "v1.mks";
+  std::string bytes("MKSCENE\0", 8);
+  auto put32 = [&](uint32_t v) { bytes.append(reinterpret_cast<const char*>(&v), 4); };
+  auto put64 = [&](uint64_t v) { bytes.append(reinterpret_cast<const char*>(&v), 8); };
+  put32(1);
+  put32(0);
+  const size_t record = bytes.size();
+  put32(0x424f4b4d);  // "MKOB"
+  put32(3);
+  bytes += "tri";
+  put32(3);
+  put32(1);
+  for (float v : {0.5f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.25f, 0.f})
+    bytes.append(reinterpret_cast<const char*>(&v), 4);
+  for (uint32_t i : {0u, 1u, 2u}) put32(i);
+  put64(XXH3_64bits(bytes.data() + record, bytes.size() - record));
+  const size_t end = bytes.size();
+  put32(0x4e454b4d);  // "MKEN"
+  put32(0);
+  put64(1);
+  put64(XXH3_64bits(bytes.data() + end, 16));
+  Spit(path, bytes);
+  auto source = OpenMkSceneFile(path, 4);
+  ASSERT_TRUE(source.ok()) << source.status().ToString();
+  SceneObject o;
+  auto more = (*source)->Next(&o);
+  ASSERT_TRUE(more.ok() && *more) << more.status().ToString();
+  EXPECT_EQ(o.id, 4u);
+  EXPECT_EQ(o.name, "tri");
+  EXPECT_EQ(o.mesh.vertices, (std::vector<double>{0.5, 0, 0, 1, 0, 0, 0, 1.25, 0}));
+  EXPECT_EQ(o.mesh.triangles, (std::vector<uint32_t>{0, 1, 2}));
+  more = (*source)->Next(&o);
+  ASSERT_TRUE(more.ok()) << more.status().ToString();
+  EXPECT_FALSE(*more);
+}
+
 TEST_F(MkSceneFormatTest, FlippedByteIsAChecksumErrorNamingTheObject) {
   const std::string path = dir_ / "scene.mks";
   WriteTanker(path, 50);
@@ -129,7 +188,7 @@ TEST_F(MkSceneFormatTest, FlippedByteIsAChecksumErrorNamingTheObject) {
     std::memcpy(&name_bytes, good.data() + offset + 4, 4);
     std::memcpy(&nv, good.data() + offset + 8 + name_bytes, 4);
     std::memcpy(&nt, good.data() + offset + 12 + name_bytes, 4);
-    offset += 16 + name_bytes + 12 * nv + 12 * nt + 8;
+    offset += 16 + name_bytes + 24 * nv + 12 * nt + 8;
   }
   std::string bad = good;
   bad[offset + 40] ^= 0x10;  // inside object 3's name or vertices
@@ -185,7 +244,7 @@ TEST_F(MkSceneFormatTest, BadMagicVersionAndMissingFile) {
   EXPECT_EQ(st.code(), Status::Code::kCorruption);
   EXPECT_NE(st.message().find("bad magic"), std::string::npos) << st.ToString();
   bytes[0] = 'M';
-  bytes[8] = 2;  // version 2
+  bytes[8] = 3;  // version 3
   Spit(path, bytes);
   EXPECT_EQ(ReadAll(path).code(), Status::Code::kUnsupported);
   EXPECT_EQ(ReadAll(dir_ / "missing.mks").code(), Status::Code::kNotFound);

@@ -66,7 +66,7 @@ TEST_F(ObjWriterTest, OutputParsesBackToTheSameScene) {
       for (int d = 0; d < 3; ++d) {
         std::string tok;
         ls >> tok;
-        float v;
+        double v;
         const auto r = std::from_chars(tok.data(), tok.data() + tok.size(), v);
         ASSERT_TRUE(r.ec == std::errc() && r.ptr == tok.data() + tok.size()) << line;
         parsed.back().mesh.vertices.push_back(v);
@@ -91,7 +91,7 @@ TEST_F(ObjWriterTest, OutputParsesBackToTheSameScene) {
   ASSERT_EQ(parsed.size(), objects.size());
   for (size_t i = 0; i < parsed.size(); ++i) {
     EXPECT_EQ(parsed[i].name, objects[i].name);
-    EXPECT_EQ(parsed[i].mesh.vertices, objects[i].mesh.vertices) << i;  // to_chars round-trips floats
+    EXPECT_EQ(parsed[i].mesh.vertices, objects[i].mesh.vertices) << i;  // to_chars round-trips doubles
     EXPECT_EQ(parsed[i].mesh.triangles, objects[i].mesh.triangles) << i;
   }
 }

@@ -28,7 +28,7 @@ inline Result<Mesh> ReadOff(const std::string& path) {
     return Status::Corruption(path + ": bad OFF header");
   Mesh m;
   m.vertices.resize(3 * nv);
-  for (float& x : m.vertices)
+  for (double& x : m.vertices)
     if (!(in >> x)) return Status::Corruption(path + ": truncated vertex list");
   for (size_t f = 0; f < nf; ++f) {
     size_t k = 0;

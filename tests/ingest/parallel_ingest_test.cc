@@ -116,7 +116,7 @@ TEST(ObjectEncoderTest, SinkSeesEveryObjectInOrderWithItsEntry) {
       ++expected;
       return Status::Ok();
     };
-    ASSERT_TRUE(EncodeObjects({CodecOptions{}, threads}, read, sink).ok());
+    ASSERT_TRUE(EncodeObjects({CodecOptions{}, threads, {}}, read, sink).ok());
     EXPECT_EQ(expected, kCount) << threads << " threads";
   }
 }
@@ -135,7 +135,7 @@ TEST(ObjectEncoderTest, FirstErrorInInputOrderWins) {
       ++sunk;
       return Status::Ok();
     };
-    Status st = EncodeObjects({CodecOptions{}, threads}, read, sink);
+    Status st = EncodeObjects({CodecOptions{}, threads, {}}, read, sink);
     EXPECT_EQ(st.code(), Status::Code::kInvalidArgument) << st.ToString();
     EXPECT_NE(st.message().find("object 1500 ('o1500')"), std::string::npos) << st.ToString();
     EXPECT_EQ(sunk, 1500u);
@@ -147,7 +147,7 @@ TEST(ObjectEncoderTest, FirstErrorInInputOrderWins) {
       MakeCube(next++, kNoIndex, obj);
       return true;
     };
-    st = EncodeObjects({CodecOptions{}, threads}, read_ok, sink);
+    st = EncodeObjects({CodecOptions{}, threads, {}}, read_ok, sink);
     EXPECT_EQ(st.code(), Status::Code::kIOError) << st.ToString();
     EXPECT_EQ(sunk, 2600u);
 
@@ -158,7 +158,7 @@ TEST(ObjectEncoderTest, FirstErrorInInputOrderWins) {
       ++sunk;
       return Status::Ok();
     };
-    st = EncodeObjects({CodecOptions{}, threads}, read_ok, failing_sink);
+    st = EncodeObjects({CodecOptions{}, threads, {}}, read_ok, failing_sink);
     EXPECT_EQ(st.message(), "spill full");
     EXPECT_EQ(sunk, 700u);
   }

@@ -12,6 +12,7 @@
 #include "engine/ingest/store_builder.h"
 #include "engine/scene/vector_scene_source.h"
 #include "query/scene_fixtures.h"
+#include "storage/stored_geometry.h"
 
 namespace mktree {
 namespace {
@@ -39,25 +40,45 @@ Status Build(const std::vector<SceneObject>& objs, const std::string& path, cons
   return r.ok() ? Status::Ok() : r.status();
 }
 
-std::vector<ObjectId> BrutePoint(const std::vector<SceneObject>& objs, const Vec3d& p, QueryMode mode) {
-  std::vector<ObjectId> out;
-  for (const SceneObject& o : objs) {
-    if (!o.Aabb().Contains(p)) continue;
-    if (mode == QueryMode::kExact && !PointInSolid(o.mesh, p)) continue;
-    out.push_back(o.id);
-  }
-  return out;
-}
+// Brute force over the geometry the store keeps (tests/storage/stored_geometry.h), in the store frame of
+// the scene (ChooseStoreOrigin of its first object).
+class Brute {
+ public:
+  explicit Brute(const std::vector<SceneObject>& objs)
+      : origin_(ChooseStoreOrigin(objs[0].mesh.Bounds())), stored_(testing::StoredScene(objs, origin_)) {}
 
-std::vector<ObjectId> BruteBox(const std::vector<SceneObject>& objs, const Box3d& b, QueryMode mode) {
-  std::vector<ObjectId> out;
-  for (const SceneObject& o : objs) {
-    if (!o.Aabb().Intersects(b)) continue;
-    if (mode == QueryMode::kExact && !MeshMeetsBox(o.mesh, b)) continue;
-    out.push_back(o.id);
+  std::vector<ObjectId> Point(const Vec3d& world, QueryMode mode) const {
+    const Vec3d p{world.x - origin_.x, world.y - origin_.y, world.z - origin_.z};
+    std::vector<ObjectId> out;
+    for (const testing::StoredObject& o : stored_) {
+      if (!o.box.Contains(p)) continue;
+      if (mode == QueryMode::kExact && !PointInSolid(o.mesh, p)) continue;
+      out.push_back(o.id);
+    }
+    return out;
   }
-  return out;
-}
+  std::vector<ObjectId> Box(const Box3d& world, QueryMode mode) const {
+    Box3d b;
+    for (int a = 0; a < 3; ++a) {
+      b.min[a] = world.min[a] - origin_[a];
+      b.max[a] = world.max[a] - origin_[a];
+    }
+    std::vector<ObjectId> out;
+    for (const testing::StoredObject& o : stored_) {
+      if (!o.box.Intersects(b)) continue;
+      if (mode == QueryMode::kExact && !MeshMeetsBox(o.mesh, b)) continue;
+      out.push_back(o.id);
+    }
+    return out;
+  }
+  std::vector<ObjectId> Answer(const Query& q, QueryMode mode) const {
+    return q.kind == Query::Kind::kPoint ? Point(q.point, mode) : Box(q.box, mode);
+  }
+
+ private:
+  Vec3d origin_;
+  std::vector<testing::StoredObject> stored_;
+};
 
 // Random queries around the scene: points on object corners and inside objects, boxes of mixed sizes.
 std::vector<Query> RandomQueries(const std::vector<SceneObject>& objs, size_t n, uint64_t seed) {
@@ -105,11 +126,11 @@ void CheckStats(const QueryResult& r, bool cold) {
 void CheckAll(const Database& db, const std::vector<SceneObject>& objs, const std::vector<Query>& qs,
               QueryMode mode, bool cold) {
   QueryResult r;
+  const Brute brute(objs);
   for (size_t i = 0; i < qs.size(); ++i) {
     if (cold) const_cast<Database&>(db).ClearCache();
     ASSERT_TRUE(db.Run(qs[i], mode, &r).ok()) << "query " << i;
-    const auto expected = qs[i].kind == Query::Kind::kPoint ? BrutePoint(objs, qs[i].point, mode)
-                                                            : BruteBox(objs, qs[i].box, mode);
+    const auto expected = brute.Answer(qs[i], mode);
     ASSERT_EQ(r.hits, expected) << "query " << i << (qs[i].kind == Query::Kind::kPoint ? " point" : " box");
     CheckStats(r, cold);
   }
@@ -151,11 +172,9 @@ TEST_P(DatabaseTest, BatchFromManyThreadsEqualsSingleQueries) {
   std::vector<QueryResult> results;
   ASSERT_TRUE((*db)->RunBatch(qs, QueryMode::kAabb, 4, &results).ok());
   ASSERT_EQ(results.size(), qs.size());
-  for (size_t i = 0; i < qs.size(); ++i) {
-    const auto expected = qs[i].kind == Query::Kind::kPoint ? BrutePoint(objs, qs[i].point, QueryMode::kAabb)
-                                                            : BruteBox(objs, qs[i].box, QueryMode::kAabb);
-    EXPECT_EQ(results[i].hits, expected) << i;
-  }
+  const Brute brute(objs);
+  for (size_t i = 0; i < qs.size(); ++i)
+    EXPECT_EQ(results[i].hits, brute.Answer(qs[i], QueryMode::kAabb)) << i;
   fs::remove(path);
 }
 
@@ -201,12 +220,13 @@ TEST_P(DatabaseTest, LargeAnswersAndRepeatedQueriesKeepAnswersAndCounts) {
       qs.push_back(Query::Box(b));
     }
   }
+  const Brute brute(objs);
   for (QueryMode mode : {QueryMode::kAabb, QueryMode::kExact}) {
     QueryResult first, again;
     for (const Query& q : qs) {
       (*db)->ClearCache();
       ASSERT_TRUE((*db)->Run(q, mode, &first).ok());
-      ASSERT_EQ(first.hits, BruteBox(objs, q.box, mode));
+      ASSERT_EQ(first.hits, brute.Box(q.box, mode));
       CheckStats(first, /*cold=*/true);
       // Repeated with every page cached: the same answer and work, and every page a hit.
       ASSERT_TRUE((*db)->Run(q, mode, &again).ok());

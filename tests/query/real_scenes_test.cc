@@ -9,6 +9,7 @@
 #include "engine/geometry/exact_geometry.h"
 #include "engine/ingest/store_builder.h"
 #include "mktree/database.h"
+#include "storage/stored_geometry.h"
 
 namespace mktree {
 namespace {
@@ -52,11 +53,17 @@ TEST_P(RealSceneTest, QueriesMatchBruteForce) {
 
   Box3f all;
   for (const SceneObject& o : objs) all.Extend(o.Aabb());
-  // Brute force: one classifier per object, built once (with its grid) for all queries.
+  // Brute force over the geometry the store keeps, in its frame: one classifier per object, built once
+  // (with its grid) for all queries.
+  ASSERT_EQ(report->origin.x, 0);  // these scenes lie near 0: world and store frame agree
+  ASSERT_EQ(report->origin.y, 0);
+  ASSERT_EQ(report->origin.z, 0);
+  const std::vector<testing::StoredObject> stored = testing::StoredScene(objs);
   std::vector<std::unique_ptr<SolidClassifier>> solid;
   SolidClassifierOptions many;
   many.expected_queries = 1000;
-  for (const SceneObject& o : objs) solid.push_back(std::make_unique<SolidClassifier>(o.mesh, many));
+  for (const testing::StoredObject& o : stored)
+    solid.push_back(std::make_unique<SolidClassifier>(o.mesh, many));
   std::mt19937_64 rng(2024);
   std::uniform_real_distribution<double> unit(0, 1);
   const int n = GetParam().exact ? 150 : 300;
@@ -75,14 +82,15 @@ TEST_P(RealSceneTest, QueriesMatchBruteForce) {
       QueryStats stats;
       ASSERT_TRUE((*db)->QueryPoint(p, mode, &hits, &stats).ok());
       expected.clear();
-      for (const SceneObject& o : objs)
-        if (o.Aabb().Contains(p) && (mode == QueryMode::kAabb || solid[o.id]->Contains(p))) expected.push_back(o.id);
+      for (const testing::StoredObject& o : stored)
+        if (o.box.Contains(p) && (mode == QueryMode::kAabb || solid[o.id]->Contains(p)))
+          expected.push_back(o.id);
       ASSERT_EQ(hits, expected) << "point " << i;
       EXPECT_EQ(stats.hits, hits.size());
       ASSERT_TRUE((*db)->QueryBox(box, mode, &hits, &stats).ok());
       expected.clear();
-      for (const SceneObject& o : objs)
-        if (o.Aabb().Intersects(box) && (mode == QueryMode::kAabb || solid[o.id]->MeetsBox(box)))
+      for (const testing::StoredObject& o : stored)
+        if (o.box.Intersects(box) && (mode == QueryMode::kAabb || solid[o.id]->MeetsBox(box)))
           expected.push_back(o.id);
       ASSERT_EQ(hits, expected) << "box " << i;
       EXPECT_EQ(stats.cache_hits + stats.pages_read, stats.pages_touched);

@@ -13,9 +13,9 @@ namespace mktree::testing {
 inline Mesh BoxMesh(const Box3d& b) {
   Mesh m;
   for (int i = 0; i < 8; ++i) {
-    m.vertices.push_back(static_cast<float>((i & 1) ? b.max[0] : b.min[0]));
-    m.vertices.push_back(static_cast<float>((i & 2) ? b.max[1] : b.min[1]));
-    m.vertices.push_back(static_cast<float>((i & 4) ? b.max[2] : b.min[2]));
+    m.vertices.push_back((i & 1) ? b.max[0] : b.min[0]);
+    m.vertices.push_back((i & 2) ? b.max[1] : b.min[1]);
+    m.vertices.push_back((i & 4) ? b.max[2] : b.min[2]);
   }
   // Faces as quads (outward by right-hand rule), split in two triangles each.
   const uint32_t quads[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
@@ -36,7 +36,7 @@ inline Mesh PrismMesh(int axis, double cu, double cv, double r, double lo, doubl
       p[axis] = end ? hi : lo;
       p[u] = cu + r * std::cos(ang);
       p[v] = cv + r * std::sin(ang);
-      for (double x : p) m.vertices.push_back(static_cast<float>(x));
+      for (double x : p) m.vertices.push_back(x);
     }
   }
   const uint32_t n = static_cast<uint32_t>(sides);

@@ -92,8 +92,8 @@ refs 3
 kids 0
 )";
 
-std::vector<std::array<float, 3>> SortedPoints(const Mesh& m) {
-  std::vector<std::array<float, 3>> pts;
+std::vector<std::array<double, 3>> SortedPoints(const Mesh& m) {
+  std::vector<std::array<double, 3>> pts;
   for (size_t i = 0; i < m.vertex_count(); ++i) {
     pts.push_back({m.vertices[3 * i], m.vertices[3 * i + 1], m.vertices[3 * i + 2]});
   }
@@ -101,7 +101,7 @@ std::vector<std::array<float, 3>> SortedPoints(const Mesh& m) {
   return pts;
 }
 
-using Points = std::vector<std::array<float, 3>>;
+using Points = std::vector<std::array<double, 3>>;
 
 TEST(AssimpReaderTest, AcObjectsWithTrianglesBecomeObjectsInNodeOrder) {
   auto r = ReadAll(WriteTemp(kNestedAc, "nested.ac"), 40);

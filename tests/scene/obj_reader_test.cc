@@ -49,7 +49,7 @@ TEST(ObjReaderTest, EveryIndexFormGivesTheSameTriangle) {
                            "f -3/-3/-1 -2/-2/-1 -1/-1/-1\n", "f 1/1 2//1 3\n"}) {
     auto objs = ReadOk(std::string(kTriangleVertices) + face);
     ASSERT_EQ(objs.size(), 1u) << face;
-    EXPECT_EQ(objs[0].mesh.vertices, (std::vector<float>{0, 0, 0, 1, 0, 0, 0, 1, 0})) << face;
+    EXPECT_EQ(objs[0].mesh.vertices, (std::vector<double>{0, 0, 0, 1, 0, 0, 0, 1, 0})) << face;
     EXPECT_EQ(objs[0].mesh.triangles, (std::vector<uint32_t>{0, 1, 2})) << face;
   }
 }
@@ -61,8 +61,8 @@ TEST(ObjReaderTest, NegativeIndicesAreRelativeToTheVerticesReadSoFar) {
       "v 5 5 5\n"
       "o b\nf -1 -2 -3\n");  // -1 is now the fourth vertex
   ASSERT_EQ(objs.size(), 2u);
-  EXPECT_EQ(objs[0].mesh.vertices, (std::vector<float>{0, 1, 0, 1, 0, 0, 0, 0, 0}));
-  EXPECT_EQ(objs[1].mesh.vertices, (std::vector<float>{5, 5, 5, 0, 1, 0, 1, 0, 0}));
+  EXPECT_EQ(objs[0].mesh.vertices, (std::vector<double>{0, 1, 0, 1, 0, 0, 0, 0, 0}));
+  EXPECT_EQ(objs[1].mesh.vertices, (std::vector<double>{5, 5, 5, 0, 1, 0, 1, 0, 0}));
   EXPECT_EQ(objs[1].mesh.triangles, (std::vector<uint32_t>{0, 1, 2}));
 }
 
@@ -77,9 +77,9 @@ TEST(ObjReaderTest, MeshesKeepOnlyTheirVerticesReindexedInFirstUseOrder) {
       "o first\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 9 9 9\nf 3 1 2\n"
       "o second\nv 2 0 0\nv 3 0 0\nv 2 1 0\nf 7 5 6 1\n");  // reuses vertex 1 of `first`
   ASSERT_EQ(objs.size(), 2u);
-  EXPECT_EQ(objs[0].mesh.vertices, (std::vector<float>{0, 1, 0, 0, 0, 0, 1, 0, 0}));
+  EXPECT_EQ(objs[0].mesh.vertices, (std::vector<double>{0, 1, 0, 0, 0, 0, 1, 0, 0}));
   EXPECT_EQ(objs[0].mesh.triangles, (std::vector<uint32_t>{0, 1, 2}));
-  EXPECT_EQ(objs[1].mesh.vertices, (std::vector<float>{2, 1, 0, 2, 0, 0, 3, 0, 0, 0, 0, 0}));
+  EXPECT_EQ(objs[1].mesh.vertices, (std::vector<double>{2, 1, 0, 2, 0, 0, 3, 0, 0, 0, 0, 0}));
   EXPECT_EQ(objs[1].mesh.triangles, (std::vector<uint32_t>{0, 1, 2, 0, 2, 3}));
 }
 
@@ -156,12 +156,24 @@ TEST(ObjReaderTest, LastLineWithoutNewlineIsReadWhenComplete) {
   EXPECT_EQ(objs[0].mesh.triangle_count(), 1u);
 }
 
-TEST(ObjReaderTest, CoordinatesAreFloat32WithUnderflowToZero) {
-  auto objs = ReadOk("v 0.1 -1e-50 3.4e38\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+TEST(ObjReaderTest, CoordinatesAreDoublesWithUnderflowToZero) {
+  auto objs = ReadOk("v 0.1 -1e-400 3.4e300\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
   ASSERT_EQ(objs.size(), 1u);
-  EXPECT_EQ(objs[0].mesh.vertices[0], 0.1f);
-  EXPECT_EQ(objs[0].mesh.vertices[1], 0.0f);
-  EXPECT_EQ(objs[0].mesh.vertices[2], 3.4e38f);
+  EXPECT_EQ(objs[0].mesh.vertices[0], 0.1);
+  EXPECT_EQ(objs[0].mesh.vertices[1], 0.0);
+  EXPECT_EQ(objs[0].mesh.vertices[2], 3.4e300);
+}
+
+// UTM-sized coordinates keep their millimetres: float32 would round 5000000.0001 to 5000000.
+TEST(ObjReaderTest, CoordinatesFarFromZeroKeepTheirDetail) {
+  auto objs = ReadOk(
+      "v 500000.1234 5000000.0001 100\nv 500000.1244 5000000.0001 100\nv 500000.1234 5000000.0011 100\n"
+      "f 1 2 3\n");
+  ASSERT_EQ(objs.size(), 1u);
+  EXPECT_EQ(objs[0].mesh.vertices[0], 500000.1234);
+  EXPECT_EQ(objs[0].mesh.vertices[1], 5000000.0001);
+  EXPECT_EQ(objs[0].mesh.vertices[3], 500000.1244);
+  EXPECT_EQ(objs[0].mesh.vertices[7], 5000000.0011);
 }
 
 TEST(ObjReaderTest, LongLinesGrowTheBuffer) {
@@ -201,8 +213,8 @@ TEST(ObjReaderErrorTest, NonFiniteAndOutOfRangeCoordinates) {
   ExpectError(std::string(kThree) + "v nan 0 0\n", 4, "non-finite coordinate 'nan'");
   ExpectError(std::string(kThree) + "v 0 inf 0\n", 4, "non-finite coordinate 'inf'");
   ExpectError(std::string(kThree) + "v 0 0 -Infinity\n", 4, "non-finite coordinate '-Infinity'");
-  ExpectError(std::string(kThree) + "v 0 0 1e39\n", 4, "out of float range '1e39'");
-  ExpectError(std::string(kThree) + "v 0 0 -1e400\n", 4, "out of float range '-1e400'");
+  ExpectError(std::string(kThree) + "v 0 0 1e309\n", 4, "coordinate out of range '1e309'");
+  ExpectError(std::string(kThree) + "v 0 0 -1e400\n", 4, "coordinate out of range '-1e400'");
 }
 
 TEST(ObjReaderErrorTest, IndexZeroAndOutOfRange) {
@@ -312,7 +324,7 @@ TEST(ObjReaderErrorTest, MutatedFilesNeverCrashAndErrorsNameTheLine) {
     for (const SceneObject& o : *r) {
       ASSERT_GT(o.mesh.triangle_count(), 0u);
       for (uint32_t i : o.mesh.triangles) ASSERT_LT(i, o.mesh.vertex_count());
-      for (float c : o.mesh.vertices) ASSERT_TRUE(std::isfinite(c));
+      for (double c : o.mesh.vertices) ASSERT_TRUE(std::isfinite(c));
     }
   }
   EXPECT_GT(failures, 100);  // the mutations do hit the error paths

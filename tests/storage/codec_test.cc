@@ -24,9 +24,6 @@ const CodecOptions kCodecs[] = {{Codec::kNone, 3, false}, {Codec::kZstd, 3, fals
 TEST(ObjectCodecTest, RoundTripsEveryCodec) {
   std::mt19937 g(7);
   std::vector<SceneObject> objects = testing::MakeObjects(300, 11);
-  SceneObject empty;
-  empty.id = 999;
-  objects.push_back(empty);
   for (const CodecOptions& c : kCodecs) {
     for (const SceneObject& o : objects) {
       std::vector<uint8_t> buf = {1, 2, 3};  // appends after existing bytes
@@ -35,7 +32,10 @@ TEST(ObjectCodecTest, RoundTripsEveryCodec) {
       auto e = ParseObjectEntry(buf.data() + 3, n);
       ASSERT_TRUE(e.ok()) << e.status().ToString();
       EXPECT_EQ(e->id, o.id);
-      EXPECT_EQ(e->box, o.Aabb());
+      // The box's min corner is the local frame's origin; its max may grow where rounding a local
+      // coordinate up took the decoded vertex past it.
+      EXPECT_EQ(e->box.min, o.Aabb().min);
+      for (int k = 0; k < 3; ++k) EXPECT_GE(e->box.max[k], o.Aabb().max[k]);
       EXPECT_EQ(e->entry_bytes(), n);
       EXPECT_EQ(e->vertex_count, o.mesh.vertex_count());
       EXPECT_EQ(e->triangle_count, o.mesh.triangle_count());
@@ -45,6 +45,70 @@ TEST(ObjectCodecTest, RoundTripsEveryCodec) {
       Mesh m;
       ASSERT_TRUE(DecodeObjectMesh(*e, &m).ok());
       EXPECT_TRUE(SameMesh(m, o.mesh)) << "object " << o.id;
+    }
+  }
+}
+
+// Objects a leaf entry cannot hold are refused with a reason, appending nothing: no vertex, a non-finite
+// coordinate, a coordinate beyond float32's range from the store's origin.
+TEST(ObjectCodecTest, UnencodableObjectsAreRefused) {
+  SceneObject o;
+  o.id = 4;
+  o.name = "bad";
+  std::vector<uint8_t> buf = {7};
+  auto expect_refused = [&](const char* why) {
+    auto n = EncodeObjectEntry(o, Vec3d{}, CodecOptions{}, &buf);
+    ASSERT_FALSE(n.ok()) << why;
+    EXPECT_EQ(n.status().code(), Status::Code::kInvalidArgument);
+    EXPECT_NE(n.status().message().find("object 4 ('bad')"), std::string::npos) << n.status().ToString();
+    EXPECT_NE(n.status().message().find(why), std::string::npos) << n.status().ToString();
+    EXPECT_EQ(buf.size(), 1u);
+  };
+  expect_refused("no vertices");
+  o.mesh.vertices = {0, 0, 0, 1, 0, 0, 0, std::nan(""), 0};
+  o.mesh.triangles = {0, 1, 2};
+  expect_refused("non-finite");
+  o.mesh.vertices = {0, 0, 0, 1, 0, 0, 0, 1e300, 0};
+  expect_refused("beyond float32's range");
+}
+
+// Coordinates far from 0 keep float32's precision of the object's own box: a 0.2 m cube at UTM-sized
+// coordinates decodes within 2^-22 of its box's extent (0.2 m in a store frame near it), where float32
+// world coordinates would move its corners by up to 0.25 m.
+TEST(ObjectCodecTest, FarCoordinatesKeepTheObjectsPrecision) {
+  for (const Vec3d origin : {Vec3d{}, Vec3d{500000, 5000000, 0}}) {
+    SceneObject o;
+    o.id = 1;
+    const double c[3] = {500000.1234, 5000000.0001, 100.05};
+    for (int i = 0; i < 8; ++i)
+      for (int k = 0; k < 3; ++k) o.mesh.vertices.push_back(c[k] + ((i >> k) & 1) * 0.2);
+    o.mesh.triangles = {0, 1, 3, 0, 3, 2};
+    for (const CodecOptions& codec : kCodecs) {
+      std::vector<uint8_t> buf;
+      Box3f box;
+      auto n = EncodeObjectEntry(o, origin, codec, &buf, 0, &box);
+      ASSERT_TRUE(n.ok()) << n.status().ToString();
+      auto e = ParseObjectEntry(buf.data(), *n);
+      ASSERT_TRUE(e.ok());
+      EXPECT_EQ(e->box, box);
+      Mesh m;
+      ASSERT_TRUE(DecodeObjectMesh(*e, &m).ok());
+      EXPECT_TRUE(SameMesh(m, o.mesh, origin));
+      for (size_t i = 0; i < m.vertices.size(); ++i) {
+        const double world = m.vertices[i] + origin[i % 3];
+        const double extent = double{box.max[i % 3]} - box.min[i % 3];
+        EXPECT_NEAR(world, o.mesh.vertices[i], extent * 0x1p-22) << i;
+        EXPECT_GE(m.vertices[i], box.min[i % 3]);
+        EXPECT_LE(m.vertices[i], box.max[i % 3]);
+      }
+      // In the store frame the box is as tight as float32 allows there: within a few ulps of 0.2 m wide
+      // at the origin that holds it near 0, and within 0.5 m where the frame is the world's.
+      const double width = double{box.max[0]} - box.min[0];
+      if (origin.x != 0) {
+        EXPECT_NEAR(width, 0.2, 1e-6);
+      } else {
+        EXPECT_GT(width, 0.2 - 1e-9);
+      }
     }
   }
 }

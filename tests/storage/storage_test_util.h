@@ -5,8 +5,8 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
-#include <functional>
 #include <filesystem>
+#include <functional>
 #include <random>
 #include <string>
 #include <vector>
@@ -17,6 +17,7 @@
 #include "storage/leaf_format.h"
 #include "storage/object_codec.h"
 #include "storage/page_store.h"
+#include "storage/stored_geometry.h"
 
 namespace mktree::testing {
 
@@ -204,10 +205,5 @@ class TempDir {
  private:
   std::filesystem::path path_;
 };
-
-inline bool SameMesh(const Mesh& a, const Mesh& b) {
-  return a.vertices.size() == b.vertices.size() && a.triangles == b.triangles &&
-         std::memcmp(a.vertices.data(), b.vertices.data(), 4 * a.vertices.size()) == 0;
-}
 
 }  // namespace mktree::testing

@@ -96,7 +96,7 @@ class StoreFileTest : public ::testing::TestWithParam<Param> {
         const ObjectEntryView& e = v->entry(i);
         ASSERT_LT(e.id, objects_.size());
         EXPECT_EQ(*r.ObjectLeaf(e.id), l);
-        EXPECT_EQ(e.box, objects_[e.id].Aabb());
+        EXPECT_EQ(e.box, testing::StoredBox(objects_[e.id].mesh));
         Mesh m;
         ASSERT_TRUE(DecodeObjectMesh(e, &m).ok());
         ASSERT_TRUE(testing::SameMesh(m, objects_[e.id].mesh)) << "object " << e.id;
@@ -194,7 +194,7 @@ TEST_P(StoreFileTest, EmptyStore) {
 TEST_P(StoreFileTest, OlderFormatVersionIsRefused) {
   const std::string path = dir_.file("v1.mkt");
   ASSERT_TRUE(Write(path, 100, 1).ok());
-  const uint32_t old_version = 1;
+  const uint32_t old_version = 2;
   if (GetParam().backend == Backend::kPagedFile) {
     std::vector<uint8_t> file = ReadFile(path);
     std::memcpy(file.data() + 8, &old_version, 4);  // (little-endian, as the format)
@@ -212,7 +212,7 @@ TEST_P(StoreFileTest, OlderFormatVersionIsRefused) {
   ASSERT_FALSE(r.ok());
   EXPECT_EQ(r.status().code(), Status::Code::kUnsupported) << r.status().ToString();
   EXPECT_NE(r.status().message().find(path), std::string::npos) << r.status().message();
-  EXPECT_NE(r.status().message().find("format version 1 (this build reads version 2): build the store again"),
+  EXPECT_NE(r.status().message().find("format version 2 (this build reads version 3): build the store again"),
             std::string::npos)
       << r.status().message();
 }
