@@ -1,7 +1,8 @@
 // The HDF5 backend (layout in docs/store_format.md). One file:
 //   /pages               uint8 [page_count x MemPage], chunked one page per chunk, no filters; pages are
 //                        written and read whole with H5Dwrite_chunk/H5Dread_chunk, which bypass HDF5's
-//                        chunk cache (also turned off on the dataset) so the engine's PageCache is the only one
+//                        chunk cache (also turned off on the dataset) so the engine's PageCache is the only
+//                        one
 //   /tree/nodes, /tree/split_nodes, /tree/leaves   compound datasets with named fields
 //   /objects             compound (id, leaf, name as a fixed-length NUL-padded string)
 //   /stats_json          scalar fixed-length string
@@ -11,6 +12,7 @@
 // process-wide mutex, so concurrent page reads from an HDF5 store are serialized.
 #include <fcntl.h>
 #include <hdf5.h>
+#include <sys/stat.h>
 #include <unistd.h>
 #include <xxhash.h>
 
@@ -20,10 +22,16 @@
 #include <cstring>
 #include <memory>
 #include <mutex>
+#include <new>
 
 #include "storage/byte_io.h"
 #include "storage/file_util.h"
 #include "storage/store_backend.h"
+
+// The writer's file driver below fills in H5FD_class_t, whose layout changed in HDF5 1.13.
+#if H5_VERS_MAJOR != 1 || H5_VERS_MINOR > 12
+#error "storage/hdf5_store.cc: WriterDriver() fills in the HDF5 1.10/1.12 H5FD_class_t; port it to this HDF5"
+#endif
 
 namespace mktree {
 
@@ -37,6 +45,23 @@ std::recursive_mutex& Hdf5Mutex() {
   static std::recursive_mutex mu;
   return mu;
 }
+
+// Held around every HDF5 call. Also turns off HDF5's automatic error printing for the calling thread
+// (per thread in thread-safe builds of HDF5), so that an HDF5 failure only ever reaches the user as
+// our one-line Status, never as HDF5's own multi-line stack on stderr.
+class Hdf5Lock {
+ public:
+  Hdf5Lock() : lock_(Hdf5Mutex()) {
+    thread_local bool quiet = false;
+    if (!quiet) {
+      H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+      quiet = true;
+    }
+  }
+
+ private:
+  std::lock_guard<std::recursive_mutex> lock_;
+};
 
 // Owns one HDF5 identifier; closes it with the matching H5?close.
 class H5Id {
@@ -58,6 +83,12 @@ class H5Id {
     if (id_ >= 0 && close_) close_(id_);
     id_ = -1;
   }
+  // Gives up ownership without closing.
+  hid_t release() {
+    const hid_t id = id_;
+    id_ = -1;
+    return id;
+  }
   hid_t get() const { return id_; }
   bool ok() const { return id_ >= 0; }
 
@@ -77,10 +108,245 @@ std::string Hdf5ErrorText() {
       },
       &msg);
   H5Eclear2(H5E_DEFAULT);
+  // The sec2 driver's I/O errors read "file read failed: time = <ctime, which ends in a newline>, filename =
+  // ..., errno = 5, error message = 'Input/output error', buf = ..., offset = N": keep what failed, where
+  // and why, on one line.
+  const size_t em = msg.find("error message = '");
+  if (em != std::string::npos && msg.find(": time = ") != std::string::npos) {
+    const size_t b = em + 17, e = msg.find('\'', b);
+    std::string out = msg.substr(0, msg.find(": time = "));
+    const size_t off = msg.rfind("offset = ");
+    if (off != std::string::npos) out += " at offset " + msg.substr(off + 9);
+    msg = out + ": " + msg.substr(b, e == std::string::npos ? std::string::npos : e - b);
+  }
+  std::replace(msg.begin(), msg.end(), '\n', ' ');
   return msg.empty() ? "HDF5 error" : msg;
 }
 
-void QuietHdf5() { H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr); }
+// ---- The writer's file driver ----
+//
+// POSIX pread/pwrite like HDF5's sec2 driver, except that a failed write, truncate, fsync or close is never
+// reported to HDF5: the driver records the first error in WriterIo and stops writing (the file is going to
+// be removed), and the writer checks WriterIo after each HDF5 call. Why: in HDF5 1.10 a flush that fails
+// inside H5Fclose (or H5Dclose) frees the file's structures but leaves its identifier registered, so a
+// second close, H5Fget_obj_count or the library's atexit cleanup (H5_term_library) touches freed memory:
+// a full disk ended builds with signal 11. Here HDF5 never meets an I/O error while writing, so its close
+// always completes and releases every identifier. Metadata written after the error is kept in memory,
+// so that HDF5 reads back what it believes it wrote.
+struct WriterIo {
+  explicit WriterIo(std::string p) : path(std::move(p)) {}
+  std::string path;
+  int err = 0;                 // first errno, 0 if none
+  std::string op;              // what failed ("write at offset N")
+  bool discard = false;        // after an error, or on Abort: no more file I/O
+  bool sync_on_close = false;  // Finish: fsync before closing the descriptor
+  std::vector<std::pair<haddr_t, std::vector<uint8_t>>> kept;  // metadata written while discarding
+
+  void Record(int e, std::string what) {
+    if (err == 0) {
+      err = e;
+      op = std::move(what);
+    }
+    discard = true;
+  }
+  bool failed() const { return err != 0; }
+  Status ToStatus() const {
+    return Status::IOError(path + ": " + op + ": " + storage_internal::ErrnoText(err));
+  }
+};
+
+struct WriterFapl {
+  WriterIo* io;
+};
+
+struct WriterFile {
+  H5FD_t pub;  // first: HDF5 hands the driver an H5FD_t* to it
+  int fd = -1;
+  haddr_t eoa = 0, eof = 0;
+  dev_t dev = 0;
+  ino_t ino = 0;
+  WriterIo* io = nullptr;
+};
+
+WriterFile* AsWriterFile(H5FD_t* f) { return reinterpret_cast<WriterFile*>(f); }
+const WriterFile* AsWriterFile(const H5FD_t* f) { return reinterpret_cast<const WriterFile*>(f); }
+
+void PushDriverError(hid_t minor, const std::string& msg) {
+  H5Epush2(H5E_DEFAULT, __FILE__, "mktree writer driver", __LINE__, H5E_ERR_CLS, H5E_VFL, minor, "%s",
+           msg.c_str());
+}
+
+H5FD_t* WriterOpen(const char* name, unsigned flags, hid_t fapl, haddr_t /*maxaddr*/) {
+  const auto* info = static_cast<const WriterFapl*>(H5Pget_driver_info(fapl));
+  if (info == nullptr || info->io == nullptr || name == nullptr) {
+    PushDriverError(H5E_CANTOPENFILE, "no driver info");
+    return nullptr;
+  }
+  int o = (flags & H5F_ACC_RDWR) ? O_RDWR : O_RDONLY;
+  if (flags & H5F_ACC_TRUNC) o |= O_TRUNC;
+  if (flags & H5F_ACC_CREAT) o |= O_CREAT;
+  if (flags & H5F_ACC_EXCL) o |= O_EXCL;
+  const int fd = ::open(name, o | O_CLOEXEC, 0644);
+  if (fd < 0) {
+    PushDriverError(H5E_CANTOPENFILE, storage_internal::ErrnoText(errno));
+    return nullptr;
+  }
+  struct stat st;
+  auto* f = new (std::nothrow) WriterFile;
+  if (f == nullptr || ::fstat(fd, &st) != 0) {
+    PushDriverError(H5E_CANTOPENFILE, f == nullptr ? "out of memory" : storage_internal::ErrnoText(errno));
+    delete f;
+    ::close(fd);
+    return nullptr;
+  }
+  std::memset(&f->pub, 0, sizeof(f->pub));
+  f->fd = fd;
+  f->eof = static_cast<haddr_t>(st.st_size);
+  f->dev = st.st_dev;
+  f->ino = st.st_ino;
+  f->io = info->io;
+  return &f->pub;
+}
+
+herr_t WriterClose(H5FD_t* file) {
+  WriterFile* f = AsWriterFile(file);
+  WriterIo* io = f->io;
+  if (!io->discard && io->sync_on_close && ::fsync(f->fd) != 0) io->Record(errno, "fsync");
+  if (::close(f->fd) != 0 && errno != EINTR && !io->discard) io->Record(errno, "close");
+  delete f;
+  return 0;
+}
+
+int WriterCmp(const H5FD_t* a, const H5FD_t* b) {
+  const WriterFile* x = AsWriterFile(a);
+  const WriterFile* y = AsWriterFile(b);
+  if (x->dev != y->dev) return x->dev < y->dev ? -1 : 1;
+  if (x->ino != y->ino) return x->ino < y->ino ? -1 : 1;
+  return 0;
+}
+
+herr_t WriterQuery(const H5FD_t* /*file*/, unsigned long* flags) {
+  if (flags)
+    *flags = H5FD_FEAT_AGGREGATE_METADATA | H5FD_FEAT_ACCUMULATE_METADATA | H5FD_FEAT_DATA_SIEVE |
+             H5FD_FEAT_AGGREGATE_SMALLDATA;
+  return 0;
+}
+
+haddr_t WriterGetEoa(const H5FD_t* file, H5FD_mem_t /*type*/) { return AsWriterFile(file)->eoa; }
+herr_t WriterSetEoa(H5FD_t* file, H5FD_mem_t /*type*/, haddr_t addr) {
+  AsWriterFile(file)->eoa = addr;
+  return 0;
+}
+haddr_t WriterGetEof(const H5FD_t* file, H5FD_mem_t /*type*/) { return AsWriterFile(file)->eof; }
+herr_t WriterGetHandle(H5FD_t* file, hid_t /*fapl*/, void** handle) {
+  *handle = &AsWriterFile(file)->fd;
+  return 0;
+}
+
+bool OutOfRange(const WriterFile* f, haddr_t addr, size_t size) {
+  return addr == HADDR_UNDEF || addr > f->eoa || size > f->eoa - addr;
+}
+
+herr_t WriterRead(H5FD_t* file, H5FD_mem_t /*type*/, hid_t /*dxpl*/, haddr_t addr, size_t size, void* buf) {
+  WriterFile* f = AsWriterFile(file);
+  if (OutOfRange(f, addr, size)) {
+    PushDriverError(H5E_OVERFLOW, "read past the end of the address space");
+    return -1;
+  }
+  auto* p = static_cast<uint8_t*>(buf);
+  size_t done = 0;
+  while (done < size) {
+    const ssize_t r = ::pread(f->fd, p + done, size - done, static_cast<off_t>(addr + done));
+    if (r < 0 && errno == EINTR) continue;
+    if (r < 0) {
+      PushDriverError(H5E_READERROR, "read at offset " + std::to_string(addr + done) + ": " +
+                                         storage_internal::ErrnoText(errno));
+      return -1;
+    }
+    if (r == 0) {  // past the end of the file: HDF5 expects zeros, as sec2 gives
+      std::memset(p + done, 0, size - done);
+      break;
+    }
+    done += static_cast<size_t>(r);
+  }
+  // Metadata written after an error lives here only, the newest last.
+  for (const auto& [at, bytes] : f->io->kept) {
+    const haddr_t lo = std::max<haddr_t>(at, addr), hi = std::min<haddr_t>(at + bytes.size(), addr + size);
+    if (lo < hi) std::memcpy(p + (lo - addr), bytes.data() + (lo - at), hi - lo);
+  }
+  return 0;
+}
+
+herr_t WriterWrite(H5FD_t* file, H5FD_mem_t type, hid_t /*dxpl*/, haddr_t addr, size_t size,
+                   const void* buf) {
+  WriterFile* f = AsWriterFile(file);
+  WriterIo* io = f->io;
+  if (OutOfRange(f, addr, size)) {
+    PushDriverError(H5E_OVERFLOW, "write past the end of the address space");
+    return -1;
+  }
+  const auto* p = static_cast<const uint8_t*>(buf);
+  if (!io->discard) {
+    size_t done = 0;
+    while (done < size) {
+      const ssize_t r = ::pwrite(f->fd, p + done, size - done, static_cast<off_t>(addr + done));
+      if (r < 0 && errno == EINTR) continue;
+      if (r < 0) {
+        io->Record(errno, "write at offset " + std::to_string(addr + done));
+        break;
+      }
+      done += static_cast<size_t>(r);
+    }
+  }
+  // Raw data (pages, tables) is never read back while writing; metadata may be.
+  if (io->discard && type != H5FD_MEM_DRAW) io->kept.emplace_back(addr, std::vector<uint8_t>(p, p + size));
+  f->eof = std::max<haddr_t>(f->eof, addr + size);
+  return 0;
+}
+
+herr_t WriterFlush(H5FD_t* /*file*/, hid_t /*dxpl*/, hbool_t /*closing*/) { return 0; }
+
+// The file's size becomes its end of address space, as sec2 does: a reader refuses a file shorter than that.
+herr_t WriterTruncate(H5FD_t* file, hid_t /*dxpl*/, hbool_t /*closing*/) {
+  WriterFile* f = AsWriterFile(file);
+  if (f->eoa != f->eof) {
+    if (!f->io->discard && ::ftruncate(f->fd, static_cast<off_t>(f->eoa)) != 0)
+      f->io->Record(errno, "truncate to " + std::to_string(f->eoa) + " bytes");
+    f->eof = f->eoa;
+  }
+  return 0;
+}
+
+// The driver's id, registered on first use (again if the library was closed and reopened).
+hid_t WriterDriver() {
+  static hid_t id = -1;
+  if (id >= 0 && H5Iis_valid(id) > 0) return id;
+  static const H5FD_class_t cls = [] {
+    H5FD_class_t c;
+    std::memset(&c, 0, sizeof(c));
+    c.name = "mktree_writer";
+    c.maxaddr = static_cast<haddr_t>(INT64_MAX);  // off_t
+    c.fc_degree = H5F_CLOSE_WEAK;
+    c.fapl_size = sizeof(WriterFapl);
+    c.open = WriterOpen;
+    c.close = WriterClose;
+    c.cmp = WriterCmp;
+    c.query = WriterQuery;
+    c.get_eoa = WriterGetEoa;
+    c.set_eoa = WriterSetEoa;
+    c.get_eof = WriterGetEof;
+    c.get_handle = WriterGetHandle;
+    c.read = WriterRead;
+    c.write = WriterWrite;
+    c.flush = WriterFlush;
+    c.truncate = WriterTruncate;
+    const H5FD_mem_t map[H5FD_MEM_NTYPES] = H5FD_FLMAP_DICHOTOMY;
+    std::copy(std::begin(map), std::end(map), std::begin(c.fl_map));
+    return c;
+  }();
+  id = H5FDregister(&cls);
+  return id;
+}
 
 // In-memory records for the compound datasets.
 struct NodeRec {
@@ -332,8 +598,15 @@ uint64_t ObjectsChecksum(const ObjectTable& t) {
 
 class Hdf5PageStore : public PageStore {
  public:
-  Hdf5PageStore(std::string name, H5Id file, H5Id pages, uint64_t mem_page, uint64_t count)
-      : name_(std::move(name)), file_(std::move(file)), pages_(std::move(pages)), mem_page_(mem_page), count_(count),
+  // `io` is the writer's driver state (null for a reader); it must outlive the file.
+  Hdf5PageStore(std::string name, std::unique_ptr<WriterIo> io, H5Id file, H5Id pages, uint64_t mem_page,
+                uint64_t count)
+      : name_(std::move(name)),
+        io_(std::move(io)),
+        file_(std::move(file)),
+        pages_(std::move(pages)),
+        mem_page_(mem_page),
+        count_(count),
         extent_(count) {}
   ~Hdf5PageStore() override { Close(); }
 
@@ -342,15 +615,16 @@ class Hdf5PageStore : public PageStore {
   const std::string& name() const override { return name_; }
 
   Status ReadPage(uint64_t index, uint8_t* out) const override {
-    if (index >= count_)
-      return PageOutOfRange(name_, index, count_);
-    std::lock_guard<std::recursive_mutex> lock(Hdf5Mutex());
+    if (index >= count_) return PageOutOfRange(name_, index, count_);
+    Hdf5Lock lock;
     const hsize_t offset[2] = {index, 0};
     hsize_t stored = 0;
     // Check the chunk's size first: H5Dread_chunk copies whatever size the file claims.
-    if (H5Dget_chunk_storage_size(pages_.get(), offset, &stored) < 0 || stored != mem_page_)
+    if (H5Dget_chunk_storage_size(pages_.get(), offset, &stored) < 0 || stored != mem_page_) {
+      H5Eclear2(H5E_DEFAULT);
       return Status::Corruption(name_ + ": page " + std::to_string(index) + ": chunk missing or of the wrong size (" +
                                 std::to_string(stored) + " bytes)");
+    }
     uint32_t filters = 0;
     if (H5Dread_chunk(pages_.get(), H5P_DEFAULT, offset, &filters, out) < 0)
       return Status::IOError(name_ + ": page " + std::to_string(index) + ": " + Hdf5ErrorText());
@@ -361,50 +635,73 @@ class Hdf5PageStore : public PageStore {
   Status WritePage(uint64_t index, const uint8_t* data) override {
     if (index > count_)
       return Status::InvalidArgument(name_ + ": page " + std::to_string(index) + " written out of order");
-    std::lock_guard<std::recursive_mutex> lock(Hdf5Mutex());
+    Hdf5Lock lock;
     if (index >= extent_) {
       // Grow geometrically; chunks never written take no space, and Finish trims the extent.
       const hsize_t dims[2] = {std::max<hsize_t>(index + 1, 2 * extent_), mem_page_};
-      if (H5Dset_extent(pages_.get(), dims) < 0)
-        return Status::IOError(name_ + ": extending pages: " + Hdf5ErrorText());
+      if (H5Dset_extent(pages_.get(), dims) < 0) return Failed("extending pages");
       extent_ = dims[0];
     }
     const hsize_t offset[2] = {index, 0};
     if (H5Dwrite_chunk(pages_.get(), H5P_DEFAULT, 0, offset, mem_page_, data) < 0)
-      return Status::IOError(name_ + ": page " + std::to_string(index) + ": " + Hdf5ErrorText());
+      return Failed("page " + std::to_string(index));
+    MKTREE_RETURN_IF_ERROR(IoStatus());
     if (index == count_) ++count_;
     return Status::Ok();
   }
 
   Status Sync() override {
-    std::lock_guard<std::recursive_mutex> lock(Hdf5Mutex());
-    if (H5Fflush(file_.get(), H5F_SCOPE_LOCAL) < 0) return Status::IOError(name_ + ": flush: " + Hdf5ErrorText());
-    return Status::Ok();
+    Hdf5Lock lock;
+    if (H5Fflush(file_.get(), H5F_SCOPE_LOCAL) < 0) return Failed("flush");
+    return IoStatus();
   }
 
   // Trims the extent to the pages written (writer).
   Status Trim() {
     const hsize_t dims[2] = {count_, mem_page_};
-    if (extent_ != count_ && H5Dset_extent(pages_.get(), dims) < 0)
-      return Status::IOError(name_ + ": trimming pages: " + Hdf5ErrorText());
+    if (extent_ != count_ && H5Dset_extent(pages_.get(), dims) < 0) return Failed("trimming pages");
     extent_ = count_;
-    return Status::Ok();
+    return IoStatus();
   }
   hid_t file() const { return file_.get(); }
-  Status Close() {
-    std::lock_guard<std::recursive_mutex> lock(Hdf5Mutex());
-    pages_.reset();
-    if (file_.ok() && H5Fclose(file_.get()) < 0) {
-      // Release the id anyway; report what HDF5 said.
-      file_ = H5Id();
-      return Status::IOError(name_ + ": close: " + Hdf5ErrorText());
+
+  // The writer's first I/O error, if any (the driver hides it from HDF5).
+  Status IoStatus() const { return io_ && io_->failed() ? io_->ToStatus() : Status::Ok(); }
+  // An HDF5 call failed while doing `what`: the I/O error behind it if there was one, else HDF5's message.
+  Status Failed(const std::string& what) const {
+    if (io_ && io_->failed()) {
+      H5Eclear2(H5E_DEFAULT);
+      return io_->ToStatus();
     }
-    file_ = H5Id();
-    return Status::Ok();
+    return Status::IOError(name_ + ": " + what + ": " + Hdf5ErrorText());
+  }
+
+  // Closes the file; with `sync`, fsyncs it first (the writer's Finish). Every HDF5 identifier of the file is
+  // released, and the first I/O error of the whole write is reported.
+  Status Close(bool sync = false) {
+    Hdf5Lock lock;
+    if (io_) io_->sync_on_close = sync;
+    pages_.reset();
+    if (!file_.ok()) return IoStatus();
+    if (H5Fclose(file_.release()) < 0) {
+      // HDF5 1.10 keeps the identifier of a file whose close failed, over freed memory: never close it
+      // again, and keep the driver's state alive for the library's own cleanup at exit.
+      Status st = Failed("close");
+      (void)io_.release();
+      return st;
+    }
+    return IoStatus();
+  }
+  // Stops writing (the file is being thrown away) and closes it.
+  void Abort() {
+    Hdf5Lock lock;
+    if (io_) io_->discard = true;
+    Close();
   }
 
  private:
   std::string name_;
+  std::unique_ptr<WriterIo> io_;
   H5Id file_, pages_;
   uint64_t mem_page_, count_;
   hsize_t extent_;
@@ -414,22 +711,18 @@ class Hdf5Writer : public StoreWriter::Impl {
  public:
   Hdf5Writer(std::string path, std::unique_ptr<Hdf5PageStore> store) : path_(std::move(path)), store_(std::move(store)) {}
   PageStore& pages() override { return *store_; }
-  void Abort() override { store_->Close(); }
+  void Abort() override { store_->Abort(); }
 
   Status Finish(const StoreContents& c) override {
     {
-      std::lock_guard<std::recursive_mutex> lock(Hdf5Mutex());
-      MKTREE_RETURN_IF_ERROR(WriteAll(c));
+      Hdf5Lock lock;
+      Status st = WriteAll(c);
+      // An I/O error is the cause of whatever HDF5 said after it.
+      if (!store_->IoStatus().ok()) return store_->IoStatus();
+      MKTREE_RETURN_IF_ERROR(st);
     }
-    MKTREE_RETURN_IF_ERROR(store_->Close());
-    // HDF5 does not fsync: do it ourselves before the rename.
-    const int fd = ::open(path_.c_str(), O_RDONLY | O_CLOEXEC);
-    if (fd < 0) return Status::IOError(path_ + ": open for fsync: " + storage_internal::ErrnoText(errno));
-    const int r = ::fsync(fd);
-    const int err = errno;
-    ::close(fd);
-    if (r != 0) return Status::IOError(path_ + ": fsync: " + storage_internal::ErrnoText(err));
-    return Status::Ok();
+    // HDF5 does not fsync: the driver does, before it closes the descriptor.
+    return store_->Close(/*sync=*/true);
   }
 
  private:
@@ -457,11 +750,13 @@ class Hdf5Writer : public StoreWriter::Impl {
     MKTREE_RETURN_IF_ERROR(write_table(
         "leaves", c.tree.leaves, [](const LeafInfo& l) { return ToRec(l); },
         MakeCompound(LeafFields(), sizeof(LeafRec), true), MakeCompound(LeafFields(), sizeof(LeafRec), false)));
-    // The leaf filter: 6 uint8 per object (quantized min x y z, max x y z), leaf by leaf.
+    // The leaf filter: 8 uint8 per object (see docs/store_format.md), leaf by leaf.
     MKTREE_RETURN_IF_ERROR(WriteTable(tree.get(), "leaf_filter", H5T_STD_U8LE, H5T_NATIVE_UINT8,
                                       c.tree.leaf_filter.data(), c.tree.leaf_filter.size(), path_));
+    MKTREE_RETURN_IF_ERROR(store_->IoStatus());
 
     MKTREE_RETURN_IF_ERROR(WriteObjects(f, c.objects));
+    MKTREE_RETURN_IF_ERROR(store_->IoStatus());
 
     {  // stats JSON: a scalar fixed-length string dataset. Not variable-length: HDF5's global heap, where
        // those live, has no checksum, and a damaged heap entry crashes the library on read.
@@ -507,7 +802,7 @@ class Hdf5Writer : public StoreWriter::Impl {
     // Last: the magic that makes the file a store.
     MKTREE_RETURN_IF_ERROR(WriteStringAttr(f, "magic", kHdf5Magic, path_));
     if (H5Fflush(f, H5F_SCOPE_LOCAL) < 0) return Status::IOError(path_ + ": flush: " + Hdf5ErrorText());
-    return Status::Ok();
+    return store_->IoStatus();
   }
 
   // /objects: (id, leaf, name) rows, written in blocks so that the buffer stays small.
@@ -613,9 +908,16 @@ Status ReadObjects(hid_t f, uint64_t expected, ObjectTable* t, const std::string
 }  // namespace
 
 Result<std::unique_ptr<StoreWriter::Impl>> CreateHdf5Writer(const std::string& temp_path, const BuildParams& params) {
-  std::lock_guard<std::recursive_mutex> lock(Hdf5Mutex());
-  QuietHdf5();
+  Hdf5Lock lock;
+  // Declared before the file: the driver uses it until the file is closed.
+  auto io = std::make_unique<WriterIo>(temp_path);
+  const hid_t driver = WriterDriver();
+  if (driver < 0)
+    return Status::IOError(temp_path + ": registering the HDF5 file driver: " + Hdf5ErrorText());
   H5Id fapl(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
+  const WriterFapl info{io.get()};
+  if (H5Pset_driver(fapl.get(), driver, &info) < 0)
+    return Status::IOError(temp_path + ": setting the HDF5 file driver: " + Hdf5ErrorText());
   // The 1.10 format: checksummed object headers and chunk indexes.
   H5Pset_libver_bounds(fapl.get(), H5F_LIBVER_V110, H5F_LIBVER_LATEST);
   H5Id file(H5Fcreate(temp_path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.get()), H5Fclose);
@@ -628,14 +930,19 @@ Result<std::unique_ptr<StoreWriter::Impl>> CreateHdf5Writer(const std::string& t
   H5Pset_fill_time(dcpl.get(), H5D_FILL_TIME_NEVER);
   H5Id dapl = PagesAccessList();
   H5Id pages(H5Dcreate2(file.get(), "pages", H5T_STD_U8LE, space.get(), H5P_DEFAULT, dcpl.get(), dapl.get()), H5Dclose);
-  if (!pages.ok()) return Status::IOError(temp_path + ": creating /pages: " + Hdf5ErrorText());
-  auto store = std::make_unique<Hdf5PageStore>(temp_path, std::move(file), std::move(pages), mem_page, 0);
+  if (!pages.ok() || io->failed()) {
+    pages.reset();
+    file.reset();
+    if (io->failed()) return io->ToStatus();
+    return Status::IOError(temp_path + ": creating /pages: " + Hdf5ErrorText());
+  }
+  auto store = std::make_unique<Hdf5PageStore>(temp_path, std::move(io), std::move(file), std::move(pages),
+                                               mem_page, 0);
   return std::unique_ptr<StoreWriter::Impl>(new Hdf5Writer(temp_path, std::move(store)));
 }
 
 Result<OpenedStore> OpenHdf5(const std::string& path, const ReadOptions& opts) {
-  std::lock_guard<std::recursive_mutex> lock(Hdf5Mutex());
-  QuietHdf5();
+  Hdf5Lock lock;
   auto bad = [&](const std::string& m) { return Status::Corruption(path + ": " + m); };
   H5Id file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
   if (!file.ok()) return bad("HDF5 cannot open it (" + Hdf5ErrorText() + "): truncated or damaged");
@@ -753,7 +1060,8 @@ Result<OpenedStore> OpenHdf5(const std::string& path, const ReadOptions& opts) {
   }
   MKTREE_RETURN_IF_ERROR(ValidateStructure(c.tree, c.objects, page_count, path));
   if (opts.direct_io) out.notice = path + ": direct I/O is not supported by the HDF5 backend; using buffered reads";
-  out.pages = std::make_unique<Hdf5PageStore>(path, std::move(file), std::move(pages), mem_page, page_count);
+  out.pages =
+      std::make_unique<Hdf5PageStore>(path, nullptr, std::move(file), std::move(pages), mem_page, page_count);
   return out;
 }
 
