@@ -1,10 +1,9 @@
 // The HDF5 backend (layout in docs/store_format.md). One file:
 //   /pages               uint8 [page_count x MemPage], chunked one page per chunk, no filters; pages are
 //                        written and read whole with H5Dwrite_chunk/H5Dread_chunk, which bypass HDF5's
-//                        chunk cache (also turned off on the dataset) so the engine's PageCache is the only
-//                        one
+//                        chunk cache (also turned off on the dataset): the engine's PageCache is the only one
 //   /tree/nodes, /tree/split_nodes, /tree/leaves   compound datasets with named fields
-//   /objects             compound (id, leaf, name as a fixed-length NUL-padded string)
+//   /objects/leaf, /objects/name_end, /objects/names   the object table's canonical encoding (tree_codec.h)
 //   /stats_json          scalar fixed-length string
 //   attributes on /      magic "MKTREE-HDF5" (written last), format_version, build parameters, codec, counts,
 //                        and XXH3-64 checksums of the canonical encodings (tree_codec.h) of each part
@@ -26,6 +25,7 @@
 
 #include "storage/byte_io.h"
 #include "storage/file_util.h"
+#include "storage/leaf_format.h"
 #include "storage/store_backend.h"
 
 // The writer's file driver below fills in H5FD_class_t, whose layout changed in HDF5 1.13.
@@ -38,8 +38,15 @@ namespace mktree {
 namespace {
 
 constexpr const char* kHdf5Magic = "MKTREE-HDF5";
-constexpr uint32_t kHdf5FormatVersion = 2;  // 2: the leaf filter holds 10-bit levels in 8 bytes an object
-constexpr hsize_t kObjectChunkRows = 8192;
+// 2: the leaf filter holds 10-bit levels in 8 bytes an object; 3: the object table is its canonical
+// encoding (leaf, name_end, names) instead of fixed-length names padded to the longest one.
+constexpr uint32_t kHdf5FormatVersion = 3;
+constexpr hsize_t kObjectChunkRows = 65536;
+// Object names deflated more than this are stored unfiltered: at open, their length is bounded by this
+// many times the bytes they take in the file.
+constexpr uint64_t kMaxNamesInflation = 16;
+// The longest string attribute a store holds (magic, codec); a longer one is damage.
+constexpr size_t kMaxStringAttrBytes = 256;
 
 std::recursive_mutex& Hdf5Mutex() {
   static std::recursive_mutex mu;
@@ -498,7 +505,7 @@ LeafInfo FromRec(const LeafRec& r) {
 
 constexpr int kChecksumCount = 7;
 
-// Writes a 1-D contiguous compound dataset.
+// Writes a 1-D contiguous dataset.
 Status WriteTable(hid_t loc, const char* name, hid_t file_type, hid_t mem_type, const void* data, size_t n,
                   const std::string& path) {
   hsize_t dims[1] = {n};
@@ -509,17 +516,36 @@ Status WriteTable(hid_t loc, const char* name, hid_t file_type, hid_t mem_type, 
   return Status::Ok();
 }
 
-// Reads a 1-D compound dataset into `out` (resized to its length).
-template <typename Rec>
-Status ReadTable(hid_t loc, const char* name, hid_t mem_type, std::vector<Rec>* out, const std::string& path) {
-  H5Id d(H5Dopen2(loc, name, H5P_DEFAULT), H5Dclose);
-  if (!d.ok()) return Status::Corruption(path + ": missing dataset " + name);
-  H5Id space(H5Dget_space(d.get()), H5Sclose);
+// The length of a 1-D dataset, refused (before anything is allocated for it) unless its elements of
+// `file_bytes_each` bytes in the file fit in `max_bytes`: a damaged or crafted dataspace cannot make open
+// allocate more than the file could hold.
+Result<hsize_t> DatasetLength(hid_t d, const char* name, uint64_t max_bytes, const std::string& path) {
+  H5Id space(H5Dget_space(d), H5Sclose);
+  H5Id type(H5Dget_type(d), H5Tclose);
   hsize_t dims[1] = {0};
-  if (H5Sget_simple_extent_ndims(space.get()) != 1 || H5Sget_simple_extent_dims(space.get(), dims, nullptr) < 0)
+  if (!space.ok() || H5Sget_simple_extent_ndims(space.get()) != 1 ||
+      H5Sget_simple_extent_dims(space.get(), dims, nullptr) < 0)
     return Status::Corruption(path + ": dataset " + name + " is not 1-D");
-  out->resize(dims[0]);
-  if (dims[0] > 0 && H5Dread(d.get(), mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, out->data()) < 0)
+  const size_t each = type.ok() ? H5Tget_size(type.get()) : 0;
+  if (each == 0) return Status::Corruption(path + ": dataset " + name + " has no valid type");
+  if (dims[0] > max_bytes / each)
+    return Status::Corruption(path + ": dataset " + name + " claims " + std::to_string(dims[0]) +
+                              " elements of " + std::to_string(each) + " bytes, more than the file's " +
+                              std::to_string(max_bytes) + " bytes hold");
+  return dims[0];
+}
+
+// Reads a 1-D dataset into `out` (resized to its length, at most `max_bytes` in the file).
+template <typename Rec>
+Status ReadTable(hid_t loc, const char* name, hid_t mem_type, std::vector<Rec>* out, uint64_t max_bytes,
+                 const std::string& path) {
+  if (H5Lexists(loc, name, H5P_DEFAULT) <= 0) return Status::Corruption(path + ": missing dataset " + name);
+  H5Id d(H5Dopen2(loc, name, H5P_DEFAULT), H5Dclose);
+  if (!d.ok()) return Status::Corruption(path + ": dataset " + name + ": " + Hdf5ErrorText());
+  auto n = DatasetLength(d.get(), name, max_bytes, path);
+  if (!n.ok()) return n.status();
+  out->resize(*n);
+  if (*n > 0 && H5Dread(d.get(), mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, out->data()) < 0)
     return Status::Corruption(path + ": reading " + name + ": " + Hdf5ErrorText());
   return Status::Ok();
 }
@@ -532,11 +558,23 @@ Status WriteAttr(hid_t loc, const char* name, hid_t file_type, hid_t mem_type, c
     return Status::IOError(path + ": writing attribute " + name + ": " + Hdf5ErrorText());
   return Status::Ok();
 }
-template <typename T>
-Status ReadAttr(hid_t loc, const char* name, hid_t mem_type, T* v, const std::string& path) {
+// Opens attribute `name`, which must hold one element (H5Aread writes as many elements as it holds).
+Result<H5Id> OpenScalarAttr(hid_t loc, const char* name, const std::string& path) {
   if (H5Aexists(loc, name) <= 0) return Status::Corruption(path + ": missing attribute " + name);
   H5Id a(H5Aopen(loc, name, H5P_DEFAULT), H5Aclose);
-  if (!a.ok() || H5Aread(a.get(), mem_type, v) < 0)
+  if (!a.ok()) return Status::Corruption(path + ": attribute " + name + ": " + Hdf5ErrorText());
+  H5Id space(H5Aget_space(a.get()), H5Sclose);
+  if (!space.ok() || H5Sget_simple_extent_npoints(space.get()) != 1)
+    return Status::Corruption(path + ": attribute " + name + " is not a single value");
+  return a;
+}
+template <typename T>
+Status ReadAttr(hid_t loc, const char* name, hid_t mem_type, T* v, const std::string& path) {
+  auto a = OpenScalarAttr(loc, name, path);
+  if (!a.ok()) return a.status();
+  H5Id t(H5Aget_type(a->get()), H5Tclose);
+  const H5T_class_t cls = t.ok() ? H5Tget_class(t.get()) : H5T_NO_CLASS;
+  if ((cls != H5T_INTEGER && cls != H5T_FLOAT) || H5Aread(a->get(), mem_type, v) < 0)
     return Status::Corruption(path + ": reading attribute " + name + ": " + Hdf5ErrorText());
   return Status::Ok();
 }
@@ -557,14 +595,16 @@ Status WriteStringAttr(hid_t loc, const char* name, const std::string& s, const 
   return Status::Ok();
 }
 Result<std::string> ReadStringAttr(hid_t loc, const char* name, const std::string& path) {
-  if (H5Aexists(loc, name) <= 0) return Status::Corruption(path + ": missing attribute " + name);
-  H5Id a(H5Aopen(loc, name, H5P_DEFAULT), H5Aclose);
-  H5Id t(H5Aget_type(a.get()), H5Tclose);
+  auto a = OpenScalarAttr(loc, name, path);
+  if (!a.ok()) return a.status();
+  H5Id t(H5Aget_type(a->get()), H5Tclose);
   if (!t.ok() || H5Tget_class(t.get()) != H5T_STRING || H5Tis_variable_str(t.get()) > 0)
     return Status::Corruption(path + ": attribute " + name + " is not a fixed-length string");
   const size_t n = H5Tget_size(t.get());
+  if (n == 0 || n > kMaxStringAttrBytes)
+    return Status::Corruption(path + ": attribute " + name + " is " + std::to_string(n) + " bytes long");
   std::string s(n, '\0');
-  if (H5Aread(a.get(), t.get(), s.data()) < 0)
+  if (H5Aread(a->get(), t.get(), s.data()) < 0)
     return Status::Corruption(path + ": reading attribute " + name + ": " + Hdf5ErrorText());
   s.resize(std::strlen(s.c_str()));
   return s;
@@ -805,50 +845,47 @@ class Hdf5Writer : public StoreWriter::Impl {
     return store_->IoStatus();
   }
 
-  // /objects: (id, leaf, name) rows, written in blocks so that the buffer stays small.
+  // /objects: the object table's canonical encoding (tree_codec.h), so that any name bytes round-trip and
+  // the size follows the names' total length: leaf (uint32 per object), name_end (uint64 per object) and
+  // names (all names concatenated, uint8), chunked with deflate (and shuffle for the integers). Names that
+  // deflate more than kMaxNamesInflation times are stored unfiltered instead, so that at open the names'
+  // length is bounded by the bytes the file spends on them (see ReadObjects).
   Status WriteObjects(hid_t f, const ObjectTable& t) {
-    size_t width = 1;
-    for (uint64_t i = 0; i < t.size(); ++i) width = std::max(width, t.name(i).size());
-    const size_t row = 8 + width;
-    H5Id name_type = StringType(width);
-    H5Id mem(H5Tcreate(H5T_COMPOUND, row), H5Tclose);
-    H5Tinsert(mem.get(), "id", 0, H5T_NATIVE_UINT32);
-    H5Tinsert(mem.get(), "leaf", 4, H5T_NATIVE_UINT32);
-    H5Tinsert(mem.get(), "name", 8, name_type.get());
-    H5Id file(H5Tcreate(H5T_COMPOUND, row), H5Tclose);
-    H5Tinsert(file.get(), "id", 0, H5T_STD_U32LE);
-    H5Tinsert(file.get(), "leaf", 4, H5T_STD_U32LE);
-    H5Tinsert(file.get(), "name", 8, name_type.get());
-
-    const hsize_t n = t.size();
-    hsize_t dims[1] = {n}, maxdims[1] = {H5S_UNLIMITED}, chunk[1] = {std::clamp<hsize_t>(n, 1, kObjectChunkRows)};
-    H5Id space(H5Screate_simple(1, dims, maxdims), H5Sclose);
-    H5Id dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
-    H5Pset_chunk(dcpl.get(), 1, chunk);
-    // Metadata, not pages: let HDF5 compress it (names pad to the longest one).
-    if (H5Zfilter_avail(H5Z_FILTER_DEFLATE) > 0) {
-      H5Pset_shuffle(dcpl.get());
-      H5Pset_deflate(dcpl.get(), 4);
-    }
-    H5Id d(H5Dcreate2(f, "objects", file.get(), space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT), H5Dclose);
-    if (!d.ok()) return Status::IOError(path_ + ": creating /objects: " + Hdf5ErrorText());
-    std::vector<uint8_t> buf;
-    for (hsize_t start = 0; start < n; start += kObjectChunkRows) {
-      const hsize_t count = std::min<hsize_t>(kObjectChunkRows, n - start);
-      buf.assign(count * row, 0);
-      for (hsize_t i = 0; i < count; ++i) {
-        uint8_t* r = buf.data() + i * row;
-        storage_internal::Put<uint32_t>(r, static_cast<uint32_t>(start + i));
-        storage_internal::Put<uint32_t>(r + 4, t.leaf[start + i]);
-        const std::string_view name = t.name(start + i);
-        std::memcpy(r + 8, name.data(), name.size());
+    H5Id g(H5Gcreate2(f, "objects", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose);
+    if (!g.ok()) return Status::IOError(path_ + ": creating /objects: " + Hdf5ErrorText());
+    auto write = [&](const char* name, hid_t file_type, hid_t mem_type, const void* data, hsize_t n,
+                     bool shuffle) -> Result<H5Id> {
+      if (n == 0 || H5Zfilter_avail(H5Z_FILTER_DEFLATE) <= 0) {
+        MKTREE_RETURN_IF_ERROR(WriteTable(g.get(), name, file_type, mem_type, data, n, path_));
+        return H5Id();
       }
-      H5Id fspace(H5Dget_space(d.get()), H5Sclose);
-      hsize_t s[1] = {start}, c[1] = {count};
-      H5Sselect_hyperslab(fspace.get(), H5S_SELECT_SET, s, nullptr, c, nullptr);
-      H5Id mspace(H5Screate_simple(1, c, nullptr), H5Sclose);
-      if (H5Dwrite(d.get(), mem.get(), mspace.get(), fspace.get(), H5P_DEFAULT, buf.data()) < 0)
-        return Status::IOError(path_ + ": writing /objects: " + Hdf5ErrorText());
+      const hsize_t dims[1] = {n}, chunk[1] = {std::min(n, kObjectChunkRows)};
+      H5Id space(H5Screate_simple(1, dims, nullptr), H5Sclose);
+      H5Id dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
+      H5Pset_chunk(dcpl.get(), 1, chunk);
+      if (shuffle) H5Pset_shuffle(dcpl.get());
+      H5Pset_deflate(dcpl.get(), 4);
+      H5Id d(H5Dcreate2(g.get(), name, file_type, space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT),
+             H5Dclose);
+      if (!d.ok() || H5Dwrite(d.get(), mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0)
+        return Status::IOError(path_ + ": writing /objects/" + name + ": " + Hdf5ErrorText());
+      return d;
+    };
+    MKTREE_RETURN_IF_ERROR(
+        write("leaf", H5T_STD_U32LE, H5T_NATIVE_UINT32, t.leaf.data(), t.size(), true).status());
+    MKTREE_RETURN_IF_ERROR(
+        write("name_end", H5T_STD_U64LE, H5T_NATIVE_UINT64, t.name_end.data(), t.size(), true).status());
+    auto names = write("names", H5T_STD_U8LE, H5T_NATIVE_UINT8, t.names.data(), t.names.size(), false);
+    if (!names.ok()) return names.status();
+    // (Flushed first: chunks still in HDF5's chunk cache take no storage yet.)
+    if (names->ok() && H5Dflush(names->get()) < 0)
+      return Status::IOError(path_ + ": writing /objects/names: " + Hdf5ErrorText());
+    if (names->ok() && t.names.size() > kMaxNamesInflation * H5Dget_storage_size(names->get())) {
+      names->reset();
+      if (H5Ldelete(g.get(), "names", H5P_DEFAULT) < 0)
+        return Status::IOError(path_ + ": rewriting /objects/names: " + Hdf5ErrorText());
+      return WriteTable(g.get(), "names", H5T_STD_U8LE, H5T_NATIVE_UINT8, t.names.data(), t.names.size(),
+                        path_);
     }
     return Status::Ok();
   }
@@ -864,44 +901,56 @@ H5Id PagesAccessList() {
   return dapl;
 }
 
-Status ReadObjects(hid_t f, uint64_t expected, ObjectTable* t, const std::string& path) {
-  H5Id d(H5Dopen2(f, "objects", H5P_DEFAULT), H5Dclose);
-  if (!d.ok()) return Status::Corruption(path + ": missing dataset objects");
-  H5Id ftype(H5Dget_type(d.get()), H5Tclose);
-  const int name_idx = H5Tget_member_index(ftype.get(), "name");
-  if (H5Tget_class(ftype.get()) != H5T_COMPOUND || name_idx < 0)
-    return Status::Corruption(path + ": objects is not an (id, leaf, name) table");
-  H5Id ntype(H5Tget_member_type(ftype.get(), static_cast<unsigned>(name_idx)), H5Tclose);
-  if (H5Tget_class(ntype.get()) != H5T_STRING || H5Tis_variable_str(ntype.get()) > 0)
-    return Status::Corruption(path + ": objects.name is not a fixed-length string");
-  const size_t width = H5Tget_size(ntype.get()), row = 8 + width;
-  H5Id name_type = StringType(width);
-  H5Id mem(H5Tcreate(H5T_COMPOUND, row), H5Tclose);
-  H5Tinsert(mem.get(), "id", 0, H5T_NATIVE_UINT32);
-  H5Tinsert(mem.get(), "leaf", 4, H5T_NATIVE_UINT32);
-  H5Tinsert(mem.get(), "name", 8, name_type.get());
-  H5Id fspace(H5Dget_space(d.get()), H5Sclose);
-  hsize_t dims[1] = {0};
-  if (H5Sget_simple_extent_ndims(fspace.get()) != 1 || H5Sget_simple_extent_dims(fspace.get(), dims, nullptr) < 0 ||
-      dims[0] != expected)
-    return Status::Corruption(path + ": objects table has the wrong size");
-  std::vector<uint8_t> buf;
-  for (hsize_t start = 0; start < dims[0]; start += kObjectChunkRows) {
-    const hsize_t count = std::min<hsize_t>(kObjectChunkRows, dims[0] - start);
-    buf.assign(count * row, 0);
-    hsize_t s[1] = {start}, c[1] = {count};
-    H5Sselect_hyperslab(fspace.get(), H5S_SELECT_SET, s, nullptr, c, nullptr);
-    H5Id mspace(H5Screate_simple(1, c, nullptr), H5Sclose);
-    if (H5Dread(d.get(), mem.get(), mspace.get(), fspace.get(), H5P_DEFAULT, buf.data()) < 0)
-      return Status::Corruption(path + ": reading objects: " + Hdf5ErrorText());
-    for (hsize_t i = 0; i < count; ++i) {
-      const uint8_t* r = buf.data() + i * row;
-      if (storage_internal::Get<uint32_t>(r) != start + i)
-        return Status::Corruption(path + ": objects row " + std::to_string(start + i) + " has the wrong id");
-      const char* name = reinterpret_cast<const char*>(r + 8);
-      t->Append(storage_internal::Get<uint32_t>(r + 4), std::string_view(name, strnlen(name, width)));
-    }
+// Reads /objects of a store of `expected` objects. Every length is checked before its allocation: leaf and
+// name_end must have `expected` elements (bounded by the pages' size at open), names exactly the last name
+// end, which must fit in the file (`file_bytes`).
+Status ReadObjects(hid_t f, uint64_t expected, uint64_t file_bytes, ObjectTable* t, const std::string& path) {
+  auto bad = [&](const std::string& m) { return Status::Corruption(path + ": " + m); };
+  if (H5Lexists(f, "objects", H5P_DEFAULT) <= 0) return bad("missing group objects");
+  H5Id g(H5Gopen2(f, "objects", H5P_DEFAULT), H5Gclose);
+  if (!g.ok()) return bad("objects: " + Hdf5ErrorText());
+  auto open = [&](const char* name, uint64_t max_bytes, uint64_t want, H5Id* d) -> Status {
+    if (H5Lexists(g.get(), name, H5P_DEFAULT) <= 0)
+      return bad(std::string("missing dataset objects/") + name);
+    *d = H5Id(H5Dopen2(g.get(), name, H5P_DEFAULT), H5Dclose);
+    if (!d->ok()) return bad(std::string("objects/") + name + ": " + Hdf5ErrorText());
+    const std::string full = std::string("objects/") + name;
+    auto n = DatasetLength(d->get(), full.c_str(), max_bytes, path);
+    if (!n.ok()) return n.status();
+    if (*n != want)
+      return bad(full + " has " + std::to_string(*n) + " elements, expected " + std::to_string(want));
+    return Status::Ok();
+  };
+  H5Id leaf, name_end, names;
+  // leaf and name_end may be compressed: their lengths are bounded by `expected`, not by the file.
+  MKTREE_RETURN_IF_ERROR(open("leaf", UINT64_MAX, expected, &leaf));
+  MKTREE_RETURN_IF_ERROR(open("name_end", UINT64_MAX, expected, &name_end));
+  t->leaf.resize(expected);
+  t->name_end.resize(expected);
+  if (expected > 0 &&
+      (H5Dread(leaf.get(), H5T_NATIVE_UINT32, H5S_ALL, H5S_ALL, H5P_DEFAULT, t->leaf.data()) < 0 ||
+       H5Dread(name_end.get(), H5T_NATIVE_UINT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, t->name_end.data()) < 0))
+    return bad("reading objects: " + Hdf5ErrorText());
+  uint64_t prev = 0;
+  for (uint64_t i = 0; i < expected; ++i) {
+    if (t->name_end[i] < prev) return bad("objects/name_end decreases at object " + std::to_string(i));
+    prev = t->name_end[i];
   }
+  // The names' length: at most the file's size if they are stored unfiltered, else kMaxNamesInflation
+  // times the bytes their chunks take in the file.
+  uint64_t names_bound = file_bytes;
+  if (H5Lexists(g.get(), "names", H5P_DEFAULT) > 0) {
+    H5Id d(H5Dopen2(g.get(), "names", H5P_DEFAULT), H5Dclose);
+    H5Id dcpl(d.ok() ? H5Dget_create_plist(d.get()) : -1, H5Pclose);
+    const int filters = dcpl.ok() ? H5Pget_nfilters(dcpl.get()) : -1;
+    if (filters < 0) return bad("objects/names: " + Hdf5ErrorText());
+    if (filters > 0)
+      names_bound = kMaxNamesInflation * std::min<uint64_t>(H5Dget_storage_size(d.get()), file_bytes);
+  }
+  MKTREE_RETURN_IF_ERROR(open("names", names_bound, prev, &names));
+  t->names.resize(prev);
+  if (prev > 0 && H5Dread(names.get(), H5T_NATIVE_UINT8, H5S_ALL, H5S_ALL, H5P_DEFAULT, t->names.data()) < 0)
+    return bad("reading objects/names: " + Hdf5ErrorText());
   return Status::Ok();
 }
 
@@ -947,7 +996,12 @@ Result<OpenedStore> OpenHdf5(const std::string& path, const ReadOptions& opts) {
   H5Id file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
   if (!file.ok()) return bad("HDF5 cannot open it (" + Hdf5ErrorText() + "): truncated or damaged");
   const hid_t f = file.get();
-  if (H5Aexists(f, "magic") <= 0) return bad("an HDF5 file, but not an mktree store (no magic attribute)");
+  hsize_t file_bytes = 0;
+  if (H5Fget_filesize(f, &file_bytes) < 0) return bad("HDF5 cannot tell its size (" + Hdf5ErrorText() + ")");
+  if (H5Aexists(f, "magic") <= 0) {
+    H5Eclear2(H5E_DEFAULT);
+    return bad("an HDF5 file, but not an mktree store (no magic attribute)");
+  }
   auto magic = ReadStringAttr(f, "magic", path);
   if (!magic.ok()) return magic.status();
   if (*magic != kHdf5Magic) return bad("an HDF5 file, but not an mktree store (magic \"" + *magic + "\")");
@@ -985,20 +1039,31 @@ Result<OpenedStore> OpenHdf5(const std::string& path, const ReadOptions& opts) {
   Status st = DecodeParams(EncodeParams(c.params, c.codec), &check_params, &check_codec);
   if (!st.ok()) return bad(st.message());
   const uint64_t mem_page = c.params.mem_page();
+  // Counts bounded by the file before anything is sized by them (a checksum is no proof: it is not a MAC).
+  // Every page is stored whole and unfiltered, and every object's leaf entry (at least its header) is in a
+  // page.
+  if (page_count > file_bytes / mem_page)
+    return bad(std::to_string(page_count) + " pages of " + std::to_string(mem_page) +
+               " bytes do not fit in its " + std::to_string(file_bytes) + " bytes");
+  if (object_count > page_count * PagePayloadCapacity(mem_page) / kObjectEntryHeaderBytes)
+    return bad(std::to_string(object_count) + " objects do not fit in its " + std::to_string(page_count) +
+               " pages");
 
-  // The tree.
+  // The tree: contiguous, unfiltered datasets, each at most the file's size.
+  if (H5Lexists(f, "tree", H5P_DEFAULT) <= 0) return bad("missing group /tree");
   H5Id tree(H5Gopen2(f, "tree", H5P_DEFAULT), H5Gclose);
-  if (!tree.ok()) return bad("missing group /tree");
+  if (!tree.ok()) return bad("/tree: " + Hdf5ErrorText());
   std::vector<NodeRec> nodes;
   std::vector<SplitRec> splits;
   std::vector<LeafRec> leaves;
   H5Id node_mem = MakeCompound(NodeFields(), sizeof(NodeRec), false);
   H5Id split_mem = SplitType(false);
   H5Id leaf_mem = MakeCompound(LeafFields(), sizeof(LeafRec), false);
-  MKTREE_RETURN_IF_ERROR(ReadTable(tree.get(), "nodes", node_mem.get(), &nodes, path));
-  MKTREE_RETURN_IF_ERROR(ReadTable(tree.get(), "split_nodes", split_mem.get(), &splits, path));
-  MKTREE_RETURN_IF_ERROR(ReadTable(tree.get(), "leaves", leaf_mem.get(), &leaves, path));
-  MKTREE_RETURN_IF_ERROR(ReadTable(tree.get(), "leaf_filter", H5T_NATIVE_UINT8, &c.tree.leaf_filter, path));
+  MKTREE_RETURN_IF_ERROR(ReadTable(tree.get(), "nodes", node_mem.get(), &nodes, file_bytes, path));
+  MKTREE_RETURN_IF_ERROR(ReadTable(tree.get(), "split_nodes", split_mem.get(), &splits, file_bytes, path));
+  MKTREE_RETURN_IF_ERROR(ReadTable(tree.get(), "leaves", leaf_mem.get(), &leaves, file_bytes, path));
+  MKTREE_RETURN_IF_ERROR(
+      ReadTable(tree.get(), "leaf_filter", H5T_NATIVE_UINT8, &c.tree.leaf_filter, file_bytes, path));
   if (Checksum(c.tree.leaf_filter) != sums[6]) return bad("leaf_filter checksum mismatch");
   c.tree.params = c.params;
   for (const NodeRec& r : nodes) c.tree.nodes.push_back(FromRec(r));
@@ -1016,17 +1081,22 @@ Result<OpenedStore> OpenHdf5(const std::string& path, const ReadOptions& opts) {
   if (Checksum(EncodeSplitNodes(c.tree.split_nodes)) != sums[2]) return bad("split_nodes checksum mismatch");
   if (Checksum(EncodeLeaves(c.tree.leaves)) != sums[3]) return bad("leaves checksum mismatch");
 
-  MKTREE_RETURN_IF_ERROR(ReadObjects(f, object_count, &c.objects, path));
+  MKTREE_RETURN_IF_ERROR(ReadObjects(f, object_count, file_bytes, &c.objects, path));
   if (ObjectsChecksum(c.objects) != sums[4]) return bad("objects checksum mismatch");
   {
+    if (H5Lexists(f, "stats_json", H5P_DEFAULT) <= 0) return bad("missing dataset stats_json");
     H5Id d(H5Dopen2(f, "stats_json", H5P_DEFAULT), H5Dclose);
-    if (!d.ok()) return bad("missing dataset stats_json");
+    if (!d.ok()) return bad("stats_json: " + Hdf5ErrorText());
     H5Id dt(H5Dget_type(d.get()), H5Tclose);
     H5Id space(H5Dget_space(d.get()), H5Sclose);
     if (H5Tget_class(dt.get()) != H5T_STRING || H5Tis_variable_str(dt.get()) != 0 ||
         H5Sget_simple_extent_type(space.get()) != H5S_SCALAR)
       return bad("stats_json is not a fixed-length string");
     const size_t n = H5Tget_size(dt.get());
+    if (n == 0) return bad("stats_json has no valid type");
+    if (n > file_bytes)
+      return bad("stats_json claims " + std::to_string(n) + " bytes, more than the file's " +
+                 std::to_string(file_bytes));
     H5Id t = StringType(n);
     std::string js(n, '\0');
     if (H5Dread(d.get(), t.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, js.data()) < 0)
@@ -1038,8 +1108,9 @@ Result<OpenedStore> OpenHdf5(const std::string& path, const ReadOptions& opts) {
 
   // The pages dataset: shape, chunking and filters as we wrote them.
   H5Id dapl = PagesAccessList();
+  if (H5Lexists(f, "pages", H5P_DEFAULT) <= 0) return bad("missing dataset pages");
   H5Id pages(H5Dopen2(f, "pages", dapl.get()), H5Dclose);
-  if (!pages.ok()) return bad("missing dataset pages");
+  if (!pages.ok()) return bad("pages: " + Hdf5ErrorText());
   {
     H5Id space(H5Dget_space(pages.get()), H5Sclose);
     hsize_t dims[2] = {0, 0};
@@ -1058,6 +1129,7 @@ Result<OpenedStore> OpenHdf5(const std::string& path, const ReadOptions& opts) {
       return bad("pages chunk index damaged (" + std::to_string(chunks) + " chunks for " + std::to_string(page_count) +
                  " pages)");
   }
+  H5Eclear2(H5E_DEFAULT);
   MKTREE_RETURN_IF_ERROR(ValidateStructure(c.tree, c.objects, page_count, path));
   if (opts.direct_io) out.notice = path + ": direct I/O is not supported by the HDF5 backend; using buffered reads";
   out.pages =
