@@ -305,7 +305,8 @@ herr_t WriterWrite(H5FD_t* file, H5FD_mem_t type, hid_t /*dxpl*/, haddr_t addr, 
       done += static_cast<size_t>(r);
     }
   }
-  // Raw data (pages, tables) is never read back while writing; metadata may be.
+  // Metadata is kept: HDF5 reads it back and interprets it. Raw data (pages, tables) read back after an error
+  // only feeds a file that is being thrown away.
   if (io->discard && type != H5FD_MEM_DRAW) io->kept.emplace_back(addr, std::vector<uint8_t>(p, p + size));
   f->eof = std::max<haddr_t>(f->eof, addr + size);
   return 0;

@@ -143,6 +143,64 @@ TEST(Hdf5StoreTest, ObjectTableIsItsCanonicalEncoding) {
   EXPECT_EQ(names.substr(name_end[6], 3), std::string("a\0b", 3));
 }
 
+// Open HDF5 identifiers of every kind the store code creates.
+std::vector<int64_t> Hdf5Ids() {
+  std::vector<int64_t> n;
+  for (H5I_type_t t :
+       {H5I_FILE, H5I_GROUP, H5I_DATATYPE, H5I_DATASPACE, H5I_DATASET, H5I_ATTR, H5I_GENPROP_LST}) {
+    hsize_t c = 0;
+    H5Inmembers(t, &c);
+    n.push_back(static_cast<int64_t>(c));
+  }
+  return n;
+}
+
+// I/O errors other than a full disk, in the writer: its descriptor replaced by a read-only one (writes
+// fail) while writing pages, or by a write-only one (HDF5's reads fail: it reads back while writing the
+// tables) before Commit. Each ends in one line naming the temporary file, with every HDF5 identifier
+// released and nothing left behind; the process then builds the store.
+TEST(Hdf5StoreTest, WriterIoErrorsFailCleanly) {
+  TempDir dir;
+  const std::string path = dir.file("w.mkt");
+  const std::vector<SceneObject> objects = testing::MakeObjects(3000, 34);
+  ASSERT_TRUE(WriteHdf5(dir.file("warm.mkt"), objects).ok());
+  std::filesystem::remove(dir.file("warm.mkt"));
+  const std::vector<int64_t> ids = Hdf5Ids();
+  StoreOptions o;
+  for (const int mode : {O_RDONLY, O_WRONLY}) {
+    SCOPED_TRACE(mode == O_RDONLY ? "writes fail" : "reads fail");
+    Status st;
+    {
+      auto w = StoreWriter::Create(path, o);
+      ASSERT_TRUE(w.ok());
+      const int fd = DescriptorOf((*w)->temp_path());
+      ASSERT_GE(fd, 0);
+      auto swap = [&] {
+        const int other = ::open((*w)->temp_path().c_str(), mode);
+        ASSERT_EQ(::dup2(other, fd), fd);
+        ::close(other);
+      };
+      if (mode == O_RDONLY) swap();
+      BuiltStore built;
+      st = testing::BuildTestStore(objects, o.codec, o.params, &(*w)->pages(), &built);
+      if (st.ok()) {
+        for (const SceneObject& ob : objects)
+          ASSERT_TRUE((*w)->AppendObject(ob.id, built.object_leaf[ob.id], ob.name).ok());
+        if (mode == O_WRONLY) swap();
+        st = (*w)->Commit(built.tree, "{}");
+      }
+    }
+    ASSERT_FALSE(st.ok());
+    EXPECT_EQ(st.message().find('\n'), std::string::npos) << st.message();
+    EXPECT_EQ(st.message().rfind(path + ".tmp.", 0), 0u) << st.message();
+    EXPECT_NE(st.message().find(std::strerror(EBADF)), std::string::npos) << st.message();
+    EXPECT_EQ(Hdf5Ids(), ids);
+    EXPECT_TRUE(std::filesystem::is_empty(dir.path()));
+  }
+  ASSERT_TRUE(WriteHdf5(path, objects).ok());
+  EXPECT_TRUE(StoreReader::Open(path).ok());
+}
+
 // ---- Crafted stores: sizes read from the file are bounded before anything is allocated ----
 
 class CraftedHdf5Test : public ::testing::Test {
