@@ -12,6 +12,18 @@
 #include "storage_test_util.h"
 #include "tool_runner.h"
 
+// GCC defines __SANITIZE_*__, Clang answers __has_feature.
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#define MKTREE_UNDER_SANITIZER 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer) || __has_feature(memory_sanitizer)
+#define MKTREE_UNDER_SANITIZER 1
+#endif
+#endif
+#ifndef MKTREE_UNDER_SANITIZER
+#define MKTREE_UNDER_SANITIZER 0
+#endif
+
 namespace mktree {
 namespace {
 
@@ -85,7 +97,7 @@ TEST_P(ObjectNamesTest, OneLongNameCostsItsOwnSize) {
 // Building and opening that store fits in a few times its size of memory: in a child with an address-space
 // limit, well below the 2 GB the padded table needed.
 TEST_P(ObjectNamesTest, OneLongNameNeedsNoMoreMemoryThanItsSize) {
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#if MKTREE_UNDER_SANITIZER
   GTEST_SKIP() << "an address-space limit cannot apply under a sanitizer's shadow memory";
 #endif
   const std::string path = dir_.file("long.mkt");
