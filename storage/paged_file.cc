@@ -63,7 +63,7 @@ class PagedFileStore : public PageStore {
  public:
   PagedFileStore(std::string name, int fd, uint64_t mem_page, uint64_t page_count)
       : name_(std::move(name)), fd_(fd), mem_page_(mem_page), count_(page_count) {}
-  ~PagedFileStore() override { Close(); }
+  ~PagedFileStore() override { (void)Close(); }
 
   uint64_t page_bytes() const override { return mem_page_; }
   uint64_t page_count() const override { return count_; }
@@ -135,10 +135,15 @@ class PagedFileStore : public PageStore {
       mapped_ = nullptr;
     }
   }
-  void Close() {
-    if (fd_ >= 0) ::close(fd_);
+  // An error from close(2) is returned: some filesystems (NFS) report a deferred write error, such as a
+  // full disk, only there.
+  Status Close() {
+    int err = 0;
+    if (fd_ >= 0 && ::close(fd_) != 0 && errno != EINTR) err = errno;
     if (direct_fd_ >= 0) ::close(direct_fd_);
     fd_ = direct_fd_ = -1;
+    if (err != 0) return Status::IOError(name_ + ": close: " + ErrnoText(err));
+    return Status::Ok();
   }
 
  private:
@@ -157,7 +162,7 @@ class PagedFileWriter : public StoreWriter::Impl {
   PagedFileWriter(std::string path, int fd, const BuildParams& params)
       : path_(path), store_(std::move(path), fd, params.mem_page(), 0) {}
   PageStore& pages() override { return store_; }
-  void Abort() override { store_.Close(); }
+  void Abort() override { (void)store_.Close(); }
 
   Status Finish(const StoreContents& c) override {
     const uint64_t mem_page = store_.page_bytes();
@@ -206,8 +211,7 @@ class PagedFileWriter : public StoreWriter::Impl {
     if (::fsync(store_.fd()) != 0) return Status::IOError(path_ + ": fsync: " + ErrnoText(errno));
     MKTREE_RETURN_IF_ERROR(PwriteFull(store_.fd(), h, mem_page, 0, path_));
     if (::fsync(store_.fd()) != 0) return Status::IOError(path_ + ": fsync: " + ErrnoText(errno));
-    store_.Close();
-    return Status::Ok();
+    return store_.Close();
   }
 
  private:

@@ -212,9 +212,10 @@ TEST_P(StoreFileTest, OlderFormatVersionIsRefused) {
   ASSERT_FALSE(r.ok());
   EXPECT_EQ(r.status().code(), Status::Code::kUnsupported) << r.status().ToString();
   EXPECT_NE(r.status().message().find(path), std::string::npos) << r.status().message();
-  EXPECT_NE(r.status().message().find("format version 2 (this build reads version 3): build the store again"),
-            std::string::npos)
+  // (Each backend reads its own current version.)
+  EXPECT_NE(r.status().message().find("format version 2 (this build reads version "), std::string::npos)
       << r.status().message();
+  EXPECT_NE(r.status().message().find("): build the store again"), std::string::npos) << r.status().message();
 }
 
 TEST_P(StoreFileTest, FlippedBytesInLeafPagesAreDetected) {
