@@ -63,7 +63,8 @@ void RegisterExport(CLI::App& app, CommandRun* run) {
       "Write the level-k colouring as PLY or GLB (blue Sn1, red Sn2, green overlap Sm, grey above level)");
   cmd->add_option("store", args->store, "Store file")->required();
   AddNumberOption(cmd, "--level", &args->level, "k: colour each object by its group at its depth-k ancestor")
-      ->required();
+      ->required()
+      ->default_str("");
   cmd->add_option("-o,--output", args->output, "OUT.ply (binary, vertex colours) or OUT.glb (glTF 2.0)")
       ->required();
   cmd->add_flag("--boxes", args->boxes,

@@ -98,7 +98,7 @@ void RegisterGenerate(CLI::App& app, CommandRun* run) {
   generate->require_subcommand(1);
   CLI::App* cmd = generate->add_subcommand("tanker", "The synthetic tanker (DESIGN.md §6) as .obj or .mks");
   opt->kind = "tanker";
-  AddNumberOption(cmd, "--objects", &opt->objects, "Number of objects N (>= 1)")->required();
+  AddNumberOption(cmd, "--objects", &opt->objects, "Number of objects N (>= 1)")->required()->default_str("");
   AddNumberOption(cmd, "--seed", &opt->seed, "Random seed: the same seed gives the same file");
   cmd->add_option("-o,--output", opt->output, "Output scene: SCENE.obj or SCENE.mks")->required();
   cmd->callback([opt, run] { *run = [opt] { return RunGenerate(*opt); }; });

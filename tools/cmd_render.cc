@@ -74,7 +74,8 @@ void RegisterRender(CLI::App& app, CommandRun* run) {
       "Draw the level-k colouring as a PNG (blue Sn1, red Sn2, green overlap Sm, grey above level)");
   cmd->add_option("store", args->store, "Store file")->required();
   AddNumberOption(cmd, "--level", &args->level, "k: colour each object by its group at its depth-k ancestor")
-      ->required();
+      ->required()
+      ->default_str("");
   cmd->add_option("-o,--output", args->output, "OUT.png")->required();
   cmd->add_option("--view", args->view, "top (x right, y up), side (x right, z up) or front (y right, z up)")
       ->capture_default_str();
