@@ -61,11 +61,17 @@ Status SyncParentDir(const std::string& path) {
 }
 
 Result<size_t> ReadPrefix(const std::string& path, void* buf, size_t n) {
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (path.empty()) return Status::InvalidArgument("empty file name");
+  // O_NONBLOCK: opening a FIFO must not wait for a writer; anything but a regular file is refused below.
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
   if (fd < 0) {
     const int err = errno;
     if (err == ENOENT) return Status::NotFound(path + ": no such file");
     return Status::IOError(path + ": open: " + ErrnoText(err));
+  }
+  if (struct stat st{}; ::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+    ::close(fd);
+    return Status::InvalidArgument(path + ": not a regular file");
   }
   size_t done = 0;
   while (done < n) {

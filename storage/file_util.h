@@ -16,7 +16,8 @@ Status PwriteFull(int fd, const void* buf, size_t n, uint64_t offset, const std:
 Result<uint64_t> FileSize(int fd, const std::string& name);
 // fsync of the directory holding `path`, so that a rename in it is durable.
 Status SyncParentDir(const std::string& path);
-// Reads up to n bytes from the start of `path`; returns how many were read.
+// Reads up to n bytes from the start of `path`; returns how many were read. Anything but a regular file
+// (a directory, FIFO, device) is InvalidArgument, without blocking.
 Result<size_t> ReadPrefix(const std::string& path, void* buf, size_t n);
 // The error of a store whose format version (`found`) is not the one this build reads: Unsupported,
 // naming the file, the format, both versions, and what to do.

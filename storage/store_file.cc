@@ -152,6 +152,10 @@ Result<std::unique_ptr<StoreWriter>> StoreWriter::Create(const std::string& fina
                                    " out of range (512 bytes to 1 GiB)");
   if (!(opts.params.balance_r >= 0 && opts.params.balance_r < 0.5))
     return Status::InvalidArgument(final_path + ": balance ratio must be in [0, 0.5)");
+  // Replacing anything but a regular file (or a link to one) would destroy what is not a store, or fail
+  // only at the rename, after all the work.
+  if (struct stat st{}; ::stat(final_path.c_str(), &st) == 0 && !S_ISREG(st.st_mode))
+    return Status::InvalidArgument(final_path + ": exists and is not a regular file: refusing to replace it");
   auto lock = Lock::Acquire(final_path);
   if (!lock.ok()) return lock.status();
   const std::string temp = final_path + ".tmp." + std::to_string(::getpid());

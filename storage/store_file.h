@@ -48,8 +48,9 @@ struct StoreOptions {
 // Thread safety: a StoreWriter is used by one thread.
 class StoreWriter {
  public:
-  // Creates "<final_path>.tmp.<pid>" (replacing a stale one) and takes the writer lock. Fails if another
-  // writer is building final_path, or if params give an unusable page size.
+  // Takes the writer lock, removes the temporary stores of killed writers and creates
+  // "<final_path>.tmp.<pid>". Fails if another writer is building final_path, if final_path exists and is
+  // not a regular file (a directory, FIFO, device), or if params give an unusable page size.
   static Result<std::unique_ptr<StoreWriter>> Create(const std::string& final_path, const StoreOptions& opts);
   // Removes the temporary file unless committed, and releases the lock.
   ~StoreWriter();

@@ -1,11 +1,15 @@
 // mktree build SCENE... -o STORE: ingest scenes and write a store (DESIGN.md §5).
+#include <zstd.h>
+
 #include <cstdio>
-#include <filesystem>
-#include <limits>
+#include <optional>
+#include <string_view>
 
 #include "engine/generator/tanker_generator.h"
 #include "engine/ingest/store_builder.h"
+#include "tools/cli_numbers.h"
 #include "tools/command.h"
+#include "tools/path_checks.h"
 #include "tools/progress.h"
 
 namespace mktree::tools {
@@ -26,21 +30,25 @@ struct BuildArgs {
   bool quiet = false;
 };
 
+bool IsGenerator(const std::string& input) { return input.rfind("tanker:", 0) == 0; }
+
 // "tanker:N[:SEED]" builds straight from the generator, without a scene file.
 Result<SceneOpener> OpenerFor(const std::string& input) {
-  if (input.rfind("tanker:", 0) == 0) {
-    uint64_t n = 0, seed = 1;
-    char extra = 0;
-    const int got = std::sscanf(input.c_str() + 7, "%llu:%llu%c", reinterpret_cast<unsigned long long*>(&n),
-                                reinterpret_cast<unsigned long long*>(&seed), &extra);
-    if (got < 1 || got > 2 || n == 0)
-      return Status::InvalidArgument(input + ": expected tanker:N or tanker:N:SEED with N > 0");
-    return SceneOpener([n, seed](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
+  if (IsGenerator(input)) {
+    const std::string_view spec = std::string_view(input).substr(7);
+    const size_t colon = spec.find(':');
+    const std::optional<uint64_t> n = ParseUnsigned<uint64_t>(spec.substr(0, colon));
+    const std::optional<uint64_t> seed = colon == std::string_view::npos
+                                             ? std::optional<uint64_t>(1)
+                                             : ParseUnsigned<uint64_t>(spec.substr(colon + 1));
+    if (!n || !seed || *n == 0 || *n > (uint64_t{1} << 32))
+      return Status::InvalidArgument(input +
+                                     ": expected tanker:N or tanker:N:SEED in decimal, 1 <= N <= 2^32");
+    return SceneOpener([n = *n, seed = *seed](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
       return MakeTankerSource(n, seed, first);
     });
   }
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(input, ec)) return Status::NotFound(input + ": no such file");
+  MKTREE_RETURN_IF_ERROR(CheckInputFile(input));
   return SceneOpener([input](ObjectId first) { return OpenSceneFile(input, first); });
 }
 
@@ -52,6 +60,9 @@ int RunBuild(const BuildArgs& a) {
   if (a.codec == "zstd") opts.store.codec.codec = Codec::kZstd;
   else if (a.codec == "none") opts.store.codec.codec = Codec::kNone;
   else return Fail("--codec must be zstd or none, not '" + a.codec + "'");
+  if (a.zstd_level < ZSTD_minCLevel() || a.zstd_level > ZSTD_maxCLevel())
+    return Fail("--zstd-level must be from " + std::to_string(ZSTD_minCLevel()) + " to " +
+                std::to_string(ZSTD_maxCLevel()) + ", not " + std::to_string(a.zstd_level));
   opts.store.codec.zstd_level = a.zstd_level;
   opts.store.params.block_size = a.block_size;
   opts.store.params.blocks_per_page = a.blocks_per_page;
@@ -70,14 +81,19 @@ int RunBuild(const BuildArgs& a) {
   }
   if (a.block_size < 512 || a.blocks_per_page == 0 ||
       uint64_t{a.block_size} * a.blocks_per_page > (uint64_t{1} << 30))
-    return Fail("--block-size must be at least 512 and the page (block size x blocks per page) at most 1 GiB");
+    return Fail(
+        "--block-size must be at least 512, --blocks-per-page at least 1, and the page (block size x "
+        "blocks per page) at most 1 GiB");
 
   std::vector<SceneOpener> openers;
+  std::vector<std::string> files;
   for (const std::string& in : a.inputs) {
     auto opener = OpenerFor(in);
     if (!opener.ok()) return Fail(opener.status().message());
     openers.push_back(std::move(*opener));
+    if (!IsGenerator(in)) files.push_back(in);
   }
+  if (Status st = CheckOutputFile(a.output, files); !st.ok()) return Fail(st.message());
   Progress progress(a.quiet);
   opts.progress = [&](IngestStage s, uint64_t done, uint64_t total) {
     progress.Update(IngestStageName(s), done, total);
@@ -120,12 +136,12 @@ void RegisterBuild(CLI::App& app, CommandRun* run) {
   cmd->add_option("-o,--output", args->output, "Store file to write (replaced atomically)")->required();
   cmd->add_option("--backend", args->backend, "hdf5 or pagefile")->capture_default_str();
   cmd->add_option("--codec", args->codec, "Page codec: zstd or none")->capture_default_str();
-  cmd->add_option("--zstd-level", args->zstd_level, "zstd compression level")->capture_default_str();
-  cmd->add_option("--block-size", args->block_size, "Disk block size in bytes")->capture_default_str();
-  cmd->add_option("--blocks-per-page", args->blocks_per_page, "d: blocks per leaf page")->capture_default_str();
-  cmd->add_option("--r", args->r, "SOA balance ratio, 0 <= r < 0.5")->capture_default_str();
-  cmd->add_option("--split-budget", args->split_budget, "SplitTree node budget per internal node")
-      ->capture_default_str();
+  AddNumberOption(cmd, "--zstd-level", &args->zstd_level, "zstd compression level");
+  AddNumberOption(cmd, "--block-size", &args->block_size, "Disk block size in bytes");
+  AddNumberOption(cmd, "--blocks-per-page", &args->blocks_per_page, "d: blocks per leaf page");
+  AddNumberOption(cmd, "--r", &args->r, "SOA balance ratio, 0 <= r < 0.5");
+  AddNumberOption(cmd, "--split-budget", &args->split_budget,
+                  "SplitTree node budget per internal node (0: none)");
   cmd->add_option("--split-policy", args->split_policy,
                   "How nodes are split: compact (SOA over compact candidates), soa (DESIGN.md 2.1 exactly) or "
                   "soa-fill (SOA, page fill first near the leaves)")

@@ -4,7 +4,9 @@
 #include <cstdio>
 
 #include "engine/query/level_export.h"
+#include "tools/cli_numbers.h"
 #include "tools/command.h"
+#include "tools/path_checks.h"
 #include "tools/progress.h"
 
 namespace mktree::tools {
@@ -20,6 +22,7 @@ struct ExportArgs {
 
 int RunExport(const ExportArgs& a) {
   if (a.level < 0) return Fail("--level must be >= 0, not " + std::to_string(a.level));
+  if (Status st = CheckOutputFile(a.output, {a.store}); !st.ok()) return Fail(st.message());
   auto format = ExportFormatFor(a.output);
   if (!format.ok()) return Fail(format.status().message());
   auto reader = StoreReader::Open(a.store);
@@ -59,8 +62,9 @@ void RegisterExport(CLI::App& app, CommandRun* run) {
       "export",
       "Write the level-k colouring as PLY or GLB (blue Sn1, red Sn2, green overlap Sm, grey above level)");
   cmd->add_option("store", args->store, "Store file")->required();
-  cmd->add_option("--level", args->level, "k: colour each object by its group at its depth-k ancestor")
-      ->required();
+  AddNumberOption(cmd, "--level", &args->level, "k: colour each object by its group at its depth-k ancestor")
+      ->required()
+      ->default_str("");
   cmd->add_option("-o,--output", args->output, "OUT.ply (binary, vertex colours) or OUT.glb (glTF 2.0)")
       ->required();
   cmd->add_flag("--boxes", args->boxes,

@@ -9,14 +9,16 @@
 #include "engine/generator/obj_writer.h"
 #include "engine/generator/tanker_generator.h"
 #include "engine/scene/mkscene_format.h"
+#include "tools/cli_numbers.h"
 #include "tools/command.h"
+#include "tools/path_checks.h"
 
 namespace mktree::tools {
 namespace {
 
 struct GenerateOptions {
   std::string kind;
-  int64_t objects = 0;  // signed so that a negative count is reported as such, not wrapped
+  uint64_t objects = 0;
   uint64_t seed = 1;
   std::string output;
 };
@@ -60,13 +62,15 @@ Result<uint64_t> GenerateInto(const std::string& path, SceneSource* source, Clas
 }
 
 int RunGenerate(const GenerateOptions& opt) {
-  if (opt.objects <= 0) return Fail("--objects must be at least 1");
-  if (opt.objects > (int64_t{1} << 32)) return Fail("--objects must be at most 2^32 (object ids are 32-bit)");
+  if (opt.objects == 0) return Fail("--objects must be at least 1");
+  if (opt.objects > (uint64_t{1} << 32))
+    return Fail("--objects must be at most 2^32 (object ids are 32-bit)");
+  if (Status st = CheckOutputFile(opt.output, {}); !st.ok()) return Fail(st.message());
   const bool obj = EndsWith(opt.output, ".obj"), mks = EndsWith(opt.output, ".mks");
   if (!obj && !mks) return Fail(opt.output + ": unknown scene extension (use .obj or .mks)");
 
   const auto start = std::chrono::steady_clock::now();
-  std::unique_ptr<SceneSource> source = MakeTankerSource(static_cast<uint64_t>(opt.objects), opt.seed);
+  std::unique_ptr<SceneSource> source = MakeTankerSource(opt.objects, opt.seed);
   ClassTally tally;
   Result<uint64_t> bytes = obj ? GenerateInto<ObjWriter>(opt.output, source.get(), &tally)
                                : GenerateInto<MkSceneWriter>(opt.output, source.get(), &tally);
@@ -94,9 +98,8 @@ void RegisterGenerate(CLI::App& app, CommandRun* run) {
   generate->require_subcommand(1);
   CLI::App* cmd = generate->add_subcommand("tanker", "The synthetic tanker (DESIGN.md §6) as .obj or .mks");
   opt->kind = "tanker";
-  cmd->add_option("--objects", opt->objects, "Number of objects N (>= 1)")->required();
-  cmd->add_option("--seed", opt->seed, "Random seed: the same seed gives the same file")
-      ->capture_default_str();
+  AddNumberOption(cmd, "--objects", &opt->objects, "Number of objects N (>= 1)")->required()->default_str("");
+  AddNumberOption(cmd, "--seed", &opt->seed, "Random seed: the same seed gives the same file");
   cmd->add_option("-o,--output", opt->output, "Output scene: SCENE.obj or SCENE.mks")->required();
   cmd->callback([opt, run] { *run = [opt] { return RunGenerate(*opt); }; });
 }

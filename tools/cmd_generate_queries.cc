@@ -1,11 +1,16 @@
 // mktree generate queries STORE --count N [--seed S] [--sides 0.5,2,8] -o FILE: a seeded query file for
 // `mktree query --queries`: N points uniform in the store's bounds, then N boxes of each side centred on
 // uniform points. Deterministic: splitmix64, not std distributions, so every platform writes the same file.
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <optional>
 
 #include "storage/store_file.h"
+#include "tools/cli_numbers.h"
 #include "tools/command.h"
+#include "tools/path_checks.h"
 
 namespace mktree::tools {
 
@@ -16,8 +21,25 @@ struct QueriesArgs {
   std::string output;
   uint64_t count = 1000;
   uint64_t seed = 1;
-  std::vector<double> sides{0.5, 2, 8};
+  std::string sides = "0.5,2,8";
 };
+
+// "A,B,...": comma-separated finite numbers > 0, at least one.
+Result<std::vector<double>> ParseSides(const std::string& text) {
+  std::vector<double> sides;
+  if (text.empty()) return Status::InvalidArgument("--sides: empty value");
+  size_t start = 0;
+  while (true) {
+    const size_t comma = std::min(text.find(',', start), text.size());
+    const std::string field = text.substr(start, comma - start);
+    const std::optional<double> side = ParseReal(field);
+    if (!side || !std::isfinite(*side) || !(*side > 0))
+      return Status::InvalidArgument("--sides: '" + field + "' in '" + text + "' is not a finite number > 0");
+    sides.push_back(*side);
+    if (comma == text.size()) return sides;
+    start = comma + 1;
+  }
+}
 
 uint64_t SplitMix64(uint64_t* state) {
   uint64_t z = (*state += 0x9e3779b97f4a7c15ull);
@@ -29,8 +51,9 @@ double Unit(uint64_t* state) { return static_cast<double>(SplitMix64(state) >> 1
 
 int RunQueries(const QueriesArgs& a) {
   if (a.count == 0) return Fail("--count must be positive");
-  for (double s : a.sides)
-    if (!(s > 0)) return Fail("--sides must be positive");
+  auto sides = ParseSides(a.sides);
+  if (!sides.ok()) return Fail(sides.status().message());
+  if (Status st = CheckOutputFile(a.output, {a.store}); !st.ok()) return Fail(st.message());
   auto reader = StoreReader::Open(a.store);
   if (!reader.ok()) return Fail(reader.status().message());
   if ((*reader)->tree().empty()) return Fail(a.store + ": empty store");
@@ -50,7 +73,7 @@ int RunQueries(const QueriesArgs& a) {
     point(c);
     std::fprintf(f, "point %.9g %.9g %.9g\n", c[0], c[1], c[2]);
   }
-  for (double side : a.sides)
+  for (double side : *sides)
     for (uint64_t i = 0; i < a.count; ++i) {
       point(c);
       std::fprintf(f, "box %.9g %.9g %.9g %.9g %.9g %.9g\n", c[0] - side / 2, c[1] - side / 2, c[2] - side / 2,
@@ -78,9 +101,9 @@ void RegisterGenerateQueries(CLI::App& app, CommandRun* run) {
   CLI::App* cmd = generate->add_subcommand("queries", "A seeded query file (points and boxes) for a store");
   cmd->add_option("store", args->store, "Store whose bounds the queries fall in")->required();
   cmd->add_option("-o,--output", args->output, "Query file to write")->required();
-  cmd->add_option("--count", args->count, "Points, and boxes of each side")->capture_default_str();
-  cmd->add_option("--seed", args->seed, "Seed")->capture_default_str();
-  cmd->add_option("--sides", args->sides, "Box sides")->delimiter(',')->capture_default_str();
+  AddNumberOption(cmd, "--count", &args->count, "Points, and boxes of each side");
+  AddNumberOption(cmd, "--seed", &args->seed, "Seed");
+  cmd->add_option("--sides", args->sides, "Box sides: A,B,...")->capture_default_str();
   cmd->callback([run, args] { *run = [args] { return RunQueries(*args); }; });
 }
 

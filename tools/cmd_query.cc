@@ -7,6 +7,7 @@
 #include <string>
 
 #include "mktree/database.h"
+#include "tools/cli_numbers.h"
 #include "tools/command.h"
 #include "tools/query_file.h"
 
@@ -17,6 +18,7 @@ namespace {
 struct QueryArgs {
   std::string store;
   std::string point, box, file;
+  bool has_point = false, has_box = false, has_file = false;  // given, even if empty
   bool exact = false;
   bool cold = false;
   uint64_t cache_pages = 4096;
@@ -59,17 +61,18 @@ void PrintSummary(const std::map<std::string, KindSummary>& kinds, double per_pa
 
 int RunQuery(const QueryArgs& a) {
   std::vector<Query> queries;
-  if (!a.point.empty()) {
+  if (a.has_point) {
     auto q = ParsePointArg(a.point);
     if (!q.ok()) return Fail(q.status().message());
     queries.push_back(*q);
   }
-  if (!a.box.empty()) {
+  if (a.has_box) {
     auto q = ParseBoxArg(a.box);
     if (!q.ok()) return Fail(q.status().message());
     queries.push_back(*q);
   }
-  if (!a.file.empty()) {
+  if (a.has_file) {
+    if (a.file.empty()) return Fail("--queries: empty file name");
     auto qs = ReadQueryFile(a.file);
     if (!qs.ok()) return Fail(qs.status().message());
     queries.insert(queries.end(), qs->begin(), qs->end());
@@ -120,7 +123,7 @@ void RegisterQuery(CLI::App& app, CommandRun* run) {
   auto* b = cmd->add_option("--box", args->box, "X0,Y0,Z0,X1,Y1,Z1");
   auto* f = cmd->add_option("--queries", args->file, "File: one 'point X Y Z' or 'box X0 Y0 Z0 X1 Y1 Z1' a line");
   cmd->add_flag("--exact", args->exact, "Exact geometry instead of AABBs");
-  cmd->add_option("--cache-pages", args->cache_pages, "LRU page cache capacity in pages")->capture_default_str();
+  AddNumberOption(cmd, "--cache-pages", &args->cache_pages, "LRU page cache capacity in pages");
   cmd->add_flag("--cold", args->cold, "Empty the cache before each query");
   cmd->add_flag("--no-verify", args->no_verify, "Skip page checksum verification");
   cmd->add_flag("--summary", args->summary, "Instead of JSON lines, a table of disk accesses per query kind");
@@ -128,6 +131,9 @@ void RegisterQuery(CLI::App& app, CommandRun* run) {
   cmd->callback([run, args, p, b, f] {
     if (p->count() + b->count() + f->count() == 0)
       throw CLI::RequiredError("one of --point, --box or --queries");
+    args->has_point = p->count() > 0;
+    args->has_box = b->count() > 0;
+    args->has_file = f->count() > 0;
     *run = [args] { return RunQuery(*args); };
   });
 }

@@ -4,7 +4,9 @@
 #include <cstdio>
 
 #include "engine/query/level_render.h"
+#include "tools/cli_numbers.h"
 #include "tools/command.h"
+#include "tools/path_checks.h"
 #include "tools/progress.h"
 
 namespace mktree::tools {
@@ -24,10 +26,12 @@ int RunRender(const RenderArgs& a) {
   if (a.level < 0) return Fail("--level must be >= 0, not " + std::to_string(a.level));
   auto view = ParseRenderView(a.view);
   if (!view.ok()) return Fail(view.status().message());
-  unsigned w = 0, h = 0;
-  char extra = 0;
-  if (std::sscanf(a.size.c_str(), "%ux%u%c", &w, &h, &extra) != 2)
-    return Fail("--size must be WIDTHxHEIGHT (e.g. 1600x400), not '" + a.size + "'");
+  const size_t x = a.size.find('x');
+  const auto w = ParseUnsigned<unsigned>(std::string_view(a.size).substr(0, x));
+  const auto h =
+      x == std::string::npos ? std::nullopt : ParseUnsigned<unsigned>(std::string_view(a.size).substr(x + 1));
+  if (!w || !h) return Fail("--size must be WIDTHxHEIGHT (e.g. 1600x400), not '" + a.size + "'");
+  if (Status st = CheckOutputFile(a.output, {a.store}); !st.ok()) return Fail(st.message());
   if (a.output.size() < 4 || a.output.compare(a.output.size() - 4, 4, ".png") != 0)
     return Fail(a.output + ": the picture is written as PNG; name it *.png");
   auto reader = StoreReader::Open(a.store);
@@ -37,8 +41,8 @@ int RunRender(const RenderArgs& a) {
   RenderOptions opts;
   opts.level = a.level;
   opts.view = *view;
-  opts.width = w;
-  opts.height = h;
+  opts.width = *w;
+  opts.height = *h;
   opts.overlay = a.overlay;
   opts.progress = [&](uint64_t done, uint64_t total) { progress.Update("render leaves", done, total); };
   auto report = RenderLevel(**reader, a.output, opts);
@@ -51,7 +55,7 @@ int RunRender(const RenderArgs& a) {
         "rendered %s: %ux%u, level %d, %s view, %llu objects (Sn1 %llu, Sn2 %llu, Sm %llu, above level "
         "%llu), "
         "%llu triangles, %.3g px per unit, in %.2f s, peak RSS %s\n",
-        a.output.c_str(), w, h, a.level, a.view.c_str(),
+        a.output.c_str(), *w, *h, a.level, a.view.c_str(),
         static_cast<unsigned long long>(r.objects[0] + r.objects[1] + r.objects[2] + r.objects[3]),
         static_cast<unsigned long long>(r.objects[0]), static_cast<unsigned long long>(r.objects[1]),
         static_cast<unsigned long long>(r.objects[2]), static_cast<unsigned long long>(r.objects[3]),
@@ -69,8 +73,9 @@ void RegisterRender(CLI::App& app, CommandRun* run) {
       "render",
       "Draw the level-k colouring as a PNG (blue Sn1, red Sn2, green overlap Sm, grey above level)");
   cmd->add_option("store", args->store, "Store file")->required();
-  cmd->add_option("--level", args->level, "k: colour each object by its group at its depth-k ancestor")
-      ->required();
+  AddNumberOption(cmd, "--level", &args->level, "k: colour each object by its group at its depth-k ancestor")
+      ->required()
+      ->default_str("");
   cmd->add_option("-o,--output", args->output, "OUT.png")->required();
   cmd->add_option("--view", args->view, "top (x right, y up), side (x right, z up) or front (y right, z up)")
       ->capture_default_str();

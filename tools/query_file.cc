@@ -1,8 +1,12 @@
 #include "tools/query_file.h"
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <fstream>
+#include <string_view>
+
+#include "tools/path_checks.h"
 
 namespace mktree::tools {
 
@@ -48,6 +52,7 @@ Result<Query> MakeQuery(const std::string& kind, const std::vector<double>& v, c
 }  // namespace
 
 Result<std::vector<Query>> ReadQueryFile(const std::string& path) {
+  MKTREE_RETURN_IF_ERROR(CheckInputFile(path));  // a FIFO would block the read
   std::ifstream in(path);
   if (!in) return Status::NotFound(path + ": cannot open query file");
   std::vector<Query> queries;
@@ -73,18 +78,42 @@ Result<std::vector<Query>> ReadQueryFile(const std::string& path) {
   return queries;
 }
 
-Result<Query> ParsePointArg(const std::string& text) {
+namespace {
+
+// "X,Y,Z" on the command line: exactly comma-separated finite numbers (spaces around them allowed), so that
+// an empty value or field ("", "1,,2,3") is an error rather than a different query.
+Result<std::vector<double>> ParseArgNumbers(const std::string& text, const std::string& option) {
   std::vector<double> v;
-  std::string bad;
-  if (!ParseNumbers(text, &v, &bad)) return Status::InvalidArgument("--point: '" + bad + "' is not a finite number");
-  return MakeQuery("point", v, "--point");
+  if (text.empty()) return Status::InvalidArgument(option + ": empty value");
+  size_t start = 0;
+  while (true) {
+    const size_t comma = std::min(text.find(',', start), text.size());
+    std::string_view field = std::string_view(text).substr(start, comma - start);
+    while (!field.empty() && (field.front() == ' ' || field.front() == '\t')) field.remove_prefix(1);
+    while (!field.empty() && (field.back() == ' ' || field.back() == '\t')) field.remove_suffix(1);
+    double d = 0;
+    auto [p, ec] = std::from_chars(field.data(), field.data() + field.size(), d);
+    if (field.empty() || ec != std::errc() || p != field.data() + field.size() || !std::isfinite(d))
+      return Status::InvalidArgument(option + ": '" + std::string(field) + "' in '" + text +
+                                     "' is not a finite number");
+    v.push_back(d);
+    if (comma == text.size()) return v;
+    start = comma + 1;
+  }
+}
+
+}  // namespace
+
+Result<Query> ParsePointArg(const std::string& text) {
+  auto v = ParseArgNumbers(text, "--point");
+  if (!v.ok()) return v.status();
+  return MakeQuery("point", *v, "--point");
 }
 
 Result<Query> ParseBoxArg(const std::string& text) {
-  std::vector<double> v;
-  std::string bad;
-  if (!ParseNumbers(text, &v, &bad)) return Status::InvalidArgument("--box: '" + bad + "' is not a finite number");
-  return MakeQuery("box", v, "--box");
+  auto v = ParseArgNumbers(text, "--box");
+  if (!v.ok()) return v.status();
+  return MakeQuery("box", *v, "--box");
 }
 
 }  // namespace mktree::tools

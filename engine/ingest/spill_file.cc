@@ -46,6 +46,11 @@ SpillFile::~SpillFile() {
 
 Result<std::unique_ptr<SpillFile>> SpillFile::Create(const std::string& dir, const std::string& stem) {
   std::string pattern = (dir.empty() ? std::string(".") : dir) + "/" + stem + ".XXXXXX";
+#ifdef O_TMPFILE
+  // An unnamed file where the filesystem supports it: nothing to leave behind whenever the build dies.
+  if (int fd = ::open(dir.empty() ? "." : dir.c_str(), O_TMPFILE | O_RDWR | O_CLOEXEC, 0600); fd >= 0)
+    return std::unique_ptr<SpillFile>(new SpillFile(fd, pattern));
+#endif
   std::vector<char> buf(pattern.begin(), pattern.end());
   buf.push_back('\0');
   int fd = ::mkstemp(buf.data());

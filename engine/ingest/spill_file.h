@@ -1,6 +1,8 @@
 // A temporary append-then-read file for ingest: geometry entries and names are appended while the scene
-// streams in, and read back by offset once the tree is known. The file is unlinked as soon as it is
-// created, so it disappears with its descriptor, even when the process is killed.
+// streams in, and read back by offset once the tree is known. The file has no name (O_TMPFILE) or, where
+// the filesystem refuses that, is unlinked as soon as it is created ("<dir>/<stem>.XXXXXX"), so it
+// disappears with its descriptor, even when the process is killed (BuildStore removes the rare named
+// leftover of a build killed between the two steps).
 #pragma once
 
 #include <cstdint>

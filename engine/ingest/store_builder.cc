@@ -81,6 +81,23 @@ struct CoarseBoxes {
   }
 };
 
+// Removes "<dir>/.<stem>.{geometry,name}-spill.XXXXXX" (the names SpillFile::Create gives): spills that
+// were still named when their build was killed (see spill_file.h). REQUIRES: the store's writer lock.
+void RemoveStaleSpills(const std::string& dir, const std::string& stem) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    for (const char* kind : {".geometry-spill.", ".name-spill."}) {
+      const std::string prefix = "." + stem + kind;
+      if (name.size() == prefix.size() + 6 && name.compare(0, prefix.size(), prefix) == 0) {
+        std::error_code rm;
+        fs::remove(it->path(), rm);
+      }
+    }
+  }
+}
+
 }  // namespace
 
 Vec3d ChooseStoreOrigin(const Box3d& first) {
@@ -109,8 +126,15 @@ Result<IngestReport> BuildStore(const std::vector<SceneOpener>& inputs, const st
   auto progress = [&](IngestStage s, uint64_t done, uint64_t total) {
     if (options.progress) options.progress(s, done, total);
   };
+  // The writer first: its lock keeps a second build of the same store out before either has done any
+  // work, and it removes what killed builds left (temp stores, spills) before this one writes anything.
+  auto writer_or = StoreWriter::Create(store_path, options.store);
+  if (!writer_or.ok()) return writer_or.status();
+  StoreWriter& writer = **writer_or;
   const std::string stem = std::filesystem::path(store_path).filename().string();
   const std::string dir = SpillDir(store_path, options.spill_dir);
+  // Spills of the store's own directory are covered by its lock; a shared spill_dir is not.
+  if (options.spill_dir.empty()) RemoveStaleSpills(dir, stem);
   auto geometry_spill = SpillFile::Create(dir, "." + stem + ".geometry-spill");
   if (!geometry_spill.ok()) return geometry_spill.status();
   auto name_spill = SpillFile::Create(dir, "." + stem + ".name-spill");
@@ -216,9 +240,6 @@ Result<IngestReport> BuildStore(const std::vector<SceneOpener>& inputs, const st
   for (size_t id = 1; id < spill_offset.size(); ++id) spill_offset[id] = spill_offset[id - 1] + entry_bytes[id - 1];
   if (!spill_offset.empty() && spill_offset.back() + entry_bytes.back() != geometry.size())
     return Status::Internal(geometry.path() + ": spill size does not match its entries");
-  auto writer_or = StoreWriter::Create(store_path, options.store);
-  if (!writer_or.ok()) return writer_or.status();
-  StoreWriter& writer = **writer_or;
   const uint64_t mem_page = options.store.params.mem_page();
   MKTree& tree = result.tree;
   tree.origin = report.origin;

@@ -7,6 +7,9 @@
 // names go to a second spill file. Once the tree is known, leaf pages are assembled from the spill in
 // leaf order, the object table is streamed from the name spill, and the store is committed atomically
 // (temporary name, fsync, rename). On any error the temporary store and the spill files are removed.
+// The store's writer (and with it the writer lock, docs/cli.md) is taken before anything else: a second
+// build of the same store fails at once, and the leftovers of killed builds are removed before this one
+// writes.
 #pragma once
 
 #include <cstdint>

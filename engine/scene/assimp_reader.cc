@@ -3,6 +3,7 @@
 #include <assimp/config.h>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
+#include <pthread.h>
 
 #include <algorithm>
 #include <array>
@@ -11,13 +12,21 @@
 #include <cstdio>
 #include <exception>
 #include <filesystem>
+#include <functional>
 #include <limits>
 #include <system_error>
 #include <utility>
 #include <vector>
 
+#include "engine/scene/assimp_input_checks.h"
+
 namespace mktree {
 namespace {
+
+// The import thread's stack (address space; pages are committed only as deep as the import reaches).
+// Depth costs about 1.3 KiB a node level in assimp's glTF importer, whose files are checked to at most
+// kMaxNodeDepth levels; formats without a check get room for a few hundred thousand levels.
+constexpr size_t kImportStackBytes = size_t{512} << 20;
 
 // Row-major affine transform in double precision (assimp's own matrices are float).
 struct Transform {
@@ -195,10 +204,76 @@ class AssimpReader final : public SceneSource {
 
 }  // namespace
 
+namespace {
+
+// Runs `fn` on a thread with a `bytes` stack (or here, if no such thread can be made).
+void RunWithStack(size_t bytes, const std::function<void()>& fn) {
+  pthread_attr_t attr;
+  pthread_t thread;
+  bool started = pthread_attr_init(&attr) == 0;
+  started = started && pthread_attr_setstacksize(&attr, bytes) == 0 &&
+            pthread_create(
+                &thread, &attr,
+                [](void* f) -> void* {
+                  (*static_cast<const std::function<void()>*>(f))();
+                  return nullptr;
+                },
+                const_cast<std::function<void()>*>(&fn)) == 0;
+  pthread_attr_destroy(&attr);
+  if (started) {
+    pthread_join(thread, nullptr);
+  } else {
+    fn();
+  }
+}
+
+// The scene as the importer left it, before any post-processing step: JoinIdenticalVertices would merge a
+// NaN vertex into another one, and deep node trees would overflow the stack of the steps that recurse.
+Status ValidateImported(const aiScene& scene, const std::string& path) {
+  for (unsigned m = 0; m < scene.mNumMeshes; ++m) {
+    const aiMesh* mesh = scene.mMeshes[m];
+    if (mesh == nullptr)
+      return Status::Corruption(path + ": assimp: mesh " + std::to_string(m) + " is missing");
+    const std::string name = "mesh " + std::to_string(m) +
+                             (mesh->mName.length ? " '" + std::string(mesh->mName.C_Str()) + "'" : "");
+    for (unsigned v = 0; v < mesh->mNumVertices; ++v) {
+      const aiVector3D& p = mesh->mVertices[v];
+      if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
+        return Status::Corruption(path + ": " + name + ": non-finite vertex coordinate (vertex " +
+                                  std::to_string(v) + ")");
+    }
+    for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
+      const aiFace& face = mesh->mFaces[f];
+      for (unsigned j = 0; j < face.mNumIndices; ++j)
+        if (face.mIndices[j] >= mesh->mNumVertices)
+          return Status::Corruption(path + ": " + name + ": vertex index " +
+                                    std::to_string(face.mIndices[j]) + " out of range (" +
+                                    std::to_string(mesh->mNumVertices) + " vertices)");
+    }
+  }
+  std::vector<std::pair<const aiNode*, uint32_t>> stack;  // node, depth (the root is 1)
+  if (scene.mRootNode != nullptr) stack.push_back({scene.mRootNode, 1});
+  while (!stack.empty()) {
+    const auto [node, depth] = stack.back();
+    stack.pop_back();
+    if (depth > kMaxNodeDepth)
+      return Status::Corruption(path + ": nodes nested deeper than " + std::to_string(kMaxNodeDepth) +
+                                " levels");
+    for (unsigned i = 0; i < node->mNumChildren; ++i) {
+      if (node->mChildren[i] == nullptr) return Status::Corruption(path + ": assimp: a missing node");
+      stack.push_back({node->mChildren[i], depth + 1});
+    }
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
 Result<std::unique_ptr<SceneSource>> OpenAssimpFile(const std::string& path, ObjectId first_id) {
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) return Status::NotFound(path + ": no such file");
   if (!std::filesystem::is_regular_file(path, ec)) return Status::IOError(path + ": not a regular file");
+  MKTREE_RETURN_IF_ERROR(CheckBeforeAssimp(path));
 
   auto importer = std::make_unique<Assimp::Importer>();
   // Only positions matter: removing the other vertex components lets JoinIdenticalVertices merge by
@@ -211,20 +286,32 @@ Result<std::unique_ptr<SceneSource>> OpenAssimpFile(const std::string& path, Obj
   // (AI_CONFIG_PP_SBP_REMOVE): removal fails a file that holds only lines ("No meshes remaining"), where
   // the right answer, as for an OBJ file of `l` lines, is a scene without objects.
   // No PreTransformVertices / OptimizeMeshes / OptimizeGraph: they would merge objects or bake transforms.
-  constexpr unsigned kFlags = aiProcess_RemoveComponent | aiProcess_Triangulate | aiProcess_SortByPType |
-                              aiProcess_JoinIdenticalVertices | aiProcess_ValidateDataStructure;
+  // The steps run after ValidateImported has seen the scene as read.
+  constexpr unsigned kSteps = aiProcess_RemoveComponent | aiProcess_Triangulate | aiProcess_SortByPType |
+                              aiProcess_JoinIdenticalVertices;
   const aiScene* scene = nullptr;
-  try {
-    scene = importer->ReadFile(path, kFlags);
-  } catch (const std::exception& e) {
-    return Status::Corruption(path + ": assimp: " + e.what());
-  } catch (...) {
-    return Status::Corruption(path + ": assimp: unknown failure");
-  }
-  if (scene == nullptr) return Status::Corruption(path + ": assimp: " + importer->GetErrorString());
-  if ((scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE) != 0) {
-    return Status::Corruption(path + ": assimp: the file was read only partly (incomplete scene)");
-  }
+  Status status;
+  // Importers recurse over the file's structure (elements, nodes): formats without a check of their own
+  // (assimp_input_checks.h) are read with a stack that deep files do not exhaust.
+  RunWithStack(kImportStackBytes, [&] {
+    try {
+      scene = importer->ReadFile(path, aiProcess_ValidateDataStructure);
+      if (scene == nullptr) {
+        status = Status::Corruption(path + ": assimp: " + importer->GetErrorString());
+      } else if ((scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE) != 0) {
+        status = Status::Corruption(path + ": assimp: the file was read only partly (incomplete scene)");
+      } else if (status = ValidateImported(*scene, path); status.ok()) {
+        scene = importer->ApplyPostProcessing(kSteps);
+        if (scene == nullptr) status = Status::Corruption(path + ": assimp: " + importer->GetErrorString());
+      }
+    } catch (const std::exception& e) {
+      status = Status::Corruption(path + ": assimp: " + e.what());
+    } catch (...) {
+      status = Status::Corruption(path + ": assimp: unknown failure");
+    }
+    if (!status.ok()) importer.reset();  // a refused scene may be deep: freed on this stack too
+  });
+  if (!status.ok()) return status;
   return std::unique_ptr<SceneSource>(new AssimpReader(path, std::move(importer), scene, first_id));
 }
 

@@ -23,8 +23,13 @@
 // not fit in memory.
 //
 // Errors: a missing file is NotFound; a file assimp cannot read (unknown format, malformed) is Corruption
-// carrying assimp's message; a non-finite coordinate (before or after the transform) is Corruption naming
-// the file and the node. Every message names the file.
+// carrying assimp's message. AC3D, OFF, PLY and glTF files are checked before assimp sees them
+// (assimp_input_checks.h: the malformed files assimp reads silently wrong or crashes on are refused,
+// naming file and line). The imported scene is validated before any post-processing step: a non-finite
+// vertex, an index out of range or nodes nested deeper than kMaxNodeDepth are Corruption; so is a
+// coordinate that is not finite after the transform (naming the node). Every message names the file.
+// assimp runs on a thread with a 512 MiB stack (address space), so that formats without a check of their
+// own do not overflow the caller's stack on deeply nested files.
 //
 // Thread-safety: a source is used by one thread at a time; distinct sources are independent.
 #pragma once
