@@ -190,9 +190,11 @@ class MkSceneSource final : public SceneSource {
 }  // namespace
 
 Result<std::unique_ptr<SceneSource>> OpenMkSceneFile(const std::string& path, ObjectId first_id) {
-  std::FILE* f = std::fopen(path.c_str(), "rb");
+  auto fd = OpenSceneInput(path);
+  if (!fd.ok()) return fd.status();
+  std::FILE* f = ::fdopen(*fd, "rb");
   if (!f) {
-    if (errno == ENOENT) return Status::NotFound(path + ": no such file");
+    ::close(*fd);
     return Status::IOError(path + ": cannot open: " + ErrnoText());
   }
   struct stat st;

@@ -501,18 +501,10 @@ Result<bool> ObjReader::Next(SceneObject* out) {
 }  // namespace
 
 Result<std::unique_ptr<SceneSource>> OpenObjFile(const std::string& path, ObjectId first_id) {
-  int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) {
-    if (errno == ENOENT) return Status::NotFound(Errno(path));
-    return Status::IOError(Errno(path));
-  }
-  struct stat st;
-  if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
-    ::close(fd);
-    return Status::IOError(path + ": not a regular file");
-  }
-  ::posix_fadvise(fd, 0, 0, POSIX_FADV_SEQUENTIAL);
-  return std::unique_ptr<SceneSource>(new ObjReader(path, fd, first_id));
+  auto fd = OpenSceneInput(path);
+  if (!fd.ok()) return fd.status();
+  ::posix_fadvise(*fd, 0, 0, POSIX_FADV_SEQUENTIAL);
+  return std::unique_ptr<SceneSource>(new ObjReader(path, *fd, first_id));
 }
 
 }  // namespace mktree

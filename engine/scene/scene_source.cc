@@ -1,6 +1,12 @@
 #include "engine/scene/scene_source.h"
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
+#include <cstring>
 #include <filesystem>
 
 #include "engine/scene/assimp_reader.h"
@@ -8,6 +14,21 @@
 #include "engine/scene/obj_reader.h"
 
 namespace mktree {
+
+Result<int> OpenSceneInput(const std::string& path) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
+  if (fd < 0) {
+    const int err = errno;
+    if (err == ENOENT) return Status::NotFound(path + ": no such file");
+    return Status::IOError(path + ": " + std::strerror(err));
+  }
+  struct stat st;
+  if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode) || ::fcntl(fd, F_SETFL, 0) != 0) {
+    ::close(fd);
+    return Status::IOError(path + ": not a regular file");
+  }
+  return fd;
+}
 
 Result<std::unique_ptr<SceneSource>> OpenSceneFile(const std::string& path, ObjectId first_id) {
   std::string ext = std::filesystem::path(path).extension().string();

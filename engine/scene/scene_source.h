@@ -23,6 +23,11 @@ class SceneSource {
   virtual std::vector<std::string> TakeWarnings() { return {}; }
 };
 
+// Opens `path` for reading as a scene file: NotFound when missing, IOError "<path>: not a regular file" for
+// a FIFO, directory or device (without blocking on a FIFO). Returns the descriptor (close-on-exec,
+// blocking).
+Result<int> OpenSceneInput(const std::string& path);
+
 // Opens `path` by extension: .obj with the streaming OBJ reader; everything else through assimp.
 Result<std::unique_ptr<SceneSource>> OpenSceneFile(const std::string& path, ObjectId first_id = 0);
 
