@@ -8,6 +8,24 @@
 #include <cstring>
 #include <filesystem>
 
+namespace mktree {
+
+ssize_t FileOps::Pwrite(int fd, const void* buf, size_t n, uint64_t offset) {
+  return ::pwrite(fd, buf, n, static_cast<off_t>(offset));
+}
+int FileOps::Ftruncate(int fd, uint64_t size) { return ::ftruncate(fd, static_cast<off_t>(size)); }
+int FileOps::Fsync(int fd) { return ::fsync(fd); }
+int FileOps::Rename(const std::string& from, const std::string& to) {
+  return ::rename(from.c_str(), to.c_str());
+}
+
+FileOps& DefaultFileOps() {
+  static FileOps posix;
+  return posix;
+}
+
+}  // namespace mktree
+
 namespace mktree::storage_internal {
 
 std::string ErrnoText(int err) { return std::strerror(err); }
@@ -28,11 +46,11 @@ Status PreadFull(int fd, void* buf, size_t n, uint64_t offset, const std::string
   return Status::Ok();
 }
 
-Status PwriteFull(int fd, const void* buf, size_t n, uint64_t offset, const std::string& name) {
+Status PwriteFull(int fd, const void* buf, size_t n, uint64_t offset, const std::string& name, FileOps& ops) {
   const auto* p = static_cast<const uint8_t*>(buf);
   size_t done = 0;
   while (done < n) {
-    const ssize_t r = ::pwrite(fd, p + done, n - done, static_cast<off_t>(offset + done));
+    const ssize_t r = ops.Pwrite(fd, p + done, n - done, offset + done);
     if (r < 0) {
       if (errno == EINTR) continue;
       return Status::IOError(name + ": write at offset " + std::to_string(offset + done) + ": " + ErrnoText(errno));
@@ -48,12 +66,12 @@ Result<uint64_t> FileSize(int fd, const std::string& name) {
   return static_cast<uint64_t>(st.st_size);
 }
 
-Status SyncParentDir(const std::string& path) {
+Status SyncParentDir(const std::string& path, FileOps& ops) {
   const std::filesystem::path parent = std::filesystem::path(path).parent_path();
   const std::string dir = parent.empty() ? std::string(".") : parent.string();
   const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
   if (fd < 0) return Status::IOError(dir + ": open directory: " + ErrnoText(errno));
-  const int r = ::fsync(fd);
+  const int r = ops.Fsync(fd);
   const int err = errno;
   ::close(fd);
   if (r != 0) return Status::IOError(dir + ": fsync directory: " + ErrnoText(err));

@@ -5,6 +5,7 @@
 #include <string>
 
 #include "mktree/status.h"
+#include "storage/file_ops.h"
 
 namespace mktree::storage_internal {
 
@@ -12,10 +13,11 @@ std::string ErrnoText(int err);
 // Reads exactly n bytes at `offset` (retrying on EINTR and partial reads); a short read is an IOError
 // that says "truncated".
 Status PreadFull(int fd, void* buf, size_t n, uint64_t offset, const std::string& name);
-Status PwriteFull(int fd, const void* buf, size_t n, uint64_t offset, const std::string& name);
+Status PwriteFull(int fd, const void* buf, size_t n, uint64_t offset, const std::string& name,
+                  FileOps& ops = DefaultFileOps());
 Result<uint64_t> FileSize(int fd, const std::string& name);
 // fsync of the directory holding `path`, so that a rename in it is durable.
-Status SyncParentDir(const std::string& path);
+Status SyncParentDir(const std::string& path, FileOps& ops = DefaultFileOps());
 // Reads up to n bytes from the start of `path`; returns how many were read. Anything but a regular file
 // (a directory, FIFO, device) is InvalidArgument, without blocking.
 Result<size_t> ReadPrefix(const std::string& path, void* buf, size_t n);

@@ -143,8 +143,9 @@ std::string Hdf5ErrorText() {
 // always completes and releases every identifier. Metadata written after the error is kept in memory,
 // so that HDF5 reads back what it believes it wrote.
 struct WriterIo {
-  explicit WriterIo(std::string p) : path(std::move(p)) {}
+  WriterIo(std::string p, FileOps& o) : path(std::move(p)), ops(&o) {}
   std::string path;
+  FileOps* ops;                // the system calls (fault injection in tests)
   int err = 0;                 // first errno, 0 if none
   std::string op;              // what failed ("write at offset N")
   bool discard = false;        // after an error, or on Abort: no more file I/O
@@ -220,7 +221,7 @@ H5FD_t* WriterOpen(const char* name, unsigned flags, hid_t fapl, haddr_t /*maxad
 herr_t WriterClose(H5FD_t* file) {
   WriterFile* f = AsWriterFile(file);
   WriterIo* io = f->io;
-  if (!io->discard && io->sync_on_close && ::fsync(f->fd) != 0) io->Record(errno, "fsync");
+  if (!io->discard && io->sync_on_close && io->ops->Fsync(f->fd) != 0) io->Record(errno, "fsync");
   if (::close(f->fd) != 0 && errno != EINTR && !io->discard) io->Record(errno, "close");
   delete f;
   return 0;
@@ -298,7 +299,7 @@ herr_t WriterWrite(H5FD_t* file, H5FD_mem_t type, hid_t /*dxpl*/, haddr_t addr, 
   if (!io->discard) {
     size_t done = 0;
     while (done < size) {
-      const ssize_t r = ::pwrite(f->fd, p + done, size - done, static_cast<off_t>(addr + done));
+      const ssize_t r = io->ops->Pwrite(f->fd, p + done, size - done, addr + done);
       if (r < 0 && errno == EINTR) continue;
       if (r < 0) {
         io->Record(errno, "write at offset " + std::to_string(addr + done));
@@ -320,7 +321,7 @@ herr_t WriterFlush(H5FD_t* /*file*/, hid_t /*dxpl*/, hbool_t /*closing*/) { retu
 herr_t WriterTruncate(H5FD_t* file, hid_t /*dxpl*/, hbool_t /*closing*/) {
   WriterFile* f = AsWriterFile(file);
   if (f->eoa != f->eof) {
-    if (!f->io->discard && ::ftruncate(f->fd, static_cast<off_t>(f->eoa)) != 0)
+    if (!f->io->discard && f->io->ops->Ftruncate(f->fd, f->eoa) != 0)
       f->io->Record(errno, "truncate to " + std::to_string(f->eoa) + " bytes");
     f->eof = f->eoa;
   }
@@ -990,10 +991,11 @@ Status ReadObjects(hid_t f, uint64_t expected, uint64_t file_bytes, ObjectTable*
 
 }  // namespace
 
-Result<std::unique_ptr<StoreWriter::Impl>> CreateHdf5Writer(const std::string& temp_path, const BuildParams& params) {
+Result<std::unique_ptr<StoreWriter::Impl>> CreateHdf5Writer(const std::string& temp_path,
+                                                            const BuildParams& params, FileOps& ops) {
   Hdf5Lock lock;
   // Declared before the file: the driver uses it until the file is closed.
-  auto io = std::make_unique<WriterIo>(temp_path);
+  auto io = std::make_unique<WriterIo>(temp_path, ops);
   const hid_t driver = WriterDriver();
   if (driver < 0)
     return Status::IOError(temp_path + ": registering the HDF5 file driver: " + Hdf5ErrorText());

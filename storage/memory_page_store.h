@@ -6,6 +6,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -37,6 +38,8 @@ class MemoryPageStore : public PageStore {
 class FaultyPageStore : public PageStore {
  public:
   explicit FaultyPageStore(PageStore* base) : base_(base) {}
+  // Owns its base (to stand in for a store's pages: StoreReader::WrapPages).
+  explicit FaultyPageStore(std::unique_ptr<PageStore> base) : owned_(std::move(base)), base_(owned_.get()) {}
   // The k-th ReadPage call from now (1-based, counting all pages) fails with IOError; 0 disables.
   void FailNthRead(uint64_t k) {
     fail_at_ = k == 0 ? 0 : reads_.load() + k;
@@ -67,6 +70,7 @@ class FaultyPageStore : public PageStore {
   const std::string& name() const override { return base_->name(); }
 
  private:
+  std::unique_ptr<PageStore> owned_;
   PageStore* base_;
   mutable std::atomic<uint64_t> reads_{0};
   uint64_t fail_at_ = 0;

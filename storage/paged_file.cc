@@ -61,8 +61,9 @@ struct FreeDeleter {
 
 class PagedFileStore : public PageStore {
  public:
-  PagedFileStore(std::string name, int fd, uint64_t mem_page, uint64_t page_count)
-      : name_(std::move(name)), fd_(fd), mem_page_(mem_page), count_(page_count) {}
+  PagedFileStore(std::string name, int fd, uint64_t mem_page, uint64_t page_count,
+                 FileOps& ops = DefaultFileOps())
+      : name_(std::move(name)), fd_(fd), mem_page_(mem_page), count_(page_count), ops_(&ops) {}
   ~PagedFileStore() override { (void)Close(); }
 
   uint64_t page_bytes() const override { return mem_page_; }
@@ -100,13 +101,13 @@ class PagedFileStore : public PageStore {
   Status WritePage(uint64_t index, const uint8_t* data) override {
     if (index > count_)
       return Status::InvalidArgument(name_ + ": page " + std::to_string(index) + " written out of order");
-    MKTREE_RETURN_IF_ERROR(PwriteFull(fd_, data, mem_page_, (1 + index) * mem_page_, name_));
+    MKTREE_RETURN_IF_ERROR(PwriteFull(fd_, data, mem_page_, (1 + index) * mem_page_, name_, *ops_));
     if (index == count_) ++count_;
     return Status::Ok();
   }
 
   Status Sync() override {
-    if (::fdatasync(fd_) != 0) return Status::IOError(name_ + ": fdatasync: " + ErrnoText(errno));
+    if (ops_->Fsync(fd_) != 0) return Status::IOError(name_ + ": fsync: " + ErrnoText(errno));
     return Status::Ok();
   }
 
@@ -120,6 +121,7 @@ class PagedFileStore : public PageStore {
   }
 
   int fd() const { return fd_; }
+  FileOps& ops() const { return *ops_; }
   void set_direct_fd(int fd) { direct_fd_ = fd; }
   // Maps the header and leaf pages read-only (buffered reads without a copy per cache miss). A store that
   // cannot be mapped is read with pread. Not with O_DIRECT, whose point is to bypass the OS cache.
@@ -152,6 +154,7 @@ class PagedFileStore : public PageStore {
   int direct_fd_ = -1;
   uint64_t mem_page_;
   uint64_t count_;
+  FileOps* ops_;  // writes (the writer's; fault injection in tests)
   boost::interprocess::mapped_region region_;
   const uint8_t* mapped_ = nullptr;
   std::unique_ptr<std::atomic<uint64_t>[]> read_once_;  // bit per page: read through the OS cache before
@@ -159,8 +162,8 @@ class PagedFileStore : public PageStore {
 
 class PagedFileWriter : public StoreWriter::Impl {
  public:
-  PagedFileWriter(std::string path, int fd, const BuildParams& params)
-      : path_(path), store_(std::move(path), fd, params.mem_page(), 0) {}
+  PagedFileWriter(std::string path, int fd, const BuildParams& params, FileOps& ops)
+      : path_(path), store_(std::move(path), fd, params.mem_page(), 0, ops) {}
   PageStore& pages() override { return store_; }
   void Abort() override { (void)store_.Close(); }
 
@@ -196,7 +199,7 @@ class PagedFileWriter : public StoreWriter::Impl {
     uint64_t offset = (1 + store_.page_count()) * mem_page;
     for (uint32_t i = 0; i < kSectionCount; ++i) {
       const std::vector<uint8_t> s = encode(i);
-      MKTREE_RETURN_IF_ERROR(PwriteFull(store_.fd(), s.data(), s.size(), offset, path_));
+      MKTREE_RETURN_IF_ERROR(PwriteFull(store_.fd(), s.data(), s.size(), offset, path_, store_.ops()));
       uint8_t* e = h + kSectionTableOffset + 24 * i;
       Put<uint64_t>(e, offset);
       Put<uint64_t>(e + 8, s.size());
@@ -205,12 +208,13 @@ class PagedFileWriter : public StoreWriter::Impl {
     }
     Put<uint64_t>(h + 64, offset);  // file bytes
     Put<uint64_t>(h + kHeaderChecksumOffset, HeaderChecksum(h, mem_page));
-    if (::ftruncate(store_.fd(), static_cast<off_t>(offset)) != 0)
+    FileOps& ops = store_.ops();
+    if (ops.Ftruncate(store_.fd(), offset) != 0)
       return Status::IOError(path_ + ": truncate: " + ErrnoText(errno));
     // Data first, then the header that makes it a store.
-    if (::fsync(store_.fd()) != 0) return Status::IOError(path_ + ": fsync: " + ErrnoText(errno));
-    MKTREE_RETURN_IF_ERROR(PwriteFull(store_.fd(), h, mem_page, 0, path_));
-    if (::fsync(store_.fd()) != 0) return Status::IOError(path_ + ": fsync: " + ErrnoText(errno));
+    if (ops.Fsync(store_.fd()) != 0) return Status::IOError(path_ + ": fsync: " + ErrnoText(errno));
+    MKTREE_RETURN_IF_ERROR(PwriteFull(store_.fd(), h, mem_page, 0, path_, ops));
+    if (ops.Fsync(store_.fd()) != 0) return Status::IOError(path_ + ": fsync: " + ErrnoText(errno));
     return store_.Close();
   }
 
@@ -222,10 +226,10 @@ class PagedFileWriter : public StoreWriter::Impl {
 }  // namespace
 
 Result<std::unique_ptr<StoreWriter::Impl>> CreatePagedFileWriter(const std::string& temp_path,
-                                                                    const BuildParams& params) {
+                                                                 const BuildParams& params, FileOps& ops) {
   const int fd = ::open(temp_path.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (fd < 0) return Status::IOError(temp_path + ": create: " + ErrnoText(errno));
-  return std::unique_ptr<StoreWriter::Impl>(new PagedFileWriter(temp_path, fd, params));
+  return std::unique_ptr<StoreWriter::Impl>(new PagedFileWriter(temp_path, fd, params, ops));
 }
 
 Result<OpenedStore> OpenPagedFile(const std::string& path, const ReadOptions& opts) {

@@ -27,10 +27,11 @@ class StoreWriter::Impl {
   virtual void Abort() = 0;
 };
 
+// `ops` makes every write, truncation and fsync of the file (fault injection in tests).
 Result<std::unique_ptr<StoreWriter::Impl>> CreatePagedFileWriter(const std::string& temp_path,
-                                                                    const BuildParams& params);
+                                                                 const BuildParams& params, FileOps& ops);
 Result<std::unique_ptr<StoreWriter::Impl>> CreateHdf5Writer(const std::string& temp_path,
-                                                               const BuildParams& params);
+                                                            const BuildParams& params, FileOps& ops);
 
 struct OpenedStore {
   std::unique_ptr<PageStore> pages;

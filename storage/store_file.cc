@@ -160,8 +160,9 @@ Result<std::unique_ptr<StoreWriter>> StoreWriter::Create(const std::string& fina
   if (!lock.ok()) return lock.status();
   const std::string temp = final_path + ".tmp." + std::to_string(::getpid());
   RemoveStaleTemps(final_path);  // we hold the lock: any "<final>.tmp.<pid>" is a killed writer's
-  auto backend = opts.backend == Backend::kHdf5 ? CreateHdf5Writer(temp, opts.params)
-                                                : CreatePagedFileWriter(temp, opts.params);
+  FileOps& ops = opts.file_ops ? *opts.file_ops : DefaultFileOps();
+  auto backend = opts.backend == Backend::kHdf5 ? CreateHdf5Writer(temp, opts.params, ops)
+                                                : CreatePagedFileWriter(temp, opts.params, ops);
   if (!backend.ok()) {
     ::unlink(temp.c_str());
     return backend.status();
@@ -201,10 +202,22 @@ Status StoreWriter::Commit(MKTree tree, const std::string& stats_json) {
   if (!st.ok()) return fail(Status::InvalidArgument(st.message()));
   st = backend_->Finish(c);
   if (!st.ok()) return fail(st);
-  if (::rename(temp_path_.c_str(), final_path_.c_str()) != 0)
+  c = StoreContents();
+  // What a reader will check, before the previous store is replaced: a writer fault or a write the
+  // system got wrong then fails the build instead of leaving a store that never opens.
+  if (auto reread = StoreReader::Open(temp_path_); !reread.ok())
+    return fail(Status::Corruption(final_path_ +
+                                   ": the store just written does not read back, so the previous one "
+                                   "is kept: " +
+                                   reread.status().message()));
+  FileOps& ops = opts_.file_ops ? *opts_.file_ops : DefaultFileOps();
+  if (ops.Rename(temp_path_, final_path_) != 0)
     return fail(Status::IOError(final_path_ + ": rename from " + temp_path_ + ": " + ErrnoText(errno)));
   done_ = true;
-  return storage_internal::SyncParentDir(final_path_);
+  st = storage_internal::SyncParentDir(final_path_, ops);
+  if (!st.ok())
+    return Status::IOError(st.message() + " (the new store is in place but may not survive a power loss)");
+  return Status::Ok();
 }
 
 Result<std::unique_ptr<StoreReader>> StoreReader::Open(const std::string& path, const ReadOptions& opts) {

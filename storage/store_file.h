@@ -19,6 +19,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <string_view>
@@ -26,6 +27,7 @@
 #include "engine/tree/mktree.h"
 #include "mktree/scene.h"
 #include "mktree/status.h"
+#include "storage/file_ops.h"
 #include "storage/object_codec.h"
 #include "storage/page_store.h"
 #include "storage/tree_codec.h"
@@ -43,6 +45,8 @@ struct StoreOptions {
   CodecOptions codec;                // how object geometry is encoded in leaf entries (recorded in the store)
   BuildParams params;                // page size etc.; must match the tree given to Commit
   bool direct_io = false;            // reads only (see ReadOptions); ignored when writing
+  // The writer's system calls (storage/file_ops.h); null: POSIX. Tests inject faults through it.
+  FileOps* file_ops = nullptr;
 };
 
 // Thread safety: a StoreWriter is used by one thread.
@@ -63,8 +67,11 @@ class StoreWriter {
 
   // Validates tree against the pages and objects written (leaf pages in range, every object in a leaf,
   // tree.params page size == the store's), writes the tree, object table, parameters, codec, stats JSON
-  // and the header with checksums; fsyncs; renames to final_path; fsyncs the directory. After Commit
-  // (successful or not) the writer accepts no more calls.
+  // and the header with checksums; fsyncs; opens the file as a reader would (every check of
+  // StoreReader::Open, no leaf page), so that a store that would not open never replaces the previous
+  // one; renames to final_path; fsyncs the directory. After Commit (successful or not) the writer accepts
+  // no more calls. If the directory's fsync fails, the new store is in place but may not survive a power
+  // loss, and the error says so.
   // The tree is taken by value: move it in when it is not needed afterwards (it is not copied again).
   Status Commit(MKTree tree, const std::string& stats_json);
 
@@ -112,6 +119,11 @@ class StoreReader {
   const std::string& path() const { return path_; }
   // Non-fatal remarks from Open (e.g. "O_DIRECT refused by the filesystem; using buffered reads").
   const std::string& notice() const { return notice_; }
+  // Test seam: puts wrap(pages) in place of the page store, e.g. a FaultyPageStore that fails or damages
+  // reads. REQUIRES: nothing is reading the pages.
+  void WrapPages(const std::function<std::unique_ptr<PageStore>(std::unique_ptr<PageStore>)>& wrap) {
+    pages_ = wrap(std::move(pages_));
+  }
 
   StoreReader() = default;  // use Open
 

@@ -10,6 +10,7 @@
 #include <utility>
 
 #include "engine/geometry/exact_geometry.h"
+#include "engine/query/store_database.h"
 #include "storage/leaf_reader.h"
 #include "storage/object_codec.h"
 #include "storage/page_cache.h"
@@ -219,12 +220,16 @@ class StoreDatabase final : public Database {
 
 }  // namespace
 
+std::unique_ptr<Database> OpenStoreDatabase(std::unique_ptr<StoreReader> reader, const OpenOptions& options) {
+  return std::make_unique<StoreDatabase>(std::move(reader), options);
+}
+
 Result<std::unique_ptr<Database>> Database::Open(const std::string& path, const OpenOptions& options) {
   ReadOptions ro;
   ro.direct_io = options.direct_io;
   auto reader = StoreReader::Open(path, ro);
   if (!reader.ok()) return reader.status();
-  return std::unique_ptr<Database>(new StoreDatabase(std::move(*reader), options));
+  return OpenStoreDatabase(std::move(*reader), options);
 }
 
 }  // namespace mktree

@@ -1,0 +1,31 @@
+// FileOps: the system calls that write a store (page and metadata writes, truncation, fsync, the commit's
+// rename), behind one interface so that tests inject faults where they happen: LevelDB's Env, reduced to
+// what writing a store needs. The default methods are the POSIX calls; a test subclass overrides some to
+// fail, write short, or change bytes at chosen points (tests/storage/fault_injection_test.cc).
+// Calls follow POSIX: -1 with errno set on failure.
+//
+// Thread safety: the writer calls these from its one thread; DefaultFileOps() is stateless.
+#pragma once
+
+#include <sys/types.h>
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+
+namespace mktree {
+
+class FileOps {
+ public:
+  virtual ~FileOps() = default;
+  virtual ssize_t Pwrite(int fd, const void* buf, size_t n, uint64_t offset);
+  virtual int Ftruncate(int fd, uint64_t size);
+  // fsync(2) of a file or, for the commit, of the directory that holds it.
+  virtual int Fsync(int fd);
+  virtual int Rename(const std::string& from, const std::string& to);
+};
+
+// The POSIX calls.
+FileOps& DefaultFileOps();
+
+}  // namespace mktree
