@@ -179,13 +179,17 @@ for t in "${targets[@]}"; do
     rm -rf "$out"
     mkdir -p "$out"
     cp "$root/tests/fuzz/corpus/$t"/* "$out/"
+    # (Units that fail during the merge leave their crash-* files in merge-artifacts/, not in the cwd.)
+    mkdir -p "$work/merge-artifacts"
     nice -n 10 "$bin" -merge=1 -max_len="$(max_len "$t")" -timeout="$timeout" -rss_limit_mb="$rss" \
-      "$out" "$work/corpus" >"$work/logs/merge.log" 2>&1 || echo "  merge failed: $work/logs/merge.log"
+      -artifact_prefix="$work/merge-artifacts/" "$out" "$work/corpus" >"$work/logs/merge.log" 2>&1 ||
+      echo "  merge failed: $work/logs/merge.log"
     added=0 refused=0
     for f in "$out"/*; do
       [[ -e $root/tests/fuzz/corpus/$t/${f##*/} ]] && continue
       if env -u MKTREE_FUZZ_NO_ANSWER_CHECK UBSAN_OPTIONS=halt_on_error=1 \
-          LSAN_OPTIONS="suppressions=$root/tests/fuzz/lsan.supp" "$bin" -runs=0 "$f" >/dev/null 2>&1; then
+          LSAN_OPTIONS="suppressions=$root/tests/fuzz/lsan.supp" "$bin" -runs=0 \
+          -artifact_prefix="$work/merge-artifacts/" "$f" >/dev/null 2>&1; then
         cp "$f" "$root/tests/fuzz/corpus/$t/"
         added=$((added + 1))
       else

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Regenerates the seed corpora (tests/fuzz/corpus/<target>/seed-*) from ../shared/data and small stores
-# built by the tool. Run it again after a change of the store or scene formats (the replay tests'
+# built by the tool. Only the HDF5 stores differ from run to run (HDF5 records object times). Run it again after a change of the store or scene formats (the replay tests'
 # --min-accepted check fails when the seeds no longer parse). Units merged in by `scripts/fuzz.sh --merge`
 # (named by their SHA-1) are left alone.
 #   tests/fuzz/make_seeds.sh [BUILD_DIR]     (default: build; needs mktree and fuzz_seed_tool built there)
@@ -58,7 +58,7 @@ build_store tanker.h5 hdf5 512 1 none tanker:3:2
 printf '%s\n' '# point and box queries' 'point 1 2 3' 'box 0 0 0 1 1 1' 'point 1e3,2.5e-3,-7' \
   '  box -1 -1 -1    2 2 2   # trailing comment' '' 'point -0 0 0.5' >"$corpus/queries/seed-forms.txt"
 printf 'point 1 2 3\r\nbox 0,0,0,1,1,1\r\n\tpoint\t4\t5\t6\r\n' >"$corpus/queries/seed-crlf.txt"
-"$mktree" generate queries "$tmp/tanker.pf" -o "$corpus/queries/seed-generated.txt" --count 12 --seed 5 >/dev/null
+(cd "$tmp" && "$mktree" generate queries tanker.pf -o "$corpus/queries/seed-generated.txt" --count 12 --seed 5 >/dev/null)
 printf '1,2,3' >"$corpus/queries/seed-arg-point.txt"
 
 # store_open: raw (mode 0), resealed (mode 1) and structured (mode 2) inputs; store_hdf5: the files.
