@@ -124,10 +124,10 @@ declare -A summary
 for t in "${targets[@]}"; do
   bin=$build/tests/fuzz/fuzz_$t
   work=$build/fuzz-work/$t
-  mkdir -p "$work/corpus" "$work/artifacts" "$work/logs" "$root/tests/fuzz/regressions/$t"
+  mkdir -p "$work/corpus" "$work/artifacts" "$work/logs" "$work/set-aside" "$root/tests/fuzz/regressions/$t"
   rm -f "$work"/logs/*.log
   cp -n "$root/tests/fuzz/corpus/$t"/* "$work/corpus/" 2>/dev/null || true
-  units_before=$(( $(find "$work/corpus" -maxdepth 1 -type f | wc -l) + $(find "$work/set-aside" -type f 2>/dev/null | wc -l) ))
+  units_before=$(( $(find "$work/corpus" -maxdepth 1 -type f | wc -l) + $(find "$work/set-aside" -type f | wc -l) ))
   artifacts_before=$(find "$work/artifacts" -maxdepth 1 -type f | sort)
   echo "fuzzing $t for ${time_per_target}s with $jobs process(es) ($units_before corpus units)"
   start=$(date +%s)
@@ -143,7 +143,7 @@ for t in "${targets[@]}"; do
   logs=("$work"/logs/w*.log)
   execs=$(cat /dev/null "${logs[@]}" | sed -n 's/^stat::number_of_executed_units: *//p' | awk '{s += $1} END {print s + 0}')
   cov=$(cat /dev/null "${logs[@]}" | { grep -o 'cov: [0-9]* ft: [0-9]*' || true; } | awk '$2 > c {c = $2} $4 > f {f = $4} END {print c + 0 "/" f + 0}')
-  units_after=$(( $(find "$work/corpus" -maxdepth 1 -type f | wc -l) + $(find "$work/set-aside" -type f 2>/dev/null | wc -l) ))
+  units_after=$(( $(find "$work/corpus" -maxdepth 1 -type f | wc -l) + $(find "$work/set-aside" -type f | wc -l) ))
   new=$(comm -13 <(echo "$artifacts_before") <(find "$work/artifacts" -maxdepth 1 -type f | sort) | grep -v '/slow-unit-' || true)
   count() { grep -c "/$1" <<<"$new" || true; }
   crashes=$(( $(count crash-) + $(count leak-) + $(count deadly-signal-) ))
