@@ -262,6 +262,11 @@ Result<OpenedStore> OpenPagedFile(const std::string& path, const ReadOptions& op
                            &out.contents.codec);
   if (!st.ok()) return bad("header: " + st.message());
   const uint64_t mem_page = out.contents.params.mem_page();
+  // The header page holds the fixed header (the writer refuses smaller pages): reading a smaller one as
+  // a header page would run past its end.
+  if (mem_page < kFixedHeaderBytes)
+    return bad("header: page size " + std::to_string(mem_page) + " is smaller than the " +
+               std::to_string(kFixedHeaderBytes) + "-byte header");
   if (size < mem_page) return bad("truncated (" + std::to_string(size) + " bytes, shorter than its header page)");
   std::vector<uint8_t> header(mem_page);
   MKTREE_RETURN_IF_ERROR(PreadFull(fd, header.data(), mem_page, 0, path));

@@ -66,7 +66,9 @@ bool FilterMeetsPoint(const Box3f& leaf, const uint8_t* q, uint32_t count, const
   for (int a = 0; a < 3; ++a) {
     const double l = leaf.min[a], h = leaf.max[a];
     if (p[a] < l || p[a] > h) return false;
-    if (h <= l) {
+    // A flat axis, or one no level can be computed on (an infinite or NaN bound: a damaged store), lets
+    // every entry through on this axis rather than cast a NaN level to int.
+    if (!(h > l) || !std::isfinite(h - l)) {
       lo[a] = kTop;
       hi[a] = 0;
       continue;

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <limits>
 #include <random>
 
 namespace mktree {
@@ -129,6 +130,30 @@ TEST(LeafFilter, RandomPointsAgainstBruteForce) {
     filtered += !pass;
   }
   EXPECT_GT(filtered, 0);
+}
+
+// A leaf box with an infinite or NaN bound (only a damaged or crafted store has one; found by
+// tests/fuzz store_open) cannot be quantized into: the point's level was a NaN cast to int (undefined
+// behaviour) and the leaf was filtered out although its entry spans the whole leaf. It must stay
+// conservative: an entry covering the leaf lets every point of the leaf through.
+TEST(LeafFilter, NonFiniteLeafBoxesLetPointsThrough) {
+  const float inf = std::numeric_limits<float>::infinity(), nan = std::numeric_limits<float>::quiet_NaN();
+  uint8_t whole[kLeafFilterBytesPerObject];
+  const uint64_t v = uint64_t{1023} << 30 | uint64_t{1023} << 40 | uint64_t{1023} << 50;  // min 0, max 1023
+  for (int i = 0; i < 8; ++i) whole[i] = static_cast<uint8_t>(v >> (8 * i));
+  for (float bad : {-inf, nan}) {
+    for (int axis = 0; axis < 3; ++axis) {
+      Box3f leaf;
+      leaf.min = {0, 0, 0};
+      leaf.max = {1, 1, 1};
+      leaf.min[axis] = bad;
+      EXPECT_TRUE(FilterMeetsPoint(leaf, whole, 1, Vec3d{0.5, 0.5, 0.5})) << bad << " on axis " << axis;
+    }
+  }
+  Box3f everywhere;
+  everywhere.min = {-inf, -inf, -inf};
+  everywhere.max = {inf, inf, inf};
+  EXPECT_TRUE(FilterMeetsPoint(everywhere, whole, 1, Vec3d{0.5, -7, 1e300}));
 }
 
 }  // namespace
