@@ -147,7 +147,8 @@ class StoreDatabase final : public Database {
       ~Unpin() { leaf.Release(); }
     } unpin{pinned};
     MKTREE_RETURN_IF_ERROR(ReadLeaf(cache_, reader_->pages().name(), leaf, tree.leaves[leaf],
-                                    tree.params.mem_page(), options_.verify_checksums, s, &pinned));
+                                    reader_->objects().leaf, tree.params.mem_page(),
+                                    options_.verify_checksums, s, &pinned));
     const size_t before = hits->size();
     for (const ObjectEntryView& e : pinned.view.entries()) {
       ++s->candidates_tested;
