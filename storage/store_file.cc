@@ -196,6 +196,8 @@ Status StoreWriter::Commit(MKTree tree, const std::string& stats_json) {
   c.stats_json = stats_json;
   Status st = ValidateStructure(c.tree, c.objects, backend_->pages().page_count(), final_path_);
   if (!st.ok()) return fail(Status::InvalidArgument(st.message()));
+  st = ValidateStatsJson(c.stats_json);  // what Open would refuse
+  if (!st.ok()) return fail(Status::InvalidArgument(final_path_ + ": " + st.message()));
   st = backend_->Finish(c);
   if (!st.ok()) return fail(st);
   if (::rename(temp_path_.c_str(), final_path_.c_str()) != 0)
@@ -221,6 +223,9 @@ Result<std::unique_ptr<StoreReader>> StoreReader::Open(const std::string& path, 
     }
     if (!opened.ok()) return opened.status();
     OpenedStore& o = opened.value();
+    // The statistics are printed as they are (mktree info --json): only what the builder writes passes.
+    Status st = ValidateStatsJson(o.contents.stats_json);
+    if (!st.ok()) return Status::Corruption(path + ": " + st.message());
     auto r = std::make_unique<StoreReader>();
     r->path_ = path;
     r->pages_ = std::move(o.pages);

@@ -60,10 +60,10 @@ class StoreWriter {
   Status AppendObject(ObjectId id, uint32_t leaf, std::string_view name);
   uint64_t object_count() const { return objects_.size(); }
 
-  // Validates tree against the pages and objects written (leaf pages in range, every object in a leaf,
-  // tree.params page size == the store's), writes the tree, object table, parameters, codec, stats JSON
-  // and the header with checksums; fsyncs; renames to final_path; fsyncs the directory. After Commit
-  // (successful or not) the writer accepts no more calls.
+  // Validates tree against the pages and objects written (ValidateStructure, tree.params page size ==
+  // the store's) and stats_json (ValidateStatsJson: empty or TreeStats::ToJson's), writes the tree,
+  // object table, parameters, codec, stats JSON and the header with checksums; fsyncs; renames to
+  // final_path; fsyncs the directory. After Commit (successful or not) the writer accepts no more calls.
   // The tree is taken by value: move it in when it is not needed afterwards (it is not copied again).
   Status Commit(MKTree tree, const std::string& stats_json);
 

@@ -350,6 +350,131 @@ Status ValidateStructure(const MKTree& tree, const ObjectTable& objects, uint64_
   return Status::Ok();
 }
 
+namespace {
+
+// The keys TreeStats::ToJson and LevelStats write (engine/tree/tree_stats.cc).
+// clang-format off
+constexpr std::string_view kStatsKeys[] = {
+    "objects", "height", "internal_nodes", "leaves", "pages", "multi_page_leaves", "min_objects_per_leaf",
+    "mean_objects_per_leaf", "max_objects_per_leaf", "mem_page", "mean_page_fill", "min_page_fill",
+    "split_tree_nodes", "max_split_tree_nodes", "split_tree_cells", "both_cells", "overlap_objects",
+    "index_bytes_per_object", "tree_bytes_per_object", "levels"};
+constexpr std::string_view kLevelKeys[] = {
+    "depth", "nodes", "internal_nodes", "overlap_nodes", "overlap_objects", "mean_overlap_objects",
+    "mean_slab_rel_width", "split_tree_nodes", "split_tree_cells", "both_cells", "both_cell_share",
+    "both_volume_share"};
+// clang-format on
+constexpr size_t kMaxStatsLevels = 256;
+
+// A strict reader of the statistics' JSON subset: objects of known keys with number values, one array.
+class StatsJsonReader {
+ public:
+  explicit StatsJsonReader(std::string_view s) : s_(s) {}
+
+  Status Read() {
+    Space();
+    if (at_ == s_.size()) return Status::Ok();  // no statistics
+    MKTREE_RETURN_IF_ERROR(Object(kStatsKeys, true));
+    Space();
+    if (at_ != s_.size()) return Fail("trailing bytes after the object");
+    return Status::Ok();
+  }
+
+ private:
+  template <size_t N>
+  Status Object(const std::string_view (&keys)[N], bool top) {
+    if (!Eat('{')) return Fail("an object was expected");
+    bool seen[N] = {};
+    Space();
+    if (Eat('}')) return Status::Ok();
+    for (;;) {
+      Space();
+      std::string_view key;
+      MKTREE_RETURN_IF_ERROR(Key(&key));
+      size_t k = 0;
+      while (k < N && keys[k] != key) ++k;
+      if (k == N) return Fail("unknown key \"" + std::string(key) + "\"");
+      if (seen[k]) return Fail("key \"" + std::string(key) + "\" appears twice");
+      seen[k] = true;
+      Space();
+      if (!Eat(':')) return Fail("':' expected");
+      Space();
+      if (top && key == "levels") {
+        MKTREE_RETURN_IF_ERROR(Levels());
+      } else {
+        MKTREE_RETURN_IF_ERROR(Number(key));
+      }
+      Space();
+      if (Eat('}')) return Status::Ok();
+      if (!Eat(',')) return Fail("',' or '}' expected");
+    }
+  }
+
+  Status Levels() {
+    if (!Eat('[')) return Fail("\"levels\" is not an array");
+    Space();
+    if (Eat(']')) return Status::Ok();
+    for (size_t n = 1;; ++n) {
+      if (n > kMaxStatsLevels) return Fail("more than " + std::to_string(kMaxStatsLevels) + " levels");
+      Space();
+      MKTREE_RETURN_IF_ERROR(Object(kLevelKeys, false));
+      Space();
+      if (Eat(']')) return Status::Ok();
+      if (!Eat(',')) return Fail("',' or ']' expected");
+    }
+  }
+
+  // Keys are lower-case words: nothing to escape.
+  Status Key(std::string_view* key) {
+    if (!Eat('"')) return Fail("a key was expected");
+    const size_t b = at_;
+    while (at_ < s_.size() && ((s_[at_] >= 'a' && s_[at_] <= 'z') || s_[at_] == '_')) ++at_;
+    if (!Eat('"')) return Fail("a key was expected");
+    *key = s_.substr(b, at_ - 1 - b);
+    return Status::Ok();
+  }
+
+  // A JSON number: -?(0|[1-9][0-9]*)(.[0-9]+)?([eE][+-]?[0-9]+)?
+  Status Number(std::string_view key) {
+    auto digits = [&] {
+      const size_t b = at_;
+      while (at_ < s_.size() && s_[at_] >= '0' && s_[at_] <= '9') ++at_;
+      return at_ > b;
+    };
+    const size_t b = at_;
+    Eat('-');
+    if (!Eat('0') && !digits()) return Fail("the value of \"" + std::string(key) + "\" is not a number");
+    if (Eat('.') && !digits()) return Fail("the value of \"" + std::string(key) + "\" is not a number");
+    if (Eat('e') || Eat('E')) {
+      if (!Eat('+')) Eat('-');
+      if (!digits()) return Fail("the value of \"" + std::string(key) + "\" is not a number");
+    }
+    return at_ > b ? Status::Ok() : Fail("a number was expected");
+  }
+
+  void Space() {
+    while (at_ < s_.size() && (s_[at_] == ' ' || s_[at_] == '\n' || s_[at_] == '\t' || s_[at_] == '\r'))
+      ++at_;
+  }
+  bool Eat(char c) {
+    if (at_ < s_.size() && s_[at_] == c) {
+      ++at_;
+      return true;
+    }
+    return false;
+  }
+  Status Fail(const std::string& what) const {
+    return Status::Corruption("build statistics: " + what + " at byte " + std::to_string(at_));
+  }
+
+  std::string_view s_;
+  size_t at_ = 0;
+};
+
+}  // namespace
+
+Status ValidateStatsJson(std::string_view json) { return StatsJsonReader(json).Read(); }
+
 bool SameTree(const MKTree& a, const MKTree& b) {
   return EncodeNodes(a.nodes) == EncodeNodes(b.nodes) && EncodeSplitNodes(a.split_nodes) == EncodeSplitNodes(b.split_nodes) &&
          EncodeLeaves(a.leaves) == EncodeLeaves(b.leaves) && a.leaf_filter == b.leaf_filter &&

@@ -87,6 +87,13 @@ inline bool BoxWithin(const Box3f& inner, const Box3f& outer) {
 Status ValidateStructure(const MKTree& tree, const ObjectTable& objects, uint64_t page_count,
                          const std::string& what);
 
+// Checks the build statistics a store carries (TreeStats::ToJson): empty, or one JSON object whose keys
+// are TreeStats' (each at most once) with number values, "levels" being an array of at most 256 such
+// objects with LevelStats' keys. Anything else (another key, a nested object, a string, trailing bytes)
+// is Corruption: `mktree info --json` prints the statistics as they are, so they must be valid JSON with
+// only known keys.
+Status ValidateStatsJson(std::string_view json);
+
 // Field-by-field equality of the persisted tree (the structs have no operator==).
 bool SameTree(const MKTree& a, const MKTree& b);
 

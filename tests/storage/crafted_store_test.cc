@@ -341,5 +341,30 @@ TEST(CraftedStructureTest, EmptyTreeMustHoldNothing) {
   EXPECT_EQ(ValidateStructure(t, objects, 0, "s").code(), Status::Code::kCorruption);
 }
 
+// Every key the builder writes passes, overlap counts included; Commit refuses what Open would.
+TEST(CraftedStatsTest, TheBuildersStatisticsPassAndCommitRefusesOthers) {
+  auto img = testing::MakeTestImage(300, 7);
+  ASSERT_TRUE(img.ok());
+  const MKTree& t = img->tree();
+  const std::vector<uint32_t> overlap(t.nodes.size(), 2);
+  const std::string stats = ComputeTreeStats(t, 300, overlap).ToJson();
+  ASSERT_NE(stats.find("mean_overlap_objects"), std::string::npos);
+  EXPECT_TRUE(ValidateStatsJson(stats).ok()) << ValidateStatsJson(stats).ToString();
+  EXPECT_TRUE(ValidateStatsJson(img->contents.stats_json).ok());
+
+  testing::TempDir dir;
+  const std::string path = dir.file("bad_stats.mkt");
+  const std::vector<SceneObject> objects = testing::MakeObjects(40, 2);
+  auto w = StoreWriter::Create(path, StoreOptions{});
+  ASSERT_TRUE(w.ok());
+  testing::BuiltStore built;
+  ASSERT_TRUE(testing::BuildTestStore(objects, {}, {}, &(*w)->pages(), &built).ok());
+  for (const auto& o : objects) ASSERT_TRUE((*w)->AppendObject(o.id, built.object_leaf[o.id], o.name).ok());
+  Status st = (*w)->Commit(built.tree, "{\"objects\": 40, \"note\": \"hi\"}");
+  EXPECT_EQ(st.code(), Status::Code::kInvalidArgument) << st.ToString();
+  EXPECT_NE(st.message().find("build statistics"), std::string::npos) << st.message();
+  EXPECT_FALSE(std::filesystem::exists(path));
+}
+
 }  // namespace
 }  // namespace mktree

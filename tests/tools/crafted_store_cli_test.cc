@@ -1,6 +1,7 @@
-// The command line on crafted stores (tests/storage/crafted_store.h) and under memory limits: an open
-// that needs more memory than allowed exits 1 with one `error:` line instead of aborting. Crafted* suites
-// run under a short timeout.
+// The command line on crafted stores (tests/storage/crafted_store.h) and under memory limits: `info
+// --json` prints only statistics that are valid JSON with known keys, a store carrying others is refused
+// with one error line, and an open that needs more memory than allowed exits 1 with one `error:` line
+// instead of aborting. Crafted* suites run under a short timeout.
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
@@ -23,6 +24,74 @@ void ExpectOneErrorLine(const ToolRun& r, const std::string& path) {
   EXPECT_EQ(r.err.find('\n'), r.err.size() - 1) << r.err;
   EXPECT_NE(r.err.find(path), std::string::npos) << r.err;
 }
+
+class CraftedStatsCliTest : public ::testing::TestWithParam<Backend> {
+ protected:
+  void SetUp() override {
+    auto img = testing::MakeTestImage(50, 3);
+    ASSERT_TRUE(img.ok()) << img.status().ToString();
+    image_ = std::move(img).value();
+    path_ = dir_.file("stats.mkt");
+  }
+  ToolRun InfoJson(const std::string& stats) {
+    image_.contents.stats_json = stats;
+    EXPECT_TRUE(testing::WriteStoreImage(image_, path_, GetParam()).ok());
+    return testing::RunMktree("info --json " + path_, dir_.path());
+  }
+
+  testing::TempDir dir_;
+  testing::StoreImage image_;
+  std::string path_;
+};
+
+TEST_P(CraftedStatsCliTest, TheBuildersStatisticsArePrintedUnderTree) {
+  const std::string stats = image_.contents.stats_json;
+  ToolRun r = InfoJson(stats);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("\"tree\": " + stats + "}\n"), std::string::npos) << r.out;
+  r = InfoJson("");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("\"tree\": null}\n"), std::string::npos) << r.out;
+  r = InfoJson("{\"objects\": 50, \"mean_page_fill\": -1.5e-3, \"levels\": [{\"depth\": 0}, {}]}");
+  EXPECT_EQ(r.code, 0) << r.err;
+}
+
+TEST_P(CraftedStatsCliTest, StatisticsThatAreNotTheBuildersAreRefused) {
+  const char* cases[] = {
+      "{\"objects\": 1, \"evil\": 2}",            // an extra key
+      "{\"objects\": {\"nested\": 1}}",           // a nested object
+      "{\"levels\": [{\"depth\": [1]}]}",         // nested in a level
+      "1}, \"injected\": {\"x\": 1",              // closes the object and opens another
+      "{\"objects\": \"1\\\"}, \\\"x\\\": 2\"}",  // a string
+      "{\"objects\": 1}, \"injected\": 2",        // trailing members
+      "{\"objects\": 1, \"objects\": 2}",         // a key twice
+      "{\"objects\": nan}",                       // not a JSON number
+      "{\"objects\": 01}",
+      "{\"objects\": 1,}",
+      "\x01\xff garbage",
+  };
+  for (const char* stats : cases) {
+    SCOPED_TRACE(stats);
+    ToolRun r = InfoJson(stats);
+    ExpectOneErrorLine(r, path_);
+    EXPECT_NE(r.err.find("build statistics"), std::string::npos) << r.err;
+    EXPECT_EQ(r.out, "");
+  }
+}
+
+TEST_P(CraftedStatsCliTest, ControlCharactersInThePathAreEscaped) {
+  path_ = dir_.file("a\tb.mkt");
+  ASSERT_TRUE(testing::WriteStoreImage(image_, path_, GetParam()).ok());
+  ToolRun r = testing::RunMktree("info --json '" + path_ + "'", dir_.path());
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("a\\u0009b.mkt\", "), std::string::npos) << r.out;
+}
+
+INSTANTIATE_TEST_SUITE_P(Backends, CraftedStatsCliTest,
+                         ::testing::Values(Backend::kPagedFile, Backend::kHdf5),
+                         [](const ::testing::TestParamInfo<Backend>& p) {
+                           return std::string(BackendName(p.param));
+                         });
 
 // `mktree ARGS` with its address space limited to `mib` MiB (the shell's ulimit -v, i.e. RLIMIT_AS).
 ToolRun RunMktreeLimited(uint64_t mib, const std::string& args, const fs::path& scratch) {
