@@ -11,6 +11,7 @@
 #include <mutex>
 #include <set>
 
+#include "engine/core/guarded.h"
 #include "storage/file_util.h"
 #include "storage/leaf_format.h"
 #include "storage/store_backend.h"
@@ -200,6 +201,8 @@ Status StoreWriter::Commit(MKTree tree, const std::string& stats_json) {
   c.stats_json = stats_json;
   Status st = ValidateStructure(c.tree, c.objects, backend_->pages().page_count(), final_path_);
   if (!st.ok()) return fail(Status::InvalidArgument(st.message()));
+  st = ValidateStatsJson(c.stats_json);  // what Open would refuse
+  if (!st.ok()) return fail(Status::InvalidArgument(final_path_ + ": " + st.message()));
   st = backend_->Finish(c);
   if (!st.ok()) return fail(st);
   c = StoreContents();
@@ -221,33 +224,41 @@ Status StoreWriter::Commit(MKTree tree, const std::string& stats_json) {
 }
 
 Result<std::unique_ptr<StoreReader>> StoreReader::Open(const std::string& path, const ReadOptions& opts) {
-  uint8_t magic[8] = {};
-  auto n = storage_internal::ReadPrefix(path, magic, sizeof(magic));
-  if (!n.ok()) return n.status();
-  if (*n == 0) return Status::Corruption(path + ": empty file: not an mktree store");
-  Result<OpenedStore> opened = Status::Internal("unreachable");
-  if (*n == 8 && std::memcmp(magic, kPagedFileMagic, 8) == 0) {
-    opened = OpenPagedFile(path, opts);
-  } else if (*n == 8 && std::memcmp(magic, kHdf5Signature, 8) == 0) {
-    opened = OpenHdf5(path, opts);
-  } else {
-    return Status::Corruption(path + ": not an mktree store (unknown file signature)");
-  }
-  if (!opened.ok()) return opened.status();
-  auto r = std::make_unique<StoreReader>();
-  OpenedStore& o = opened.value();
-  r->path_ = path;
-  r->pages_ = std::move(o.pages);
-  r->options_.backend = *n == 8 && std::memcmp(magic, kPagedFileMagic, 8) == 0 ? Backend::kPagedFile : Backend::kHdf5;
-  r->options_.codec = o.contents.codec;
-  r->options_.params = o.contents.params;
-  r->options_.direct_io = opts.direct_io && o.notice.empty();
-  r->tree_ = std::move(o.contents.tree);
-  if (!r->tree_.IndexLeafFilter()) return Status::Corruption(path + ": leaf filter does not match the leaves");
-  r->objects_ = std::move(o.contents.objects);
-  r->stats_json_ = std::move(o.contents.stats_json);
-  r->notice_ = std::move(o.notice);
-  return r;
+  // Guarded: a store whose structure does not fit in memory (or under a memory limit) is an error.
+  return Guarded(path, [&]() -> Result<std::unique_ptr<StoreReader>> {
+    uint8_t magic[8] = {};
+    auto n = storage_internal::ReadPrefix(path, magic, sizeof(magic));
+    if (!n.ok()) return n.status();
+    if (*n == 0) return Status::Corruption(path + ": empty file: not an mktree store");
+    Result<OpenedStore> opened = Status::Internal("unreachable");
+    if (*n == 8 && std::memcmp(magic, kPagedFileMagic, 8) == 0) {
+      opened = OpenPagedFile(path, opts);
+    } else if (*n == 8 && std::memcmp(magic, kHdf5Signature, 8) == 0) {
+      opened = OpenHdf5(path, opts);
+    } else {
+      return Status::Corruption(path + ": not an mktree store (unknown file signature)");
+    }
+    if (!opened.ok()) return opened.status();
+    OpenedStore& o = opened.value();
+    // The statistics are printed as they are (mktree info --json): only what the builder writes passes.
+    Status st = ValidateStatsJson(o.contents.stats_json);
+    if (!st.ok()) return Status::Corruption(path + ": " + st.message());
+    auto r = std::make_unique<StoreReader>();
+    r->path_ = path;
+    r->pages_ = std::move(o.pages);
+    r->options_.backend =
+        *n == 8 && std::memcmp(magic, kPagedFileMagic, 8) == 0 ? Backend::kPagedFile : Backend::kHdf5;
+    r->options_.codec = o.contents.codec;
+    r->options_.params = o.contents.params;
+    r->options_.direct_io = opts.direct_io && o.notice.empty();
+    r->tree_ = std::move(o.contents.tree);
+    if (!r->tree_.IndexLeafFilter())
+      return Status::Corruption(path + ": leaf filter does not match the leaves");
+    r->objects_ = std::move(o.contents.objects);
+    r->stats_json_ = std::move(o.contents.stats_json);
+    r->notice_ = std::move(o.notice);
+    return r;
+  });
 }
 
 StoreReader::~StoreReader() = default;

@@ -65,13 +65,13 @@ class StoreWriter {
   Status AppendObject(ObjectId id, uint32_t leaf, std::string_view name);
   uint64_t object_count() const { return objects_.size(); }
 
-  // Validates tree against the pages and objects written (leaf pages in range, every object in a leaf,
-  // tree.params page size == the store's), writes the tree, object table, parameters, codec, stats JSON
-  // and the header with checksums; fsyncs; opens the file as a reader would (every check of
-  // StoreReader::Open, no leaf page), so that a store that would not open never replaces the previous
-  // one; renames to final_path; fsyncs the directory. After Commit (successful or not) the writer accepts
-  // no more calls. If the directory's fsync fails, the new store is in place but may not survive a power
-  // loss, and the error says so.
+  // Validates tree against the pages and objects written (ValidateStructure, tree.params page size ==
+  // the store's) and stats_json (ValidateStatsJson: empty or TreeStats::ToJson's), writes the tree,
+  // object table, parameters, codec, stats JSON and the header with checksums; fsyncs; opens the file as a
+  // reader would (every check of StoreReader::Open, no leaf page), so that a store that would not open
+  // never replaces the previous one; renames to final_path; fsyncs the directory. After Commit
+  // (successful or not) the writer accepts no more calls. If the directory's fsync fails, the new store is
+  // in place but may not survive a power loss, and the error says so.
   // The tree is taken by value: move it in when it is not needed afterwards (it is not copied again).
   Status Commit(MKTree tree, const std::string& stats_json);
 

@@ -61,10 +61,38 @@ inline uint64_t Checksum(std::string_view s) {
   return Checksum(std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(s.data()), s.size()));
 }
 
-// Checks that the structure is self-consistent: indices in range, leaf pages within `page_count`, every
-// object in an existing leaf and leaf object counts adding up. `what` names the file in errors.
+// SplitTrees are at most this many levels deep: routing walks them with a fixed 64-entry stack (BoxSides
+// in engine/tree/mktree.cc), which holds at most one pending node per level.
+inline constexpr uint32_t kMaxSplitTreeLevels = 64;
+
+// Whether `inner` lies within `outer` (closed; an empty box, such as an empty mesh's, lies within any).
+inline bool BoxWithin(const Box3f& inner, const Box3f& outer) {
+  if (inner.empty()) return true;
+  for (int i = 0; i < 3; ++i)
+    if (!(outer.min[i] <= inner.min[i] && inner.max[i] <= outer.max[i])) return false;
+  return true;
+}
+
+// Checks that the structure is the one the builder writes, so that routing and leaf reads terminate and
+// can trust it (a tampered store with valid checksums is refused here), in time and memory linear in its
+// size: the nodes are in depth-first preorder from the root (left child first), which rules out cycles,
+// shared children and orphans; depths count from 0 at the root (so the tree has at most 256 levels);
+// every child's box lies within its parent's, a leaf node's box is its leaf's, a = R(child 1).min[axis]
+// and b = R(child 0).max[axis] (DESIGN.md 2.1); leaves are numbered in that order, each referenced by
+// exactly one node that it references back, with page ranges in order, disjoint, within `page_count` and
+// as many as its payload needs; each SplitTree is a tree (no split node reached twice, none left over) of
+// at most kMaxSplitTreeLevels levels; every object is in an existing leaf and each leaf's object_count is
+// the number of objects the table puts in it; the leaf filter is empty or 8 bytes per object.
+// Errors are Corruption, prefixed with `what` (the file).
 Status ValidateStructure(const MKTree& tree, const ObjectTable& objects, uint64_t page_count,
                          const std::string& what);
+
+// Checks the build statistics a store carries (TreeStats::ToJson): empty, or one JSON object whose keys
+// are TreeStats' (each at most once) with number values, "levels" being an array of at most 256 such
+// objects with LevelStats' keys. Anything else (another key, a nested object, a string, trailing bytes)
+// is Corruption: `mktree info --json` prints the statistics as they are, so they must be valid JSON with
+// only known keys.
+Status ValidateStatsJson(std::string_view json);
 
 // Field-by-field equality of the persisted tree (the structs have no operator==).
 bool SameTree(const MKTree& a, const MKTree& b);

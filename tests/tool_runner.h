@@ -24,9 +24,12 @@ inline std::string Slurp(const std::filesystem::path& path) {
 }
 
 // `mktree ARGS`, with stdout and stderr captured through two files in `scratch` (removed afterwards).
-inline ToolRun RunMktree(const std::string& args, const std::filesystem::path& scratch) {
+// `shell_prefix` goes before the command in the shell line (e.g. "ulimit -v 65536; exec ").
+inline ToolRun RunMktree(const std::string& args, const std::filesystem::path& scratch,
+                         const std::string& shell_prefix = "") {
   const std::filesystem::path out = scratch / "stdout.txt", err = scratch / "stderr.txt";
-  const std::string cmd = std::string(MKTREE_TOOL) + " " + args + " >" + out.string() + " 2>" + err.string();
+  const std::string cmd =
+      shell_prefix + std::string(MKTREE_TOOL) + " " + args + " >" + out.string() + " 2>" + err.string();
   const int status = std::system(cmd.c_str());
   ToolRun r;
   r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;

@@ -18,18 +18,24 @@ struct InfoArgs {
   bool json = false;
 };
 
+// A JSON string's contents: quotes and backslashes escaped, control characters as \u00XX.
 std::string JsonEscape(const std::string& s) {
   std::string out;
   for (char c : s) {
+    if (static_cast<unsigned char>(c) < 0x20) {
+      char buf[8];
+      std::snprintf(buf, sizeof buf, "\\u%04x", static_cast<unsigned>(c));
+      out += buf;
+      continue;
+    }
     if (c == '"' || c == '\\') out += '\\';
-    if (static_cast<unsigned char>(c) < 0x20) continue;
     out += c;
   }
   return out;
 }
 
 int RunInfo(const InfoArgs& a) {
-  auto reader = StoreReader::Open(a.store);
+  auto reader = StoreReader::Open(a.store);  // refuses statistics other than the builder's (printed below)
   if (!reader.ok()) return Fail(reader.status().message());
   const StoreReader& r = **reader;
   const MKTree& t = r.tree();

@@ -1,5 +1,6 @@
 #include <iostream>
 
+#include "engine/core/guarded.h"
 #include "tools/command.h"
 
 namespace mktree::tools {
@@ -31,5 +32,13 @@ int main(int argc, char** argv) {
     }
     return app.exit(e);
   }
-  return run ? run() : Fail("no subcommand given");
+  if (!run) return Fail("no subcommand given");
+  // The last resort: what a subcommand throws (std::bad_alloc under a memory limit, ...) is one error
+  // line and exit code 1, not an abort.
+  const std::string context = "mktree " + app.get_subcommands().front()->get_name();
+  try {
+    return run();
+  } catch (...) {
+    return Fail(mktree::StatusOfCurrentException(context).message());
+  }
 }

@@ -10,6 +10,7 @@
 #include <limits>
 #include <span>
 
+#include "engine/core/guarded.h"
 #include "engine/ingest/object_encoder.h"
 #include "engine/ingest/spill_file.h"
 #include "engine/tree/leaf_filter.h"
@@ -119,8 +120,8 @@ const char* IngestStageName(IngestStage stage) {
   return "?";
 }
 
-Result<IngestReport> BuildStore(const std::vector<SceneOpener>& inputs, const std::string& store_path,
-                                const IngestOptions& options) {
+static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& inputs,
+                                                const std::string& store_path, const IngestOptions& options) {
   const auto start = Clock::now();
   IngestReport report;
   auto progress = [&](IngestStage s, uint64_t done, uint64_t total) {
@@ -323,6 +324,13 @@ Result<IngestReport> BuildStore(const std::vector<SceneOpener>& inputs, const st
   if (::stat(store_path.c_str(), &st) == 0) report.store_bytes = static_cast<uint64_t>(st.st_size);
   report.total_seconds = Seconds(start);
   return report;
+}
+
+Result<IngestReport> BuildStore(const std::vector<SceneOpener>& inputs, const std::string& store_path,
+                                const IngestOptions& options) {
+  // An exception (std::bad_alloc under a memory limit, ...) becomes a Status; the writer and the spill
+  // files clean up as they unwind.
+  return Guarded(store_path, [&] { return BuildStoreUnguarded(inputs, store_path, options); });
 }
 
 }  // namespace mktree

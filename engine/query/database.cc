@@ -9,6 +9,7 @@
 #include <type_traits>
 #include <utility>
 
+#include "engine/core/guarded.h"
 #include "engine/geometry/exact_geometry.h"
 #include "engine/query/store_database.h"
 #include "storage/leaf_reader.h"
@@ -60,6 +61,28 @@ void SortIds(std::vector<ObjectId>* ids) {
   ids->swap(other);  // three passes: the sorted ids are in `other`
 }
 
+// `st` with `prefix` before its message, its code kept.
+Status Prefixed(const Status& st, const std::string& prefix) {
+  std::string m = prefix + st.message();
+  switch (st.code()) {
+    case Status::Code::kOk:
+      return st;
+    case Status::Code::kInvalidArgument:
+      return Status::InvalidArgument(std::move(m));
+    case Status::Code::kNotFound:
+      return Status::NotFound(std::move(m));
+    case Status::Code::kCorruption:
+      return Status::Corruption(std::move(m));
+    case Status::Code::kIOError:
+      return Status::IOError(std::move(m));
+    case Status::Code::kUnsupported:
+      return Status::Unsupported(std::move(m));
+    case Status::Code::kInternal:
+      break;
+  }
+  return Status::Internal(std::move(m));
+}
+
 bool Finite(const Vec3d& p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z); }
 
 class StoreDatabase final : public Database {
@@ -73,9 +96,12 @@ class StoreDatabase final : public Database {
                     QueryStats* stats) const override {
     if (!Finite(world)) return Status::InvalidArgument("point query with a non-finite coordinate");
     const Vec3d p = ToStoreFrame(world);
-    return Answer([&](std::vector<uint32_t>* leaves, QueryStats* s) { reader_->tree().RoutePoint(p, leaves, s); },
-                  mode, [&](const ObjectEntryView& e) { return e.box.Contains(p); },
-                  [&](const SolidClassifier& solid) { return solid.Contains(p); }, hits, stats);
+    return Guarded(name(), [&] {
+      return Answer(
+          [&](std::vector<uint32_t>* leaves, QueryStats* s) { reader_->tree().RoutePoint(p, leaves, s); },
+          mode, [&](const ObjectEntryView& e) { return e.box.Contains(p); },
+          [&](const SolidClassifier& solid) { return solid.Contains(p); }, hits, stats);
+    });
   }
 
   Status QueryBox(const Box3d& world, QueryMode mode, std::vector<ObjectId>* hits,
@@ -90,9 +116,12 @@ class StoreDatabase final : public Database {
       box.min[i] = world.min[i] - reader_->tree().origin[i];
       box.max[i] = world.max[i] - reader_->tree().origin[i];
     }
-    return Answer([&](std::vector<uint32_t>* leaves, QueryStats* s) { reader_->tree().RouteBox(box, leaves, s); },
-                  mode, [&](const ObjectEntryView& e) { return e.box.Intersects(box); },
-                  [&](const SolidClassifier& solid) { return solid.MeetsBox(box); }, hits, stats);
+    return Guarded(name(), [&] {
+      return Answer(
+          [&](std::vector<uint32_t>* leaves, QueryStats* s) { reader_->tree().RouteBox(box, leaves, s); },
+          mode, [&](const ObjectEntryView& e) { return e.box.Intersects(box); },
+          [&](const SolidClassifier& solid) { return solid.MeetsBox(box); }, hits, stats);
+    });
   }
 
   Status Run(const Query& q, QueryMode mode, QueryResult* out) const override {
@@ -102,33 +131,52 @@ class StoreDatabase final : public Database {
 
   Status RunBatch(const std::vector<Query>& queries, QueryMode mode, unsigned threads,
                   std::vector<QueryResult>* results) const override {
-    results->assign(queries.size(), QueryResult{});
-    if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
-    threads = static_cast<unsigned>(std::min<size_t>(threads, std::max<size_t>(1, queries.size())));
-    std::atomic<size_t> next{0};
-    std::atomic<bool> failed{false};
-    std::vector<Status> errors(threads);
-    auto work = [&](unsigned t) {
-      for (size_t i; !failed && (i = next.fetch_add(1)) < queries.size();) {
-        Status st = Run(queries[i], mode, &(*results)[i]);
-        if (!st.ok()) {
-          errors[t] = Status::InvalidArgument("query " + std::to_string(i) + ": " + st.ToString());
+    return Guarded(name(), [&] {
+      results->assign(queries.size(), QueryResult{});
+      if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
+      threads = static_cast<unsigned>(std::min<size_t>(threads, std::max<size_t>(1, queries.size())));
+      std::atomic<size_t> next{0};
+      std::atomic<bool> failed{false};
+      std::vector<Status> errors(threads);
+      // Run never throws, but naming a failed query allocates: what a worker throws is caught there (it
+      // would otherwise end the process) and reported after the join.
+      std::vector<char> threw(threads, 0);
+      auto work = [&](unsigned t) noexcept {
+        try {
+          for (size_t i; !failed && (i = next.fetch_add(1)) < queries.size();) {
+            Status st = Run(queries[i], mode, &(*results)[i]);
+            if (!st.ok()) {
+              errors[t] = Prefixed(st, "query " + std::to_string(i) + ": ");
+              failed = true;
+            }
+          }
+        } catch (...) {
+          threw[t] = 1;
           failed = true;
         }
+      };
+      std::vector<std::thread> pool;
+      try {
+        pool.reserve(threads - 1);
+        for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work, t);
+      } catch (...) {
+        // A thread that cannot start (or its slot) leaves its share to the others.
       }
-    };
-    std::vector<std::thread> pool;
-    for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work, t);
-    work(0);
-    for (auto& th : pool) th.join();
-    for (const Status& st : errors)
-      if (!st.ok()) return st;
-    return Status::Ok();
+      work(0);
+      for (auto& th : pool) th.join();
+      for (unsigned t = 0; t < threads; ++t) {
+        if (threw[t]) return Status::Internal(name() + ": out of memory naming a failed query");
+        if (!errors[t].ok()) return errors[t];
+      }
+      return Status::Ok();
+    });
   }
 
   void ClearCache() override { cache_.Clear(); }
   uint64_t object_count() const override { return reader_->object_count(); }
-  Result<std::string> ObjectName(ObjectId id) const override { return reader_->ObjectName(id); }
+  Result<std::string> ObjectName(ObjectId id) const override {
+    return Guarded(name(), [&] { return reader_->ObjectName(id); });
+  }
   Box3d bounds() const override {
     const MKTree& t = reader_->tree();
     Box3d b;
@@ -154,6 +202,7 @@ class StoreDatabase final : public Database {
     const Vec3d& o = reader_->tree().origin;
     return {p.x - o.x, p.y - o.y, p.z - o.z};
   }
+  const std::string& name() const { return reader_->path(); }
 
   // Pins the leaf's pages, verifies and parses them, and tests every object; `test` says whether an
   // object answers: a bool, or a Result<bool> where the test can fail (exact geometry).
@@ -168,7 +217,8 @@ class StoreDatabase final : public Database {
       ~Unpin() { leaf.Release(); }
     } unpin{pinned};
     MKTREE_RETURN_IF_ERROR(ReadLeaf(cache_, reader_->pages().name(), leaf, tree.leaves[leaf],
-                                    tree.params.mem_page(), options_.verify_checksums, s, &pinned));
+                                    reader_->objects().leaf, tree.params.mem_page(),
+                                    options_.verify_checksums, s, &pinned));
     const size_t before = hits->size();
     for (const ObjectEntryView& e : pinned.view.entries()) {
       ++s->candidates_tested;
@@ -225,11 +275,13 @@ std::unique_ptr<Database> OpenStoreDatabase(std::unique_ptr<StoreReader> reader,
 }
 
 Result<std::unique_ptr<Database>> Database::Open(const std::string& path, const OpenOptions& options) {
-  ReadOptions ro;
-  ro.direct_io = options.direct_io;
-  auto reader = StoreReader::Open(path, ro);
-  if (!reader.ok()) return reader.status();
-  return OpenStoreDatabase(std::move(*reader), options);
+  return Guarded(path, [&]() -> Result<std::unique_ptr<Database>> {
+    ReadOptions ro;
+    ro.direct_io = options.direct_io;
+    auto reader = StoreReader::Open(path, ro);
+    if (!reader.ok()) return reader.status();
+    return OpenStoreDatabase(std::move(*reader), options);
+  });
 }
 
 }  // namespace mktree

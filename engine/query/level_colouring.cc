@@ -41,11 +41,12 @@ Status ForEachObjectAtLevel(const StoreReader& store, int k, const LevelVisitor&
   // Capacity 0: a page lives only while pinned, so RAM is one leaf whatever the store size.
   PageCache cache(&store.pages(), 0);
   const uint64_t n = tree.leaves.size();
+  PinnedLeaf read;  // reused leaf after leaf: its buffers are allocated once
   for (uint32_t leaf = 0; leaf < n; ++leaf) {
-    auto read = ReadLeaf(cache, store.pages().name(), leaf, tree.leaves[leaf], tree.params.mem_page(),
-                         /*verify_checksums=*/true, nullptr);
-    if (!read.ok()) return read.status();
-    for (const ObjectEntryView& e : read->view.entries())
+    MKTREE_RETURN_IF_ERROR(ReadLeaf(cache, store.pages().name(), leaf, tree.leaves[leaf],
+                                    store.objects().leaf, tree.params.mem_page(), /*verify_checksums=*/true,
+                                    nullptr, &read));
+    for (const ObjectEntryView& e : read.view.entries())
       MKTREE_RETURN_IF_ERROR(visit(leaf, e, GroupAtLevel(tree, leaf, e.box, k)));
     if (progress && (leaf % 256 == 0 || leaf + 1 == n)) progress(leaf + 1, n);
   }

@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
+#include <limits>
 #include <vector>
 
 #include "fuzz_util.h"
@@ -93,10 +94,19 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   info.first_page = 0;
   info.page_count = static_cast<uint32_t>(page_count);
   const uint32_t leaf = Get<uint32_t>(store.mutable_page(0) + 8);  // the leaf its first page names
+  // The tree's side of the check: the count the leaf header claims, a box holding anything, and an object
+  // table that puts ids below kObjects in this leaf.
+  constexpr size_t kObjects = 1024;
+  info.object_count = Get<uint32_t>(store.mutable_page(0) + mktree::kPageHeaderBytes);
+  for (int k = 0; k < 3; ++k) {
+    info.box.min[k] = -std::numeric_limits<float>::infinity();
+    info.box.max[k] = std::numeric_limits<float>::infinity();
+  }
+  const std::vector<uint32_t> object_leaf(kObjects, leaf);
   mktree::PageCache cache(&store, 2);
   mktree::QueryStats stats;
   mktree::PinnedLeaf pinned;
-  if (Status st = mktree::ReadLeaf(cache, store.name(), leaf, info, mem_page, true, &stats, &pinned);
+  if (Status st = mktree::ReadLeaf(cache, store.name(), leaf, info, object_leaf, mem_page, true, &stats, &pinned);
       !st.ok()) {
     mktree::fuzz::Refused(st.ToString());
     return 0;

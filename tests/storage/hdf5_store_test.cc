@@ -32,7 +32,7 @@ Status WriteHdf5(const std::string& path, const std::vector<SceneObject>& object
   MKTREE_RETURN_IF_ERROR(testing::BuildTestStore(objects, o.codec, o.params, &(*w)->pages(), &built));
   for (const SceneObject& o2 : objects)
     MKTREE_RETURN_IF_ERROR((*w)->AppendObject(o2.id, built.object_leaf[o2.id], o2.name));
-  return (*w)->Commit(built.tree, "{\"test\": 1}");
+  return (*w)->Commit(built.tree, "");
 }
 
 // Redirects this process's stderr (fd 2) to a file while in scope; text() is what was written.

@@ -163,8 +163,6 @@ inline Status BuildTestStore(const std::vector<SceneObject>& objects, const Code
     } else {
       const uint32_t mid = (lo + hi) / 2;
       n.axis = depth % 3;
-      n.a = n.box.min[n.axis] + 1.0f;
-      n.b = n.box.min[n.axis] + 2.0f;
       const uint32_t s = static_cast<uint32_t>(out->tree.split_nodes.size());
       SplitNode inner;
       inner.axis = (depth + 1) % 3;
@@ -178,6 +176,9 @@ inline Status BuildTestStore(const std::vector<SceneObject>& objects, const Code
       n.split_root = s;
       n.child[0] = build(lo, mid, depth + 1);
       n.child[1] = build(mid, hi, depth + 1);
+      // The overlap planes as DESIGN.md 2.1 defines them (stores refuse others).
+      n.a = out->tree.nodes[n.child[1]].box.min[n.axis];
+      n.b = out->tree.nodes[n.child[0]].box.max[n.axis];
     }
     out->tree.nodes[idx] = n;
     return idx;

@@ -1,0 +1,180 @@
+// The public API on crafted stores (tests/storage/crafted_store.h) and under memory limits: a tampered
+// store gives a Corruption naming the file (at Database::Open or at the query that reads the bad leaf),
+// never a hang, a duplicated or missing id; RunBatch keeps the error's code; and an exception (such as
+// std::bad_alloc under RLIMIT_AS) never crosses the API. Crafted* suites run under a short timeout.
+#include <gtest/gtest.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <fstream>
+#include <functional>
+#include <string>
+
+#include "mktree/database.h"
+#include "storage/crafted_store.h"
+
+namespace mktree {
+namespace {
+
+using testing::StoreImage;
+
+Box3d Everything(const StoreImage& img) {
+  const Box3f& r = img.contents.tree.nodes[0].box;
+  Box3d b;
+  for (int i = 0; i < 3; ++i) {
+    b.min[i] = r.min[i] - 1.0;
+    b.max[i] = r.max[i] + 1.0;
+  }
+  return b;
+}
+
+class CraftedQueryTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    auto img = testing::MakeTestImage(300, 11);
+    ASSERT_TRUE(img.ok()) << img.status().ToString();
+    image_ = std::move(img).value();
+    path_ = dir_.file("crafted.mkt");
+  }
+  Result<std::unique_ptr<Database>> WriteAndOpen() {
+    MKTREE_RETURN_IF_ERROR(testing::WriteStoreImage(image_, path_, Backend::kPagedFile));
+    return Database::Open(path_);
+  }
+  void ExpectCorruptionNamingTheFile(const Status& st) {
+    EXPECT_EQ(st.code(), Status::Code::kCorruption) << st.ToString();
+    EXPECT_NE(st.message().find(path_), std::string::npos) << st.message();
+  }
+
+  testing::TempDir dir_;
+  StoreImage image_;
+  std::string path_;
+};
+
+TEST_F(CraftedQueryTest, TheUntouchedStoreAnswersEveryObjectOnce) {
+  auto db = WriteAndOpen();
+  ASSERT_TRUE(db.ok()) << db.status().ToString();
+  std::vector<ObjectId> hits;
+  ASSERT_TRUE((*db)->QueryBox(Everything(image_), QueryMode::kAabb, &hits, nullptr).ok());
+  ASSERT_EQ(hits.size(), 300u);
+  for (ObjectId i = 0; i < 300; ++i) EXPECT_EQ(hits[i], i);
+}
+
+// Routing these would loop forever (a SplitTree cycle) or queue nodes without end (a child cycle).
+TEST_F(CraftedQueryTest, CyclesAreRefusedAtOpen) {
+  testing::FlattenBoxes(&image_);
+  const StoreImage flat = image_;
+  image_.tree().nodes[testing::NodeWithTwoLeaves(image_.tree())].child[1] = 0;
+  ExpectCorruptionNamingTheFile(WriteAndOpen().status());
+  image_ = flat;
+  const uint32_t s = image_.tree().nodes[0].split_root;
+  image_.tree().split_nodes[s].child[0] = s;
+  ExpectCorruptionNamingTheFile(WriteAndOpen().status());
+}
+
+TEST_F(CraftedQueryTest, LeafReferencedTwiceIsRefusedNotAnsweredTwice) {
+  testing::FlattenBoxes(&image_);
+  const TreeNode& n = image_.tree().nodes[testing::NodeWithTwoLeaves(image_.tree())];
+  image_.tree().nodes[n.child[1]].leaf = image_.tree().nodes[n.child[0]].leaf;
+  ExpectCorruptionNamingTheFile(WriteAndOpen().status());
+}
+
+TEST_F(CraftedQueryTest, TamperedPagesAreCorruptionAtTheQueryNotAnAnswer) {
+  const uint32_t l = testing::LeafWithObjects(image_.tree(), 3);
+  std::vector<uint8_t>& page = image_.pages[image_.tree().leaves[l].first_page];
+  const std::vector<size_t> at = testing::EntryOffsets(page);
+  storage_internal::Put<uint32_t>(page.data() + at[1], storage_internal::Get<uint32_t>(page.data() + at[0]));
+  testing::ResealPage(&page);
+  auto db = WriteAndOpen();
+  ASSERT_TRUE(db.ok()) << db.status().ToString();  // the page is only read by a query
+  std::vector<ObjectId> hits;
+  ExpectCorruptionNamingTheFile((*db)->QueryBox(Everything(image_), QueryMode::kAabb, &hits, nullptr));
+  ExpectCorruptionNamingTheFile((*db)->QueryBox(Everything(image_), QueryMode::kExact, &hits, nullptr));
+
+  // RunBatch keeps the failed query's code, and says which query it was.
+  std::vector<Query> queries(5, Query::Point({-1e6, -1e6, -1e6}));  // outside: read nothing
+  queries.push_back(Query::Box(Everything(image_)));
+  std::vector<QueryResult> results;
+  for (unsigned threads : {1u, 3u}) {
+    Status st = (*db)->RunBatch(queries, QueryMode::kAabb, threads, &results);
+    ExpectCorruptionNamingTheFile(st);
+    EXPECT_NE(st.message().find("query 5: "), std::string::npos) << st.message();
+  }
+  queries.back() = Query::Point({std::nan(""), 0, 0});
+  EXPECT_EQ((*db)->RunBatch(queries, QueryMode::kAabb, 2, &results).code(), Status::Code::kInvalidArgument);
+}
+
+// VmSize of this process, in bytes (0 if unknown).
+uint64_t VmSizeBytes() {
+  std::ifstream f("/proc/self/status");
+  std::string line;
+  while (std::getline(f, line))
+    if (line.rfind("VmSize:", 0) == 0) return std::stoull(line.substr(7)) * 1024;
+  return 0;
+}
+
+// Runs `body` in a forked child whose address space may grow only `headroom` bytes beyond its size at
+// the fork; returns the child's exit code, or -1 if it did not exit normally (an abort, a crash).
+int RunUnderMemoryLimit(uint64_t headroom, const std::function<int()>& body) {
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    const uint64_t size = VmSizeBytes();
+    if (size == 0) ::_exit(90);
+    const rlimit lim{size + headroom, size + headroom};
+    if (::setrlimit(RLIMIT_AS, &lim) != 0) ::_exit(91);
+    ::_exit(body());
+  }
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+TEST(CraftedMemoryLimitTest, OpenAndQueriesUnderAMemoryLimitReturnAStatus) {
+  testing::TempDir dir;
+  const std::string path = dir.file("big_names.mkt");
+  {
+    auto img = testing::MakeTestImage(16, 5);
+    ASSERT_TRUE(img.ok());
+    // Names of 2 MiB each: opening needs twice 32 MiB (the section, then the table).
+    ObjectTable big;
+    for (uint64_t i = 0; i < img->objects().size(); ++i)
+      big.Append(img->objects().leaf[i], std::string(2 << 20, static_cast<char>('a' + i % 26)));
+    img->objects() = std::move(big);
+    ASSERT_TRUE(testing::WriteStoreImage(*img, path, Backend::kPagedFile).ok());
+  }
+  // Enough to run (checked below), far from enough to open.
+  const uint64_t headroom = 8 << 20;
+  EXPECT_EQ(RunUnderMemoryLimit(headroom, [] { return 0; }), 0);
+  const int open = RunUnderMemoryLimit(headroom, [&] {
+    auto db = Database::Open(path);
+    if (db.ok()) return 2;
+    const Status& st = db.status();
+    return st.message().find(path) != std::string::npos &&
+                   st.message().find("out of memory") != std::string::npos
+               ? 0
+               : 3;
+  });
+  EXPECT_EQ(open, 0) << "0: a Status naming the file and the cause; 2: opened; 3: another error; -1: aborted";
+
+  // A batch whose threads cannot all start still answers (or fails cleanly), never aborts.
+  auto img = testing::MakeTestImage(300, 12);
+  ASSERT_TRUE(img.ok());
+  const std::string small = dir.file("small.mkt");
+  ASSERT_TRUE(testing::WriteStoreImage(*img, small, Backend::kPagedFile).ok());
+  auto db = Database::Open(small);
+  ASSERT_TRUE(db.ok());
+  std::vector<Query> queries(64, Query::Box(Everything(*img)));
+  const int batch = RunUnderMemoryLimit(4 << 20, [&] {
+    std::vector<QueryResult> results;
+    Status st = (*db)->RunBatch(queries, QueryMode::kAabb, 16, &results);
+    if (!st.ok()) return st.code() == Status::Code::kInternal ? 4 : 3;
+    for (const QueryResult& r : results)
+      if (r.hits.size() != 300) return 5;
+    return 0;
+  });
+  EXPECT_TRUE(batch == 0 || batch == 4) << batch;
+}
+
+}  // namespace
+}  // namespace mktree
