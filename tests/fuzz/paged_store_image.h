@@ -17,7 +17,7 @@
 namespace mktree::fuzz {
 
 inline constexpr char kPagedMagic[8] = {'M', 'K', 'T', 'R', 'E', 'E', 'P', 'F'};
-inline constexpr uint32_t kPagedVersion = 2;
+inline constexpr uint32_t kPagedVersion = 3;  // the origin (offset 280) stays 0: a frame at the world's
 inline constexpr uint32_t kFixedHeaderBytes = 512;
 inline constexpr uint32_t kParamsOffset = 16;
 inline constexpr uint32_t kSectionCount = 8;  // nodes, split nodes, leaves, object leaves, name ends,
