@@ -239,7 +239,8 @@ Status ValidateStructure(const MKTree& tree, const ObjectTable& objects, uint64_
   auto check_split_tree = [&](uint32_t node, uint32_t root) -> Status {
     split_stack.assign(1, {root, 1});
     while (!split_stack.empty()) {
-      const auto [s, level] = split_stack.back();
+      // Not a structured binding: clang 14 (the fuzz build) cannot capture one in the lambda below.
+      const uint32_t s = split_stack.back().first, level = split_stack.back().second;
       split_stack.pop_back();
       auto name = [&] { return "split node " + Num(s) + " (SplitTree of node " + Num(node) + ")"; };
       if (split_seen[s]) return bad(name() + ": reached twice (a cycle or a shared split node)");
