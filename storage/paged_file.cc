@@ -5,6 +5,7 @@
 //   object names, stats JSON.
 // The header is written last, at Commit, so an unfinished file has a zero header and is refused.
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -53,6 +54,17 @@ uint64_t HeaderChecksum(const uint8_t* header_page, uint64_t mem_page) {
   std::vector<uint8_t> copy(header_page, header_page + mem_page);
   std::memset(copy.data() + kHeaderChecksumOffset, 0, 8);
   return Checksum(copy);
+}
+
+// A name for the file behind an open descriptor that keeps meaning that file after a rebuild renames a
+// new store onto the path (Linux's /proc/self/fd). Opening the path again could reach the new store and
+// mix its pages with the old store's tree: their checksums and leaf numbers agree, so nothing would tell.
+std::string DescriptorPath(int fd) { return "/proc/self/fd/" + std::to_string(fd); }
+
+bool SameFile(int a, int b) {
+  struct stat x {
+  }, y{};
+  return ::fstat(a, &x) == 0 && ::fstat(b, &y) == 0 && x.st_dev == y.st_dev && x.st_ino == y.st_ino;
 }
 
 struct FreeDeleter {
@@ -128,7 +140,8 @@ class PagedFileStore : public PageStore {
   void MapPages() {
     namespace bip = boost::interprocess;
     try {
-      bip::file_mapping file(name_.c_str(), bip::read_only);
+      bip::file_mapping file(DescriptorPath(fd_).c_str(), bip::read_only);
+      if (!SameFile(file.get_mapping_handle().handle, fd_)) return;  // no /proc: read with pread
       region_ = bip::mapped_region(file, bip::read_only, 0, (1 + count_) * mem_page_);
       region_.advise(bip::mapped_region::advice_random);  // leaves are read one by one, not in file order
       read_once_ = std::make_unique<std::atomic<uint64_t>[]>((count_ + 63) / 64);
@@ -318,9 +331,12 @@ Result<OpenedStore> OpenPagedFile(const std::string& path, const ReadOptions& op
       out.notice = path + ": O_DIRECT needs a page size that is a multiple of 4096 (it is " +
                    std::to_string(mem_page) + "); using buffered reads";
     } else {
-      const int dfd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_DIRECT);
+      const int dfd = ::open(DescriptorPath(store->fd()).c_str(), O_RDONLY | O_CLOEXEC | O_DIRECT);
       if (dfd < 0) {
         out.notice = path + ": O_DIRECT refused (" + ErrnoText(errno) + "); using buffered reads";
+      } else if (!SameFile(dfd, store->fd())) {
+        ::close(dfd);
+        out.notice = path + ": could not reopen the store for O_DIRECT (no /proc); using buffered reads";
       } else {
         // Some filesystems accept O_DIRECT at open and refuse the reads: try one.
         std::unique_ptr<uint8_t, FreeDeleter> probe(static_cast<uint8_t*>(std::aligned_alloc(kDirectAlign, mem_page)));
