@@ -211,7 +211,8 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
   if (coarse.count > 0) report.warnings.push_back(coarse.Warning(report.origin));
   report.objects = next_id;
   progress(IngestStage::kRead, next_id, next_id);
-  if (report.objects == 0) return Status::InvalidArgument("empty scene: no object with geometry in the input");
+  if (report.objects == 0)
+    return Status::InvalidArgument(store_path + ": not built: empty scene, no object with geometry in the input");
   MKTREE_RETURN_IF_ERROR(geometry.Flush());
   MKTREE_RETURN_IF_ERROR(names.Flush());
   report.read_seconds = Seconds(start);

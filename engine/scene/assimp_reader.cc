@@ -176,6 +176,10 @@ class AssimpReader final : public SceneSource {
                   path_ + ": node '" + node.mName.C_Str() +
                   "': non-finite vertex coordinate (in the file or after its transform)");
             }
+            if (std::fabs(w[0]) > kMaxCoordinate || std::fabs(w[1]) > kMaxCoordinate ||
+                std::fabs(w[2]) > kMaxCoordinate)
+              return Status::Corruption(path_ + ": node '" + node.mName.C_Str() +
+                                        "': vertex coordinate beyond 2^124 in magnitude (after its transform)");
             remap_[v] = static_cast<uint32_t>(out->vertex_count());
             out->vertices.insert(out->vertices.end(), w, w + 3);
           }

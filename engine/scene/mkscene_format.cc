@@ -164,8 +164,10 @@ class MkSceneSource final : public SceneSource {
       LoadArray(p, 3 * nv, &out->mesh.vertices);
     }
     LoadArray(p + 3 * coordinate_bytes_ * nv, 3 * nt, &out->mesh.triangles);
-    for (double v : out->mesh.vertices)
+    for (double v : out->mesh.vertices) {
       if (!std::isfinite(v)) return Corrupt("non-finite vertex coordinate");
+      if (std::fabs(v) > kMaxCoordinate) return Corrupt("vertex coordinate beyond 2^124 in magnitude");
+    }
     for (uint32_t t : out->mesh.triangles)
       if (t >= nv) return Corrupt("triangle index " + std::to_string(t) + " out of range");
     out->id = static_cast<ObjectId>(first_id_ + objects_);

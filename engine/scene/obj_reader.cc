@@ -283,6 +283,10 @@ bool ParseCoordinate(std::string_view tok, double* out, std::string* why) {
     *why = "non-finite coordinate " + Quote(tok);
     return false;
   }
+  if (std::fabs(v) > kMaxCoordinate) {
+    *why = "coordinate out of range " + Quote(tok) + " (at most 2^124 in magnitude)";
+    return false;
+  }
   *out = v;
   return true;
 }

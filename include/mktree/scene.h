@@ -11,6 +11,11 @@ namespace mktree {
 
 using ObjectId = uint32_t;
 
+// The largest coordinate magnitude a scene may hold (about 2.1e37): every offset a store keeps (a vertex
+// from the store's origin, or from its object's box) then fits float32. Readers refuse larger ones,
+// naming the file and line.
+inline constexpr double kMaxCoordinate = 0x1p124;
+
 // Triangle mesh: double-precision vertices (x, y, z interleaved), uint32 triangles (three vertex indices
 // each). Readers give world coordinates at the precision of their input; a mesh decoded from a store is in
 // the store's frame (world minus the store's origin, see storage/object_codec.h).
