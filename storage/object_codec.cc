@@ -32,6 +32,11 @@ ZSTD_DCtx* ThreadDCtx() {
   return ctx.get();
 }
 
+// memcpy that accepts an empty vector's data(): memcpy's pointers must not be null even for 0 bytes.
+void CopyBytes(void* dst, const void* src, size_t n) {
+  if (n != 0) std::memcpy(dst, src, n);
+}
+
 void Shuffle4(const uint32_t* in, size_t n, uint8_t* out) {
   for (size_t i = 0; i < n; ++i) {
     const uint32_t v = in[i];
@@ -114,8 +119,8 @@ uint32_t EncodeObjectEntry(const SceneObject& obj, const CodecOptions& opts, std
     if (opts.shuffle) {
       ForwardTransform(m, packed.data());
     } else {
-      std::memcpy(packed.data(), m.vertices.data(), 4 * m.vertices.size());
-      std::memcpy(packed.data() + 4 * m.vertices.size(), m.triangles.data(), 4 * m.triangles.size());
+      CopyBytes(packed.data(), m.vertices.data(), 4 * m.vertices.size());
+      CopyBytes(packed.data() + 4 * m.vertices.size(), m.triangles.data(), 4 * m.triangles.size());
     }
     compressed.resize(ZSTD_compressBound(raw));
     ZSTD_CCtx* cctx = ThreadCCtx();
@@ -151,8 +156,8 @@ uint32_t EncodeObjectEntry(const SceneObject& obj, const CodecOptions& opts, std
   if (codec == Codec::kZstd) {
     std::memcpy(g, compressed.data(), stored);
   } else if (raw > 0) {
-    std::memcpy(g, m.vertices.data(), 4 * m.vertices.size());
-    std::memcpy(g + 4 * m.vertices.size(), m.triangles.data(), 4 * m.triangles.size());
+    CopyBytes(g, m.vertices.data(), 4 * m.vertices.size());
+    CopyBytes(g + 4 * m.vertices.size(), m.triangles.data(), 4 * m.triangles.size());
   }
   return kObjectEntryHeaderBytes + stored;
 }
@@ -206,8 +211,8 @@ Status DecodeObjectMesh(const ObjectEntryView& e, Mesh* mesh) {
     if (e.geometry.size() != e.raw_bytes) return fail("geometry size mismatch");
     mesh->vertices.resize(3 * vc);
     mesh->triangles.resize(nt);
-    std::memcpy(mesh->vertices.data(), e.geometry.data(), 12 * vc);
-    std::memcpy(mesh->triangles.data(), e.geometry.data() + 12 * vc, 4 * nt);
+    CopyBytes(mesh->vertices.data(), e.geometry.data(), 12 * vc);
+    CopyBytes(mesh->triangles.data(), e.geometry.data() + 12 * vc, 4 * nt);
   } else {
     thread_local std::vector<uint8_t> buf;
     buf.resize(e.raw_bytes);
@@ -219,8 +224,8 @@ Status DecodeObjectMesh(const ObjectEntryView& e, Mesh* mesh) {
     } else {
       mesh->vertices.resize(3 * vc);
       mesh->triangles.resize(nt);
-      std::memcpy(mesh->vertices.data(), buf.data(), 12 * vc);
-      std::memcpy(mesh->triangles.data(), buf.data() + 12 * vc, 4 * nt);
+      CopyBytes(mesh->vertices.data(), buf.data(), 12 * vc);
+      CopyBytes(mesh->triangles.data(), buf.data() + 12 * vc, 4 * nt);
     }
   }
   for (uint32_t t : mesh->triangles)

@@ -207,7 +207,8 @@ class TempDir {
 
 inline bool SameMesh(const Mesh& a, const Mesh& b) {
   return a.vertices.size() == b.vertices.size() && a.triangles == b.triangles &&
-         std::memcmp(a.vertices.data(), b.vertices.data(), 4 * a.vertices.size()) == 0;
+         (a.vertices.empty() ||
+          std::memcmp(a.vertices.data(), b.vertices.data(), 4 * a.vertices.size()) == 0);
 }
 
 }  // namespace mktree::testing
