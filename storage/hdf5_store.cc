@@ -58,6 +58,12 @@ class H5Id {
     if (id_ >= 0 && close_) close_(id_);
     id_ = -1;
   }
+  // Gives up ownership without closing.
+  hid_t release() {
+    const hid_t id = id_;
+    id_ = -1;
+    return id;
+  }
   hid_t get() const { return id_; }
   bool ok() const { return id_ >= 0; }
 
@@ -394,12 +400,9 @@ class Hdf5PageStore : public PageStore {
   Status Close() {
     std::lock_guard<std::recursive_mutex> lock(Hdf5Mutex());
     pages_.reset();
-    if (file_.ok() && H5Fclose(file_.get()) < 0) {
-      // Release the id anyway; report what HDF5 said.
-      file_ = H5Id();
+    // The id is spent even when H5Fclose fails: closing it again is a double close.
+    if (file_.ok() && H5Fclose(file_.release()) < 0)
       return Status::IOError(name_ + ": close: " + Hdf5ErrorText());
-    }
-    file_ = H5Id();
     return Status::Ok();
   }
 
