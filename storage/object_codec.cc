@@ -34,6 +34,11 @@ ZSTD_DCtx* ThreadDCtx() {
   return ctx.get();
 }
 
+// memcpy that accepts an empty vector's data(): memcpy's pointers must not be null even for 0 bytes.
+void CopyBytes(void* dst, const void* src, size_t n) {
+  if (n != 0) std::memcpy(dst, src, n);
+}
+
 void Shuffle4(const uint32_t* in, size_t n, uint8_t* out) {
   for (size_t i = 0; i < n; ++i) {
     const uint32_t v = in[i];
@@ -164,9 +169,8 @@ Result<uint32_t> EncodeObjectEntry(const SceneObject& obj, const Vec3d& origin, 
     if (opts.shuffle) {
       ForwardTransform(local, m.triangles, packed.data());
     } else {
-      std::memcpy(packed.data(), local.data(), 4 * local.size());
-      if (!m.triangles.empty())
-        std::memcpy(packed.data() + 4 * local.size(), m.triangles.data(), 4 * m.triangles.size());
+      CopyBytes(packed.data(), local.data(), 4 * local.size());
+      CopyBytes(packed.data() + 4 * local.size(), m.triangles.data(), 4 * m.triangles.size());
     }
     compressed.resize(ZSTD_compressBound(raw));
     ZSTD_CCtx* cctx = ThreadCCtx();
@@ -201,8 +205,8 @@ Result<uint32_t> EncodeObjectEntry(const SceneObject& obj, const Vec3d& origin, 
   if (codec == Codec::kZstd) {
     std::memcpy(g, compressed.data(), stored);
   } else {
-    std::memcpy(g, local.data(), 4 * local.size());
-    if (!m.triangles.empty()) std::memcpy(g + 4 * local.size(), m.triangles.data(), 4 * m.triangles.size());
+    CopyBytes(g, local.data(), 4 * local.size());
+    CopyBytes(g + 4 * local.size(), m.triangles.data(), 4 * m.triangles.size());
   }
   if (box_out != nullptr) *box_out = box;
   return kObjectEntryHeaderBytes + stored;
@@ -264,8 +268,8 @@ Status DecodeObjectMesh(const ObjectEntryView& e, Mesh* mesh) {
     if (e.geometry.size() != e.raw_bytes) return fail("geometry size mismatch");
     local.resize(3 * vc);
     mesh->triangles.resize(nt);
-    if (vc > 0) std::memcpy(local.data(), e.geometry.data(), 12 * vc);
-    if (nt > 0) std::memcpy(mesh->triangles.data(), e.geometry.data() + 12 * vc, 4 * nt);
+    CopyBytes(local.data(), e.geometry.data(), 12 * vc);
+    CopyBytes(mesh->triangles.data(), e.geometry.data() + 12 * vc, 4 * nt);
   } else {
     thread_local std::vector<uint8_t> buf;
     buf.resize(e.raw_bytes);
@@ -277,8 +281,8 @@ Status DecodeObjectMesh(const ObjectEntryView& e, Mesh* mesh) {
     } else {
       local.resize(3 * vc);
       mesh->triangles.resize(nt);
-      if (vc > 0) std::memcpy(local.data(), buf.data(), 12 * vc);
-      if (nt > 0) std::memcpy(mesh->triangles.data(), buf.data() + 12 * vc, 4 * nt);
+      CopyBytes(local.data(), buf.data(), 12 * vc);
+      CopyBytes(mesh->triangles.data(), buf.data() + 12 * vc, 4 * nt);
     }
   }
   for (uint32_t t : mesh->triangles)

@@ -24,6 +24,10 @@ const CodecOptions kCodecs[] = {{Codec::kNone, 3, false}, {Codec::kZstd, 3, fals
 TEST(ObjectCodecTest, RoundTripsEveryCodec) {
   std::mt19937 g(7);
   std::vector<SceneObject> objects = testing::MakeObjects(300, 11);
+  SceneObject no_triangles;  // an empty array next to a non-empty one (no memcpy from a null data())
+  no_triangles.id = 998;
+  no_triangles.mesh.vertices = {0, 0, 0, 1, 2, 3};
+  objects.push_back(no_triangles);
   for (const CodecOptions& c : kCodecs) {
     for (const SceneObject& o : objects) {
       std::vector<uint8_t> buf = {1, 2, 3};  // appends after existing bytes

@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# Builds the tests with sanitizers (Debian's gcc; CMake option MKTREE_SANITIZE) into a build directory of
+# their own and runs them with ctest.
+#
+# Usage: scripts/sanitize.sh address|thread [extra ctest arguments, e.g. -R PageCache]
+#   address  ASan + UBSan (+ LeakSanitizer) in build-asan/: the whole suite, except the tests labelled rss
+#            (they assert on peak RSS, which the sanitizer's shadow memory makes meaningless)
+#   thread   TSan in build-tsan/: the tests labelled concurrency (tests/CMakeLists.txt)
+# A finding fails its test (-fno-sanitize-recover=all; LeakSanitizer and TSan reports make the program
+# exit non-zero); suppressions, only for libraries we do not own: tests/sanitizers/.
+# Set CMAKE_CXX_COMPILER_LAUNCHER=ccache to rebuild faster; nothing here needs it.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+flavour="${1:-}"
+case "$flavour" in
+  address) build=build-asan; sanitize=address,undefined; select=(-LE rss) ;;
+  thread) build=build-tsan; sanitize=thread; select=(-L concurrency) ;;
+  *) echo "usage: scripts/sanitize.sh address|thread [ctest arguments]" >&2; exit 2 ;;
+esac
+shift
+
+scripts/setup.sh --no-build  # the libraries; gcc's sanitizer runtimes come with build-essential
+jobs="$(nproc)"
+# RelWithDebInfo: optimized as in use, with the line numbers the sanitizers' reports print.
+cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DMKTREE_SANITIZE="$sanitize" -DMKTREE_BUILD_BENCH=OFF \
+  >/dev/null
+cmake --build "$build" -j "$jobs"
+
+# The sanitizers of gcc 12 map their shadow memory at fixed addresses, which kernels that randomise
+# mmap with more than 28 bits can collide with; without address randomisation they work there too.
+run=()
+rnd_bits="$(cat /proc/sys/vm/mmap_rnd_bits 2>/dev/null || echo 28)"
+if ((rnd_bits > 28)) && setarch "$(uname -m)" -R true 2>/dev/null; then
+  run=(setarch "$(uname -m)" -R)
+fi
+"${run[@]}" ctest --test-dir "$build" --output-on-failure -j "$jobs" "${select[@]}" "$@"
