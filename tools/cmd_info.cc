@@ -65,14 +65,15 @@ int RunInfo(const InfoArgs& a) {
         "\"nodes\": %zu, \"internal_nodes\": %llu, \"leaves\": %zu, \"pages\": %llu, \"height\": %u, "
         "\"block_size\": %u, \"blocks_per_page\": %u, \"page_bytes\": %llu, \"balance_r\": %g, "
         "\"split_nodes\": %zu, \"split_cells\": %llu, \"split_both_cells\": %llu, \"page_fill\": %.4f, "
-        "\"ram_bytes\": %llu, \"leaf_filter_bytes\": %llu, \"tree\": %s}\n",
+        "\"ram_bytes\": %llu, \"leaf_filter_bytes\": %llu, \"origin\": [%.17g, %.17g, %.17g], \"tree\": %s}\n",
         JsonEscape(a.store).c_str(), static_cast<unsigned long long>(file_bytes), backend, codec,
         static_cast<unsigned long long>(r.object_count()), t.nodes.size(),
         static_cast<unsigned long long>(internal), t.leaves.size(), static_cast<unsigned long long>(pages), height,
         t.params.block_size, t.params.blocks_per_page, static_cast<unsigned long long>(mem_page),
         t.params.balance_r, t.split_nodes.size(), static_cast<unsigned long long>(split_cells),
         static_cast<unsigned long long>(both_cells), fill, static_cast<unsigned long long>(t.MemoryBytes()),
-        static_cast<unsigned long long>(t.FilterMemoryBytes()), r.stats_json().empty() ? "null" : r.stats_json().c_str());
+        static_cast<unsigned long long>(t.FilterMemoryBytes()), t.origin.x, t.origin.y, t.origin.z,
+        r.stats_json().empty() ? "null" : r.stats_json().c_str());
     return 0;
   }
   std::printf("store        %s (%s, %s backend, codec %s)\n", a.store.c_str(), HumanBytes(file_bytes).c_str(),
@@ -91,6 +92,8 @@ int RunInfo(const InfoArgs& a) {
               HumanBytes(t.MemoryBytes()).c_str(), static_cast<double>(t.MemoryBytes()) * per,
               HumanBytes(t.FilterMemoryBytes()).c_str(), static_cast<double>(t.FilterMemoryBytes()) * per);
   std::printf("balance r    %g\n", t.params.balance_r);
+  std::printf("store frame  origin (%.17g, %.17g, %.17g); geometry is kept relative to it\n", t.origin.x,
+              t.origin.y, t.origin.z);
   if (!r.stats_json().empty()) std::printf("builder statistics: %s\n", r.stats_json().c_str());
   return 0;
 }

@@ -82,6 +82,34 @@ TEST_F(CliTest, BuildInfoQueryOnASmallScene) {
   }
 }
 
+// Issue 18, item 1: a 0.2 m cube at UTM-like coordinates is found at its centre through the tool, and the
+// store reports the frame it keeps the geometry in (an axis within 2^16 of 0 keeps origin 0).
+TEST_F(CliTest, UtmCoordinatesAreAnsweredAndTheOriginIsShown) {
+  std::string obj = "o cube\n";
+  for (int i = 0; i < 8; ++i)
+    obj += "v " + std::to_string(500000.0 + 0.2 * (i & 1)) + " " + std::to_string(5000000.0 + 0.2 * (i >> 1 & 1)) +
+           " " + std::to_string(100.0 + 0.2 * (i >> 2)) + "\n";
+  obj += "f 1 2 4\nf 1 4 3\nf 5 6 8\nf 5 8 7\nf 1 2 6\nf 1 6 5\nf 3 4 8\nf 3 8 7\nf 1 3 7\nf 1 7 5\nf 2 4 8\nf 2 8 6\n";
+  Write("utm.obj", obj);
+  for (const char* backend : {"hdf5", "pagefile"}) {
+    SCOPED_TRACE(backend);
+    RunResult b = Mktree("build " + P("utm.obj") + " -o " + P("utm.mkt") + " --backend " + backend);
+    ASSERT_EQ(b.code, 0) << b.err;
+    EXPECT_NE(b.out.find("store frame: origin (500000, 5000000, 0)"), std::string::npos) << b.out;
+    RunResult info = Mktree("info " + P("utm.mkt") + " --json");
+    ASSERT_EQ(info.code, 0) << info.err;
+    EXPECT_NE(info.out.find("\"origin\": [500000, 5000000, 0]"), std::string::npos) << info.out;
+    for (const char* mode : {"", " --exact"}) {
+      RunResult q = Mktree("query " + P("utm.mkt") + " --point 500000.1,5000000.1,100.1" + mode);
+      ASSERT_EQ(q.code, 0) << q.err;
+      EXPECT_NE(q.out.find("\"hits\": [0]"), std::string::npos) << mode << q.out;
+      RunResult miss = Mktree("query " + P("utm.mkt") + " --point 500000.3,5000000.1,100.1" + mode);
+      ASSERT_EQ(miss.code, 0) << miss.err;
+      EXPECT_NE(miss.out.find("\"hits\": []"), std::string::npos) << mode << miss.out;
+    }
+  }
+}
+
 TEST_F(CliTest, MissingInputLeavesNothing) {
   RunResult r = Mktree("build " + P("nope.obj") + " -o " + P("out.mkt"));
   EXPECT_NE(r.code, 0);
