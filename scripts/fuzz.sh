@@ -11,7 +11,8 @@
 #   --rss-limit-mb M a process using more, or a single allocation larger, is a finding (oom-*; default 2048)
 #   target           obj mks queries store_open store_hdf5 leaf (default: all)
 #
-# Configures and builds build-fuzz (clang-14, MKTREE_BUILD_FUZZERS: ASan + UBSan + coverage) if needed.
+# Installs clang-14 and libclang-rt-14-dev (libFuzzer) when missing, then configures and builds build-fuzz
+# (MKTREE_BUILD_FUZZERS: ASan + UBSan + coverage) if needed.
 # Each target fuzzes a working corpus, build-fuzz/fuzz-work/<t>/corpus (the git seeds copied in, and what
 # earlier runs found), never the git corpus itself; tests/fuzz/regressions/<t> is read as extra seeds.
 # A run that stops on a finding is restarted for the time left, so one campaign collects every finding;
@@ -62,6 +63,20 @@ max_len() {
     *) echo 65536 ;;
   esac
 }
+
+# The libraries (scripts/setup.sh), then clang 14 and its libFuzzer runtime, only what is missing.
+scripts/setup.sh --no-build
+missing=()
+for p in clang-14 libclang-rt-14-dev; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if ((${#missing[@]})); then
+  echo "fuzz.sh: installing ${missing[*]}"
+  sudo=""
+  [[ $(id -u) -eq 0 ]] || sudo=sudo
+  $sudo apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi
 
 build=$root/build-fuzz
 if [[ ! -f $build/CMakeCache.txt ]]; then
