@@ -16,9 +16,9 @@
 #include <vector>
 
 #include "engine/scene/scene_source.h"
+#include "engine/store/object_codec.h"
 #include "mktree/database.h"
 #include "mktree/status.h"
-#include "storage/object_codec.h"
 
 namespace mktree::bench {
 

@@ -19,8 +19,8 @@
 // Writes OUTDIR/NAME.md (tables) and OUTDIR/NAME.tsv (rows for scripts/plot_bench.py); prints progress.
 #include <fcntl.h>
 #include <hdf5.h>
-#include <sqlite3.h>
 #include <spatialindex/Version.h>
+#include <sqlite3.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -44,8 +44,8 @@
 #include "bench/peer_engine.h"
 #include "engine/generator/tanker_generator.h"
 #include "engine/ingest/store_builder.h"
+#include "engine/store/store_file.h"
 #include "mktree/database.h"
-#include "storage/store_file.h"
 
 namespace bg = boost::geometry;
 namespace bgi = boost::geometry::index;

@@ -47,7 +47,7 @@
 #include "engine/generator/tanker_generator.h"
 #include "engine/tree/leaf_filter.h"
 #include "engine/tree/mktree_builder.h"
-#include "storage/leaf_format.h"
+#include "engine/tree/page_budget.h"
 
 namespace mktree {
 namespace {

@@ -1,4 +1,4 @@
-// Internal to storage/: POSIX file helpers that return Status and name the file.
+// POSIX file helpers that return Status and name the file (storage/ and the store files of engine/store).
 #pragma once
 
 #include <cstdint>

@@ -19,7 +19,7 @@
 #include <string>
 
 #include "mktree/status.h"
-#include "storage/leaf_format.h"
+#include "storage/page_format.h"
 
 namespace mktree {
 

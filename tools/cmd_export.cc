@@ -1,9 +1,9 @@
 // mktree export STORE --level K -o OUT.ply|OUT.glb [--boxes]: the level-k colouring (DESIGN.md §2.4) as
-// coloured geometry, read from the store leaf by leaf (engine/query/level_export.h).
+// coloured geometry, read from the store leaf by leaf (engine/viz/level_export.h).
 #include <chrono>
 #include <cstdio>
 
-#include "engine/query/level_export.h"
+#include "engine/viz/level_export.h"
 #include "tools/cli_numbers.h"
 #include "tools/command.h"
 #include "tools/path_checks.h"

@@ -7,7 +7,7 @@
 #include <filesystem>
 #include <optional>
 
-#include "storage/store_file.h"
+#include "engine/store/store_file.h"
 #include "tools/cli_numbers.h"
 #include "tools/command.h"
 #include "tools/path_checks.h"

@@ -5,7 +5,7 @@
 #include <algorithm>
 #include <cstdio>
 
-#include "storage/store_file.h"
+#include "engine/store/store_file.h"
 #include "tools/command.h"
 #include "tools/progress.h"
 

@@ -1,9 +1,9 @@
 // mktree render STORE --level K -o OUT.png [--view top|side|front] [--size WxH] [--overlay]: a picture of
-// the level-k colouring (DESIGN.md §2.4), drawn from the store leaf by leaf (engine/query/level_render.h).
+// the level-k colouring (DESIGN.md §2.4), drawn from the store leaf by leaf (engine/viz/level_render.h).
 #include <chrono>
 #include <cstdio>
 
-#include "engine/query/level_render.h"
+#include "engine/viz/level_render.h"
 #include "tools/cli_numbers.h"
 #include "tools/command.h"
 #include "tools/path_checks.h"
@@ -22,6 +22,13 @@ struct RenderArgs {
   bool quiet = false;
 };
 
+Result<RenderView> ParseRenderView(const std::string& name) {
+  if (name == "top") return RenderView::kTop;
+  if (name == "side") return RenderView::kSide;
+  if (name == "front") return RenderView::kFront;
+  return Status::InvalidArgument("--view must be top, side or front, not '" + name + "'");
+}
+
 int RunRender(const RenderArgs& a) {
   if (a.level < 0) return Fail("--level must be >= 0, not " + std::to_string(a.level));
   auto view = ParseRenderView(a.view);
@@ -31,6 +38,8 @@ int RunRender(const RenderArgs& a) {
   const auto h =
       x == std::string::npos ? std::nullopt : ParseUnsigned<unsigned>(std::string_view(a.size).substr(x + 1));
   if (!w || !h) return Fail("--size must be WIDTHxHEIGHT (e.g. 1600x400), not '" + a.size + "'");
+  if (*w < 64 || *h < 64 || *w > 16384 || *h > 16384)
+    return Fail("--size must be between 64x64 and 16384x16384");
   if (Status st = CheckOutputFile(a.output, {a.store}); !st.ok()) return Fail(st.message());
   if (a.output.size() < 4 || a.output.compare(a.output.size() - 4, 4, ".png") != 0)
     return Fail(a.output + ": the picture is written as PNG; name it *.png");

@@ -11,9 +11,9 @@
 #include <functional>
 #include <span>
 
+#include "engine/store/object_codec.h"
 #include "mktree/scene.h"
 #include "mktree/status.h"
-#include "storage/object_codec.h"
 
 namespace mktree {
 
@@ -28,7 +28,7 @@ struct EncoderOptions {
   // Threads working on ingest, the calling thread included: 1 encodes on the calling thread (no
   // workers); 0 means one per core.
   uint32_t threads = 0;
-  Vec3d origin;  // the store frame's origin (storage/object_codec.h)
+  Vec3d origin;  // the store frame's origin (engine/store/object_codec.h)
 };
 
 // Fills *obj with the next object; false at the end of the input. Called on the calling thread only.

@@ -13,10 +13,10 @@
 #include "engine/core/guarded.h"
 #include "engine/ingest/object_encoder.h"
 #include "engine/ingest/spill_file.h"
+#include "engine/store/leaf_codec.h"
+#include "engine/store/object_codec.h"
 #include "engine/tree/leaf_filter.h"
 #include "engine/tree/mktree_builder.h"
-#include "storage/leaf_codec.h"
-#include "storage/object_codec.h"
 
 namespace mktree {
 

@@ -12,10 +12,10 @@
 #include "engine/core/guarded.h"
 #include "engine/geometry/exact_geometry.h"
 #include "engine/query/store_database.h"
-#include "storage/leaf_reader.h"
-#include "storage/object_codec.h"
+#include "engine/store/leaf_reader.h"
+#include "engine/store/object_codec.h"
+#include "engine/store/store_file.h"
 #include "storage/page_cache.h"
-#include "storage/store_file.h"
 
 namespace mktree {
 

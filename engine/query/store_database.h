@@ -4,8 +4,8 @@
 
 #include <memory>
 
+#include "engine/store/store_file.h"
 #include "mktree/database.h"
-#include "storage/store_file.h"
 
 namespace mktree {
 

@@ -25,8 +25,8 @@
 #endif
 
 #include "engine/tree/box_lanes.h"
+#include "engine/tree/page_budget.h"
 #include "engine/tree/split_tree_builder.h"
-#include "storage/leaf_format.h"
 
 namespace mktree {
 namespace {

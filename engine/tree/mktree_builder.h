@@ -3,7 +3,8 @@
 //
 // Node layout: nodes in DFS preorder (root 0, left child n+1, right child after the left subtree), so a
 // subtree is the contiguous index range [n, child-range end); leaves numbered in DFS order; a leaf's pages
-// follow the previous leaf's (LeafInfo::first_page/page_count from PagesForLeaf in storage/leaf_format.h).
+// follow the previous leaf's (LeafInfo::first_page/page_count from PagesForLeaf in
+// engine/tree/page_budget.h).
 //
 // Splitting: the SOA of §2.1 over the 6 sort keys, ranked as BuildTuning::split_policy says (kSoa: page
 // waste near the leaves, then |Sm|, slab, balance; kCompact: the wide axes only, margin before slab).

@@ -27,7 +27,32 @@ class Status {
   Code code() const { return code_; }
   const std::string& message() const { return message_; }
   // "corruption: store.mkt: page 12: checksum mismatch"
-  std::string ToString() const;
+  std::string ToString() const {
+    const char* name = "ok";
+    switch (code_) {
+      case Code::kOk:
+        return "ok";
+      case Code::kInvalidArgument:
+        name = "invalid argument";
+        break;
+      case Code::kNotFound:
+        name = "not found";
+        break;
+      case Code::kCorruption:
+        name = "corruption";
+        break;
+      case Code::kIOError:
+        name = "I/O error";
+        break;
+      case Code::kUnsupported:
+        name = "unsupported";
+        break;
+      case Code::kInternal:
+        name = "internal error";
+        break;
+    }
+    return std::string(name) + ": " + message_;
+  }
 
  private:
   Status(Code code, std::string msg) : code_(code), message_(std::move(msg)) {}

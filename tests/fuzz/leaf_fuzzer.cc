@@ -1,4 +1,5 @@
-// Fuzz target: leaf decoding (storage/leaf_codec.h, storage/leaf_reader.h, storage/object_codec.h).
+// Fuzz target: leaf decoding (engine/store/leaf_codec.h, engine/store/leaf_reader.h,
+// engine/store/object_codec.h).
 //
 // Input: byte 0 picks the mode (mod 4), byte 1 the page size (512 << (byte % 4)), the rest is the data.
 //   0: a run of object entries (ParseObjectEntry, then DecodeObjectMesh of each);
@@ -16,11 +17,11 @@
 #include <limits>
 #include <vector>
 
+#include "engine/store/leaf_reader.h"
+#include "engine/store/object_codec.h"
 #include "fuzz_util.h"
 #include "storage/byte_io.h"
-#include "storage/leaf_reader.h"
 #include "storage/memory_page_store.h"
-#include "storage/object_codec.h"
 #include "storage/page_cache.h"
 #include "storage/page_codec.h"
 

@@ -1,7 +1,7 @@
-// The paged-file store layout (docs/store_format.md, storage/paged_file.cc) as the store_open fuzz target
-// and the seed tool need it: assembling a file with valid checksums from its parts, and resealing a
+// The paged-file store layout (docs/store_format.md, engine/store/paged_file.cc) as the store_open fuzz
+// target and the seed tool need it: assembling a file with valid checksums from its parts, and resealing a
 // mutated file's checksums. Checksums are not a MAC, so these are also what a crafted store looks like.
-// Kept in step with storage/paged_file.cc by the replay test's --min-accepted check on the seeds.
+// Kept in step with engine/store/paged_file.cc by the replay test's --min-accepted check on the seeds.
 #pragma once
 
 #include <algorithm>
@@ -10,9 +10,9 @@
 #include <span>
 #include <vector>
 
+#include "engine/store/tree_codec.h"
 #include "storage/byte_io.h"
 #include "storage/page_codec.h"
-#include "storage/tree_codec.h"
 
 namespace mktree::fuzz {
 

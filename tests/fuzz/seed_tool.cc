@@ -15,9 +15,9 @@
 
 #include "engine/scene/mkscene_format.h"
 #include "engine/scene/obj_reader.h"
+#include "engine/store/leaf_codec.h"
+#include "engine/store/store_file.h"
 #include "paged_store_image.h"
-#include "storage/leaf_codec.h"
-#include "storage/store_file.h"
 
 namespace {
 

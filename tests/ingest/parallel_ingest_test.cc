@@ -12,8 +12,8 @@
 #include "engine/ingest/object_encoder.h"
 #include "engine/ingest/spill_file.h"
 #include "engine/ingest/store_builder.h"
-#include "storage/store_file.h"
-#include "storage/tree_codec.h"
+#include "engine/store/store_file.h"
+#include "engine/store/tree_codec.h"
 
 namespace mktree {
 namespace {

@@ -12,7 +12,7 @@
 #include "engine/ingest/store_builder.h"
 #include "engine/scene/vector_scene_source.h"
 #include "query/scene_fixtures.h"
-#include "storage/stored_geometry.h"
+#include "store/stored_geometry.h"
 
 namespace mktree {
 namespace {
@@ -40,7 +40,7 @@ Status Build(const std::vector<SceneObject>& objs, const std::string& path, cons
   return r.ok() ? Status::Ok() : r.status();
 }
 
-// Brute force over the geometry the store keeps (tests/storage/stored_geometry.h), in the store frame of
+// Brute force over the geometry the store keeps (tests/store/stored_geometry.h), in the store frame of
 // the scene (ChooseStoreOrigin of its first object).
 class Brute {
  public:

@@ -13,7 +13,7 @@
 #include "engine/ingest/store_builder.h"
 #include "mktree/database.h"
 #include "query/scene_fixtures.h"
-#include "storage/stored_geometry.h"
+#include "store/stored_geometry.h"
 
 namespace mktree {
 namespace {

@@ -9,7 +9,7 @@
 #include "engine/geometry/exact_geometry.h"
 #include "engine/ingest/store_builder.h"
 #include "mktree/database.h"
-#include "storage/stored_geometry.h"
+#include "store/stored_geometry.h"
 
 namespace mktree {
 namespace {

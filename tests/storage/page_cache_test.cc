@@ -1,14 +1,15 @@
 // PageCache: counters (hits + misses == lookups), LRU order, pinning, capacities 0 and 1, concurrency,
 // and faults from the store (read errors, flipped bytes, short reads) surfacing as errors.
+#include "storage/page_cache.h"
+
 #include <gtest/gtest.h>
 
 #include <atomic>
 #include <thread>
 
-#include "storage/leaf_reader.h"
+#include "engine/store/leaf_reader.h"
 #include "storage/memory_page_store.h"
-#include "storage/page_cache.h"
-#include "storage_test_util.h"
+#include "store/store_test_util.h"
 
 namespace mktree {
 namespace {

@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "engine/tree/mktree_builder.h"
-#include "storage/leaf_format.h"
+#include "engine/tree/page_budget.h"
 
 namespace mktree::testing {
 

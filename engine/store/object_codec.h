@@ -1,0 +1,106 @@
+// One object's leaf entry: a fixed 48-byte entry header, then its geometry (raw or zstd-compressed).
+// Every object is encoded alone at ingest, so its entry size (ObjectRecord::encoded_bytes) is exact and a
+// leaf's size is the sum of its entries (engine/tree/page_budget.h).
+//
+// Coordinates. A store has a frame: store coordinates = world coordinates - the store's origin (a double
+// triple chosen at ingest, kept in the store header). The entry's AABB is in the store frame, float32,
+// rounded outward. The vertices are float32 in the object's local frame: per axis, local = vertex -
+// box.min + 2^k, with 2^k the power of two just above the box's extent (2^-100 when it is 0), so every
+// local coordinate of an axis has the same exponent and the decoder recovers vertex = box.min + (local -
+// 2^k) in double. A vertex so keeps 2^-22 of the object's own size wherever the object lies, and stays in
+// its box. Measured (bench/coordinate_bench.cc): as small as world float32 on the tanker, whose world
+// float32 coordinates move a small object's corners by 82 % of its size at UTM-sized coordinates.
+//
+// Entry layout (little-endian):
+//   offset size field
+//   0      4    object id
+//   4      24   float32 AABB in the store frame: min x, y, z, max x, y, z (rounded outward)
+//   28     1    codec: 0 none, 1 zstd
+//   29     1    transform: 0 none, 1 shuffle (see below)
+//   30     1    shape flags (ShapeFlags): what ingest learnt of the mesh; 0 = unknown
+//   31     1    reserved, 0
+//   32     4    vertex count
+//   36     4    triangle count
+//   40     4    raw geometry bytes = 12 * (vertex count + triangle count)
+//   44     4    stored geometry bytes (what follows the header)
+//   48     ...  geometry
+// Raw geometry: float32 local vertices (x, y, z interleaved), then uint32 triangle indices.
+// Transform 1 (lossless, applied before zstd; measured to shrink pipe prisms ~1.4x and boxes ~1.3x
+// further): vertex floats are split into x, y, z planes and each value's bits are XORed with the previous
+// value in its plane (repeated coordinates become zero); triangle indices become zigzag-encoded deltas;
+// then both arrays are byte-shuffled (all byte 0s, then all byte 1s, ...).
+// An entry whose compressed geometry would not be smaller than the raw bytes is stored raw (codec 0).
+//
+// Thread safety: all functions are reentrant (codec contexts are per thread).
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "mktree/scene.h"
+#include "mktree/status.h"
+
+namespace mktree {
+
+enum class Codec : uint8_t { kNone = 0, kZstd = 1 };
+
+struct CodecOptions {
+  Codec codec = Codec::kZstd;  // how geometry is stored in leaf entries
+  // zstd compression level (1..19; negative = fast modes). 3, because pages are what queries pay for:
+  // measured on 1M tanker objects read back from OBJ text (how users' scenes arrive), level -1 stores
+  // 11% more pages (26,804 vs 24,153) and builds no faster (the OBJ parser bounds it: 9.8 vs 9.6 s).
+  // From the generator, -1 builds 22% faster (179k vs 147k objects/s) for 1.3% more pages: pass
+  // --zstd-level -1 where ingest speed matters more than pages. Levels 1 and 3 cost the same on objects
+  // this small (~660 B raw).
+  int zstd_level = 3;
+  bool shuffle = true;  // apply transform 1 before zstd (ignored with kNone)
+};
+
+inline constexpr uint32_t kObjectEntryHeaderBytes = 48;
+
+// Facts about an object's mesh that ingest computes once so that exact queries need not (the edge check
+// is O(T log T): 23 ms for a 52k-triangle mesh, paid per query otherwise).
+enum ShapeFlags : uint8_t {
+  kShapeKnown = 1,      // the other bits are meaningful
+  kShapeEvenEdges = 2,  // every undirected edge is used an even number of times (ray parity applies)
+  kShapeClosed = 4,     // every edge used exactly twice, with opposite orientations
+};
+
+// Appends the entry for `obj` (world coordinates) in the frame of a store whose origin is `origin` to
+// *out; returns the entry size (ObjectRecord::encoded_bytes) and sets *box to the entry's AABB (store
+// frame). InvalidArgument, naming the object, for an empty mesh, a non-finite coordinate, a coordinate
+// beyond float32's range in the store frame, or geometry over 4 GiB; nothing is appended then.
+Result<uint32_t> EncodeObjectEntry(const SceneObject& obj, const Vec3d& origin, const CodecOptions& opts,
+                                   std::vector<uint8_t>* out, uint8_t shape_flags = 0, Box3f* box = nullptr);
+// The same for a store whose origin is (0, 0, 0); returns 0 (appending nothing) where that fails.
+uint32_t EncodeObjectEntry(const SceneObject& obj, const CodecOptions& opts, std::vector<uint8_t>* out,
+                           uint8_t shape_flags = 0);
+
+// A parsed entry inside a leaf payload. `geometry` points into the payload it was parsed from.
+struct ObjectEntryView {
+  ObjectId id = 0;
+  Box3f box;
+  Codec codec = Codec::kNone;
+  uint8_t transform = 0;
+  uint8_t shape_flags = 0;  // ShapeFlags
+  uint32_t vertex_count = 0;
+  uint32_t triangle_count = 0;
+  uint32_t raw_bytes = 0;
+  std::span<const uint8_t> geometry;  // the stored geometry bytes
+  uint32_t entry_bytes() const { return kObjectEntryHeaderBytes + static_cast<uint32_t>(geometry.size()); }
+};
+
+// Parses the entry starting at data[0] (n bytes available). Checks header consistency only (not the
+// geometry). Corruption if the header is inconsistent or the entry runs past `n`.
+Result<ObjectEntryView> ParseObjectEntry(const uint8_t* data, size_t n);
+// The same into *out, which is meaningful only on Ok (for loops over a leaf's entries: no Result to
+// build and copy per entry).
+Status ParseObjectEntry(const uint8_t* data, size_t n, ObjectEntryView* out);
+
+// Decompresses and un-transforms an entry's geometry into *mesh, in the store frame (box.min + local).
+// Corruption on bad data (zstd failure, size mismatch, a triangle index out of range, a vertex outside the
+// entry's box).
+Status DecodeObjectMesh(const ObjectEntryView& e, Mesh* mesh);
+
+}  // namespace mktree

@@ -1,0 +1,286 @@
+#include "engine/store/store_file.h"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <boost/interprocess/exceptions.hpp>
+#include <boost/interprocess/sync/file_lock.hpp>
+#include <cstring>
+#include <filesystem>
+#include <mutex>
+#include <set>
+
+#include "engine/core/guarded.h"
+#include "engine/store/store_backend.h"
+#include "engine/tree/page_budget.h"
+#include "storage/file_util.h"
+
+namespace mktree {
+
+using storage_internal::ErrnoText;
+
+const char* BackendName(Backend b) { return b == Backend::kHdf5 ? "hdf5" : "pagefile"; }
+
+// The writer lock on "<final_path>.lock". Boost's file_lock is an fcntl lock, which is per process: it
+// keeps other processes out but not another writer in this process, and closing any descriptor of the
+// file drops it. So, as LevelDB does, a process-wide table of held lock paths keeps out writers in this
+// process, and the descriptor we open stays open as long as the lock is held.
+class StoreWriter::Lock {
+ public:
+  static Result<std::unique_ptr<Lock>> Acquire(const std::string& final_path) {
+    const std::string path = final_path + ".lock";
+    const std::string key = std::filesystem::weakly_canonical(std::filesystem::absolute(path)).string();
+    {
+      std::lock_guard<std::mutex> g(TableMutex());
+      if (!Table().insert(key).second) return Busy(final_path, path);
+    }
+    auto release_key = [&] {
+      std::lock_guard<std::mutex> g(TableMutex());
+      Table().erase(key);
+    };
+    // A finishing writer unlinks the lock file; if we locked a file that has just been unlinked, retry.
+    for (int attempt = 0; attempt < 8; ++attempt) {
+      const int fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+      if (fd < 0) {
+        const int err = errno;
+        release_key();
+        return Status::IOError(path + ": create lock file: " + ErrnoText(err));
+      }
+      try {
+        auto lock = std::make_unique<Lock>();
+        lock->fd_ = fd;
+        lock->path_ = path;
+        lock->key_ = key;
+        lock->lock_ = boost::interprocess::file_lock(path.c_str());
+        if (!lock->lock_.try_lock()) {
+          lock.reset();  // closes fd
+          release_key();
+          return Busy(final_path, path);
+        }
+        lock->locked_ = true;
+        struct stat a, b;
+        if (::fstat(fd, &a) == 0 && ::stat(path.c_str(), &b) == 0 && a.st_ino == b.st_ino &&
+            a.st_dev == b.st_dev)
+          return lock;
+        lock->keep_key_ = true;  // retrying: the table entry stays ours
+        lock.reset();
+      } catch (const boost::interprocess::interprocess_exception& e) {
+        ::close(fd);
+        release_key();
+        return Status::IOError(path + ": lock: " + e.what());
+      }
+    }
+    release_key();
+    return Status::IOError(path + ": could not acquire the writer lock");
+  }
+
+  Lock() = default;
+  ~Lock() {
+    // Unlink while still holding the lock, so no one else can lock the name we are about to drop.
+    if (locked_ && !keep_key_) ::unlink(path_.c_str());
+    if (locked_) lock_.unlock();
+    lock_ = boost::interprocess::file_lock();
+    if (fd_ >= 0) ::close(fd_);
+    if (!keep_key_ && !key_.empty()) {
+      std::lock_guard<std::mutex> g(TableMutex());
+      Table().erase(key_);
+    }
+  }
+
+ private:
+  static Status Busy(const std::string& final_path, const std::string& lock_path) {
+    return Status::IOError(final_path + ": another writer is building this store (lock " + lock_path +
+                           " is held)");
+  }
+  static std::mutex& TableMutex() {
+    static std::mutex mu;
+    return mu;
+  }
+  static std::set<std::string>& Table() {
+    static std::set<std::string> held;
+    return held;
+  }
+
+  int fd_ = -1;
+  std::string path_, key_;
+  boost::interprocess::file_lock lock_;
+  bool locked_ = false;
+  bool keep_key_ = false;
+};
+
+StoreWriter::StoreWriter(std::string final_path, std::string temp_path, StoreOptions opts,
+                         std::unique_ptr<Impl> backend, std::unique_ptr<Lock> lock)
+    : final_path_(std::move(final_path)),
+      temp_path_(std::move(temp_path)),
+      opts_(std::move(opts)),
+      backend_(std::move(backend)),
+      lock_(std::move(lock)) {}
+
+StoreWriter::~StoreWriter() {
+  if (!done_) {
+    backend_->Abort();
+    ::unlink(temp_path_.c_str());
+  }
+  backend_.reset();
+  lock_.reset();
+}
+
+namespace {
+
+// Removes "<final_path>.tmp.<digits>" files: the leftovers of writers killed before Commit. Only called
+// while holding the writer lock of final_path, so none of them belongs to a live writer.
+void RemoveStaleTemps(const std::string& final_path) {
+  namespace fs = std::filesystem;
+  const fs::path final_p(final_path);
+  const fs::path dir = final_p.has_parent_path() ? final_p.parent_path() : fs::path(".");
+  const std::string prefix = final_p.filename().string() + ".tmp.";
+  std::error_code ec;
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (name.size() <= prefix.size() || name.compare(0, prefix.size(), prefix) != 0) continue;
+    if (name.find_first_not_of("0123456789", prefix.size()) != std::string::npos) continue;
+    std::error_code rm;
+    fs::remove(it->path(), rm);
+  }
+}
+
+}  // namespace
+
+Result<std::unique_ptr<StoreWriter>> StoreWriter::Create(const std::string& final_path,
+                                                         const StoreOptions& opts) {
+  const uint64_t mem_page = opts.params.mem_page();
+  if (opts.params.block_size == 0 || opts.params.blocks_per_page == 0 || mem_page < kMinPageBytes ||
+      mem_page > (uint64_t{1} << 30))
+    return Status::InvalidArgument(final_path + ": page size " + std::to_string(mem_page) +
+                                   " out of range (512 bytes to 1 GiB)");
+  if (!(opts.params.balance_r >= 0 && opts.params.balance_r < 0.5))
+    return Status::InvalidArgument(final_path + ": balance ratio must be in [0, 0.5)");
+  // Replacing anything but a regular file (or a link to one) would destroy what is not a store, or fail
+  // only at the rename, after all the work.
+  if (struct stat st{}; ::stat(final_path.c_str(), &st) == 0 && !S_ISREG(st.st_mode))
+    return Status::InvalidArgument(final_path + ": exists and is not a regular file: refusing to replace it");
+  auto lock = Lock::Acquire(final_path);
+  if (!lock.ok()) return lock.status();
+  const std::string temp = final_path + ".tmp." + std::to_string(::getpid());
+  RemoveStaleTemps(final_path);  // we hold the lock: any "<final>.tmp.<pid>" is a killed writer's
+  FileOps& ops = opts.file_ops ? *opts.file_ops : DefaultFileOps();
+  auto backend = opts.backend == Backend::kHdf5 ? CreateHdf5Writer(temp, opts.params, ops)
+                                                : CreatePagedFileWriter(temp, opts.params, ops);
+  if (!backend.ok()) {
+    ::unlink(temp.c_str());
+    return backend.status();
+  }
+  return std::make_unique<StoreWriter>(final_path, temp, opts, std::move(backend).value(),
+                                       std::move(lock).value());
+}
+
+PageStore& StoreWriter::pages() { return backend_->pages(); }
+
+Status StoreWriter::AppendObject(ObjectId id, uint32_t leaf, std::string_view name) {
+  if (done_) return Status::InvalidArgument(final_path_ + ": writer already committed");
+  if (id != objects_.size())
+    return Status::InvalidArgument(final_path_ + ": object " + std::to_string(id) +
+                                   " appended out of order (expected " + std::to_string(objects_.size()) +
+                                   ")");
+  objects_.Append(leaf, name);
+  return Status::Ok();
+}
+
+Status StoreWriter::Commit(MKTree tree, const std::string& stats_json) {
+  if (done_) return Status::InvalidArgument(final_path_ + ": writer already committed");
+  auto fail = [&](Status st) {
+    done_ = true;
+    backend_->Abort();
+    ::unlink(temp_path_.c_str());
+    return st;
+  };
+  if (tree.params.mem_page() != backend_->pages().page_bytes())
+    return fail(Status::InvalidArgument(
+        final_path_ + ": the tree's page size " + std::to_string(tree.params.mem_page()) +
+        " differs from the store's " + std::to_string(backend_->pages().page_bytes())));
+  StoreContents c;
+  c.params = tree.params;
+  c.codec = opts_.codec;
+  c.tree = std::move(tree);
+  c.objects = std::move(objects_);
+  c.stats_json = stats_json;
+  Status st = ValidateStructure(c.tree, c.objects, backend_->pages().page_count(), final_path_);
+  if (!st.ok()) return fail(Status::InvalidArgument(st.message()));
+  st = ValidateStatsJson(c.stats_json);  // what Open would refuse
+  if (!st.ok()) return fail(Status::InvalidArgument(final_path_ + ": " + st.message()));
+  st = backend_->Finish(c);
+  if (!st.ok()) return fail(st);
+  c = StoreContents();
+  // What a reader will check, before the previous store is replaced: a writer fault or a write the
+  // system got wrong then fails the build instead of leaving a store that never opens.
+  if (auto reread = StoreReader::Open(temp_path_); !reread.ok())
+    return fail(Status::Corruption(final_path_ +
+                                   ": the store just written does not read back, so the previous one "
+                                   "is kept: " +
+                                   reread.status().message()));
+  FileOps& ops = opts_.file_ops ? *opts_.file_ops : DefaultFileOps();
+  if (ops.Rename(temp_path_, final_path_) != 0)
+    return fail(Status::IOError(final_path_ + ": rename from " + temp_path_ + ": " + ErrnoText(errno)));
+  done_ = true;
+  st = storage_internal::SyncParentDir(final_path_, ops);
+  if (!st.ok())
+    return Status::IOError(st.message() + " (the new store is in place but may not survive a power loss)");
+  return Status::Ok();
+}
+
+Result<std::unique_ptr<StoreReader>> StoreReader::Open(const std::string& path, const ReadOptions& opts) {
+  // Guarded: a store whose structure does not fit in memory (or under a memory limit) is an error.
+  return Guarded(path, [&]() -> Result<std::unique_ptr<StoreReader>> {
+    uint8_t magic[8] = {};
+    auto n = storage_internal::ReadPrefix(path, magic, sizeof(magic));
+    if (!n.ok()) return n.status();
+    if (*n == 0) return Status::Corruption(path + ": empty file: not an mktree store");
+    Result<OpenedStore> opened = Status::Internal("unreachable");
+    if (*n == 8 && std::memcmp(magic, kPagedFileMagic, 8) == 0) {
+      opened = OpenPagedFile(path, opts);
+    } else if (*n == 8 && std::memcmp(magic, kHdf5Signature, 8) == 0) {
+      opened = OpenHdf5(path, opts);
+    } else {
+      return Status::Corruption(path + ": not an mktree store (unknown file signature)");
+    }
+    if (!opened.ok()) return opened.status();
+    OpenedStore& o = opened.value();
+    // The statistics are printed as they are (mktree info --json): only what the builder writes passes.
+    Status st = ValidateStatsJson(o.contents.stats_json);
+    if (!st.ok()) return Status::Corruption(path + ": " + st.message());
+    auto r = std::make_unique<StoreReader>();
+    r->path_ = path;
+    r->pages_ = std::move(o.pages);
+    r->options_.backend =
+        *n == 8 && std::memcmp(magic, kPagedFileMagic, 8) == 0 ? Backend::kPagedFile : Backend::kHdf5;
+    r->options_.codec = o.contents.codec;
+    r->options_.params = o.contents.params;
+    r->options_.direct_io = opts.direct_io && o.notice.empty();
+    r->tree_ = std::move(o.contents.tree);
+    if (!r->tree_.IndexLeafFilter())
+      return Status::Corruption(path + ": leaf filter does not match the leaves");
+    r->objects_ = std::move(o.contents.objects);
+    r->stats_json_ = std::move(o.contents.stats_json);
+    r->notice_ = std::move(o.notice);
+    return r;
+  });
+}
+
+StoreReader::~StoreReader() = default;
+
+Result<std::string> StoreReader::ObjectName(ObjectId id) const {
+  if (id >= objects_.size())
+    return Status::NotFound(path_ + ": object " + std::to_string(id) + " out of range (" +
+                            std::to_string(objects_.size()) + " objects)");
+  return std::string(objects_.name(id));
+}
+
+Result<uint32_t> StoreReader::ObjectLeaf(ObjectId id) const {
+  if (id >= objects_.size())
+    return Status::NotFound(path_ + ": object " + std::to_string(id) + " out of range (" +
+                            std::to_string(objects_.size()) + " objects)");
+  return objects_.leaf[id];
+}
+
+}  // namespace mktree

@@ -1,0 +1,140 @@
+// A store file: the leaf pages plus everything needed to query them (tree, object table, build
+// parameters, codec, build statistics), in one file, in one of two backends (docs/store_format.md):
+//   - HDF5: pages in a chunked 2-D uint8 dataset (one chunk per page), the rest in compound datasets and
+//     attributes that h5dump/h5py can read;
+//   - paged file: a header page (magic "MKTREEPF"), raw pages at page-aligned offsets, then checksummed
+//     sections.
+// Both start with a magic and a version and checksum every byte that matters; a store that fails a check
+// is refused at Open with an error naming the file, never half-read.
+//
+// Building is atomic: StoreWriter writes "<final_path>.tmp.<pid>", and Commit fsyncs it, renames it to
+// final_path and fsyncs the directory. Nothing appears under final_path before Commit; a destroyed or
+// killed writer leaves nothing that opens as a store.
+//
+// Concurrency: one StoreWriter per final path at a time, across processes and threads: the writer holds
+// an exclusive Boost.Interprocess file_lock on "<final_path>.lock" (removed at the end); a second writer
+// fails at Create. Readers take no lock and never wait: because the writer only touches final_path by an
+// atomic rename, a reader opening the store during a build sees the last committed store (or NotFound),
+// and an open reader keeps reading the file it opened even if a new build replaces it.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <string_view>
+
+#include "engine/store/object_codec.h"
+#include "engine/store/tree_codec.h"
+#include "engine/tree/mktree.h"
+#include "mktree/scene.h"
+#include "mktree/status.h"
+#include "storage/file_ops.h"
+#include "storage/page_store.h"
+
+namespace mktree {
+
+// The smallest page a store accepts: the paged file's header page must hold its section table.
+inline constexpr uint64_t kMinPageBytes = 512;
+
+enum class Backend { kHdf5, kPagedFile };
+const char* BackendName(Backend b);  // "hdf5", "pagefile"
+
+struct StoreOptions {
+  Backend backend = Backend::kHdf5;  // file layout
+  CodecOptions codec;                // how object geometry is encoded in leaf entries (recorded in the store)
+  BuildParams params;                // page size etc.; must match the tree given to Commit
+  bool direct_io = false;            // reads only (see ReadOptions); ignored when writing
+  // The writer's system calls (storage/file_ops.h); null: POSIX. Tests inject faults through it.
+  FileOps* file_ops = nullptr;
+};
+
+// Thread safety: a StoreWriter is used by one thread.
+class StoreWriter {
+ public:
+  // Takes the writer lock, removes the temporary stores of killed writers and creates
+  // "<final_path>.tmp.<pid>". Fails if another writer is building final_path, if final_path exists and is
+  // not a regular file (a directory, FIFO, device), or if params give an unusable page size.
+  static Result<std::unique_ptr<StoreWriter>> Create(const std::string& final_path, const StoreOptions& opts);
+  // Removes the temporary file unless committed, and releases the lock.
+  ~StoreWriter();
+
+  // Where leaf pages go: write pages 0, 1, 2, ... in increasing order (rewriting a page is allowed).
+  PageStore& pages();
+  // The object table, appended in id order 0..N-1. REQUIRES: id == number of objects appended so far.
+  Status AppendObject(ObjectId id, uint32_t leaf, std::string_view name);
+  uint64_t object_count() const { return objects_.size(); }
+
+  // Validates tree against the pages and objects written (ValidateStructure, tree.params page size ==
+  // the store's) and stats_json (ValidateStatsJson: empty or TreeStats::ToJson's), writes the tree,
+  // object table, parameters, codec, stats JSON and the header with checksums; fsyncs; opens the file as a
+  // reader would (every check of StoreReader::Open, no leaf page), so that a store that would not open
+  // never replaces the previous one; renames to final_path; fsyncs the directory. After Commit
+  // (successful or not) the writer accepts no more calls. If the directory's fsync fails, the new store is
+  // in place but may not survive a power loss, and the error says so.
+  // The tree is taken by value: move it in when it is not needed afterwards (it is not copied again).
+  Status Commit(MKTree tree, const std::string& stats_json);
+
+  const std::string& final_path() const { return final_path_; }
+  const std::string& temp_path() const { return temp_path_; }
+
+  class Impl;  // implementation (engine/store/store_backend.h)
+  class Lock;
+  StoreWriter(std::string final_path, std::string temp_path, StoreOptions opts, std::unique_ptr<Impl> backend,
+              std::unique_ptr<Lock> lock);
+
+ private:
+  std::string final_path_, temp_path_;
+  StoreOptions opts_;
+  std::unique_ptr<Impl> backend_;
+  std::unique_ptr<Lock> lock_;
+  ObjectTable objects_;
+  bool done_ = false;
+};
+
+struct ReadOptions {
+  // Paged file: read leaf pages with O_DIRECT (bypassing the OS page cache, for honest cold reads). If the
+  // filesystem or page size does not allow it, reads fall back to buffered I/O and notice() says why.
+  // HDF5: not supported; notice() says so.
+  bool direct_io = false;
+};
+
+// Thread safety: after Open, every const method (and pages().ReadPage) may be called from many threads.
+class StoreReader {
+ public:
+  // Reads the header and the in-RAM structure (no leaf page); checks magic, version, checksums, sizes and
+  // structural consistency. Truncated, foreign or corrupt files are refused with an error naming the file.
+  // The backend is detected from the file's first bytes.
+  static Result<std::unique_ptr<StoreReader>> Open(const std::string& path, const ReadOptions& opts = {});
+  ~StoreReader();
+
+  const MKTree& tree() const { return tree_; }
+  const PageStore& pages() const { return *pages_; }
+  const StoreOptions& options() const { return options_; }
+  const std::string& stats_json() const { return stats_json_; }
+  uint64_t object_count() const { return objects_.size(); }
+  Result<std::string> ObjectName(ObjectId id) const;
+  Result<uint32_t> ObjectLeaf(ObjectId id) const;
+  const ObjectTable& objects() const { return objects_; }
+  const std::string& path() const { return path_; }
+  // Non-fatal remarks from Open (e.g. "O_DIRECT refused by the filesystem; using buffered reads").
+  const std::string& notice() const { return notice_; }
+  // Test seam: puts wrap(pages) in place of the page store, e.g. a FaultyPageStore that fails or damages
+  // reads. REQUIRES: nothing is reading the pages.
+  void WrapPages(const std::function<std::unique_ptr<PageStore>(std::unique_ptr<PageStore>)>& wrap) {
+    pages_ = wrap(std::move(pages_));
+  }
+
+  StoreReader() = default;  // use Open
+
+ private:
+  std::string path_;
+  std::unique_ptr<PageStore> pages_;
+  StoreOptions options_;
+  MKTree tree_;
+  ObjectTable objects_;
+  std::string stats_json_;
+  std::string notice_;
+};
+
+}  // namespace mktree
