@@ -243,6 +243,9 @@ Status ParseObjectEntry(const uint8_t* data, size_t n, ObjectEntryView* out) {
   auto fail = [&](const std::string& what) {
     return Status::Corruption("object entry (id " + std::to_string(e.id) + "): " + what);
   };
+  for (int i = 0; i < 3; ++i)
+    if (!(std::isfinite(e.box.min[i]) && std::isfinite(e.box.max[i]) && e.box.min[i] <= e.box.max[i]))
+      return fail("box is not finite, or its min exceeds its max");
   if (codec > 1) return fail("unknown codec " + std::to_string(codec));
   e.codec = static_cast<Codec>(codec);
   if (e.transform > 1 || (e.codec == Codec::kNone && e.transform != 0))

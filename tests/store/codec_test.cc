@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <limits>
 
 #include "engine/store/leaf_codec.h"
 #include "engine/store/object_codec.h"
@@ -147,6 +148,15 @@ TEST(ObjectCodecTest, CorruptEntriesAreRefused) {
   EXPECT_FALSE(ParseObjectEntry(with(28, 7).data(), n).ok());   // unknown codec
   EXPECT_FALSE(ParseObjectEntry(with(29, 9).data(), n).ok());   // unknown transform
   EXPECT_FALSE(ParseObjectEntry(with(32, 99).data(), n).ok());  // counts disagree with raw size
+  // Boxes that are not finite or inverted (fuzz regression store_open/entry-box-infinite-extent: an
+  // infinite extent overflowed the local frame's exponent).
+  for (float bad : {std::numeric_limits<float>::infinity(), std::numeric_limits<float>::quiet_NaN(), -1e30f}) {
+    std::vector<uint8_t> b = buf;
+    storage_internal::Put<float>(b.data() + 16, bad);  // box.max.x
+    auto e = ParseObjectEntry(b.data(), n);
+    ASSERT_FALSE(e.ok()) << bad;
+    EXPECT_NE(e.status().message().find("box is not finite"), std::string::npos) << e.status().message();
+  }
   // Garbage in the compressed stream: decoding fails (or, if zstd accepts it, the sizes or indices do
   // not check out); it never returns a different mesh silently for these bytes.
   int refused = 0;
