@@ -4,10 +4,13 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cerrno>
 #include <cmath>
+#include <cstdio>
+#include <cstring>
 #include <limits>
 
-#include "engine/viz/atomic_output.h"
+#include "storage/atomic_file.h"
 
 namespace mktree {
 
@@ -26,8 +29,8 @@ const char* RenderViewName(RenderView v) {
 namespace {
 
 // Encodes the image into `out` and commits it.
-Status CommitPng(AtomicOutputFile* out, uint32_t width, uint32_t height, const std::vector<uint8_t>& rgb) {
-  const std::string& path = out->path();
+Status CommitPng(AtomicFile* out, uint32_t width, uint32_t height, const std::vector<uint8_t>& rgb) {
+  const std::string& path = out->target();
   if (rgb.size() != size_t{3} * width * height)
     return Status::Internal(path + ": image buffer size mismatch");
   png_image image{};
@@ -35,11 +38,27 @@ Status CommitPng(AtomicOutputFile* out, uint32_t width, uint32_t height, const s
   image.width = width;
   image.height = height;
   image.format = PNG_FORMAT_RGB;
-  if (!png_image_write_to_stdio(&image, out->file(), 0, rgb.data(), 0, nullptr)) {
-    const std::string why = image.message;
-    png_image_free(&image);
-    return Status::IOError(path + ": writing the PNG failed: " + why);
-  }
+  // libpng writes to a stdio stream: one whose writes go to the AtomicFile (a glibc cookie stream), so the
+  // PNG streams out as it is compressed.
+  struct Sink {
+    AtomicFile* out;
+    Status status;
+  } sink{out, Status::Ok()};
+  cookie_io_functions_t io{};
+  io.write = [](void* cookie, const char* buf, size_t n) -> ssize_t {
+    auto* s = static_cast<Sink*>(cookie);
+    if (s->status.ok()) s->status = s->out->Write(buf, n);
+    return s->status.ok() ? static_cast<ssize_t>(n) : -1;
+  };
+  std::FILE* f = ::fopencookie(&sink, "wb", io);
+  if (!f) return Status::IOError(path + ": writing the PNG failed: " + std::strerror(errno));
+  const bool written = png_image_write_to_stdio(&image, f, 0, rgb.data(), 0, nullptr);
+  const std::string why = written ? "" : image.message;
+  png_image_free(&image);
+  const bool closed = std::fclose(f) == 0;  // writes what the stream buffers
+  MKTREE_RETURN_IF_ERROR(sink.status);
+  if (!written) return Status::IOError(path + ": writing the PNG failed: " + why);
+  if (!closed) return Status::IOError(path + ": writing the PNG failed: " + std::strerror(errno));
   return out->Commit();
 }
 
@@ -430,7 +449,7 @@ void DrawOverlay(const MKTree& tree, int k, const Frame& f, Picture* pic) {
 
 Status WriteRgbPng(const std::string& path, uint32_t width, uint32_t height,
                    const std::vector<uint8_t>& rgb) {
-  auto out = AtomicOutputFile::Create(path);
+  auto out = AtomicFile::Create(path);
   if (!out.ok()) return out.status();
   return CommitPng(out->get(), width, height, rgb);
 }
@@ -444,7 +463,7 @@ Result<RenderReport> RenderLevel(const StoreReader& store, const std::string& pn
   const MKTree& tree = store.tree();
   if (tree.empty()) return Status::InvalidArgument(store.path() + ": empty store");
   // Open the output first: an unwritable path fails before any rendering work.
-  auto out = AtomicOutputFile::Create(png_path);
+  auto out = AtomicFile::Create(png_path);
   if (!out.ok()) return out.status();
   RenderReport report;
   report.samples_per_pixel = uint64_t{o.width} * o.height <= (uint64_t{4} << 20) ? 2 : 1;
