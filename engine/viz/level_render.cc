@@ -10,6 +10,7 @@
 #include <cstring>
 #include <limits>
 
+#include "engine/tree/split_tree_walk.h"
 #include "storage/atomic_file.h"
 
 namespace mktree {
@@ -403,27 +404,13 @@ void DrawOverlay(const MKTree& tree, int k, const Frame& f, Picture* pic) {
     slabs.push_back(slab);
     mark(slab, kInSlab, false);
     // SplitTree cells inside the slab: BOTH cells are where a query must visit both children.
-    struct Item {
-      uint32_t node;
-      Box3f region;
-    };
-    std::vector<Item> stack;
-    if (n.split_root != kNoIndex) stack.push_back({n.split_root, slab});
-    while (!stack.empty()) {
-      const Item it = stack.back();
-      stack.pop_back();
-      const SplitNode& sn = tree.split_nodes[it.node];
-      if (sn.is_cell()) {
-        if (sn.label == CellLabel::kBoth) mark(it.region, kInBoth, false);
-        mark(it.region, kCellEdge, true);
-        continue;
-      }
-      Box3f lo = it.region, hi = it.region;
-      lo.max[sn.axis] = std::min(lo.max[sn.axis], sn.cut);
-      hi.min[sn.axis] = std::max(hi.min[sn.axis], sn.cut);
-      if (sn.child[0] != kNoIndex) stack.push_back({sn.child[0], lo});
-      if (sn.child[1] != kNoIndex) stack.push_back({sn.child[1], hi});
-    }
+    if (n.split_root == kNoIndex) continue;
+    ForEachSplitCell(tree.split_nodes, n.split_root, SplitRegion{slab},
+                     [&](const SplitNode& cell, const Box3f& region) {
+                       if (cell.label == CellLabel::kBoth) mark(region, kInBoth, false);
+                       mark(region, kCellEdge, true);
+                       return true;
+                     });
   }
   for (int y = 0; y < H; ++y)
     for (int x = 0; x < W; ++x) {
