@@ -1,7 +1,8 @@
-// FileOps: the system calls that write a store (page and metadata writes, truncation, fsync, the commit's
-// rename), behind one interface so that tests inject faults where they happen: LevelDB's Env, reduced to
-// what writing a store needs. The default methods are the POSIX calls; a test subclass overrides some to
-// fail, write short, or change bytes at chosen points (tests/storage/fault_injection_test.cc).
+// FileOps: the system calls that write a store or an AtomicFile (page and metadata writes, truncation,
+// fsync, the commit's rename), behind one interface so that tests inject faults where they happen:
+// LevelDB's Env, reduced to what writing files needs. The default methods are the POSIX calls; a test
+// subclass overrides some to fail, write short, or change bytes at chosen points
+// (tests/ingest/fault_injection_test.cc, tests/storage/atomic_file_test.cc).
 // Calls follow POSIX: -1 with errno set on failure.
 //
 // Thread safety: the writer calls these from its one thread; DefaultFileOps() is stateless.

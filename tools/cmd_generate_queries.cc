@@ -4,10 +4,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <filesystem>
 #include <optional>
 
 #include "engine/store/store_file.h"
+#include "storage/atomic_file.h"
 #include "tools/cli_numbers.h"
 #include "tools/command.h"
 #include "tools/path_checks.h"
@@ -58,38 +58,34 @@ int RunQueries(const QueriesArgs& a) {
   if (!reader.ok()) return Fail(reader.status().message());
   if ((*reader)->tree().empty()) return Fail(a.store + ": empty store");
   const Box3f b = (*reader)->tree().nodes[0].box;
-  const std::string tmp = a.output + ".tmp";
-  FILE* f = std::fopen(tmp.c_str(), "w");
-  if (!f) return Fail(a.output + ": cannot write");
+  auto out = AtomicFile::Create(a.output);
+  if (!out.ok()) return Fail(out.status().message());
   uint64_t state = a.seed;
   auto point = [&](double c[3]) {
     for (int i = 0; i < 3; ++i) c[i] = b.min[i] + Unit(&state) * (b.max[i] - b.min[i]);
   };
-  std::fprintf(f, "# %llu points, then %llu boxes per side; seed %llu; bounds of %s\n",
-               static_cast<unsigned long long>(a.count), static_cast<unsigned long long>(a.count),
-               static_cast<unsigned long long>(a.seed), a.store.c_str());
+  char line[512];
+  auto put = [&](int n) { return (*out)->Write(line, static_cast<size_t>(n)); };
+  Status st =
+      put(std::snprintf(line, sizeof line, "# %llu points, then %llu boxes per side; seed %llu; bounds of ",
+                        static_cast<unsigned long long>(a.count), static_cast<unsigned long long>(a.count),
+                        static_cast<unsigned long long>(a.seed)));
+  if (st.ok()) st = (*out)->Write(a.store.data(), a.store.size());
+  if (st.ok()) st = (*out)->Write("\n", 1);
   double c[3];
-  for (uint64_t i = 0; i < a.count; ++i) {
+  for (uint64_t i = 0; i < a.count && st.ok(); ++i) {
     point(c);
-    std::fprintf(f, "point %.9g %.9g %.9g\n", c[0], c[1], c[2]);
+    st = put(std::snprintf(line, sizeof line, "point %.9g %.9g %.9g\n", c[0], c[1], c[2]));
   }
   for (double side : *sides)
-    for (uint64_t i = 0; i < a.count; ++i) {
+    for (uint64_t i = 0; i < a.count && st.ok(); ++i) {
       point(c);
-      std::fprintf(f, "box %.9g %.9g %.9g %.9g %.9g %.9g\n", c[0] - side / 2, c[1] - side / 2, c[2] - side / 2,
-                   c[0] + side / 2, c[1] + side / 2, c[2] + side / 2);
+      st = put(std::snprintf(line, sizeof line, "box %.9g %.9g %.9g %.9g %.9g %.9g\n", c[0] - side / 2,
+                             c[1] - side / 2, c[2] - side / 2, c[0] + side / 2, c[1] + side / 2,
+                             c[2] + side / 2));
     }
-  const bool ok = std::ferror(f) == 0;
-  if (std::fclose(f) != 0 || !ok) {
-    std::filesystem::remove(tmp);
-    return Fail(a.output + ": write failed");
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, a.output, ec);
-  if (ec) {
-    std::filesystem::remove(tmp);
-    return Fail(a.output + ": " + ec.message());
-  }
+  if (st.ok()) st = (*out)->Commit();
+  if (!st.ok()) return Fail(st.message());
   return 0;
 }
 

@@ -12,9 +12,10 @@
 // Relative indices are part of the OBJ specification and read by assimp, Blender, MeshLab, tinyobjloader
 // and mktree's own OpenObjFile.
 //
-// Crash safety: data goes to a temporary file beside the target (`<path>.tmp-XXXXXX`), which Finish()
-// renames onto `path`. A writer destroyed (or a process killed) before Finish() leaves no file at `path`;
-// the destructor removes the temporary. No fsync: the guarantee is against interrupted runs, not power loss.
+// Crash safety: the file is an AtomicFile (storage/atomic_file.h): written as `<path>.tmp.<pid>`, which
+// Finish() makes durable and renames onto `path`. A writer destroyed (or a process killed) before Finish()
+// leaves no file at `path`: the destructor removes the temporary, and the next writer of `path` removes a
+// killed writer's.
 //
 // Thread-safety: one thread at a time.
 #pragma once
@@ -26,6 +27,7 @@
 
 #include "mktree/scene.h"
 #include "mktree/status.h"
+#include "storage/atomic_file.h"
 
 namespace mktree {
 
@@ -40,19 +42,18 @@ class ObjWriter {
   // Appends one object. REQUIRES: every triangle index < vertex_count; the name has no line break
   // (both checked: InvalidArgument). Write errors are IOError naming the file.
   Status Write(const SceneObject& object);
-  // Flushes, closes and renames the temporary file onto `path`. No Write() after it.
+  // Flushes, fsyncs and renames the temporary file onto `path`. No Write() after it, whatever its outcome.
   Status Finish();
 
   uint64_t objects_written() const { return objects_; }
   uint64_t bytes_written() const { return bytes_ + buffer_.size(); }
 
  private:
-  ObjWriter(std::string path, std::string temp_path, int fd);
+  ObjWriter(std::string path, std::unique_ptr<AtomicFile> file);
   Status Flush();
 
   std::string path_;
-  std::string temp_path_;
-  int fd_ = -1;
+  std::unique_ptr<AtomicFile> file_;
   bool finished_ = false;
   std::vector<char> buffer_;
   uint64_t bytes_ = 0;  // flushed to the file

@@ -225,22 +225,15 @@ Result<std::unique_ptr<SceneSource>> OpenMkSceneFile(const std::string& path, Ob
       path, f, static_cast<uint64_t>(st.st_size), first_id, Load<uint32_t>(header + 8)));
 }
 
-MkSceneWriter::MkSceneWriter(std::string path, std::string temp_path, std::FILE* file)
-    : path_(std::move(path)), temp_path_(std::move(temp_path)), file_(file) {}
+MkSceneWriter::MkSceneWriter(std::string path, std::unique_ptr<AtomicFile> file)
+    : path_(std::move(path)), file_(std::move(file)) {}
+
+MkSceneWriter::~MkSceneWriter() = default;
 
 Result<std::unique_ptr<MkSceneWriter>> MkSceneWriter::Create(const std::string& path) {
-  std::string temp = path + ".tmp-XXXXXX";
-  const int fd = ::mkstemp(temp.data());
-  if (fd < 0) return Status::IOError(path + ": cannot create file: " + ErrnoText());
-  (void)::fchmod(fd, 0644);  // mkstemp makes it 0600; a scene is an ordinary file
-  std::FILE* f = ::fdopen(fd, "wb");
-  if (!f) {
-    ::close(fd);
-    ::unlink(temp.c_str());
-    return Status::IOError(path + ": cannot open: " + ErrnoText());
-  }
-  std::setvbuf(f, nullptr, _IOFBF, kIoBufferBytes);
-  auto writer = std::unique_ptr<MkSceneWriter>(new MkSceneWriter(path, temp, f));
+  auto file = AtomicFile::Create(path);
+  if (!file.ok()) return file.status();
+  auto writer = std::unique_ptr<MkSceneWriter>(new MkSceneWriter(path, std::move(*file)));
   std::vector<uint8_t> header(kMagic, kMagic + sizeof(kMagic));
   Append<uint32_t>(&header, kVersion);
   Append<uint32_t>(&header, 0);
@@ -248,20 +241,14 @@ Result<std::unique_ptr<MkSceneWriter>> MkSceneWriter::Create(const std::string& 
   return writer;
 }
 
-MkSceneWriter::~MkSceneWriter() {
-  if (file_) std::fclose(file_);
-  if (!finished_) ::unlink(temp_path_.c_str());
-}
-
 Status MkSceneWriter::Put(const std::vector<uint8_t>& bytes) {
-  if (std::fwrite(bytes.data(), 1, bytes.size(), file_) != bytes.size())
-    return Status::IOError(path_ + ": write failed: " + ErrnoText());
+  MKTREE_RETURN_IF_ERROR(file_->Write(bytes.data(), bytes.size()));
   bytes_ += bytes.size();
   return Status::Ok();
 }
 
 Status MkSceneWriter::Write(const SceneObject& object) {
-  if (finished_ || !file_) return Status::Internal(path_ + ": write after Finish()");
+  if (finished_) return Status::Internal(path_ + ": write after Finish()");
   const Mesh& mesh = object.mesh;
   const size_t nv = mesh.vertex_count(), nt = mesh.triangle_count();
   auto what = [&] { return path_ + ": object " + std::to_string(objects_) + " (" + object.name + "): "; };
@@ -286,20 +273,15 @@ Status MkSceneWriter::Write(const SceneObject& object) {
 }
 
 Status MkSceneWriter::Finish() {
-  if (finished_ || !file_) return Status::Internal(path_ + ": Finish() called twice");
+  if (finished_) return Status::Internal(path_ + ": Finish() called twice");
+  finished_ = true;
   record_.clear();
   Append<uint32_t>(&record_, kEndTag);
   Append<uint32_t>(&record_, 0);
   Append<uint64_t>(&record_, objects_);
   Append<uint64_t>(&record_, XXH3_64bits(record_.data(), record_.size()));
   MKTREE_RETURN_IF_ERROR(Put(record_));
-  std::FILE* f = file_;
-  file_ = nullptr;
-  if (std::fclose(f) != 0) return Status::IOError(path_ + ": close failed: " + ErrnoText());
-  if (::rename(temp_path_.c_str(), path_.c_str()) != 0)
-    return Status::IOError(path_ + ": cannot rename " + temp_path_ + " onto it: " + ErrnoText());
-  finished_ = true;
-  return Status::Ok();
+  return file_->Commit();
 }
 
 }  // namespace mktree

@@ -29,6 +29,7 @@
 #include <vector>
 
 #include "engine/scene/scene_source.h"
+#include "storage/atomic_file.h"
 
 namespace mktree {
 
@@ -39,9 +40,10 @@ namespace mktree {
 // Thread-safety: a source is used by one thread at a time.
 Result<std::unique_ptr<SceneSource>> OpenMkSceneFile(const std::string& path, ObjectId first_id = 0);
 
-// Streams objects into an .mks file. Writes go to a temporary file beside the target
-// (`<path>.tmp-XXXXXX`) that Finish() renames onto `path`, so an interrupted run leaves no partial scene;
-// the destructor removes the temporary if Finish() was not reached. Thread-safety: one thread at a time.
+// Streams objects into an .mks file. The file is an AtomicFile (storage/atomic_file.h): written as
+// `<path>.tmp.<pid>`, which Finish() makes durable and renames onto `path`, so an interrupted run leaves no
+// partial scene; the destructor removes the temporary if Finish() was not reached. Thread-safety: one thread
+// at a time.
 class MkSceneWriter {
  public:
   static Result<std::unique_ptr<MkSceneWriter>> Create(const std::string& path);
@@ -52,19 +54,18 @@ class MkSceneWriter {
   // Appends one object (its id is implied by its position). REQUIRES: triangle indices < vertex_count,
   // name shorter than 4 GiB (checked: InvalidArgument).
   Status Write(const SceneObject& object);
-  // Writes the end record, closes and renames onto `path`. No Write() after it.
+  // Writes the end record, fsyncs and renames onto `path`. No Write() after it, whatever its outcome.
   Status Finish();
 
   uint64_t objects_written() const { return objects_; }
   uint64_t bytes_written() const { return bytes_; }
 
  private:
-  MkSceneWriter(std::string path, std::string temp_path, std::FILE* file);
+  MkSceneWriter(std::string path, std::unique_ptr<AtomicFile> file);
   Status Put(const std::vector<uint8_t>& bytes);
 
   std::string path_;
-  std::string temp_path_;
-  std::FILE* file_ = nullptr;
+  std::unique_ptr<AtomicFile> file_;
   bool finished_ = false;
   std::vector<uint8_t> record_;  // the record being encoded; reused
   uint64_t bytes_ = 0;

@@ -14,6 +14,7 @@
 #include "engine/core/guarded.h"
 #include "engine/store/store_backend.h"
 #include "engine/tree/page_budget.h"
+#include "storage/atomic_file.h"
 #include "storage/file_util.h"
 
 namespace mktree {
@@ -126,27 +127,6 @@ StoreWriter::~StoreWriter() {
   lock_.reset();
 }
 
-namespace {
-
-// Removes "<final_path>.tmp.<digits>" files: the leftovers of writers killed before Commit. Only called
-// while holding the writer lock of final_path, so none of them belongs to a live writer.
-void RemoveStaleTemps(const std::string& final_path) {
-  namespace fs = std::filesystem;
-  const fs::path final_p(final_path);
-  const fs::path dir = final_p.has_parent_path() ? final_p.parent_path() : fs::path(".");
-  const std::string prefix = final_p.filename().string() + ".tmp.";
-  std::error_code ec;
-  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
-    const std::string name = it->path().filename().string();
-    if (name.size() <= prefix.size() || name.compare(0, prefix.size(), prefix) != 0) continue;
-    if (name.find_first_not_of("0123456789", prefix.size()) != std::string::npos) continue;
-    std::error_code rm;
-    fs::remove(it->path(), rm);
-  }
-}
-
-}  // namespace
-
 Result<std::unique_ptr<StoreWriter>> StoreWriter::Create(const std::string& final_path,
                                                          const StoreOptions& opts) {
   const uint64_t mem_page = opts.params.mem_page();
@@ -162,8 +142,8 @@ Result<std::unique_ptr<StoreWriter>> StoreWriter::Create(const std::string& fina
     return Status::InvalidArgument(final_path + ": exists and is not a regular file: refusing to replace it");
   auto lock = Lock::Acquire(final_path);
   if (!lock.ok()) return lock.status();
-  const std::string temp = final_path + ".tmp." + std::to_string(::getpid());
-  RemoveStaleTemps(final_path);  // we hold the lock: any "<final>.tmp.<pid>" is a killed writer's
+  const std::string temp = AtomicTempPath(final_path);
+  RemoveStaleTemps(final_path);  // we hold the lock: any temporary store of final_path is a killed writer's
   FileOps& ops = opts.file_ops ? *opts.file_ops : DefaultFileOps();
   auto backend = opts.backend == Backend::kHdf5 ? CreateHdf5Writer(temp, opts.params, ops)
                                                 : CreatePagedFileWriter(temp, opts.params, ops);
@@ -220,13 +200,11 @@ Status StoreWriter::Commit(MKTree tree, const std::string& stats_json) {
                                    "is kept: " +
                                    reread.status().message()));
   FileOps& ops = opts_.file_ops ? *opts_.file_ops : DefaultFileOps();
-  if (ops.Rename(temp_path_, final_path_) != 0)
-    return fail(Status::IOError(final_path_ + ": rename from " + temp_path_ + ": " + ErrnoText(errno)));
+  bool renamed = false;
+  st = RenameOverTarget(temp_path_, final_path_, ops, "the new store", &renamed);
+  if (!renamed) return fail(st);
   done_ = true;
-  st = storage_internal::SyncParentDir(final_path_, ops);
-  if (!st.ok())
-    return Status::IOError(st.message() + " (the new store is in place but may not survive a power loss)");
-  return Status::Ok();
+  return st;
 }
 
 Result<std::unique_ptr<StoreReader>> StoreReader::Open(const std::string& path, const ReadOptions& opts) {

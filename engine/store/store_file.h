@@ -7,9 +7,9 @@
 // Both start with a magic and a version and checksum every byte that matters; a store that fails a check
 // is refused at Open with an error naming the file, never half-read.
 //
-// Building is atomic: StoreWriter writes "<final_path>.tmp.<pid>", and Commit fsyncs it, renames it to
-// final_path and fsyncs the directory. Nothing appears under final_path before Commit; a destroyed or
-// killed writer leaves nothing that opens as a store.
+// Building is atomic: StoreWriter writes "<final_path>.tmp.<pid>" (storage/atomic_file.h), and Commit
+// fsyncs it, renames it to final_path and fsyncs the directory. Nothing appears under final_path before
+// Commit; a destroyed or killed writer leaves nothing that opens as a store.
 //
 // Concurrency: one StoreWriter per final path at a time, across processes and threads: the writer holds
 // an exclusive Boost.Interprocess file_lock on "<final_path>.lock" (removed at the end); a second writer

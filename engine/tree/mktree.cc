@@ -4,6 +4,7 @@
 #include <type_traits>
 
 #include "engine/tree/leaf_filter.h"
+#include "engine/tree/split_tree_walk.h"
 
 namespace mktree {
 namespace {
@@ -11,40 +12,32 @@ namespace {
 constexpr uint8_t kLeftBit = 1;
 constexpr uint8_t kRightBit = 2;
 
-// Sides a point in the slab may find objects of: the label of the SplitTree cell holding it. A point on a
-// cut goes up: every object containing it meets both closed cells, so either cell's label allows it.
+// Sides a point in the slab may find objects of: the label of the SplitTree cell holding it.
 uint8_t PointSides(const MKTree& t, const TreeNode& n, const Vec3d& p, QueryStats* stats) {
   if (n.split_root == kNoIndex) return kLeftBit | kRightBit;  // no SplitTree: the slab is shared
-  uint32_t s = n.split_root;
-  for (;;) {
-    const SplitNode& sn = t.split_nodes[s];
-    ++stats->split_nodes_visited;
-    if (sn.is_cell()) return static_cast<uint8_t>(sn.label);
-    s = p[sn.axis] < static_cast<double>(sn.cut) ? sn.child[0] : sn.child[1];
-  }
+  uint8_t sides = 0;
+  ForEachSplitCell(
+      t.split_nodes, n.split_root, p,
+      [&](const SplitNode& cell) {
+        sides = static_cast<uint8_t>(cell.label);
+        return true;
+      },
+      &stats->split_nodes_visited);
+  return sides;
 }
 
-// Union of the labels of the cells a box meets (cells are closed), stopping once both sides are found.
+// Union of the labels of the cells a box meets, stopping once both sides are found.
 uint8_t BoxSides(const MKTree& t, const TreeNode& n, const Box3d& q, QueryStats* stats) {
   if (n.split_root == kNoIndex) return kLeftBit | kRightBit;
   uint8_t sides = 0;
-  uint32_t stack[64];
-  int top = 0;
-  stack[top++] = n.split_root;
-  while (top > 0 && sides != (kLeftBit | kRightBit)) {
-    const SplitNode& sn = t.split_nodes[stack[--top]];
-    ++stats->split_nodes_visited;
-    if (sn.is_cell()) {
-      sides |= static_cast<uint8_t>(sn.label);
-      continue;
-    }
-    const double cut = sn.cut;
-    // A SplitTree has at most split_tree_node_budget nodes, but guard the fixed stack regardless.
-    if (top + 2 > 64) return kLeftBit | kRightBit;
-    if (q.max[sn.axis] >= cut) stack[top++] = sn.child[1];
-    if (q.min[sn.axis] <= cut) stack[top++] = sn.child[0];
-  }
-  return sides;
+  const bool all = ForEachSplitCell(
+      t.split_nodes, n.split_root, q,
+      [&](const SplitNode& cell) {
+        sides |= static_cast<uint8_t>(cell.label);
+        return sides != (kLeftBit | kRightBit);
+      },
+      &stats->split_nodes_visited);
+  return all ? sides : kLeftBit | kRightBit;  // ended early: both found, or too deep to finish
 }
 
 // A leaf the routing reached: read it unless the leaf filter says none of its objects meets the query.

@@ -5,6 +5,8 @@
 #include <limits>
 #include <thread>
 
+#include "engine/tree/split_tree_walk.h"
+
 namespace mktree {
 namespace {
 
@@ -19,35 +21,24 @@ struct SplitTreeShape {
   double volume = 0, both_volume = 0;
 };
 
-using ShapeStack = std::vector<std::pair<uint32_t, Box3f>>;
-
-// Walks one SplitTree, clipping each cell to the overlap region q. (*stack_buffer is reused from tree to
-// tree: a 1M-object tree has some 38,000 SplitTrees.)
-SplitTreeShape Shape(const MKTree& t, uint32_t root, const Box3f& q, ShapeStack* stack_buffer) {
+// Walks one SplitTree, each cell with its part of the overlap region q.
+SplitTreeShape Shape(const MKTree& t, uint32_t root, const Box3f& q) {
   SplitTreeShape s;
-  ShapeStack& stack = *stack_buffer;
-  stack.assign(1, {root, q});
-  while (!stack.empty()) {
-    auto [i, region] = stack.back();
-    stack.pop_back();
-    const SplitNode& sn = t.split_nodes[i];
-    ++s.nodes;
-    if (sn.is_cell()) {
-      ++s.cells;
-      const double v = Volume(region);
-      s.volume += v;
-      if (sn.label == CellLabel::kBoth) {
-        ++s.both;
-        s.both_volume += v;
-      }
-      continue;
-    }
-    Box3f lo = region, hi = region;
-    lo.max[sn.axis] = std::min(lo.max[sn.axis], sn.cut);
-    hi.min[sn.axis] = std::max(hi.min[sn.axis], sn.cut);
-    stack.push_back({sn.child[0], lo});
-    stack.push_back({sn.child[1], hi});
-  }
+  uint64_t nodes = 0;
+  ForEachSplitCell(
+      t.split_nodes, root, SplitRegion{q},
+      [&](const SplitNode& cell, const Box3f& region) {
+        ++s.cells;
+        const double v = Volume(region);
+        s.volume += v;
+        if (cell.label == CellLabel::kBoth) {
+          ++s.both;
+          s.both_volume += v;
+        }
+        return true;
+      },
+      &nodes);
+  s.nodes = static_cast<uint32_t>(nodes);
   return s;
 }
 
@@ -70,14 +61,13 @@ TreeStats ComputeTreeStats(const MKTree& tree, uint64_t object_count, std::span<
   // by node index, in two halves when there are two threads; the walk below sums them in its own order.
   std::vector<SplitTreeShape> shapes(tree.nodes.size());
   auto measure = [&](size_t lo, size_t hi) {
-    ShapeStack shape_stack;
     for (size_t ni = lo; ni < hi; ++ni) {
       const TreeNode& n = tree.nodes[ni];
       if (n.is_leaf() || n.split_root == kNoIndex) continue;
       Box3f q = n.box;
       q.min[n.axis] = n.a;
       q.max[n.axis] = n.b;
-      shapes[ni] = Shape(tree, n.split_root, q, &shape_stack);
+      shapes[ni] = Shape(tree, n.split_root, q);
     }
   };
   const size_t half = tree.nodes.size() / 2;

@@ -10,7 +10,7 @@
 #include <memory>
 #include <vector>
 
-#include "engine/viz/atomic_output.h"
+#include "engine/viz/spool_file.h"
 
 namespace mktree {
 
@@ -51,7 +51,7 @@ class GeometrySink {
   virtual ~GeometrySink() = default;
   virtual Status Add(LevelGroup g, const float* xyz, uint32_t vertices, const uint32_t* tris,
                      uint32_t triangles) = 0;
-  virtual Status Finish(AtomicOutputFile* out) = 0;
+  virtual Status Finish(AtomicFile* out) = 0;
 };
 
 Status SpoolError(const std::string& path) {
@@ -62,8 +62,8 @@ Status SpoolError(const std::string& path) {
 // PLY wants after all vertices) go to a scratch file that is appended.
 class PlySink final : public GeometrySink {
  public:
-  static Result<std::unique_ptr<PlySink>> Create(AtomicOutputFile* out, int level, const Vec3d& origin) {
-    auto faces = OpenSpoolFile(out->path());
+  static Result<std::unique_ptr<PlySink>> Create(AtomicFile* out, int level, const Vec3d& origin) {
+    auto faces = OpenSpoolFile(out->target());
     if (!faces.ok()) return faces.status();
     auto sink = std::unique_ptr<PlySink>(new PlySink(out, std::move(*faces)));
     std::string h = "ply\nformat binary_little_endian 1.0\ncomment mktree export: level " +
@@ -110,31 +110,27 @@ class PlySink final : public GeometrySink {
     return Status::Ok();
   }
 
-  Status Finish(AtomicOutputFile* out) override {
+  Status Finish(AtomicFile* out) override {
     if (faces_count_ > std::numeric_limits<uint32_t>::max())
       return Status::InvalidArgument(path_ + ": more than 2^32 - 1 triangles");
-    MKTREE_RETURN_IF_ERROR(CopySpool(faces_.get(), out->file(), path_));
-    MKTREE_RETURN_IF_ERROR(Patch(out->file(), vertex_count_at_, vertices_));
-    MKTREE_RETURN_IF_ERROR(Patch(out->file(), face_count_at_, faces_count_));
-    if (std::fseek(out->file(), 0, SEEK_END) != 0) return Status::IOError(path_ + ": seek failed");
-    return Status::Ok();
+    MKTREE_RETURN_IF_ERROR(CopySpool(faces_.get(), out));
+    MKTREE_RETURN_IF_ERROR(Patch(out, vertex_count_at_, vertices_));
+    return Patch(out, face_count_at_, faces_count_);
   }
 
  private:
   static constexpr int kDigits = 10;  // up to 2^32 - 1, zero-padded: PLY readers parse counts as integers
-  PlySink(AtomicOutputFile* out, FilePtr faces) : path_(out->path()), faces_(std::move(faces)), out_(out) {}
+  PlySink(AtomicFile* out, FilePtr faces) : path_(out->target()), faces_(std::move(faces)), out_(out) {}
 
-  Status Patch(std::FILE* f, size_t at, uint64_t value) {
+  static Status Patch(AtomicFile* out, size_t at, uint64_t value) {
     char digits[kDigits + 1];
     std::snprintf(digits, sizeof digits, "%0*llu", kDigits, static_cast<unsigned long long>(value));
-    if (std::fseek(f, static_cast<long>(at), SEEK_SET) != 0 || std::fwrite(digits, 1, kDigits, f) != kDigits)
-      return Status::IOError(path_ + ": write failed");
-    return Status::Ok();
+    return out->WriteAt(at, digits, kDigits);
   }
 
   std::string path_;
   FilePtr faces_;
-  AtomicOutputFile* out_ = nullptr;
+  AtomicFile* out_ = nullptr;
   std::vector<uint8_t> buf_;
   uint64_t vertices_ = 0, faces_count_ = 0;
   size_t vertex_count_at_ = 0, face_count_at_ = 0;
@@ -181,7 +177,7 @@ class GlbSink final : public GeometrySink {
     return Status::Ok();
   }
 
-  Status Finish(AtomicOutputFile* out) override {
+  Status Finish(AtomicFile* out) override {
     std::string nodes, meshes, materials, views, accessors, scene_nodes;
     uint64_t offset = 0;
     int n = 0;
@@ -240,8 +236,8 @@ class GlbSink final : public GeometrySink {
       MKTREE_RETURN_IF_ERROR(out->Write(bin_chunk, sizeof bin_chunk));
       for (Group& g : groups_) {
         if (g.triangles == 0) continue;
-        MKTREE_RETURN_IF_ERROR(CopySpool(g.positions.get(), out->file(), path_));
-        MKTREE_RETURN_IF_ERROR(CopySpool(g.indices.get(), out->file(), path_));
+        MKTREE_RETURN_IF_ERROR(CopySpool(g.positions.get(), out));
+        MKTREE_RETURN_IF_ERROR(CopySpool(g.indices.get(), out));
       }
     }
     return Status::Ok();
@@ -271,7 +267,7 @@ Result<ExportReport> ExportLevel(const StoreReader& store, const std::string& ou
                                  const ExportOptions& options) {
   if (options.level < 0)
     return Status::InvalidArgument("level " + std::to_string(options.level) + ": levels start at 0");
-  auto out = AtomicOutputFile::Create(out_path);
+  auto out = AtomicFile::Create(out_path);
   if (!out.ok()) return out.status();
   std::unique_ptr<GeometrySink> sink;
   if (options.format == ExportFormat::kPly) {
@@ -309,7 +305,7 @@ Result<ExportReport> ExportLevel(const StoreReader& store, const std::string& ou
       options.progress);
   if (!st.ok()) return st;
   MKTREE_RETURN_IF_ERROR(sink->Finish(out->get()));
-  report.bytes = static_cast<uint64_t>(std::ftell((*out)->file()));
+  report.bytes = (*out)->size();
   MKTREE_RETURN_IF_ERROR((*out)->Commit());
   return report;
 }

@@ -4,10 +4,14 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cerrno>
 #include <cmath>
+#include <cstdio>
+#include <cstring>
 #include <limits>
 
-#include "engine/viz/atomic_output.h"
+#include "engine/tree/split_tree_walk.h"
+#include "storage/atomic_file.h"
 
 namespace mktree {
 
@@ -26,8 +30,8 @@ const char* RenderViewName(RenderView v) {
 namespace {
 
 // Encodes the image into `out` and commits it.
-Status CommitPng(AtomicOutputFile* out, uint32_t width, uint32_t height, const std::vector<uint8_t>& rgb) {
-  const std::string& path = out->path();
+Status CommitPng(AtomicFile* out, uint32_t width, uint32_t height, const std::vector<uint8_t>& rgb) {
+  const std::string& path = out->target();
   if (rgb.size() != size_t{3} * width * height)
     return Status::Internal(path + ": image buffer size mismatch");
   png_image image{};
@@ -35,11 +39,27 @@ Status CommitPng(AtomicOutputFile* out, uint32_t width, uint32_t height, const s
   image.width = width;
   image.height = height;
   image.format = PNG_FORMAT_RGB;
-  if (!png_image_write_to_stdio(&image, out->file(), 0, rgb.data(), 0, nullptr)) {
-    const std::string why = image.message;
-    png_image_free(&image);
-    return Status::IOError(path + ": writing the PNG failed: " + why);
-  }
+  // libpng writes to a stdio stream: one whose writes go to the AtomicFile (a glibc cookie stream), so the
+  // PNG streams out as it is compressed.
+  struct Sink {
+    AtomicFile* out;
+    Status status;
+  } sink{out, Status::Ok()};
+  cookie_io_functions_t io{};
+  io.write = [](void* cookie, const char* buf, size_t n) -> ssize_t {
+    auto* s = static_cast<Sink*>(cookie);
+    if (s->status.ok()) s->status = s->out->Write(buf, n);
+    return s->status.ok() ? static_cast<ssize_t>(n) : -1;
+  };
+  std::FILE* f = ::fopencookie(&sink, "wb", io);
+  if (!f) return Status::IOError(path + ": writing the PNG failed: " + std::strerror(errno));
+  const bool written = png_image_write_to_stdio(&image, f, 0, rgb.data(), 0, nullptr);
+  const std::string why = written ? "" : image.message;
+  png_image_free(&image);
+  const bool closed = std::fclose(f) == 0;  // writes what the stream buffers
+  MKTREE_RETURN_IF_ERROR(sink.status);
+  if (!written) return Status::IOError(path + ": writing the PNG failed: " + why);
+  if (!closed) return Status::IOError(path + ": writing the PNG failed: " + std::strerror(errno));
   return out->Commit();
 }
 
@@ -384,27 +404,13 @@ void DrawOverlay(const MKTree& tree, int k, const Frame& f, Picture* pic) {
     slabs.push_back(slab);
     mark(slab, kInSlab, false);
     // SplitTree cells inside the slab: BOTH cells are where a query must visit both children.
-    struct Item {
-      uint32_t node;
-      Box3f region;
-    };
-    std::vector<Item> stack;
-    if (n.split_root != kNoIndex) stack.push_back({n.split_root, slab});
-    while (!stack.empty()) {
-      const Item it = stack.back();
-      stack.pop_back();
-      const SplitNode& sn = tree.split_nodes[it.node];
-      if (sn.is_cell()) {
-        if (sn.label == CellLabel::kBoth) mark(it.region, kInBoth, false);
-        mark(it.region, kCellEdge, true);
-        continue;
-      }
-      Box3f lo = it.region, hi = it.region;
-      lo.max[sn.axis] = std::min(lo.max[sn.axis], sn.cut);
-      hi.min[sn.axis] = std::max(hi.min[sn.axis], sn.cut);
-      if (sn.child[0] != kNoIndex) stack.push_back({sn.child[0], lo});
-      if (sn.child[1] != kNoIndex) stack.push_back({sn.child[1], hi});
-    }
+    if (n.split_root == kNoIndex) continue;
+    ForEachSplitCell(tree.split_nodes, n.split_root, SplitRegion{slab},
+                     [&](const SplitNode& cell, const Box3f& region) {
+                       if (cell.label == CellLabel::kBoth) mark(region, kInBoth, false);
+                       mark(region, kCellEdge, true);
+                       return true;
+                     });
   }
   for (int y = 0; y < H; ++y)
     for (int x = 0; x < W; ++x) {
@@ -430,7 +436,7 @@ void DrawOverlay(const MKTree& tree, int k, const Frame& f, Picture* pic) {
 
 Status WriteRgbPng(const std::string& path, uint32_t width, uint32_t height,
                    const std::vector<uint8_t>& rgb) {
-  auto out = AtomicOutputFile::Create(path);
+  auto out = AtomicFile::Create(path);
   if (!out.ok()) return out.status();
   return CommitPng(out->get(), width, height, rgb);
 }
@@ -444,7 +450,7 @@ Result<RenderReport> RenderLevel(const StoreReader& store, const std::string& pn
   const MKTree& tree = store.tree();
   if (tree.empty()) return Status::InvalidArgument(store.path() + ": empty store");
   // Open the output first: an unwritable path fails before any rendering work.
-  auto out = AtomicOutputFile::Create(png_path);
+  auto out = AtomicFile::Create(png_path);
   if (!out.ok()) return out.status();
   RenderReport report;
   report.samples_per_pixel = uint64_t{o.width} * o.height <= (uint64_t{4} << 20) ? 2 : 1;

@@ -12,6 +12,7 @@
 
 #include "engine/scene/mkscene_format.h"
 #include "generator/mesh_checks.h"
+#include "test_dirs.h"
 #include "tool_runner.h"
 
 namespace mktree {
@@ -24,18 +25,11 @@ class GenerateCommandTest : public ::testing::Test {
  protected:
   void SetUp() override {
     if (!fs::exists(MKTREE_TOOL)) GTEST_SKIP() << "tool not built: " << MKTREE_TOOL;
-    dir_ = fs::temp_directory_path() / ("gen_cmd_test_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override {
-    if (!dir_.empty()) fs::remove_all(dir_);
   }
 
   testing::ToolRun Mktree(const std::string& args) { return testing::RunMktree(args, dir_); }
 
-  fs::path dir_;
+  testing::TempDir dir_{"mktree_generate_command"};
 };
 
 TEST_F(GenerateCommandTest, WritesMksAndObjWithASummary) {

@@ -11,6 +11,7 @@
 
 #include "engine/generator/tanker_generator.h"
 #include "generator/mesh_checks.h"
+#include "test_dirs.h"
 
 namespace mktree {
 namespace {
@@ -20,14 +21,6 @@ using testing::Drain;
 
 class MkSceneFormatTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("mks_test_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-
   // Writes `objects` to `path` and returns them.
   std::vector<SceneObject> WriteTanker(const std::string& path, uint64_t n) {
     auto source = MakeTankerSource(n, 77);
@@ -65,7 +58,7 @@ class MkSceneFormatTest : public ::testing::Test {
     return Status::Ok();
   }
 
-  fs::path dir_;
+  testing::TempDir dir_{"mktree_mkscene"};
 };
 
 TEST_F(MkSceneFormatTest, RoundTripIsExact) {

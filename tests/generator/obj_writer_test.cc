@@ -12,6 +12,7 @@
 #include "engine/generator/tanker_generator.h"
 #include "engine/scene/obj_reader.h"
 #include "generator/mesh_checks.h"
+#include "test_dirs.h"
 
 namespace mktree {
 namespace {
@@ -21,14 +22,6 @@ using testing::Drain;
 
 class ObjWriterTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("obj_test_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-
   std::vector<SceneObject> WriteTanker(const std::string& path, uint64_t n, uint64_t seed = 5) {
     auto source = MakeTankerSource(n, seed);
     std::vector<SceneObject> objects = Drain(source.get());
@@ -40,7 +33,7 @@ class ObjWriterTest : public ::testing::Test {
     return objects;
   }
 
-  fs::path dir_;
+  testing::TempDir dir_{"mktree_obj_writer"};
 };
 
 // A minimal independent parse: `o` starts an object, `v` adds a vertex, `f` has three relative indices

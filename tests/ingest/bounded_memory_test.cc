@@ -10,6 +10,7 @@
 
 #include "engine/ingest/store_builder.h"
 #include "mktree/database.h"
+#include "test_dirs.h"
 
 namespace mktree {
 namespace {
@@ -63,8 +64,8 @@ TEST(BoundedMemory, GeometryTenTimesTheBudgetBuildsWithinIt) {
   const uint64_t raw_per_object = 8 + 4 * (3ull * 2 * kSides) + 4 * (3ull * (2 * kSides + 2 * (kSides - 2)));
   ASSERT_GE(raw_per_object * kObjects, 10 * kBudget);
 
-  const std::string store =
-      (fs::temp_directory_path() / ("mktree_bounded_" + std::to_string(::getpid()) + ".mkt")).string();
+  const testing::TempDir dir("mktree_bounded");
+  const std::string store = dir.file("scene.mkt");
   const pid_t child = ::fork();
   ASSERT_GE(child, 0);
   if (child == 0) {
@@ -90,7 +91,6 @@ TEST(BoundedMemory, GeometryTenTimesTheBudgetBuildsWithinIt) {
   std::vector<ObjectId> hits;
   ASSERT_TRUE((*db)->QueryPoint({0, 0, 12}, QueryMode::kExact, &hits, nullptr).ok());
   EXPECT_EQ(hits, std::vector<ObjectId>{0});
-  fs::remove(store);
 }
 
 }  // namespace

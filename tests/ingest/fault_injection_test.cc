@@ -21,6 +21,7 @@
 #include "engine/query/store_database.h"
 #include "storage/file_ops.h"
 #include "storage/memory_page_store.h"
+#include "test_dirs.h"
 
 namespace mktree {
 namespace {
@@ -139,11 +140,7 @@ uint64_t FileHash(const std::string& path) {
 class WriterFaultTest : public ::testing::TestWithParam<Backend> {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("mktree_faults_" + std::to_string(::getpid()) + "_" +
-                                        (GetParam() == Backend::kHdf5 ? "hdf5" : "pagefile"));
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-    path_ = (dir_ / "store.mkt").string();
+    path_ = dir_.file("store.mkt");
     ASSERT_TRUE(Build(1, nullptr).ok());
     old_hash_ = FileHash(path_);
     auto old = AnswersOf(path_, queries_);
@@ -158,7 +155,6 @@ class WriterFaultTest : public ::testing::TestWithParam<Backend> {
     ASSERT_NE(new_answers_, old_answers_);
     fs::remove(aside);
   }
-  void TearDown() override { fs::remove_all(dir_); }
 
   // Builds a 600-object tanker of `seed` at `path` (default: the store under test) through `ops`.
   Status Build(uint64_t seed, FileOps* ops, const std::string& path = "") {
@@ -209,7 +205,7 @@ class WriterFaultTest : public ::testing::TestWithParam<Backend> {
     if (build.ok()) ++completed_builds_;
   }
 
-  fs::path dir_;
+  testing::TempDir dir_{"mktree_faults"};
   std::string path_;
   const std::vector<Query> queries_ = SomeQueries(3);
   uint64_t old_hash_ = 0;
@@ -294,10 +290,8 @@ INSTANTIATE_TEST_SUITE_P(Backends, WriterFaultTest, ::testing::Values(Backend::k
 class ReadFaultTest : public ::testing::TestWithParam<Backend> {};
 
 TEST_P(ReadFaultTest, EveryReadFaultIsAnErrorOrTheRightAnswer) {
-  const fs::path dir = fs::temp_directory_path() / ("mktree_read_faults_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  const std::string path = (dir / "store.mkt").string();
+  const testing::TempDir dir("mktree_read_faults");
+  const std::string path = dir.file("store.mkt");
   IngestOptions o;
   o.store.backend = GetParam();
   o.store.params.block_size = 1024;
@@ -361,7 +355,6 @@ TEST_P(ReadFaultTest, EveryReadFaultIsAnErrorOrTheRightAnswer) {
   const int before = errors;
   run_all("after the faults");
   EXPECT_EQ(errors, before);
-  fs::remove_all(dir);
 }
 
 INSTANTIATE_TEST_SUITE_P(Backends, ReadFaultTest, ::testing::Values(Backend::kPagedFile, Backend::kHdf5),

@@ -9,6 +9,7 @@
 #include "engine/ingest/store_builder.h"
 #include "engine/scene/vector_scene_source.h"
 #include "mktree/database.h"
+#include "test_dirs.h"
 
 namespace mktree {
 namespace {
@@ -32,10 +33,8 @@ std::vector<SceneObject> Cubes(int n) {
 class KilledBuildTest : public ::testing::TestWithParam<Backend> {};
 
 TEST_P(KilledBuildTest, LeavesNoStoreAndTheNextBuildCleansUp) {
-  const fs::path dir = fs::temp_directory_path() / ("mktree_killed_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  const std::string store = (dir / "scene.mkt").string();
+  const testing::TempDir dir("mktree_killed");
+  const std::string store = dir.file("scene.mkt");
   const auto objs = Cubes(3000);
   IngestOptions opts;
   opts.store.backend = GetParam();
@@ -75,7 +74,6 @@ TEST_P(KilledBuildTest, LeavesNoStoreAndTheNextBuildCleansUp) {
   auto db = Database::Open(store);
   ASSERT_TRUE(db.ok()) << db.status().ToString();
   EXPECT_EQ((*db)->object_count(), objs.size());
-  fs::remove_all(dir);
 }
 
 INSTANTIATE_TEST_SUITE_P(Backends, KilledBuildTest, ::testing::Values(Backend::kHdf5, Backend::kPagedFile),

@@ -14,14 +14,17 @@
 #include "engine/ingest/store_builder.h"
 #include "engine/store/store_file.h"
 #include "engine/store/tree_codec.h"
+#include "test_dirs.h"
 
 namespace mktree {
 namespace {
 
 namespace fs = std::filesystem;
 
+// In a folder of this program's, removed when it ends.
 std::string TempPath(const std::string& name) {
-  return (fs::temp_directory_path() / ("mktree_parallel_" + std::to_string(::getpid()) + "_" + name)).string();
+  static const testing::TempDir dir("mktree_parallel");
+  return dir.file(name);
 }
 
 // Two inputs continuing one numbering, so that the reader also crosses from one source to the next.

@@ -12,6 +12,7 @@
 #include "engine/generator/tanker_generator.h"
 #include "engine/ingest/store_builder.h"
 #include "mktree/database.h"
+#include "test_dirs.h"
 
 namespace mktree {
 namespace {
@@ -25,17 +26,11 @@ SceneOpener Tanker(uint64_t n) {
 
 class WriterLockTest : public ::testing::TestWithParam<Backend> {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("mktree_writer_lock_" + std::to_string(::getpid()));
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-    opts_.store.backend = GetParam();
-  }
-  void TearDown() override { fs::remove_all(dir_); }
+  void SetUp() override { opts_.store.backend = GetParam(); }
 
   std::string P(const std::string& name) const { return (dir_ / name).string(); }
 
-  fs::path dir_;
+  testing::TempDir dir_{"mktree_writer_lock"};
   IngestOptions opts_;
 };
 

@@ -14,6 +14,7 @@
 #include "engine/scene/vector_scene_source.h"
 #include "mktree/database.h"
 #include "query/scene_fixtures.h"
+#include "test_dirs.h"
 
 namespace mktree {
 namespace {
@@ -62,9 +63,8 @@ TEST_P(ConcurrentRebuildTest, ReadersSeeOneWholeVersionWhileTheStoreIsRebuilt) {
       v.answers.push_back(hits);
     }
 
-  const std::string path = (fs::temp_directory_path() / ("mktree_rebuild_" + std::to_string(::getpid()) +
-                                                         "_" + BackendName(GetParam()) + ".mkt"))
-                               .string();
+  const testing::TempDir dir("mktree_rebuild");
+  const std::string path = dir.file(std::string(BackendName(GetParam())) + ".mkt");
   ASSERT_TRUE(Build(versions[0].objects, path, GetParam()).ok());
 
   std::atomic<bool> done{false};
@@ -107,7 +107,6 @@ TEST_P(ConcurrentRebuildTest, ReadersSeeOneWholeVersionWhileTheStoreIsRebuilt) {
   auto last = Database::Open(path);
   ASSERT_TRUE(last.ok()) << last.status().ToString();
   EXPECT_EQ((*last)->object_count(), versions[kRebuilds % 2].objects.size());
-  fs::remove(path);
 }
 
 INSTANTIATE_TEST_SUITE_P(Backends, ConcurrentRebuildTest,

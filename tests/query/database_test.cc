@@ -13,14 +13,17 @@
 #include "engine/scene/vector_scene_source.h"
 #include "query/scene_fixtures.h"
 #include "store/stored_geometry.h"
+#include "test_dirs.h"
 
 namespace mktree {
 namespace {
 
 namespace fs = std::filesystem;
 
+// In a folder of this program's, removed when it ends.
 std::string TempPath(const std::string& name) {
-  return (fs::temp_directory_path() / ("mktree_query_" + std::to_string(::getpid()) + "_" + name)).string();
+  static const testing::TempDir dir("mktree_query");
+  return dir.file(name);
 }
 
 IngestOptions Options(Backend backend, Codec codec, uint32_t block, uint32_t d) {

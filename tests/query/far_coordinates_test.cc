@@ -14,6 +14,7 @@
 #include "mktree/database.h"
 #include "query/scene_fixtures.h"
 #include "store/stored_geometry.h"
+#include "test_dirs.h"
 
 namespace mktree {
 namespace {
@@ -24,14 +25,6 @@ constexpr double kUtm[3] = {500000, 5000000, 100};
 
 class FarCoordinatesTest : public ::testing::TestWithParam<Backend> {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("mktree_far_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-
   // Writes `objs` as OBJ text (shortest decimals that read back to the same doubles) and builds a store from
   // the file, so the reader's precision is part of what is tested.
   std::unique_ptr<Database> BuildFromObj(const std::vector<SceneObject>& objs,
@@ -66,7 +59,7 @@ class FarCoordinatesTest : public ::testing::TestWithParam<Backend> {
     return db.ok() ? std::move(*db) : nullptr;
   }
 
-  fs::path dir_;
+  testing::TempDir dir_{"mktree_far"};
 };
 
 Box3d Cube(const double corner[3], double side) {

@@ -10,6 +10,7 @@
 #include "engine/ingest/store_builder.h"
 #include "mktree/database.h"
 #include "store/stored_geometry.h"
+#include "test_dirs.h"
 
 namespace mktree {
 namespace {
@@ -42,7 +43,8 @@ TEST_P(RealSceneTest, QueriesMatchBruteForce) {
   const std::string file = std::string(MKTREE_SHARED_DATA) + "/" + GetParam().file;
   const auto objs = ReadAll(file);
   ASSERT_FALSE(objs.empty());
-  const std::string store = (fs::temp_directory_path() / ("mktree_real_" + std::to_string(::getpid()) + ".mkt")).string();
+  const testing::TempDir dir("mktree_real");
+  const std::string store = dir.file("scene.mkt");
   IngestOptions opts;
   opts.store.backend = GetParam().exact ? Backend::kPagedFile : Backend::kHdf5;
   auto report = BuildStore({[&](ObjectId first) { return OpenSceneFile(file, first); }}, store, opts);
@@ -96,7 +98,6 @@ TEST_P(RealSceneTest, QueriesMatchBruteForce) {
       EXPECT_EQ(stats.cache_hits + stats.pages_read, stats.pages_touched);
     }
   }
-  fs::remove(store);
 }
 
 INSTANTIATE_TEST_SUITE_P(

@@ -242,7 +242,7 @@ TEST(AssimpReaderTest, UnreadableFilesAreErrorsNamingTheFile) {
 
 // The real scenes, against /work/shared/data/README.md.
 
-class AssimpRealFileTest : public testing::TestWithParam<RealFile> {};
+class AssimpRealFileTest : public ::testing::TestWithParam<RealFile> {};
 
 TEST_P(AssimpRealFileTest, MatchesTheDataReadme) {
   const RealFile& f = GetParam();
@@ -256,11 +256,11 @@ TEST_P(AssimpRealFileTest, MatchesTheDataReadme) {
 // The other AC3D files have no degenerate polygons and match the README exactly.
 INSTANTIATE_TEST_SUITE_P(
     SharedData, AssimpRealFileTest,
-    testing::Values(RealFile{"ships/truman.ac", 229, 99144}, RealFile{"ships/ContainerShip.ac", 29, 2054},
-                    RealFile{"ships/Freighter.ac", 26, 1573}, RealFile{"meshes/fandisk.off", 1, 12946},
-                    RealFile{"meshes/armadillo.off", 1, 52000}, RealFile{"meshes/3torus.off", 1, 46},
-                    RealFile{"meshes/gearwheel.bin.stl", 1, 2444},
-                    RealFile{"meshes/bunny.bin.stl", 1, 69451}));
+    ::testing::Values(RealFile{"ships/truman.ac", 229, 99144}, RealFile{"ships/ContainerShip.ac", 29, 2054},
+                      RealFile{"ships/Freighter.ac", 26, 1573}, RealFile{"meshes/fandisk.off", 1, 12946},
+                      RealFile{"meshes/armadillo.off", 1, 52000}, RealFile{"meshes/3torus.off", 1, 46},
+                      RealFile{"meshes/gearwheel.bin.stl", 1, 2444},
+                      RealFile{"meshes/bunny.bin.stl", 1, 69451}));
 
 }  // namespace
 }  // namespace mktree

@@ -335,7 +335,7 @@ TEST(ObjReaderErrorTest, MutatedFilesNeverCrashAndErrorsNameTheLine) {
 // The real scenes: counts from /work/shared/data/README.md (one `o` line per object, every face a
 // triangle in these files). Also checks ids, non-empty names and that every index is in range.
 
-class ObjRealFileTest : public testing::TestWithParam<RealFile> {};
+class ObjRealFileTest : public ::testing::TestWithParam<RealFile> {};
 
 TEST_P(ObjRealFileTest, MatchesTheDataReadme) {
   const RealFile& f = GetParam();
@@ -343,9 +343,9 @@ TEST_P(ObjRealFileTest, MatchesTheDataReadme) {
 }
 
 INSTANTIATE_TEST_SUITE_P(SharedData, ObjRealFileTest,
-                         testing::Values(RealFile{"buildings/steel_mini_project.obj", 2636, 261069},
-                                         RealFile{"buildings/duplex.obj", 215, 26774},
-                                         RealFile{"city/denhaag_01.obj", 1991, 41183}));
+                         ::testing::Values(RealFile{"buildings/steel_mini_project.obj", 2636, 261069},
+                                           RealFile{"buildings/duplex.obj", 215, 26774},
+                                           RealFile{"city/denhaag_01.obj", 1991, 41183}));
 
 TEST(ObjRealFileNamesTest, NamesComeFromObjectLines) {
   auto src = OpenObjFile(std::string(MKTREE_SHARED_DATA) + "/buildings/duplex.obj");

@@ -9,6 +9,7 @@
 #include "engine/scene/mkscene_format.h"
 #include "engine/scene/obj_reader.h"
 #include "engine/scene/scene_source.h"
+#include "test_dirs.h"
 
 namespace mktree {
 namespace {
@@ -16,8 +17,7 @@ namespace {
 namespace fs = std::filesystem;
 
 TEST(SceneInputTest, NonRegularFilesAreRefusedWithoutBlocking) {
-  const fs::path dir = fs::temp_directory_path() / ("mktree_scene_input_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
+  const testing::TempDir dir("mktree_scene_input");
   fs::create_directories(dir / "scene.obj");  // a directory named like a scene
   for (const char* name : {"fifo.obj", "fifo.mks", "fifo.ply"})
     ASSERT_EQ(::mkfifo((dir / name).c_str(), 0600), 0) << name;
@@ -32,7 +32,6 @@ TEST(SceneInputTest, NonRegularFilesAreRefusedWithoutBlocking) {
   EXPECT_FALSE(OpenObjFile((dir / "fifo.obj").string()).ok());
   EXPECT_FALSE(OpenMkSceneFile((dir / "fifo.mks").string()).ok());
   EXPECT_EQ(OpenObjFile((dir / "missing.obj").string()).status().code(), Status::Code::kNotFound);
-  fs::remove_all(dir);
 }
 
 }  // namespace

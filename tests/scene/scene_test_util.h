@@ -13,16 +13,17 @@
 #include <vector>
 
 #include "engine/scene/scene_source.h"
+#include "test_dirs.h"
 
 namespace mktree {
 
-// Writes `content` to `name` in a fresh per-test folder (named after `prefix`, the pid and the test) and
-// returns its path.
+// Writes `content` to `name` in a per-test folder (named after `prefix` and the test, in a folder removed
+// when the program ends) and returns its path.
 inline std::string WriteTemp(const std::string& content, const std::string& name, const std::string& prefix) {
   namespace fs = std::filesystem;
+  static const testing::TempDir root("mktree_scene");
   const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  fs::path dir = fs::temp_directory_path() / (prefix + "_" + std::to_string(::getpid()) + "_" +
-                                              info->test_suite_name() + "_" + info->name());
+  const fs::path dir = root / (prefix + "_" + info->test_suite_name() + "_" + info->name());
   fs::create_directories(dir);
   fs::path p = dir / name;
   std::ofstream(p, std::ios::binary) << content;

@@ -12,6 +12,7 @@
 #include "engine/store/store_backend.h"
 #include "engine/store/store_file.h"
 #include "engine/tree/tree_stats.h"
+#include "storage/atomic_file.h"
 #include "storage/byte_io.h"
 #include "storage/memory_page_store.h"
 #include "storage/page_codec.h"
@@ -55,7 +56,7 @@ inline Result<StoreImage> LoadStoreImage(const std::string& path) {
 
 // Writes `image` as a store at `path` (replacing it), with valid checksums and no structural check.
 inline Status WriteStoreImage(const StoreImage& image, const std::string& path, Backend backend) {
-  const std::string temp = path + ".crafting";
+  const std::string temp = AtomicTempPath(path);
   auto w = backend == Backend::kHdf5 ? CreateHdf5Writer(temp, image.contents.params, DefaultFileOps())
                                      : CreatePagedFileWriter(temp, image.contents.params, DefaultFileOps());
   if (!w.ok()) return w.status();
@@ -63,8 +64,8 @@ inline Status WriteStoreImage(const StoreImage& image, const std::string& path, 
     MKTREE_RETURN_IF_ERROR((*w)->pages().WritePage(i, image.pages[i].data()));
   MKTREE_RETURN_IF_ERROR((*w)->Finish(image.contents));
   w->reset();
-  if (std::rename(temp.c_str(), path.c_str()) != 0) return Status::IOError(path + ": rename failed");
-  return Status::Ok();
+  bool renamed = false;
+  return RenameOverTarget(temp, path, DefaultFileOps(), path, &renamed);
 }
 
 // A store of `objects` packed by BuildTestStore, with the statistics the builder would write, as an image.

@@ -18,6 +18,7 @@
 #include "mktree/scene.h"
 #include "storage/page_store.h"
 #include "store/stored_geometry.h"
+#include "test_dirs.h"
 
 namespace mktree::testing {
 
@@ -187,25 +188,5 @@ inline Status BuildTestStore(const std::vector<SceneObject>& objects, const Code
   if (!groups.empty()) build(0, static_cast<uint32_t>(groups.size()), 0);
   return Status::Ok();
 }
-
-// A fresh directory under the system temp dir, removed at destruction.
-class TempDir {
- public:
-  TempDir() {
-    std::random_device rd;
-    path_ = std::filesystem::temp_directory_path() /
-            ("mktree_storage_test_" + std::to_string(rd()) + "_" + std::to_string(rd()));
-    std::filesystem::create_directories(path_);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    std::filesystem::remove_all(path_, ec);
-  }
-  std::string file(const std::string& name) const { return (path_ / name).string(); }
-  const std::filesystem::path& path() const { return path_; }
-
- private:
-  std::filesystem::path path_;
-};
 
 }  // namespace mktree::testing

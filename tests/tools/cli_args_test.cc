@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "test_dirs.h"
 #include "tool_runner.h"
 
 namespace {
@@ -50,8 +51,7 @@ class CliArgsTest : public ::testing::Test {
   // in/: a scene, a store built from it, a query file; scratch/: the runner's capture files; out/: where
   // each case may name its output, and which must stay empty.
   static void SetUpTestSuite() {
-    root_ = new fs::path(fs::temp_directory_path() / ("mktree_cli_args_" + std::to_string(::getpid())));
-    fs::remove_all(*root_);
+    root_ = new mktree::testing::TempDir("mktree_cli_args");
     fs::create_directories(*root_ / "in");
     fs::create_directories(*root_ / "scratch");
     std::ofstream(In("scene.obj"))
@@ -67,10 +67,7 @@ class CliArgsTest : public ::testing::Test {
     for (const auto& e : fs::directory_iterator(*root_ / "in"))
       if (e.is_regular_file()) (*inputs_)[e.path().filename().string()] = Slurp(e.path());
   }
-  static void TearDownTestSuite() {
-    fs::remove_all(*root_);
-    delete root_;
-  }
+  static void TearDownTestSuite() { delete root_; }
   void SetUp() override {
     fs::remove_all(*root_ / "out");
     fs::create_directories(*root_ / "out");
@@ -112,11 +109,11 @@ class CliArgsTest : public ::testing::Test {
     EXPECT_TRUE(now == *inputs_) << "an input was changed, or a file was left next to the inputs";
   }
 
-  static fs::path* root_;
+  static mktree::testing::TempDir* root_;
   static std::map<std::string, std::string>* inputs_;
 };
 
-fs::path* CliArgsTest::root_ = nullptr;
+mktree::testing::TempDir* CliArgsTest::root_ = nullptr;
 std::map<std::string, std::string>* CliArgsTest::inputs_ = new std::map<std::string, std::string>;
 
 struct BadRun {

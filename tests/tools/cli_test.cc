@@ -8,6 +8,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "test_dirs.h"
 #include "tool_runner.h"
 
 namespace {
@@ -18,14 +19,6 @@ using RunResult = mktree::testing::ToolRun;
 
 class CliTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("mktree_cli_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-
   std::string P(const std::string& name) const { return (dir_ / name).string(); }
 
   RunResult Mktree(const std::string& args) const { return mktree::testing::RunMktree(args, dir_); }
@@ -40,7 +33,7 @@ class CliTest : public ::testing::Test {
     return names;
   }
 
-  fs::path dir_;
+  mktree::testing::TempDir dir_{"mktree_cli"};
 };
 
 const char* kCube =

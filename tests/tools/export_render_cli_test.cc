@@ -11,6 +11,7 @@
 #include <regex>
 #include <sstream>
 
+#include "test_dirs.h"
 #include "tool_runner.h"
 
 namespace {
@@ -23,8 +24,7 @@ using mktree::testing::Slurp;
 class ExportRenderCliTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    dir_ = new fs::path(fs::temp_directory_path() / ("mktree_viz_cli_" + std::to_string(::getpid())));
-    fs::remove_all(*dir_);
+    dir_ = new mktree::testing::TempDir("mktree_viz_cli");
     fs::create_directories(*dir_ / "store");
     store_ = new std::string((*dir_ / "store" / "ship.mkt").string());
     // A small tanker straight from the generator: a real tree with all three groups at level 1.
@@ -32,7 +32,6 @@ class ExportRenderCliTest : public ::testing::Test {
     ASSERT_EQ(b.code, 0) << b.err;
   }
   static void TearDownTestSuite() {
-    fs::remove_all(*dir_);
     delete store_;
     delete dir_;
   }
@@ -61,12 +60,12 @@ class ExportRenderCliTest : public ::testing::Test {
     EXPECT_TRUE(Files().empty());
   }
 
-  static fs::path* dir_;
+  static mktree::testing::TempDir* dir_;
   static std::string* store_;
   fs::path out_;
 };
 
-fs::path* ExportRenderCliTest::dir_ = nullptr;
+mktree::testing::TempDir* ExportRenderCliTest::dir_ = nullptr;
 std::string* ExportRenderCliTest::store_ = nullptr;
 
 uint32_t BigEndian32(const std::string& s, size_t at) {

@@ -13,14 +13,17 @@
 #include "engine/ingest/store_builder.h"
 #include "engine/scene/vector_scene_source.h"
 #include "query/scene_fixtures.h"
+#include "test_dirs.h"
 
 namespace mktree {
 namespace {
 
 namespace fs = std::filesystem;
 
+// In a folder of this program's, removed when it ends.
 std::string TempPath(const std::string& name) {
-  return (fs::temp_directory_path() / ("mktree_render_" + std::to_string(::getpid()) + "_" + name)).string();
+  static const testing::TempDir dir("mktree_render");
+  return dir.file(name);
 }
 
 struct Image {
