@@ -56,7 +56,7 @@ PROGRESS_RE = re.compile(r"^[\w .-]+: \d+(/\d+ \(\d+%\))? [\d.]+s$")
 # docs/cli.md, `mktree info --json`.
 INFO_KEYS = {"file", "file_bytes", "backend", "codec", "objects", "nodes", "internal_nodes", "leaves", "pages",
              "height", "block_size", "blocks_per_page", "page_bytes", "balance_r", "split_nodes", "split_cells",
-             "split_both_cells", "page_fill", "ram_bytes", "leaf_filter_bytes", "tree"}
+             "split_both_cells", "page_fill", "ram_bytes", "leaf_filter_bytes", "origin", "tree"}
 TREE_KEYS = {"objects", "height", "internal_nodes", "leaves", "pages", "multi_page_leaves", "min_objects_per_leaf",
              "mean_objects_per_leaf", "max_objects_per_leaf", "mem_page", "mean_page_fill", "min_page_fill",
              "split_tree_nodes", "max_split_tree_nodes", "split_tree_cells", "both_cells", "overlap_objects",
@@ -623,10 +623,19 @@ class Hdf5Model(Model):
             self.leaves = [tuple(float(x) for x in tuple(r["box_min"]) + tuple(r["box_max"])) +
                            (int(r["node"]), int(r["object_count"]), int(r["payload_bytes"]), int(r["first_page"]),
                             int(r["page_count"]), 0) for r in f["tree/leaves"][()]]
-            objs = f["objects"][()]
-            self.obj_ids = [int(x) for x in objs["id"]]
-            self.obj_leaf = [int(x) for x in objs["leaf"]]
-            self.names = [bytes(x).split(b"\0")[0] for x in objs["name"]]
+            if isinstance(f["objects"], h5py.Group):  # format 3: the canonical object table
+                self.obj_leaf = [int(x) for x in f["objects/leaf"][()]]
+                ends = [int(x) for x in f["objects/name_end"][()]]
+                names = f["objects/names"][()].tobytes() if f["objects/names"].shape[0] else b""
+                self.names, start = [], 0
+                for e in ends:
+                    self.names.append(names[start:e])
+                    start = e
+            else:  # format 2: one compound dataset
+                objs = f["objects"][()]
+                self.obj_leaf = [int(x) for x in objs["leaf"]]
+                self.names = [bytes(x).split(b"\0")[0] for x in objs["name"]]
+            self.obj_ids = list(range(len(self.obj_leaf)))
             self.stats = bytes(f["stats_json"][()]).split(b"\0")[0]
             self.leaf_filter = bytearray(f["tree/leaf_filter"][()].tobytes())
         self.orig = (list(self.nodes), list(self.splits), list(self.leaves), list(self.obj_leaf), list(self.names),
@@ -666,7 +675,14 @@ class Hdf5Model(Model):
             if self.leaves != self.orig[2]:
                 rewrite("tree/leaves", self.leaf_dtype, [(l[0:3], l[3:6], l[6], l[7], l[8], l[9], l[10])
                                                          for l in self.leaves])
-            if self.obj_leaf != self.orig[3] or self.names != self.orig[4]:
+            if (self.obj_leaf != self.orig[3] or self.names != self.orig[4]) and isinstance(f["objects"], h5py.Group):
+                def replace(name, arr):
+                    del f[name]
+                    f.create_dataset(name, data=arr, chunks=(max(1, min(65536, len(arr))),) if len(arr) else None)
+                replace("objects/leaf", np.array(self.obj_leaf, dtype="<u4"))
+                replace("objects/name_end", np.array(self.name_ends(), dtype="<u8"))
+                replace("objects/names", np.frombuffer(b"".join(self.names), dtype=np.uint8))
+            elif self.obj_leaf != self.orig[3] or self.names != self.orig[4]:
                 d = f["objects"]
                 if len(self.obj_leaf) == d.shape[0] and self.names == self.orig[4]:
                     d[...] = _with_field(d[()], "leaf", self.obj_leaf)

@@ -98,6 +98,7 @@ int RunBuild(const BuildArgs& a) {
   opts.progress = [&](IngestStage s, uint64_t done, uint64_t total) {
     progress.Update(IngestStageName(s), done, total);
   };
+  for (const std::string& in : a.inputs) opts.input_name += (opts.input_name.empty() ? "" : ", ") + in;
   auto report = BuildStore(openers, a.output, opts);
   progress.Done();
   if (!report.ok()) return Fail(report.status().message());

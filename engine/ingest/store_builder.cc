@@ -212,7 +212,9 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
   report.objects = next_id;
   progress(IngestStage::kRead, next_id, next_id);
   if (report.objects == 0)
-    return Status::InvalidArgument(store_path + ": not built: empty scene, no object with geometry in the input");
+    return Status::InvalidArgument(
+        (options.input_name.empty() ? store_path + ": not built" : options.input_name + ": " + store_path + " not built") +
+        ": empty scene, no object with geometry in the input");
   MKTREE_RETURN_IF_ERROR(geometry.Flush());
   MKTREE_RETURN_IF_ERROR(names.Flush());
   report.read_seconds = Seconds(start);

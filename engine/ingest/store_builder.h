@@ -41,6 +41,9 @@ struct IngestOptions {
   std::string spill_dir;       // where the spill files go; empty: next to the output store
   uint32_t threads = 0;        // threads encoding objects (edge check, codec), the caller's included; 0: one per core
   IngestProgress progress;     // optional
+  // What the inputs are called in errors that concern the input as a whole (an empty scene); empty: the
+  // error names the store.
+  std::string input_name;
 };
 
 struct IngestReport {

@@ -131,7 +131,7 @@ TEST_F(CliTest, EmptySceneIsRefused) {
   Write("empty.obj", "# nothing but a comment\nv 0 0 0\n");
   RunResult r = Mktree("build " + P("empty.obj") + " -o " + P("out.mkt"));
   EXPECT_NE(r.code, 0);
-  EXPECT_NE(r.err.find(P("out.mkt") + ": not built: empty scene"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find(P("empty.obj") + ": " + P("out.mkt") + " not built: empty scene"), std::string::npos) << r.err;
   EXPECT_EQ(Files(), std::vector<std::string>{"empty.obj"});
 }
 
