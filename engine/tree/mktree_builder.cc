@@ -17,28 +17,18 @@
 #include <thread>
 #include <type_traits>
 
-#ifdef __GLIBC__
-#include <malloc.h>
-#endif
-#ifdef __linux__
-#include <sys/mman.h>
-#endif
-
 #include "engine/tree/box_lanes.h"
+#include "engine/tree/build_memory.h"
 #include "engine/tree/page_budget.h"
 #include "engine/tree/split_tree_builder.h"
 
 namespace mktree {
 namespace {
 
+using namespace build;
+
 constexpr uint32_t kDepthGuard = 100;
-constexpr size_t kTrimBytes = size_t{8} << 20;
 constexpr double kGuardBalance = 0.25;
-// How far ahead record reads in key order are prefetched, in nodes of at least kPrefetchObjects (smaller
-// ones are in cache). Measured at 1M (1 thread, key sweeps of the nodes of 2^13 objects and more, three
-// runs each): 16 ahead 119-146 ms, 32 114-120, 48 116-131, 64 91-148, 96 112-121.
-constexpr uint32_t kPrefetch = 48;
-constexpr uint32_t kPrefetchObjects = 8192;
 // The scratch arrays keep room for a node still to come of up to this many objects (RunSpawning). At 1M,
 // 2 threads: 2^16 keeps most of the faults saved (57k a build, against 56k unbounded and 63k without) at
 // the old peak; 2^18 and more keep room the peak pays for (97 B/obj).
@@ -51,62 +41,6 @@ inline uint32_t SortableBits(float f) {
   const uint32_t u = std::bit_cast<uint32_t>(f);
   return (u & 0x80000000u) ? ~u : (u | 0x80000000u);
 }
-
-// The allocator of the build's large arrays.
-// - No zero-fill: resize() constructs nothing (every element is written before it is read), so the page
-//   faults happen in the loops that fill the arrays (on two threads for the layout), not in a serial memset.
-//   Not even Box3f's member initializers run: they wrote the 24 bytes an object of the layout's box array
-//   on one thread (1M tanker: 6k page faults, 12 ms, before the two-thread copy that overwrites them).
-// - Arrays of 1 MiB or more are mapped on their own, so freeing one gives its memory back at once (not to
-//   a heap whose holes the next allocations may not fit): 1M tanker, 1 thread, peak 93.3 -> 91.4 B/object.
-// (Transparent huge pages for them were tried: the sorts' TLB misses drop, but on this VM a 2 MiB page
-// costs more to fault in than 512 small ones: 10M layout 0.39 -> 0.93 s, sorts 0.52 -> 1.0 s. A 2 MiB
-// page new to the process costs ~6 ms, one it freed moments before ~0.25 ms, 512 small ones ~1 ms; and
-// random reads over a 24 MiB array take as long with huge pages: the key sweeps are not bound by the TLB.)
-template <typename T>
-struct BuildAllocator {
-  using value_type = T;
-  static constexpr size_t kMapBytes = size_t{1} << 20;  // smaller arrays come from malloc
-  BuildAllocator() = default;
-  template <typename U>
-  BuildAllocator(const BuildAllocator<U>&) noexcept {}
-  T* allocate(size_t n) {
-#ifdef __linux__
-    if (n * sizeof(T) >= kMapBytes) {
-      void* p = mmap(nullptr, n * sizeof(T), PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
-      if (p == MAP_FAILED) throw std::bad_alloc();
-      return static_cast<T*>(p);
-    }
-#endif
-    void* p = std::malloc(std::max<size_t>(n * sizeof(T), 1));
-    if (p == nullptr) throw std::bad_alloc();
-    return static_cast<T*>(p);
-  }
-  void deallocate(T* p, size_t n) noexcept {
-#ifdef __linux__
-    if (n * sizeof(T) >= kMapBytes) {
-      munmap(p, n * sizeof(T));
-      return;
-    }
-#endif
-    std::free(p);
-  }
-  template <typename U>
-  void construct(U*) noexcept {
-    // Implicit-lifetime element types only (as for Scratch): the storage's objects exist once written.
-    static_assert(std::is_trivially_copyable_v<U> && std::is_trivially_destructible_v<U>);
-  }
-  template <typename U, typename... Args>
-  void construct(U* p, Args&&... args) {
-    ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
-  }
-  template <typename U>
-  bool operator==(const BuildAllocator<U>&) const noexcept {
-    return true;
-  }
-};
-template <typename T>
-using BuildVector = std::vector<T, BuildAllocator<T>>;
 
 // LSD radix sort of (key << 32 | payload) pairs by the key, stable, writing the payloads in that order to
 // *out (resized; b is scratch): 3 passes of 11/11/10 bits, far faster than an indirect comparison sort at
@@ -264,82 +198,6 @@ BuildRecords SpatialLayout(std::vector<ObjectRecord> records, const Box3f& all, 
   *input_position = std::move(order);
   return rec;
 }
-
-// Gives the heap's free pages back to the system: the builder frees large temporaries between phases,
-// and glibc keeps freed heap memory (not only its top) resident otherwise.
-void TrimHeap() {
-#ifdef __GLIBC__
-  malloc_trim(0);
-#endif
-}
-
-// A per-node scratch array: it grows without zero-filling (every node writes what it reads), keeps its
-// size from node to node, and is shrunk explicitly. From 1 MiB on it is mapped on its own and resized in
-// place (mremap): the pages it keeps stay mapped, so shrinking it as the nodes get smaller faults nothing
-// in again. (With free-and-allocate, the next larger node faulted them in again: with the retention in
-// RunSpawning, 1M tanker, 63k -> 56k faults a 2-thread build, at about 1.6 us each on this VM.)
-template <typename T>
-class Scratch {
-  // Implicit-lifetime element types only: the storage's objects exist once written.
-  static_assert(std::is_trivially_copyable_v<T> && std::is_trivially_destructible_v<T>);
-
- public:
-  Scratch() = default;
-  Scratch(const Scratch&) = delete;
-  Scratch& operator=(const Scratch&) = delete;
-  ~Scratch() { Free(); }
-
-  void Fit(size_t n) {
-    if (n > capacity_) Reset(n);
-  }
-  // Capacity n (at least), contents not kept.
-  void Reset(size_t n) {
-    const size_t bytes = std::max<size_t>(n * sizeof(T), 1);
-#ifdef __linux__
-    if (mapped_ > 0 || bytes >= BuildAllocator<T>::kMapBytes) {  // once mapped, resized in place
-      const size_t want = (bytes + kPage - 1) / kPage * kPage;
-      void* p = mapped_ > 0 ? mremap(data_, mapped_, want, MREMAP_MAYMOVE)
-                            : mmap(nullptr, want, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
-      if (p == MAP_FAILED) throw std::bad_alloc();
-      if (mapped_ == 0) Free();
-      data_ = static_cast<T*>(p);
-      mapped_ = want;
-      capacity_ = want / sizeof(T);
-      return;
-    }
-#endif
-    Free();
-    data_ = static_cast<T*>(std::malloc(bytes));
-    if (data_ == nullptr) throw std::bad_alloc();
-    capacity_ = n;
-  }
-  size_t capacity() const { return capacity_; }
-  T* data() { return data_; }
-  T& operator[](size_t i) { return data_[i]; }
-  const T& operator[](size_t i) const { return data_[i]; }
-
- private:
-  static constexpr size_t kPage = 4096;  // mremap sizes are whole pages (rounding up only wastes address space)
-
-  void Free() {
-#ifdef __linux__
-    if (mapped_ > 0) {
-      munmap(data_, mapped_);
-      data_ = nullptr;
-      mapped_ = 0;
-      capacity_ = 0;
-      return;
-    }
-#endif
-    std::free(data_);
-    data_ = nullptr;
-    capacity_ = 0;
-  }
-
-  T* data_ = nullptr;
-  size_t capacity_ = 0;
-  size_t mapped_ = 0;  // bytes mapped, 0 when data_ is from malloc
-};
 
 struct Shared {
   const BuildVector<Box3f>& box;
