@@ -18,7 +18,9 @@
 #include <type_traits>
 
 #include "engine/tree/box_lanes.h"
+#include "engine/tree/build_layout.h"
 #include "engine/tree/build_memory.h"
+#include "engine/tree/build_threads.h"
 #include "engine/tree/page_budget.h"
 #include "engine/tree/split_tree_builder.h"
 
@@ -35,169 +37,6 @@ constexpr double kGuardBalance = 0.25;
 constexpr uint32_t kRetainObjects = 1u << 16;
 // Cuts per block of the pruned candidate scan (ScanKeys).
 constexpr uint32_t kPruneBlock = 64;
-
-// Float -> uint32 whose unsigned order is the float order (for the radix sort).
-inline uint32_t SortableBits(float f) {
-  const uint32_t u = std::bit_cast<uint32_t>(f);
-  return (u & 0x80000000u) ? ~u : (u | 0x80000000u);
-}
-
-// LSD radix sort of (key << 32 | payload) pairs by the key, stable, writing the payloads in that order to
-// *out (resized; b is scratch): 3 passes of 11/11/10 bits, far faster than an indirect comparison sort at
-// 10M. `count` holds the three digits' counts (kRadixBuckets each), counted as *a was written; the last pass
-// writes the payloads directly.
-constexpr size_t kRadixBuckets = size_t{1} << 11;
-void RadixSortPayloads(BuildVector<uint64_t>* a, BuildVector<uint64_t>* b, uint32_t* count,
-                       BuildVector<uint32_t>* out) {
-  const size_t n = a->size();
-  b->resize(n);
-  out->resize(n);
-  constexpr int kShift[3] = {32, 43, 54};
-  for (int pass = 0; pass < 3; ++pass) {
-    uint32_t* c = count + pass * kRadixBuckets;
-    uint32_t sum = 0;  // (fewer than 2^32 objects: BuildMKTree's REQUIRES)
-    for (size_t i = 0; i < kRadixBuckets; ++i) {
-      const uint32_t here = c[i];
-      c[i] = sum;
-      sum += here;
-    }
-    const int shift = kShift[pass];
-    if (pass < 2) {
-      for (uint64_t v : *a) (*b)[c[(v >> shift) & 0x7ff]++] = v;
-      a->swap(*b);
-    } else {
-      for (uint64_t v : *a) (*out)[c[(v >> shift) & 0x7ff]++] = static_cast<uint32_t>(v);
-    }
-  }
-}
-
-// What the builder reads of an object, 28 bytes instead of ObjectRecord's 40, in two arrays: the boxes,
-// and the encoded sizes (read alone when a node sums its bytes, 16 to a cache line). The ids are kept
-// apart, for the end only.
-struct BuildRecords {
-  BuildVector<Box3f> box;
-  BuildVector<uint32_t> bytes;
-};
-
-// Object indices sorted by one key (axis, min or max), stable: ties in layout order (which the input
-// decides, as it decides the layout), so the boxes are read in order, not gathered. The radix digits are
-// counted as the keys are written.
-void SortByKey(const BuildVector<Box3f>& box, int axis, bool use_max, BuildVector<uint64_t>* a,
-               BuildVector<uint64_t>* b, BuildVector<uint32_t>* out) {
-  const size_t n = box.size();
-  a->resize(n);
-  // The top digit (sign, exponent) takes few values: neighbours' counts go to four copies (the last
-  // three after the three digits' blocks), or each increment would wait for the last one.
-  constexpr size_t kTop = kRadixBuckets / 2;
-  std::vector<uint32_t> count(3 * kRadixBuckets + 3 * kTop, 0);
-  uint32_t* const low = count.data();
-  uint32_t* const mid = low + kRadixBuckets;
-  uint32_t* const top = mid + kRadixBuckets;
-  auto top_copy = [&](size_t copy) { return copy == 0 ? top : top + kRadixBuckets + (copy - 1) * kTop; };
-  uint64_t* const keys = a->data();
-  auto add = [&](size_t i, size_t copy) {
-    const float k = use_max ? box[i].max[axis] : box[i].min[axis];
-    const uint32_t bits = SortableBits(k);
-    keys[i] = (uint64_t{bits} << 32) | i;
-    ++low[bits & 0x7ff];
-    ++mid[(bits >> 11) & 0x7ff];
-    ++top_copy(copy)[bits >> 22];
-  };
-  size_t i = 0;
-  for (; i + 4 <= n; i += 4) add(i, 0), add(i + 1, 1), add(i + 2, 2), add(i + 3, 3);
-  for (; i < n; ++i) add(i, 0);
-  for (size_t copy = 1; copy < 4; ++copy)
-    for (size_t d = 0; d < kTop; ++d) top[d] += top_copy(copy)[d];
-  RadixSortPayloads(a, b, count.data(), out);
-}
-
-// fn(lo, hi) over [0, n) in two halves, the first on a thread of its own when there are threads to spare
-// and enough objects to pay for one.
-template <typename Fn>
-void RunOnHalves(size_t n, int threads, Fn&& fn) {
-  if (threads < 2 || n < (size_t{1} << 16)) {
-    fn(size_t{0}, n);
-    return;
-  }
-  std::thread first([&] { fn(size_t{0}, n / 2); });
-  fn(n / 2, n);
-  first.join();
-}
-
-// Spreads the low 10 bits of v to every third bit (Morton code helper).
-inline uint32_t Spread3(uint32_t v) {
-  v &= 0x3ff;
-  v = (v | (v << 16)) & 0x030000ff;
-  v = (v | (v << 8)) & 0x0300f00f;
-  v = (v | (v << 4)) & 0x030c30c3;
-  v = (v | (v << 2)) & 0x09249249;
-  return v;
-}
-
-// The builder's records, grouped by the Morton cell of their box centres (16 cells an axis), in input order
-// within a cell, so that a node's objects lie close together in RAM: the split sweeps and the list
-// partitions read records in key order, which in input order misses the cache all the way down the tree.
-// Cells this coarse cost one counting pass, and keep what locality the input order has. `all`: the union
-// of the boxes. Frees `records`; *ids: the object ids in the same layout; *input_position: the input
-// position of the object at each layout position.
-BuildRecords SpatialLayout(std::vector<ObjectRecord> records, const Box3f& all, BuildVector<ObjectId>* ids,
-                          BuildVector<uint32_t>* input_position, int threads) {
-  const size_t n = records.size();
-  constexpr uint32_t kCellsPerAxis = 16;
-  constexpr size_t kCells = kCellsPerAxis * kCellsPerAxis * kCellsPerAxis;
-  BuildVector<uint16_t> cell(n);
-  // A counting sort by cell on the two halves: each counts its own objects, and a cell's objects from the
-  // first half go before those from the second (input order within a cell).
-  std::vector<size_t> count(2 * kCells, 0);
-  double scale[3];  // cells per metre (a multiply per axis, not a division: the cells only group)
-  for (int w = 0; w < 3; ++w) {
-    const double ext = double{all.max[w]} - all.min[w];
-    scale[w] = ext > 0 ? kCellsPerAxis / ext : 0;
-  }
-  RunOnHalves(n, threads, [&](size_t lo, size_t hi) {
-    size_t* const counts = count.data() + (lo == 0 ? 0 : kCells);
-    for (size_t i = lo; i < hi; ++i) {
-      const Box3f& bx = records[i].box;
-      uint32_t code = 0;
-      for (int w = 0; w < 3; ++w) {
-        const double c = 0.5 * (double{bx.min[w]} + bx.max[w]) - all.min[w];
-        constexpr double kTop = kCellsPerAxis - 1;
-        code |= Spread3(static_cast<uint32_t>(std::clamp(c * scale[w], 0.0, kTop))) << w;
-      }
-      cell[i] = static_cast<uint16_t>(code);
-      ++counts[code];
-    }
-  });
-  size_t start = 0;  // count[half * kCells + c] becomes where that half's objects of cell c go
-  for (size_t c = 0; c < kCells; ++c) {
-    for (size_t half : {size_t{0}, kCells}) {
-      const size_t here = count[half + c];
-      count[half + c] = start;
-      start += here;
-    }
-  }
-  BuildVector<uint32_t> order(n);  // layout position -> input position (record index)
-  RunOnHalves(n, threads, [&](size_t lo, size_t hi) {
-    size_t* const next = count.data() + (lo == 0 ? 0 : kCells);
-    for (size_t i = lo; i < hi; ++i) order[next[cell[i]]++] = static_cast<uint32_t>(i);
-  });
-  BuildVector<uint16_t>().swap(cell);
-  BuildRecords rec;
-  rec.box.resize(n);
-  rec.bytes.resize(n);
-  ids->resize(n);
-  RunOnHalves(n, threads, [&](size_t lo, size_t hi) {
-    for (size_t i = lo; i < hi; ++i) {
-      if (i + kPrefetch < hi) __builtin_prefetch(&records[order[i + kPrefetch]]);  // (a random read each)
-      const uint32_t from = order[i];
-      rec.box[i] = records[from].box;
-      rec.bytes[i] = records[from].encoded_bytes;
-      (*ids)[i] = records[from].id;
-    }
-  });
-  *input_position = std::move(order);
-  return rec;
-}
 
 struct Shared {
   const BuildVector<Box3f>& box;
@@ -284,15 +123,6 @@ uint32_t AppendSplitTree(const SplitNode* tree, uint32_t count, std::vector<Spli
   out->insert(out->end(), tree, tree + count);
   RebaseSplitTree(out->data() + base, count, base);
   return base;
-}
-
-// Runs a() here and b() on a thread of its own, and waits for both: for the parts of a multi-thread build
-// during which the other threads have nothing to do (the root, the stitch).
-template <typename A, typename B>
-void Together(A&& a, B&& b) {
-  std::thread other(std::forward<B>(b));
-  a();
-  other.join();
 }
 
 class SubtreeBuilder {
@@ -1340,20 +1170,7 @@ Result<BuildResult> BuildMKTree(std::vector<ObjectRecord> records, const BuildPa
     MKTREE_RETURN_IF_ERROR(CheckUniqueIds(ids, input_position, max_id));
   }
   lap(&result.timings.layout);
-  {
-    // With two threads or more, the six sorts run on two (each thread with its own radix buffers).
-    auto sort_lists = [&](int first, int step) {
-      BuildVector<uint64_t> a, b;
-      for (int l = first; l < 6; l += step) SortByKey(rec.box, l / 2, l % 2 == 1, &a, &b, &shared.lists[l]);
-    };
-    if (threads >= 2) {
-      std::thread other(sort_lists, 1, 2);
-      sort_lists(0, 2);
-      other.join();
-    } else {
-      sort_lists(0, 1);
-    }
-  }
+  SortKeyOrders(rec.box, threads, &shared.lists);
   TrimHeap();
   lap(&result.timings.sorts);
   shared.side.assign(n, 0);
