@@ -1,0 +1,137 @@
+// The split choice of the Splitting Overlap Algorithm (SOA): where an internal node's cut plane goes.
+// The rule, in the paper's notation (docs/design.md §"The Splitting Overlap Algorithm"):
+//
+//   A node n holding Sn is a leaf when InPage(Sn): its leaf payload fits in one page of
+//   MemPage = d x BlockSize bytes (or Sn is one object). Otherwise, with N = |Sn| and balance ratio r:
+//   1. For each axis w and each sort key (min_w, max_w) order Sn by the key; cut k puts the first k
+//      objects in Sn1 and the rest in Sn2, with ceil(r N) <= k <= floor((1 - r) N) and 1 <= k <= N - 1.
+//   2. a = min over Sn2 of min_w (plane pi0), b = max over Sn1 of max_w (plane pi1). If a >= b the
+//      children are disjoint along w; otherwise the slab a <= w <= b is the overlap region, and
+//      Sm = { objects with max_w > a and min_w < b } is the overlap set.
+//   3. Take the cut with the fewest objects in Sm, then the thinner slab (b - a), then the better balance.
+//
+// Here: InPage is IsLeaf; step 1's window of k is BalancedCuts (past depth kDepthGuard, r is at least
+// kGuardBalance); steps 2-3 are SplitChooser::Choose, in O(N) per axis over the presorted keys: along
+// either key order a(k) and b(k) never decrease, so |Sm| = #(min_w < b) - #(max_w <= a) is counted by two
+// cursors moving forward. Candidate::BetterThan is step 3's order, with two refinements that
+// BuildTuning (mktree_builder.h) switches: near the leaves (fill_aware), page waste ranks first among the
+// candidates whose |Sm| is within the fill slack of the least; under SplitPolicy::kCompact only the
+// node's wide axes are tried and ties go to the smaller N1 x margin(R(Sn1)) + N2 x margin(R(Sn2)) before
+// the slab. With kSoa and fill_aware off the choice is the rule above exactly.
+// What each object then becomes (Sn1, Sn2, or a member of Sm that crosses pi0 or pi1 or lies inside the
+// slab, for the SplitTree to place) is SubtreeBuilder's (subtree_builder.h).
+#pragma once
+
+#include <cstdint>
+#include <limits>
+
+#include "engine/tree/build_memory.h"
+#include "engine/tree/build_state.h"
+#include "engine/tree/page_budget.h"
+
+namespace mktree::build {
+
+// InPage (with the one-object leaf): a node of `count` objects whose entries take `bytes` is a leaf.
+inline bool IsLeaf(uint32_t count, uint64_t bytes, uint64_t mem_page) {
+  return count == 1 || FitsInOnePage(bytes, mem_page);
+}
+
+// Past this depth r is at least kGuardBalance: with r near 0 the SOA may peel one object off per level.
+inline constexpr uint32_t kDepthGuard = 100;
+inline constexpr double kGuardBalance = 0.25;
+
+// The cuts k in [k_lo, k_hi] that step 1 allows.
+struct CutRange {
+  uint32_t k_lo = 0, k_hi = 0;
+};
+// Step 1's window for a node of n >= 2 objects at `depth` (r near 0.5 with a tiny n leaves no k in
+// [ceil(r n), floor((1 - r) n)]: then the middle cut alone).
+CutRange BalancedCuts(uint32_t n, uint32_t depth, double balance_r);
+
+// One candidate split: cut k of list 2*w + key, its planes and the keys it is ranked by.
+struct Candidate {
+  int list = -1;  // 2*w + key
+  uint32_t k = 0;
+  float a = 0, b = 0;
+  uint32_t sm = 0;
+  uint32_t primary = 0;  // sm, or 0 when within the fill slack of the minimum
+  uint32_t waste = 0;
+  float margin = 0;  // kCompact: N1 x margin(R(Sn1)) + N2 x margin(R(Sn2)); 0 under kSoa
+  double slab = 0;
+  uint32_t imbalance = 0;
+  uint64_t left_bytes = 0;  // encoded bytes of Sn1 (known only when fill_aware)
+  bool fill_aware = false;
+  bool BetterThan(const Candidate& o) const {
+    if (o.list < 0) return true;
+    if (primary != o.primary) return primary < o.primary;
+    if (waste != o.waste) return waste < o.waste;
+    if (margin != o.margin) return margin < o.margin;
+    if (sm != o.sm) return sm < o.sm;
+    if (slab != o.slab) return slab < o.slab;
+    return imbalance < o.imbalance;
+  }
+};
+
+// Chooses the split of one node after another (one per builder thread: it keeps the sweeps' scratch).
+class SplitChooser {
+ public:
+  explicit SplitChooser(const BuildState& s)
+      : s_(s), box_(s.box), bytes_(s.bytes), mem_page_(s.params.mem_page()) {}
+
+  // The best candidate among the cuts of `cuts` of the node of `t` (steps 2-3, as BuildTuning ranks).
+  Candidate Choose(const Task& t, CutRange cuts);
+
+  // Gives back the scratch beyond what a node of n objects needs.
+  void ShrinkScratch(size_t n);
+
+ private:
+  // How the candidates of one node are ranked.
+  struct Mode {
+    bool fill_aware = false;
+    bool compact = false;
+    uint32_t sm_min = 0;  // the minimal |Sm| over the candidates (known when fill_aware)
+  };
+
+  // Per sort list, the candidates with the list's best (primary, waste) (kCompact's first pass).
+  struct ListTies {
+    uint64_t key = 0;  // primary << 32 | waste
+    uint32_t count = 0, k_min = 0, k_max = 0;
+    Candidate first;
+  };
+
+  uint64_t Pages(uint64_t bytes) const { return PagesForLeaf(bytes, mem_page_); }
+  Candidate ChooseSplit(const Task& t, uint32_t k_lo, uint32_t k_hi);
+  void ScanWasteMargins(const Task& t, int w, uint32_t k_lo, uint32_t k_hi, Candidate* best);
+  void CompactAxes(const Task& t, bool axis_ok[3]) const;
+  float SplitMargin(const Task& t, int list, uint32_t k) const;
+  void Sweep(const Task& t, int w, uint32_t k_lo, uint32_t k_hi, const Mode& m, Candidate* best,
+             uint32_t* sm_min_out);
+  void ScanKeys(const Task& t, int w, uint32_t k_lo, uint32_t k_hi, const Mode& m, Candidate* best,
+                uint32_t* sm_min_out, ListTies* ties = nullptr, const uint64_t* only = nullptr,
+                const ListTies* tied = nullptr, uint64_t bound = std::numeric_limits<uint64_t>::max());
+
+  // The key sweeps (split_key_sweeps.cc).
+  void PrefixSuffixMargins(const Task& t, const BuildVector<uint32_t>& order, uint32_t k_min32,
+                           uint32_t k_max32);
+  void GatherAxis(const Task& t, int w, uint32_t k_lo, uint32_t k_hi);
+  template <bool kFar>
+  void GatherRuns(const Task& t, int w, uint32_t k_lo32, uint32_t k_hi32);
+
+  // kCompact's margin pass: N1 x margin(R(Sn1)) + N2 x margin(R(Sn2)) of cut k (PrefixSuffixMargins done).
+  float CutMargin(uint32_t k, uint32_t n) const {
+    return static_cast<float>(static_cast<double>(k) * margin_pre_[k - margin_base_] +
+                              static_cast<double>(n - k) * margin_suf_[k - margin_base_]);
+  }
+
+  const BuildState& s_;
+  const BuildVector<Box3f>& box_;
+  const BuildVector<uint32_t>& bytes_;
+  const uint64_t mem_page_;
+  Scratch<float> sorted_min_, prefix_max_, sorted_max_, suffix_min_;
+  uint32_t window_base_ = 0;                // prefix_max_ / suffix_min_ index of the cut k_lo
+  Scratch<float> margin_pre_, margin_suf_;  // kCompact only
+  Scratch<uint32_t> block_pa_, block_pb_;   // ScanKeys' counts at its block ends
+  uint32_t margin_base_ = 0;                // margin_pre_ / margin_suf_ index of the cut k_min
+};
+
+}  // namespace mktree::build
