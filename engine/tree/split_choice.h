@@ -22,7 +22,11 @@
 // slab, for the SplitTree to place) is SubtreeBuilder's (subtree_builder.h).
 #pragma once
 
+#include <algorithm>
+#include <array>
+#include <cstddef>
 #include <cstdint>
+#include <cstdlib>
 #include <limits>
 
 #include "engine/tree/build_memory.h"
@@ -72,6 +76,96 @@ struct Candidate {
   }
 };
 
+// The candidate of cut k of `list` in a node of n objects, with its slab (b - a, 0 when disjoint) and
+// imbalance |2k - n|.
+inline Candidate MakeCandidate(int list, uint32_t k, uint32_t n, float a, float b, uint32_t sm,
+                               uint32_t primary, uint32_t waste, uint64_t left_bytes, bool fill_aware) {
+  Candidate c;
+  c.list = list;
+  c.k = k;
+  c.a = a;
+  c.b = b;
+  c.sm = sm;
+  c.primary = primary;
+  c.waste = waste;
+  c.slab = std::max(0.0, double{b} - double{a});
+  c.imbalance = static_cast<uint32_t>(std::abs(2 * int64_t{k} - int64_t{n}));
+  c.left_bytes = left_bytes;
+  c.fill_aware = fill_aware;
+  return c;
+}
+
+// Page waste Pages(left) + Pages(total - left) - Pages(total) of cuts in increasing order of their left
+// bytes, without a division per cut: the page counts only step where the bytes cross a page.
+class PageSplit {
+ public:
+  PageSplit(uint64_t left, uint64_t total, uint64_t mem_page)
+      : cap_(PagePayloadCapacity(mem_page)),
+        left_pages_(PagesForLeaf(left, mem_page)),
+        right_pages_(PagesForLeaf(total - left, mem_page)),
+        total_pages_(PagesForLeaf(total, mem_page)) {
+    // The left side takes another page once left > left_limit_; the right one gives one back once
+    // left >= right_limit_ (never below one page).
+    left_limit_ = left_pages_ * cap_ - kLeafHeaderBytes;
+    right_limit_ = right_pages_ > 1 ? LeafPayloadBytes(total) - (right_pages_ - 1) * cap_
+                                    : std::numeric_limits<uint64_t>::max();
+  }
+  uint64_t Waste(uint64_t left) {  // left never decreases from one call to the next
+    while (left > left_limit_) ++left_pages_, left_limit_ += cap_;
+    while (left >= right_limit_) {
+      --right_pages_;
+      right_limit_ = right_pages_ > 1 ? right_limit_ + cap_ : std::numeric_limits<uint64_t>::max();
+    }
+    return left_pages_ + right_pages_ - total_pages_;
+  }
+
+ private:
+  uint64_t cap_, left_pages_, right_pages_, total_pages_, left_limit_, right_limit_;
+};
+
+// How the candidates of one node are ranked (beyond SplitPolicy).
+struct Ranking {
+  bool fill_aware = false;  // near the leaves: page waste first among the |Sm| within the fill slack
+  uint32_t sm_min = 0;      // the minimal |Sm| over the candidates (known when fill_aware)
+};
+
+// Per sort list, the candidates with the list's best (primary, waste) (kCompact's first pass).
+struct ListTies {
+  uint64_t key = 0;  // primary << 32 | waste
+  uint32_t count = 0, k_min = 0, k_max = 0;
+  Candidate first;
+};
+
+// What ScanKeys computes over the cuts of one axis. Each mode reads and writes only the fields of
+// ScanRequest and ScanOutcome that name it.
+enum class ScanMode : uint8_t {
+  kLeastSm,      // the least |Sm| into ScanOutcome::sm_min (the fill slack's first pass)
+  kBest,         // every cut ranked by BetterThan into ScanOutcome::best, margins not computed (kSoa)
+  kTies,         // per key, the cuts reaching the list's best (primary, waste) into ScanOutcome::ties,
+                 // margins not computed (kCompact's first pass)
+  kTiedMargins,  // only the cuts of ScanRequest::tied reaching ScanRequest::tie_key, with their margins,
+                 // ranked into ScanOutcome::best (kCompact's second pass)
+};
+struct ScanRequest {
+  ScanRequest(ScanMode mode, int axis, CutRange cuts, const Ranking& ranking = Ranking())
+      : mode(mode), axis(axis), cuts(cuts), ranking(ranking) {}
+  ScanMode mode;
+  int axis;
+  CutRange cuts;
+  Ranking ranking;
+  // kBest, kTies: a (primary << 32 | waste) key that the chosen candidate is known to reach; cuts that
+  // cannot reach it may be skipped.
+  uint64_t bound = std::numeric_limits<uint64_t>::max();
+  // kTiedMargins: the key the cuts must reach, and per key what kTies found along this axis.
+  uint64_t tie_key = 0;
+  std::array<ListTies, 2> tied;
+};
+struct ScanOutcome {
+  Candidate best;                                          // kBest, kTiedMargins: the best so far (in, out)
+  uint32_t sm_min = std::numeric_limits<uint32_t>::max();  // kLeastSm: lowered to the least |Sm| (in, out)
+  std::array<ListTies, 2> ties;                            // kTies: per key (out)
+};
+
 // Chooses the split of one node after another (one per builder thread: it keeps the sweeps' scratch).
 class SplitChooser {
  public:
@@ -85,35 +179,21 @@ class SplitChooser {
   void ShrinkScratch(size_t n);
 
  private:
-  // How the candidates of one node are ranked.
-  struct Mode {
-    bool fill_aware = false;
-    bool compact = false;
-    uint32_t sm_min = 0;  // the minimal |Sm| over the candidates (known when fill_aware)
-  };
-
-  // Per sort list, the candidates with the list's best (primary, waste) (kCompact's first pass).
-  struct ListTies {
-    uint64_t key = 0;  // primary << 32 | waste
-    uint32_t count = 0, k_min = 0, k_max = 0;
-    Candidate first;
-  };
-
   uint64_t Pages(uint64_t bytes) const { return PagesForLeaf(bytes, mem_page_); }
-  Candidate ChooseSplit(const Task& t, uint32_t k_lo, uint32_t k_hi);
-  void ScanWasteMargins(const Task& t, int w, uint32_t k_lo, uint32_t k_hi, Candidate* best);
   void CompactAxes(const Task& t, bool axis_ok[3]) const;
+  uint32_t LeastSm(const Task& t, CutRange cuts, const bool axis_ok[3]);
+  Candidate ChooseSoa(const Task& t, CutRange cuts, const Ranking& ranking, const bool axis_ok[3]);
+  Candidate ChooseCompact(const Task& t, CutRange cuts, const Ranking& ranking, const bool axis_ok[3]);
+  void ScanWasteMargins(const Task& t, int w, CutRange cuts, Candidate* best);
   float SplitMargin(const Task& t, int list, uint32_t k) const;
-  void Sweep(const Task& t, int w, uint32_t k_lo, uint32_t k_hi, const Mode& m, Candidate* best,
-             uint32_t* sm_min_out);
-  void ScanKeys(const Task& t, int w, uint32_t k_lo, uint32_t k_hi, const Mode& m, Candidate* best,
-                uint32_t* sm_min_out, ListTies* ties = nullptr, const uint64_t* only = nullptr,
-                const ListTies* tied = nullptr, uint64_t bound = std::numeric_limits<uint64_t>::max());
+  void ScanKeys(const Task& t, const ScanRequest& req, ScanOutcome* out);
+  template <int kKey>
+  void ScanKey(const Task& t, const ScanRequest& req, uint64_t* bound, ScanOutcome* out);
 
   // The key sweeps (split_key_sweeps.cc).
   void PrefixSuffixMargins(const Task& t, const BuildVector<uint32_t>& order, uint32_t k_min32,
                            uint32_t k_max32);
-  void GatherAxis(const Task& t, int w, uint32_t k_lo, uint32_t k_hi);
+  void GatherAxis(const Task& t, int w, CutRange cuts);
   template <bool kFar>
   void GatherRuns(const Task& t, int w, uint32_t k_lo32, uint32_t k_hi32);
 

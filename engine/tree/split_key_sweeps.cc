@@ -49,8 +49,9 @@ void SplitChooser::PrefixSuffixMargins(const Task& t, const BuildVector<uint32_t
 
 // The node's min_w in sorted order with the running max of max_w along it, and its max_w in sorted
 // order with the suffix min of min_w along it: all ScanKeys needs of axis w.
-void SplitChooser::GatherAxis(const Task& t, int w, uint32_t k_lo, uint32_t k_hi) {
+void SplitChooser::GatherAxis(const Task& t, int w, CutRange cuts) {
   const uint32_t n = t.hi - t.lo;
+  const uint32_t k_lo = cuts.k_lo, k_hi = cuts.k_hi;
   // The running extremes are kept for the cuts k in [k_lo, k_hi] only: less scratch at the root.
   window_base_ = k_lo;
   sorted_min_.Fit(n + 1);
