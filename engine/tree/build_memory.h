@@ -120,6 +120,7 @@ class Scratch {
   }
   size_t capacity() const { return capacity_; }
   T* data() { return data_; }
+  const T* data() const { return data_; }
   T& operator[](size_t i) { return data_[i]; }
   const T& operator[](size_t i) const { return data_[i]; }
 
