@@ -76,13 +76,19 @@ struct CutPlanes {
   float b(uint32_t k) const { return kKey == 0 ? pmax[k - base] : smax[k - 1]; }
 };
 
-// The pruned scan's block ends p_j = k_first + j * kPruneBlock (j < blocks) and p_blocks = k_last: the
-// counts pa, pb there into (*pa)[j], (*pb)[j], and *bound lowered to the exact |Sm| key of those cuts
-// before any block is scanned. Returns the number of blocks.
-template <int kKey>
-uint32_t BlockEnds(const CutPlanes<kKey>& planes, uint32_t n, uint32_t k_first, uint32_t k_last,
-                   Scratch<uint32_t>* block_pa, Scratch<uint32_t>* block_pb, uint64_t* bound) {
-  const uint32_t blocks = (k_last - k_first + 1 + kPruneBlock - 1) / kPruneBlock;
+// Runs eval(k_begin, k_end, cursors) over the cuts [k_first, k_last]: at once, or when `prunable` and
+// there are enough cuts, block by block (see ScanKeys). The block ends are p_j = k_first + j * kPruneBlock
+// (j < blocks) and p_blocks = k_last; their counts go to block_pa, block_pb, and *bound is lowered to the
+// exact |Sm| key of those cuts before any block is scanned. eval may lower *bound.
+template <int kKey, typename Eval>
+void ScanBlocks(const CutPlanes<kKey>& planes, uint32_t n, uint32_t k_first, uint32_t k_last, bool prunable,
+                Scratch<uint32_t>* block_pa, Scratch<uint32_t>* block_pb, uint64_t* bound, Eval&& eval) {
+  const uint32_t cuts = k_last - k_first + 1;
+  if (!prunable || cuts < 2 * kPruneBlock) {
+    eval(k_first, k_last, SmCursors{});
+    return;
+  }
+  const uint32_t blocks = (cuts + kPruneBlock - 1) / kPruneBlock;
   block_pa->Fit(blocks + 1);
   block_pb->Fit(blocks + 1);
   uint32_t pa = 0, pb = 0;
@@ -97,7 +103,29 @@ uint32_t BlockEnds(const CutPlanes<kKey>& planes, uint32_t n, uint32_t k_first, 
     else
       *bound = 0;  // a cut with |Sm| = 0: only such cuts can tie
   }
-  return blocks;
+  for (uint32_t j = 0; j < blocks; ++j) {
+    const uint32_t p = k_first + j * kPruneBlock;
+    const uint32_t q = j + 1 < blocks ? p + kPruneBlock - 1 : k_last;
+    const uint32_t lower = (*block_pb)[j] > (*block_pa)[j + 1] ? (*block_pb)[j] - (*block_pa)[j + 1] : 0;
+    if ((uint64_t{lower} << 32) > *bound) continue;
+    eval(p, q, SmCursors{(*block_pa)[j], (*block_pb)[j], true});
+  }
+}
+
+// kTies: counts a cut whose key is tie_key towards the list's best; true when it is a new best (the
+// caller then makes its Candidate: most cuts are not).
+inline bool Tally(ListTies* lt, uint64_t tie_key, uint32_t k) {
+  if (lt->count == 0 || tie_key < lt->key) {
+    lt->key = tie_key;
+    lt->count = 1;
+    lt->k_min = lt->k_max = k;
+    return true;
+  }
+  if (tie_key == lt->key) {
+    ++lt->count;
+    lt->k_max = k;
+  }
+  return false;
 }
 
 }  // namespace
@@ -237,17 +265,10 @@ void SplitChooser::ScanKey(const Task& t, const ScanRequest& req, uint64_t* boun
         waste = static_cast<uint32_t>(waste_key);
       }
       const uint64_t tie_key = uint64_t{primary} << 32 | waste;
-      if (mode == ScanMode::kTies) {  // a Candidate only for a new best: most cuts are not
-        ListTies& lt = out->ties[kKey];
-        if (lt.count == 0 || tie_key < lt.key) {
-          lt.key = tie_key;
-          lt.count = 1;
-          lt.k_min = lt.k_max = k;
-          lt.first = MakeCandidate(list, k, n, a, b, sm, primary, waste, left_bytes, fill_aware);
+      if (mode == ScanMode::kTies) {
+        if (Tally(&out->ties[kKey], tie_key, k)) {
+          out->ties[kKey].first = MakeCandidate(list, k, n, a, b, sm, primary, waste, left_bytes, fill_aware);
           bound = std::min(bound, tie_key);
-        } else if (tie_key == lt.key) {
-          ++lt.count;
-          lt.k_max = k;
         }
         continue;
       }
@@ -261,19 +282,7 @@ void SplitChooser::ScanKey(const Task& t, const ScanRequest& req, uint64_t* boun
     }
   };
 
-  const uint32_t cuts = k_last - k_first + 1;
-  if (!prunable || cuts < 2 * kPruneBlock) {
-    eval(k_first, k_last, SmCursors{});
-  } else {
-    const uint32_t blocks = BlockEnds(planes, n, k_first, k_last, &block_pa_, &block_pb_, &bound);
-    for (uint32_t j = 0; j < blocks; ++j) {
-      const uint32_t p = k_first + j * kPruneBlock;
-      const uint32_t q = j + 1 < blocks ? p + kPruneBlock - 1 : k_last;
-      const uint32_t lower = block_pb_[j] > block_pa_[j + 1] ? block_pb_[j] - block_pa_[j + 1] : 0;
-      if ((uint64_t{lower} << 32) > bound) continue;
-      eval(p, q, SmCursors{block_pa_[j], block_pb_[j], true});
-    }
-  }
+  ScanBlocks(planes, n, k_first, k_last, prunable, &block_pa_, &block_pb_, &bound, eval);
   *bound_io = bound;
 }
 
