@@ -9,6 +9,8 @@
 //      children are disjoint along w; otherwise the slab a <= w <= b is the overlap region, and
 //      Sm = { objects with max_w > a and min_w < b } is the overlap set.
 //   3. Take the cut with the fewest objects in Sm, then the thinner slab (b - a), then the better balance.
+//   4. The paper's groups: WW (entirely below a) and W (crossing pi0 only) go to Sn1, BB (entirely above
+//      b) and B (crossing pi1 only) to Sn2; In objects (inside the slab) may go to either side.
 //
 // Here: InPage is IsLeaf; step 1's window of k is BalancedCuts (past depth kDepthGuard, r is at least
 // kGuardBalance); steps 2-3 are SplitChooser::Choose, in O(N) per axis over the presorted keys: along
@@ -18,8 +20,8 @@
 // candidates whose |Sm| is within the fill slack of the least; under SplitPolicy::kCompact only the
 // node's wide axes are tried and ties go to the smaller N1 x margin(R(Sn1)) + N2 x margin(R(Sn2)) before
 // the slab. With kSoa and fill_aware off the choice is the rule above exactly.
-// What each object then becomes (Sn1, Sn2, or a member of Sm that crosses pi0 or pi1 or lies inside the
-// slab, for the SplitTree to place) is SubtreeBuilder's (subtree_builder.h).
+// Step 4 is SubtreeBuilder's (subtree_builder.cc: AssignSides, GatherSlabItems), and the SplitTree
+// (split_tree_builder.h) gives the In objects their side.
 #pragma once
 
 #include <algorithm>
