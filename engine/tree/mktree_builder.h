@@ -18,6 +18,12 @@
 // by about 100 + log_{4/3} N and leaves normal trees untouched.
 //
 // Empty input yields a valid empty tree: no nodes, no leaves, leaf_offsets = {0}.
+//
+// The implementation, by concern (internal headers of engine/tree, namespace mktree::build): the checks
+// (build_validation.h), the records' Morton layout and the six key sorts (build_layout.h), the build's
+// allocator and scratch arrays (build_memory.h), the split choice (split_choice.h, with the SOA's rule in
+// the paper's notation; split_compact.cc and split_key_sweeps.cc), node processing (subtree_builder.h),
+// the multi-thread build (parallel_build.h), and the phases in order (mktree_builder.cc).
 #pragma once
 
 #include <cstdint>
@@ -58,11 +64,8 @@ enum class SplitPolicy : uint8_t {
   // go to the smaller N1 x margin(R(Sn1)) + N2 x margin(R(Sn2)) (margin = ex + ey + ez, the R*-tree's),
   // then to the thinner slab and balance. Why: the SOA alone cuts a node along a thin axis whenever that
   // crosses the fewest objects, and its many ties (|Sm| = 0 is common) go to the thinner slab, not to the
-  // tighter children; leaves become thin slabs that a box query meets many of. Measured on the 1M tanker,
-  // 2000 cold queries of each kind, pages read (fill): kSoa + fill_aware box 8 m 146.0, box 2 m 16.57,
-  // point 0.774 (84.1 %); kCompact 110.1, 14.60, 0.763 (83.4 %). Tried and not kept (worse or no better):
-  // longest axis only, ratio 0.2 / 0.5, ranking by margin, area or (e + 2 m)^3 before |Sm| (a surface area
-  // heuristic: long pipes then stretch the children), |Sm| slack of 2 or 2 % before the margin.
+  // tighter children; leaves become thin slabs that a box query meets many of. (What it measured, and the
+  // variants tried and dropped: bench/README.md, tree_build_bench.)
   kCompact,
 };
 
@@ -74,27 +77,21 @@ struct BuildTuning {
   // Near the leaves (a node of at most `fill_aware_pages` pages of data), rank the SOA candidates whose
   // |Sm| is within `fill_sm_slack` + `fill_sm_slack_rel` x minimum first by page waste
   // (ceil(D1/C) + ceil(D2/C) - ceil(D/C)), then by |Sm| (kCompact: by margin, then |Sm|), slab and balance,
-  // and keep the page counts when free objects change side. Off: plain SOA (|Sm|, slab, balance).
-  // Measured on the 200k tanker (kSoa): plain SOA fills pages to 62 %; slack 1 to 65 %; waste first within
-  // 4 pages to 82 %, for 13 % more leaves visited per random point and 24 % fewer leaves. At 1M, 8 pages
-  // rather than 4: kSoa 81.6 -> 84.1 % fill, kCompact 80.5 -> 83.4 % and box 8 m 115.1 -> 110.1 pages.
+  // and keep the page counts when free objects change side. Off: plain SOA (|Sm|, slab, balance). Why:
+  // the plain SOA leaves pages far from full, and fewer, fuller leaves cost fewer page reads.
   bool fill_aware = true;
   uint32_t fill_aware_pages = 8;
   uint32_t fill_sm_slack = 1u << 30;
   double fill_sm_slack_rel = 0;
   // A SplitTree cut is made only when it saves at least this share of the routing cost of a point spread
-  // over the overlap region Q (see split_tree_builder.h): it keeps SplitTrees to the cuts that matter.
-  // Measured on the 1M tanker, 0.01 against 0.1: SplitTree nodes 863k -> 303k, index 15.8 -> 6.9 B/object,
-  // nodes phase about 10 % faster; a point reaches 6.0 -> 7.8 leaves before the leaf filter but 0.763 ->
-  // 0.764 after it, and cold pages per query (query_bench, 3000 each) did not grow: point 0.780 -> 0.779,
-  // boxes 0.5 m 3.594 -> 3.592, 2 m 14.66 -> 14.61, 8 m 110.7 -> 109.9 (the leaf filter, not the
-  // SplitTrees, keeps points near one leaf). Warm queries per second: no difference beyond the noise.
+  // over the overlap region Q (see split_tree_builder.h): it keeps SplitTrees to the cuts that matter (the
+  // leaf filter, not the SplitTrees, keeps a point query near one leaf).
   double split_min_gain = 0.1;
   // Threads used (0: one per hardware thread): with 2 or more, the key sorts run on two threads and
   // subtrees are built concurrently from a shared task queue (the right child of every node of at least
   // `parallel_task_objects` objects becomes a task; 0: max(4096, N/256)), each into its own fragment, and
-  // the fragments are stitched in DFS order: the same tree as 1 thread. Measured at 1M (tanker, kCompact):
-  // see bench/tree_build_bench.cc (tanker_1m: 1 thread, tanker_1m_2t: 2 threads).
+  // the fragments are stitched in DFS order: the same tree as 1 thread (bench/tree_build_bench: tanker_1m
+  // on 1 thread, tanker_1m_2t on 2).
   int threads = 0;
   uint32_t parallel_task_objects = 0;
   // With 2 threads or more, a root of at least this many objects shares its key sweeps and list partitions

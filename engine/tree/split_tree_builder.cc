@@ -6,7 +6,6 @@
 #include <cstddef>
 #include <cstring>
 #include <limits>
-#include <optional>
 
 #include "engine/tree/box_lanes.h"
 
@@ -18,7 +17,7 @@ namespace mktree {
 namespace {
 
 constexpr uint8_t kLeftBit = 1, kRightBit = 2;
-constexpr uint32_t kMinRoom = 64;  // Builder::Grow's smallest room (fewer moves of small leaves)
+constexpr uint32_t kMinRoom = 64;      // Builder::Grow's smallest room (fewer moves of small leaves)
 constexpr uint32_t kOutReserve = 256;  // SplitNodes reserved up front (no regrowth up to that budget)
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
@@ -63,7 +62,8 @@ struct Cell {
 class CostModel {
  public:
   explicit CostModel(const Box3f& q) {
-    for (int u = 0; u < 3; ++u) inv_extent_[u] = q.max[u] > q.min[u] ? 1.0 / (double{q.max[u]} - q.min[u]) : 0;
+    for (int u = 0; u < 3; ++u)
+      inv_extent_[u] = q.max[u] > q.min[u] ? 1.0 / (double{q.max[u]} - q.min[u]) : 0;
   }
   double Volume(const Box3f& b) const {
     double v = 1;
@@ -84,8 +84,8 @@ inline Lanes NextDownLanes(Lanes x) {
   const IntLanes u = reinterpret_cast<IntLanes>(x);
   const IntLanes moved = u + (x > 0) - (x < 0);  // (a true comparison is -1)
   const IntLanes zero = x == 0;
-  return reinterpret_cast<Lanes>((zero & IntLanes{INT32_MIN | 1, INT32_MIN | 1, INT32_MIN | 1, INT32_MIN | 1}) |
-                                 (~zero & moved));
+  return reinterpret_cast<Lanes>(
+      (zero & IntLanes{INT32_MIN | 1, INT32_MIN | 1, INT32_MIN | 1, INT32_MIN | 1}) | (~zero & moved));
 }
 inline Lanes NextUpLanes(Lanes x) {
   const IntLanes u = reinterpret_cast<IntLanes>(x);
@@ -157,15 +157,57 @@ Cut BestCut(const Cell& cell) {
   return best;
 }
 
+// The last leaf that a free item met alone, and a box that a box with min <= max strictly inside meets
+// that leaf alone (each cut on the way to the leaf sends the walk to its side only), so that it need not
+// walk: the bounds of the leaf's region that are cuts (Q's bounds are none: no walk tests them), as
+// (MinLanes, MaxLanes). Consecutive items often meet the same leaf alone.
+struct LoneLeaf {
+  uint32_t cell = 0;
+  // (None yet: lanes 0-2 of lo are kInf. Lane 3 of lo and lane 0 of hi, which are no bounds, never fail
+  // the test.)
+  Lanes lo = {kInf, kInf, kInf, -kInf}, hi = {kInf, -kInf, -kInf, -kInf};
+
+  bool Holds(const Box3f& b) const { return All((lo < MinLanes(b)) & (MaxLanes(b) < hi)); }
+  // Leaf `c` of region r, in the SplitTree of region q.
+  void Set(uint32_t c, const Box3f& r, const Box3f& q) {
+    cell = c;
+    float l[4], h[4];
+    for (int u = 0; u < 3; ++u) {
+      l[u] = r.min[u] == q.min[u] ? -kInf : r.min[u];
+      h[u + kMaxLane] = r.max[u] == q.max[u] ? kInf : r.max[u];
+    }
+    l[3] = -kInf;
+    h[0] = kInf;
+    std::memcpy(&lo, l, sizeof l);
+    std::memcpy(&hi, h, sizeof h);
+  }
+};
+
+// The side free item `it` takes: the one that adds the least cost (added[s]: volume of the cells met that
+// would gain side s), ties to its default side; a move from the default side only within the balance
+// window, which it then updates.
+uint8_t ChooseSide(const SplitItem& it, const double added[2], BalanceWindow* window) {
+  uint8_t want = it.default_side;
+  if (added[0] != added[1]) want = added[0] < added[1] ? SplitItem::kLeft : SplitItem::kRight;
+  if (want == it.default_side) return want;
+  const bool to_left = want == SplitItem::kLeft;
+  const int64_t left_after = window->left + (to_left ? 1 : -1);
+  const uint64_t bytes_after = to_left ? window->left_bytes + it.bytes : window->left_bytes - it.bytes;
+  if (!window->Allows(left_after, bytes_after)) return it.default_side;
+  window->left = left_after;
+  window->left_bytes = bytes_after;
+  return want;
+}
+
 }  // namespace
 
 // Buffers one SplitTree build leaves behind for the next (no allocation per cell or per tree).
 struct SplitTreeScratch::Buffers {
-  std::vector<Cell> cells;  // cells[0, out.size()) are the tree's (never shrunk)
+  std::vector<Cell> cells;           // cells[0, out.size()) are the tree's (never shrunk)
   std::unique_ptr<uint32_t[]> pool;  // the cells' item lists, each a range (see Builder::Take)
   size_t pool_size = 0;
   std::vector<uint32_t> stack, met;
-  std::vector<uint8_t> changed;  // per cell: ResolveFree gave it an item
+  std::vector<uint8_t> changed;                   // per cell: ResolveFree gave it an item
   std::vector<std::pair<double, uint32_t>> open;  // heap of (gain, cell)
 };
 
@@ -245,13 +287,14 @@ class Builder {
       push(ci);
     };
     // (The heap pops by (gain, cell), so the order in which cells are considered does not matter.)
-    const uint8_t* changed = again && free_count_ > 0 ? b_.changed.data() : nullptr;
+    const bool any_changed = again && free_count_ > 0;  // (b_.changed is set only then)
     for (uint32_t ci = 0; ci < out_.size(); ++ci) {
       if (!out_[ci].is_cell()) continue;
-      if (again && !(changed && changed[ci])) {
-        push(ci);
-      } else {
+      const bool stale = !again || (any_changed && b_.changed[ci]);
+      if (stale) {
         consider(ci);
+      } else {
+        push(ci);
       }
     }
     while (!open.empty() && out_.size() + 2 <= node_limit) {
@@ -268,21 +311,7 @@ class Builder {
   // to their default side, within the balance window. Each joins the leaves it meets as it is placed.
   void ResolveFree(BalanceWindow* window) {
     if (free_count_ == 0) return;
-    std::vector<Cell>& cells = b_.cells;
-    // Only the leaves' lists are still read: they move to the pool's start, in cell order (which is pool
-    // order, so none is overwritten before it is read).
-    uint32_t* pool = b_.pool.get();
-    used_ = 0;
-    for (uint32_t ci = 0; ci < out_.size(); ++ci) {
-      if (!out_[ci].is_cell()) continue;
-      Cell& c = cells[ci];
-      for (int s = 0; s < 2; ++s) {
-        const uint32_t n = c.end[s] - c.begin[s];
-        std::memmove(pool + used_, pool + c.begin[s], n * sizeof *pool);
-        c.begin[s] = used_;
-        c.end[s] = used_ += n;
-      }
-    }
+    CompactLeafLists();
     // A free item joins a leaf between its lists: LEFT grows up, RIGHT down (the walk makes room, see
     // Grow).
     unplaced_ = free_count_;
@@ -294,60 +323,29 @@ class Builder {
     uint8_t* const changed = b_.changed.data();
     uint32_t* const met = b_.met.data();
     uint32_t* const stack = b_.stack.data();
-    Cell* const cell = cells.data();
+    Cell* const cell = b_.cells.data();
     const SplitNode* const nodes = out_.data();
     SplitItem* const items = items_.data();
     const uint32_t n_items = static_cast<uint32_t>(items_.size());
-    const bool valid = valid_;
-    // The last leaf that an item met alone, and a box that a box with min <= max (valid_) strictly
-    // inside meets that leaf alone (each cut on the way to the leaf sends the walk to its side only), so
-    // that it need not walk: the bounds of the leaf's region that are cuts (Q's bounds are none: no walk
-    // tests them), as (MinLanes, MaxLanes). Consecutive items often meet the same leaf alone.
-    uint32_t alone = 0;
-    // (None yet: lanes 0-2 of alone_lo are kInf. Lane 3 of alone_lo and lane 0 of alone_hi, which are
-    // no bounds, never fail the test.)
-    Lanes alone_lo = {kInf, kInf, kInf, -kInf}, alone_hi = {kInf, -kInf, -kInf, -kInf};
-    const Box3f& q = cells[0].region;
+    const bool valid = valid_;  // (LoneLeaf holds for boxes with min <= max only)
+    LoneLeaf alone;
+    const Box3f& q = cell[0].region;
     for (uint32_t i = 0; i < n_items; ++i) {
       SplitItem& it = items[i];
       if (it.side != SplitItem::kFree) continue;
       double added[2] = {0, 0};
       uint32_t nm;
-      if (valid && All((alone_lo < MinLanes(it.box)) & (MaxLanes(it.box) < alone_hi))) {
-        met[0] = alone;
+      if (valid && alone.Holds(it.box)) {
+        met[0] = alone.cell;
         nm = 1;
-        MeetLeaf(cell, alone, added);
+        MeetLeaf(cell, alone.cell, added);
       } else {
         nm = CellsMeeting(it.box, cell, nodes, stack, met, added);
-        if (valid && nm == 1) {
-          alone = met[0];
-          const Box3f& r = cell[alone].region;
-          float lo[4], hi[4];
-          for (int u = 0; u < 3; ++u) {
-            lo[u] = r.min[u] == q.min[u] ? -kInf : r.min[u];
-            hi[u + kMaxLane] = r.max[u] == q.max[u] ? kInf : r.max[u];
-          }
-          lo[3] = -kInf;
-          hi[0] = kInf;
-          std::memcpy(&alone_lo, lo, sizeof lo);
-          std::memcpy(&alone_hi, hi, sizeof hi);
-        }
+        if (valid && nm == 1) alone.Set(met[0], cell[met[0]].region, q);
       }
       --unplaced_;
-      pool = b_.pool.get();
-      uint8_t want = it.default_side;
-      if (added[0] != added[1]) want = added[0] < added[1] ? SplitItem::kLeft : SplitItem::kRight;
-      if (want != it.default_side) {
-        const bool to_left = want == SplitItem::kLeft;
-        const int64_t left_after = window->left + (to_left ? 1 : -1);
-        const uint64_t bytes_after = to_left ? window->left_bytes + it.bytes : window->left_bytes - it.bytes;
-        if (window->Allows(left_after, bytes_after)) {
-          window->left = left_after;
-          window->left_bytes = bytes_after;
-        } else {
-          want = it.default_side;
-        }
-      }
+      uint32_t* const pool = b_.pool.get();  // (MeetLeaf may have grown it)
+      const uint8_t want = ChooseSide(it, added, window);
       it.side = want;
       const Lanes lo = MinLanes(it.box), hi = MaxLanes(it.box);
       for (uint32_t k = 0; k < nm; ++k) {
@@ -367,6 +365,23 @@ class Builder {
   }
 
  private:
+  // Before ResolveFree: only the leaves' lists are still read; they move to the pool's start, in cell
+  // order (which is pool order, so none is overwritten before it is read).
+  void CompactLeafLists() {
+    uint32_t* pool = b_.pool.get();
+    used_ = 0;
+    for (uint32_t ci = 0; ci < out_.size(); ++ci) {
+      if (!out_[ci].is_cell()) continue;
+      Cell& c = b_.cells[ci];
+      for (int s = 0; s < 2; ++s) {
+        const uint32_t n = c.end[s] - c.begin[s];
+        std::memmove(pool + used_, pool + c.begin[s], n * sizeof *pool);
+        c.begin[s] = used_;
+        c.end[s] = used_ += n;
+      }
+    }
+  }
+
   // Room for n more pool entries; returns where it starts. (The pool is never shrunk, and grows without
   // zero-filling: only the entries in use are copied, and only the pages written are resident.)
   uint32_t Take(uint32_t n) {
@@ -543,14 +558,12 @@ class Builder {
 
 void BuildSplitTree(const Box3f& q, std::span<SplitItem> items, uint32_t budget, BalanceWindow* window,
                     std::vector<SplitNode>* out, double min_gain, SplitTreeScratch* scratch) {
-  std::optional<SplitTreeScratch> local;
-  if (!scratch) scratch = &local.emplace();
   Builder b(q, items, std::max<uint32_t>(budget, 1), out, scratch->buffers.get());
   // First carve with the fixed items alone, then place the free items against those cells, then spend
   // what is left of the budget with every item placed.
-  b.Refine(std::max<uint32_t>(1, budget / 2) | 1, min_gain, false);
+  b.Refine(std::max<uint32_t>(1, budget / 2) | 1, min_gain, /*again=*/false);
   b.ResolveFree(window);
-  b.Refine(budget, min_gain, true);
+  b.Refine(budget, min_gain, /*again=*/true);
   b.WriteLabels();
 }
 

@@ -63,8 +63,8 @@ struct SplitTreeScratch {
 // Builds the SplitTree of region `q` into `out` (cleared; root at index 0, child indices local to `out`)
 // with at most `budget` nodes (budget >= 1), and resolves every kFree item to kLeft or kRight. A cut is
 // only made when it lowers the routing cost by at least `min_gain` (a share of Q's volume, see .cc).
-// `scratch` (optional) keeps the working buffers between calls.
+// `scratch` keeps the working buffers between calls (one per thread).
 void BuildSplitTree(const Box3f& q, std::span<SplitItem> items, uint32_t budget, BalanceWindow* window,
-                    std::vector<SplitNode>* out, double min_gain, SplitTreeScratch* scratch = nullptr);
+                    std::vector<SplitNode>* out, double min_gain, SplitTreeScratch* scratch);
 
 }  // namespace mktree

@@ -1,0 +1,72 @@
+// What the subtree builders of one MKtree build (BuildMKTree, mktree_builder.h) share, take and produce:
+// the records and the six key lists (BuildState), a node still to build (Task), and a built subtree
+// (SubtreeOut). Internal to engine/tree.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "engine/tree/build_memory.h"
+#include "engine/tree/mktree.h"
+#include "engine/tree/mktree_builder.h"
+#include "mktree/geometry.h"
+
+namespace mktree::build {
+
+struct BuildState {
+  const BuildVector<Box3f>& box;
+  const BuildVector<uint32_t>& bytes;
+  BuildParams params;
+  BuildTuning tuning;
+  // lists[2*w + key]: the objects of every node, each node's range sorted by min_w (key 0) / max_w (key 1).
+  std::array<BuildVector<uint32_t>, 6> lists;
+  std::vector<uint8_t> side;  // per object: 0 = Sn1, 1 = Sn2 at the node being split
+};
+
+// A node to build: its objects are lists[l][lo, hi) of every list l.
+struct Task {
+  uint32_t lo = 0, hi = 0;
+  uint32_t depth = 0;
+  uint32_t parent = kNoIndex;  // local node index of the parent, kNoIndex for a subtree root
+  int slot = 0;
+  uint64_t bytes = 0;            // sum of encoded_bytes of the objects
+  bool leaf_lists_only = false;  // a leaf whose range is sorted in list 0 (and the split axis' lists) only
+  bool cooperative = false;      // the root of a multi-thread build: it takes an idle thread along (Together)
+};
+
+// What one builder produces for a subtree; indices are local to it until merged. Aligned to cache lines:
+// two threads' fragments, allocated side by side, would otherwise share one, and every node pushed
+// writes a vector's end pointer.
+struct alignas(64) SubtreeOut {
+  std::vector<TreeNode> nodes;
+  std::vector<SplitNode> split_nodes;
+  std::vector<LeafInfo> leaves;
+  std::vector<uint64_t> leaf_begin;   // position of the leaf's first object in the lists
+  std::vector<uint32_t> overlap;      // |Sm| per node
+  std::vector<uint32_t> split_count;  // SplitTree nodes per node (filled only by the multi-thread build)
+
+  void ShrinkToFit() {
+    nodes.shrink_to_fit();
+    split_nodes.shrink_to_fit();
+    leaves.shrink_to_fit();
+    leaf_begin.shrink_to_fit();
+    overlap.shrink_to_fit();
+    split_count.shrink_to_fit();
+  }
+};
+
+// child[1] of a node whose right subtree was built as another fragment (multi-thread build).
+inline constexpr uint32_t kFragmentRef = 0x80000000u;
+
+// Adds delta (modulo 2^32, like the indices) to the child indices of the `count` SplitNodes at `nodes`
+// (cells keep their kNoIndex children), branch-free.
+inline void RebaseSplitTree(SplitNode* nodes, uint32_t count, uint32_t delta) {
+  for (SplitNode *sn = nodes, *end = sn + count; sn < end; ++sn) {
+    const uint32_t d = sn->is_cell() ? 0 : delta;
+    sn->child[0] += d;
+    sn->child[1] += d;
+  }
+}
+
+}  // namespace mktree::build

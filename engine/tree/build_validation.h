@@ -1,0 +1,27 @@
+// The checks of BuildMKTree's REQUIRES (mktree_builder.h): parameters, finite boxes with min <= max, unique
+// ids. Each error is InvalidArgument and names the first bad object in input order. Internal to engine/tree.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "engine/tree/build_memory.h"
+#include "engine/tree/mktree.h"
+#include "mktree/geometry.h"
+#include "mktree/scene.h"
+#include "mktree/status.h"
+
+namespace mktree::build {
+
+// The checks of BuildMKTree's REQUIRES but unique ids (CheckUniqueIds), the per-record ones on two halves;
+// an error names the first bad record in input order. *bounds: the union of the boxes (the layout's).
+Status Validate(const std::vector<ObjectRecord>& records, const BuildParams& params, int threads,
+                Box3f* bounds, ObjectId* max_id);
+
+// Unique ids, checked on the laid-out ids (8 bytes an object, not the 40 of a record): a bitmap when ids
+// are dense (the normal 0-based case), else a sorted copy. An error names the first object in input order
+// whose id came before (input_position gives the input order; only then is it needed).
+Status CheckUniqueIds(const BuildVector<ObjectId>& ids, const BuildVector<uint32_t>& input_position,
+                      ObjectId max_id);
+
+}  // namespace mktree::build
