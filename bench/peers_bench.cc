@@ -126,12 +126,13 @@ class MktreeEngine : public Engine {
   void Close() override { db_.reset(); }
   void ClearCache() override { db_->ClearCache(); }
   Status Run(const Query& q, std::vector<ObjectId>* hits, Io* io) override {
-    QueryStats s;
-    Status st = q.kind == Query::Kind::kPoint ? db_->QueryPoint(q.point, QueryMode::kAabb, hits, &s)
-                                              : db_->QueryBox(q.box, QueryMode::kAabb, hits, &s);
-    io->pages = s.pages_read;
+    QueryResult r;  // in the caller's buffer; q is in AABB mode (Query's default), as the peers answer
+    r.hits.swap(*hits);
+    Status st = db_->Run(q, &r);
+    hits->swap(r.hits);
+    io->pages = r.stats.pages_read;
     io->inner_pages = 0;  // internal nodes and SplitTrees are in RAM
-    io->bytes = s.bytes_read;
+    io->bytes = r.stats.bytes_read;
     return st;
   }
   double objects_per_page(const Facts& f) const override { return f.at("B"); }
