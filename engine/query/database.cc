@@ -185,9 +185,8 @@ class StoreDatabase final : public Database {
       if constexpr (std::is_same_v<std::invoke_result_t<Test&, const ObjectEntryView&>, bool>) {
         if (test(e)) found->push_back(e.id);
       } else {
-        auto answer = test(e);
-        if (!answer.ok()) return answer.status();
-        if (*answer) found->push_back(e.id);
+        MKTREE_ASSIGN_OR_RETURN(const bool answers, test(e));
+        if (answers) found->push_back(e.id);
       }
     }
     return Status::Ok();
@@ -293,9 +292,8 @@ Result<std::unique_ptr<Database>> Database::Open(const std::string& path, const 
   return Guarded(path, [&]() -> Result<std::unique_ptr<Database>> {
     ReadOptions ro;
     ro.direct_io = options.direct_io;
-    auto reader = StoreReader::Open(path, ro);
-    if (!reader.ok()) return reader.status();
-    return OpenStoreDatabase(std::move(*reader), options);
+    MKTREE_ASSIGN_OR_RETURN(auto reader, StoreReader::Open(path, ro));
+    return OpenStoreDatabase(std::move(reader), options);
   });
 }
 

@@ -126,9 +126,8 @@ Result<std::vector<std::vector<ObjectId>>> Answers(const Database& db, const std
 }
 
 Result<std::vector<std::vector<ObjectId>>> AnswersOf(const std::string& path, const std::vector<Query>& qs) {
-  auto db = Database::Open(path, {.cache_pages = 0});
-  if (!db.ok()) return db.status();
-  return Answers(**db, qs, QueryMode::kExact);
+  MKTREE_ASSIGN_OR_RETURN(auto db, Database::Open(path, {.cache_pages = 0}));
+  return Answers(*db, qs, QueryMode::kExact);
 }
 
 uint64_t FileHash(const std::string& path) {
