@@ -97,14 +97,13 @@ class MktreeEngine : public Engine {
     opts.store.backend = backend_;
     opts.store.codec.codec = codec_;
     opts.spill_dir = std::filesystem::path(path_).parent_path().string();
-    auto report = BuildStore({[&](ObjectId first) { return scene.Open(first); }}, path_, opts);
-    if (!report.ok()) return report.status();
-    auto db = Database::Open(path_);
-    if (!db.ok()) return db.status();
-    (*facts)["objects"] = static_cast<double>(report->objects);
-    (*facts)["pages"] = static_cast<double>(report->pages);
-    (*facts)["leaves"] = static_cast<double>(report->tree_stats.leaves);
-    (*facts)["B"] = (*db)->objects_per_page();
+    MKTREE_ASSIGN_OR_RETURN(const IngestReport report,
+                            BuildStore({[&](ObjectId first) { return scene.Open(first); }}, path_, opts));
+    MKTREE_ASSIGN_OR_RETURN(auto db, Database::Open(path_));
+    (*facts)["objects"] = static_cast<double>(report.objects);
+    (*facts)["pages"] = static_cast<double>(report.pages);
+    (*facts)["leaves"] = static_cast<double>(report.tree_stats.leaves);
+    (*facts)["B"] = db->objects_per_page();
     return Status::Ok();
   }
   Status Open(bool warm, const Facts&) override {
@@ -114,24 +113,22 @@ class MktreeEngine : public Engine {
     if (o.direct_io) {
       ReadOptions ro;
       ro.direct_io = true;
-      auto reader = StoreReader::Open(path_, ro);
-      if (!reader.ok()) return reader.status();
-      notice_ = (*reader)->notice();
+      MKTREE_ASSIGN_OR_RETURN(auto reader, StoreReader::Open(path_, ro));
+      notice_ = reader->notice();
     }
-    auto db = Database::Open(path_, o);
-    if (!db.ok()) return db.status();
-    db_ = std::move(*db);
+    MKTREE_ASSIGN_OR_RETURN(db_, Database::Open(path_, o));
     return Status::Ok();
   }
   void Close() override { db_.reset(); }
   void ClearCache() override { db_->ClearCache(); }
   Status Run(const Query& q, std::vector<ObjectId>* hits, Io* io) override {
-    QueryStats s;
-    Status st = q.kind == Query::Kind::kPoint ? db_->QueryPoint(q.point, QueryMode::kAabb, hits, &s)
-                                              : db_->QueryBox(q.box, QueryMode::kAabb, hits, &s);
-    io->pages = s.pages_read;
+    QueryResult r;  // in the caller's buffer; q is in AABB mode (Query's default), as the peers answer
+    r.hits.swap(*hits);
+    Status st = db_->Run(q, &r);
+    hits->swap(r.hits);
+    io->pages = r.stats.pages_read;
     io->inner_pages = 0;  // internal nodes and SplitTrees are in RAM
-    io->bytes = s.bytes_read;
+    io->bytes = r.stats.bytes_read;
     return st;
   }
   double objects_per_page(const Facts& f) const override { return f.at("B"); }
@@ -175,14 +172,12 @@ class BoostEngine : public Engine {
   std::string cold_method() const override { return "in RAM (no cold phase)"; }
   Status Build(const SceneSpec& scene, Facts* facts) override {
     // Stream the scene as the others do, keep only AABBs, build with the packing constructor.
-    auto src = scene.Open(0);
-    if (!src.ok()) return src.status();
+    MKTREE_ASSIGN_OR_RETURN(auto src, scene.Open(0));
     std::vector<BValue> values;
     SceneObject o;
     for (;;) {
-      auto more = (*src)->Next(&o);
-      if (!more.ok()) return more.status();
-      if (!*more) break;
+      MKTREE_ASSIGN_OR_RETURN(const bool more, src->Next(&o));
+      if (!more) break;
       values.emplace_back(ToBBox(o.Aabb()), o.id);
     }
     BTree t(values.begin(), values.end());
@@ -285,8 +280,7 @@ double Percentile(std::vector<double> v, double q) {
 }
 
 Status ReadScene(const SceneSpec& spec, SceneInfo* s) {
-  auto src = spec.Open(0);
-  if (!src.ok()) return src.status();
+  MKTREE_ASSIGN_OR_RETURN(auto src, spec.Open(0));
   SceneObject o;
   std::vector<uint8_t> entry;
   const CodecOptions zstd;
@@ -298,9 +292,8 @@ Status ReadScene(const SceneSpec& spec, SceneInfo* s) {
     stride = std::max<uint64_t>(1, n / 50000);  // sample entry sizes: 50k objects are plenty
   }
   for (;;) {
-    auto more = (*src)->Next(&o);
-    if (!more.ok()) return more.status();
-    if (!*more) break;
+    MKTREE_ASSIGN_OR_RETURN(const bool more, src->Next(&o));
+    if (!more) break;
     const Box3f b = o.Aabb();
     s->bounds.Extend(b);
     s->boxes.push_back(b);
@@ -544,7 +537,7 @@ int Main(int argc, char** argv) {
   // Reference answers: Boost.Geometry, itself checked against a brute-force scan on each workload's first
   // queries.
   BoostEngine reference(&scene.boxes);
-  reference.Open(false, {});
+  if (!reference.Open(false, {}).ok()) return 1;
   std::vector<std::vector<std::vector<ObjectId>>> expected(workloads.size());
   bool mismatch = false;
   for (size_t w = 0; w < workloads.size(); ++w) {
@@ -552,7 +545,7 @@ int Main(int argc, char** argv) {
       const Query& q = workloads[w].queries[i];
       std::vector<ObjectId> hits;
       Io io;
-      reference.Run(q, &hits, &io);
+      if (!reference.Run(q, &hits, &io).ok()) return 1;
       if (i < 5) {
         Box3d qb = q.box;
         if (q.kind == Query::Kind::kPoint)
@@ -678,11 +671,11 @@ int Main(int argc, char** argv) {
       }
       const auto t = Clock::now();
       for (size_t i = 0; i < workloads[w].queries.size(); ++i) {
-        e->Run(workloads[w].queries[i], &hits, &io);
+        if (!e->Run(workloads[w].queries[i], &hits, &io).ok()) return 1;
       }
       row.warm_qps = static_cast<double>(row.queries) / Since(t);
       for (size_t i = 0; i < workloads[w].queries.size(); ++i) {  // answers from the warm cache too
-        e->Run(workloads[w].queries[i], &hits, &io);
+        if (!e->Run(workloads[w].queries[i], &hits, &io).ok()) return 1;
         check(w, i, "warm");
       }
       std::printf("   %-9s %5zu q  hits %9.1f  pages %8.2f (p50 %5.0f p99 %5.0f, floor %7.2f)  cold %8.0f q/s  warm %9.0f q/s\n",

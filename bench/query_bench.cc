@@ -238,13 +238,15 @@ int main(int argc, char** argv) {
       if (!a.only.empty() && w.name != a.only) continue;
       for (QueryMode mode : {QueryMode::kAabb, QueryMode::kExact}) {
         if (!a.mode.empty() && a.mode != (mode == QueryMode::kAabb ? "aabb" : "exact")) continue;
+        std::vector<Query> queries = w.queries;
+        for (Query& q : queries) q.mode = mode;
         std::vector<double> pages, floors;
         double hits = 0, extra = 0, multi = 0;
         QueryResult r;
         t0 = Clock::now();
-        for (const Query& q : w.queries) {
+        for (const Query& q : queries) {
           (*db)->ClearCache();
-          if (!(*db)->Run(q, mode, &r).ok()) return 1;
+          if (!(*db)->Run(q, &r).ok()) return 1;
           pages.push_back(static_cast<double>(r.stats.pages_read));
           floors.push_back(std::ceil(static_cast<double>(r.hits.size()) / B));
           hits += static_cast<double>(r.hits.size());
@@ -252,13 +254,14 @@ int main(int argc, char** argv) {
           multi += r.stats.leaves_visited > 1;
         }
         const double cold_qps = static_cast<double>(w.queries.size()) / Since(t0);
-        for (const Query& q : w.queries) (*warm)->Run(q, mode, &r);  // fill the warm cache
+        for (const Query& q : queries)  // fill the warm cache
+          if (!(*warm)->Run(q, &r).ok()) return 1;
         QueryStats warm_stats;
         double warm_qps = 0;
         for (int pass = 0; pass < a.warm_passes; ++pass) {
           t0 = Clock::now();
-          for (const Query& q : w.queries) {
-            (*warm)->Run(q, mode, &r);
+          for (const Query& q : queries) {
+            if (!(*warm)->Run(q, &r).ok()) return 1;
             warm_stats += r.stats;
           }
           warm_qps = std::max(warm_qps, static_cast<double>(w.queries.size()) / Since(t0));
@@ -274,7 +277,7 @@ int main(int argc, char** argv) {
           double boost_qps = 0;
           for (int pass = 0; pass < a.warm_passes; ++pass) {
             t0 = Clock::now();
-            for (const Query& q : w.queries) {
+            for (const Query& q : queries) {
               BoostQuery(rtree, q, &found);
               total += found.size();
             }
@@ -283,12 +286,12 @@ int main(int argc, char** argv) {
           char buf[32];
           std::snprintf(buf, sizeof buf, "%.2fx", warm_qps / boost_qps);
           vs = buf;
-          for (const Query& q : w.queries) {
+          for (const Query& q : queries) {
             BoostQuery(rtree, q, &found);
             ids.clear();
             for (const auto& v : found) ids.push_back(v.second);
             std::sort(ids.begin(), ids.end());
-            (*warm)->Run(q, mode, &r);
+            if (!(*warm)->Run(q, &r).ok()) return 1;
             if (ids != r.hits) {
               std::fprintf(stderr, "MISMATCH %s: mktree %zu hits, boost %zu\n", w.name.c_str(), r.hits.size(),
                            ids.size());

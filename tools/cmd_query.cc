@@ -83,14 +83,14 @@ int RunQuery(const QueryArgs& a) {
   oo.direct_io = a.direct_io;
   auto db = Database::Open(a.store, oo);
   if (!db.ok()) return Fail(db.status().message());
-  const QueryMode mode = a.exact ? QueryMode::kExact : QueryMode::kAabb;
+  for (Query& q : queries) q.mode = a.exact ? QueryMode::kExact : QueryMode::kAabb;
   QueryResult r;
   std::string line;
   std::map<std::string, KindSummary> kinds;
   const double per_page = (*db)->objects_per_page();
   for (size_t i = 0; i < queries.size(); ++i) {
     if (a.cold) (*db)->ClearCache();
-    Status st = (*db)->Run(queries[i], mode, &r);
+    Status st = (*db)->Run(queries[i], &r);
     if (!st.ok()) return Fail("query " + std::to_string(i) + ": " + st.message());
     if (a.summary) {
       KindSummary& k = kinds[KindOf(queries[i])];

@@ -178,9 +178,9 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
     rec.id = obj.id;
     rec.box = encoded.box;
     rec.encoded_bytes = static_cast<uint32_t>(encoded.entry.size());
-    auto offset = geometry.Append(encoded.entry.data(), encoded.entry.size());
-    if (!offset.ok()) return offset.status();
-    rec.spill_offset = *offset;
+    // Entries go back to back in id order: their offsets are recomputed from the sizes (step 3).
+    if (auto offset = geometry.Append(encoded.entry.data(), encoded.entry.size()); !offset.ok())
+      return offset.status();
     const uint32_t name_len = static_cast<uint32_t>(obj.name.size());
     if (auto st = names.Append(&name_len, sizeof name_len); !st.ok()) return st.status();
     if (auto st = names.Append(obj.name.data(), name_len); !st.ok()) return st.status();

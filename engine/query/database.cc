@@ -85,97 +85,58 @@ Status Prefixed(const Status& st, const std::string& prefix) {
 
 bool Finite(const Vec3d& p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z); }
 
+Status CheckQuery(const Query& q) {
+  if (q.kind == Query::Kind::kPoint) {
+    if (!Finite(q.point)) return Status::InvalidArgument("point query with a non-finite coordinate");
+    return Status::Ok();
+  }
+  for (int i = 0; i < 3; ++i) {
+    if (!std::isfinite(q.box.min[i]) || !std::isfinite(q.box.max[i]))
+      return Status::InvalidArgument("box query with a non-finite coordinate");
+    if (q.box.min[i] > q.box.max[i]) return Status::InvalidArgument("box query with min > max");
+  }
+  return Status::Ok();
+}
+
+// The ids one leaf answers, gathered before `visit` sees them. Each thread keeps one buffer and a query
+// takes it for its duration, so that a query allocates nothing in the steady state and a query run from
+// inside `visit` (which finds none to take) gets a buffer of its own.
+thread_local std::vector<ObjectId> t_spare_ids;
+
 class StoreDatabase final : public Database {
  public:
   StoreDatabase(std::unique_ptr<StoreReader> reader, const OpenOptions& options)
-      : reader_(std::move(reader)),
-        options_(options),
-        cache_(&reader_->pages(), options.cache_pages) {}
+      : reader_(std::move(reader)), options_(options), cache_(&reader_->pages(), options.cache_pages) {}
 
-  Status QueryPoint(const Vec3d& world, QueryMode mode, std::vector<ObjectId>* hits,
-                    QueryStats* stats) const override {
-    if (!Finite(world)) return Status::InvalidArgument("point query with a non-finite coordinate");
-    const Vec3d p = ToStoreFrame(world);
-    return Guarded(name(), [&] {
-      return Answer(
-          [&](std::vector<uint32_t>* leaves, QueryStats* s) { reader_->tree().RoutePoint(p, leaves, s); },
-          mode, [&](const ObjectEntryView& e) { return e.box.Contains(p); },
-          [&](const SolidClassifier& solid) { return solid.Contains(p); }, hits, stats);
-    });
-  }
-
-  Status QueryBox(const Box3d& world, QueryMode mode, std::vector<ObjectId>* hits,
-                  QueryStats* stats) const override {
-    for (int i = 0; i < 3; ++i) {
-      if (!std::isfinite(world.min[i]) || !std::isfinite(world.max[i]))
-        return Status::InvalidArgument("box query with a non-finite coordinate");
-      if (world.min[i] > world.max[i]) return Status::InvalidArgument("box query with min > max");
-    }
-    Box3d box;
-    for (int i = 0; i < 3; ++i) {
-      box.min[i] = world.min[i] - reader_->tree().origin[i];
-      box.max[i] = world.max[i] - reader_->tree().origin[i];
-    }
-    return Guarded(name(), [&] {
-      return Answer(
-          [&](std::vector<uint32_t>* leaves, QueryStats* s) { reader_->tree().RouteBox(box, leaves, s); },
-          mode, [&](const ObjectEntryView& e) { return e.box.Intersects(box); },
-          [&](const SolidClassifier& solid) { return solid.MeetsBox(box); }, hits, stats);
-    });
-  }
-
-  Status Run(const Query& q, QueryMode mode, QueryResult* out) const override {
-    return q.kind == Query::Kind::kPoint ? QueryPoint(q.point, mode, &out->hits, &out->stats)
-                                         : QueryBox(q.box, mode, &out->hits, &out->stats);
-  }
-
-  Status RunBatch(const std::vector<Query>& queries, QueryMode mode, unsigned threads,
-                  std::vector<QueryResult>* results) const override {
-    return Guarded(name(), [&] {
-      results->assign(queries.size(), QueryResult{});
-      if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
-      threads = static_cast<unsigned>(std::min<size_t>(threads, std::max<size_t>(1, queries.size())));
-      std::atomic<size_t> next{0};
-      std::atomic<bool> failed{false};
-      std::vector<Status> errors(threads);
-      // Run never throws, but naming a failed query allocates: what a worker throws is caught there (it
-      // would otherwise end the process) and reported after the join.
-      std::vector<char> threw(threads, 0);
-      auto work = [&](unsigned t) noexcept {
-        try {
-          for (size_t i; !failed && (i = next.fetch_add(1)) < queries.size();) {
-            Status st = Run(queries[i], mode, &(*results)[i]);
-            if (!st.ok()) {
-              errors[t] = Prefixed(st, "query " + std::to_string(i) + ": ");
-              failed = true;
-            }
-          }
-        } catch (...) {
-          threw[t] = 1;
-          failed = true;
-        }
-      };
-      std::vector<std::thread> pool;
-      try {
-        pool.reserve(threads - 1);
-        for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work, t);
-      } catch (...) {
-        // A thread that cannot start (or its slot) leaves its share to the others.
+  Status Visit(const Query& q, const ObjectVisitor& visit, QueryStats* stats) const override {
+    QueryStats local;
+    QueryStats& s = stats ? *stats : local;
+    s.Reset();
+    MKTREE_RETURN_IF_ERROR(CheckQuery(q));
+    const MKTree& tree = reader_->tree();
+    return Guarded(path(), [&] {
+      if (q.kind == Query::Kind::kPoint) {
+        const Vec3d p = ToStoreFrame(q.point);
+        return Answer([&](std::vector<uint32_t>* leaves) { tree.RoutePoint(p, leaves, &s); }, q.mode,
+                      [&](const ObjectEntryView& e) { return e.box.Contains(p); },
+                      [&](const SolidClassifier& solid) { return solid.Contains(p); }, visit, &s);
       }
-      work(0);
-      for (auto& th : pool) th.join();
-      for (unsigned t = 0; t < threads; ++t) {
-        if (threw[t]) return Status::Internal(name() + ": out of memory naming a failed query");
-        if (!errors[t].ok()) return errors[t];
+      Box3d box;
+      for (int i = 0; i < 3; ++i) {
+        box.min[i] = q.box.min[i] - tree.origin[i];
+        box.max[i] = q.box.max[i] - tree.origin[i];
       }
-      return Status::Ok();
+      return Answer([&](std::vector<uint32_t>* leaves) { tree.RouteBox(box, leaves, &s); }, q.mode,
+                    [&](const ObjectEntryView& e) { return e.box.Intersects(box); },
+                    [&](const SolidClassifier& solid) { return solid.MeetsBox(box); }, visit, &s);
     });
   }
 
   void ClearCache() override { cache_.Clear(); }
+  const std::string& path() const override { return reader_->path(); }
   uint64_t object_count() const override { return reader_->object_count(); }
   Result<std::string> ObjectName(ObjectId id) const override {
-    return Guarded(name(), [&] { return reader_->ObjectName(id); });
+    return Guarded(path(), [&] { return reader_->ObjectName(id); });
   }
   Box3d bounds() const override {
     const MKTree& t = reader_->tree();
@@ -202,12 +163,12 @@ class StoreDatabase final : public Database {
     const Vec3d& o = reader_->tree().origin;
     return {p.x - o.x, p.y - o.y, p.z - o.z};
   }
-  const std::string& name() const { return reader_->path(); }
 
-  // Pins the leaf's pages, verifies and parses them, and tests every object; `test` says whether an
-  // object answers: a bool, or a Result<bool> where the test can fail (exact geometry).
+  // Pins the leaf's pages, verifies and parses them, and appends to `found` the objects that answer;
+  // `test` says whether an object answers: a bool, or a Result<bool> where the test can fail (exact
+  // geometry).
   template <typename Test>
-  Status ScanLeaf(uint32_t leaf, QueryStats* s, Test&& test, std::vector<ObjectId>* hits) const {
+  Status ScanLeaf(uint32_t leaf, QueryStats* s, Test&& test, std::vector<ObjectId>* found) const {
     const MKTree& tree = reader_->tree();
     // One PinnedLeaf per thread, reused leaf after leaf so that a scan allocates nothing; it holds pins
     // only during the scan.
@@ -219,47 +180,42 @@ class StoreDatabase final : public Database {
     MKTREE_RETURN_IF_ERROR(ReadLeaf(cache_, reader_->pages().name(), leaf, tree.leaves[leaf],
                                     reader_->objects().leaf, tree.params.mem_page(),
                                     options_.verify_checksums, s, &pinned));
-    const size_t before = hits->size();
     for (const ObjectEntryView& e : pinned.view.entries()) {
       ++s->candidates_tested;
       if constexpr (std::is_same_v<std::invoke_result_t<Test&, const ObjectEntryView&>, bool>) {
-        if (test(e)) hits->push_back(e.id);
+        if (test(e)) found->push_back(e.id);
       } else {
-        auto answer = test(e);
-        if (!answer.ok()) return answer.status();
-        if (*answer) hits->push_back(e.id);
+        MKTREE_ASSIGN_OR_RETURN(const bool answers, test(e));
+        if (answers) found->push_back(e.id);
       }
     }
-    s->leaves_with_hits += hits->size() > before;
     return Status::Ok();
   }
 
   // One query: `route` lists the leaves to read; `meets_aabb` tests an entry's box (AABB mode, and the
-  // first test of exact mode); `meets_solid` tests the object's solid (exact mode).
+  // first test of exact mode); `meets_solid` tests the object's solid (exact mode). Each leaf's answers
+  // go to `visit` once the leaf is released.
   template <typename Route, typename MeetsAabb, typename MeetsSolid>
   Status Answer(Route&& route, QueryMode mode, MeetsAabb&& meets_aabb, MeetsSolid&& meets_solid,
-                std::vector<ObjectId>* hits, QueryStats* stats) const {
-    QueryStats local;
-    QueryStats& s = stats ? *stats : local;
-    s.Reset();
-    hits->clear();
+                const ObjectVisitor& visit, QueryStats* s) const {
     std::vector<uint32_t> leaves;
-    route(&leaves, &s);
+    route(&leaves);
     auto exact = [&](const ObjectEntryView& e) -> Result<bool> {
       if (!meets_aabb(e)) return false;
       Mesh mesh;
       MKTREE_RETURN_IF_ERROR(DecodeObjectMesh(e, &mesh));
       return meets_solid(Classifier(e, mesh));
     };
-    for (uint32_t leaf : leaves)
-      MKTREE_RETURN_IF_ERROR(mode == QueryMode::kAabb ? ScanLeaf(leaf, &s, meets_aabb, hits)
-                                                      : ScanLeaf(leaf, &s, exact, hits));
-    return Finish(hits, &s);
-  }
-
-  static Status Finish(std::vector<ObjectId>* hits, QueryStats* s) {
-    SortIds(hits);
-    s->hits = hits->size();
+    std::vector<ObjectId> found = std::exchange(t_spare_ids, {});
+    for (uint32_t leaf : leaves) {
+      found.clear();
+      MKTREE_RETURN_IF_ERROR(mode == QueryMode::kAabb ? ScanLeaf(leaf, s, meets_aabb, &found)
+                                                      : ScanLeaf(leaf, s, exact, &found));
+      s->hits += found.size();
+      s->leaves_with_hits += !found.empty();
+      for (ObjectId id : found) visit(id);
+    }
+    t_spare_ids = std::move(found);
     return Status::Ok();
   }
 
@@ -274,13 +230,70 @@ std::unique_ptr<Database> OpenStoreDatabase(std::unique_ptr<StoreReader> reader,
   return std::make_unique<StoreDatabase>(std::move(reader), options);
 }
 
+Status Database::Run(const Query& query, QueryResult* result) const {
+  std::vector<ObjectId>& hits = result->hits;
+  hits.clear();
+  auto collect = [&hits](ObjectId id) { hits.push_back(id); };
+  MKTREE_RETURN_IF_ERROR(Visit(query, collect, &result->stats));
+  return Guarded(path(), [&] {
+    SortIds(&hits);
+    return Status::Ok();
+  });
+}
+
+Status Database::RunBatch(const std::vector<Query>& queries, unsigned threads,
+                          std::vector<QueryResult>* results) const {
+  return Guarded(path(), [&]() -> Status {
+    results->assign(queries.size(), QueryResult{});
+    if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
+    threads = static_cast<unsigned>(std::min<size_t>(threads, std::max<size_t>(1, queries.size())));
+    // Each worker keeps its first failure. Workers claim queries in order and stop claiming once one has
+    // failed, so every query before a failed one has run: the failure of the lowest index is the batch's
+    // first failing query, whatever the threads' timing.
+    struct Failure {
+      size_t query = SIZE_MAX;
+      Status status;
+    };
+    std::vector<Failure> failures(threads);
+    std::atomic<size_t> next{0};
+    std::atomic<bool> failed{false};
+    auto work = [&](unsigned t) noexcept {  // Run returns every error as a Status, it never throws
+      for (size_t i; !failed && (i = next.fetch_add(1)) < queries.size();) {
+        Status st = Run(queries[i], &(*results)[i]);
+        if (!st.ok()) {
+          failures[t] = {i, std::move(st)};
+          failed = true;
+          return;
+        }
+      }
+    };
+    std::vector<std::thread> pool;
+    try {
+      pool.reserve(threads - 1);
+      for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work, t);
+    } catch (...) {
+      // A thread that cannot start (or its slot) leaves its share to the others.
+    }
+    work(0);
+    for (auto& th : pool) th.join();
+    Failure* first = nullptr;
+    for (Failure& f : failures)
+      if (f.query != SIZE_MAX && (!first || f.query < first->query)) first = &f;
+    if (!first) return Status::Ok();
+    try {
+      return Prefixed(first->status, "query " + std::to_string(first->query) + ": ");
+    } catch (...) {
+      return std::move(first->status);  // no memory to name the query: its own Status as it is
+    }
+  });
+}
+
 Result<std::unique_ptr<Database>> Database::Open(const std::string& path, const OpenOptions& options) {
   return Guarded(path, [&]() -> Result<std::unique_ptr<Database>> {
     ReadOptions ro;
     ro.direct_io = options.direct_io;
-    auto reader = StoreReader::Open(path, ro);
-    if (!reader.ok()) return reader.status();
-    return OpenStoreDatabase(std::move(*reader), options);
+    MKTREE_ASSIGN_OR_RETURN(auto reader, StoreReader::Open(path, ro));
+    return OpenStoreDatabase(std::move(reader), options);
   });
 }
 

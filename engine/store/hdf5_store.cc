@@ -684,7 +684,7 @@ class Hdf5PageStore : public PageStore {
         mem_page_(mem_page),
         count_(count),
         extent_(count) {}
-  ~Hdf5PageStore() override { Close(); }
+  ~Hdf5PageStore() override { (void)Close(); }  // no caller to tell: Finish reports a writer's
 
   uint64_t page_bytes() const override { return mem_page_; }
   uint64_t page_count() const override { return count_; }
@@ -774,7 +774,7 @@ class Hdf5PageStore : public PageStore {
   void Abort() {
     Hdf5Lock lock;
     if (io_) io_->discard = true;
-    Close();
+    (void)Close();  // the file is thrown away: its close cannot fail anything
   }
 
  private:

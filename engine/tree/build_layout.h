@@ -13,7 +13,7 @@
 
 namespace mktree::build {
 
-// What the builder reads of an object, 28 bytes instead of ObjectRecord's 40, in two arrays: the boxes,
+// What the builder reads of an object, 28 bytes instead of ObjectRecord's 32, in two arrays: the boxes,
 // and the encoded sizes (read alone when a node sums its bytes, 16 to a cache line). The ids are kept
 // apart, for the end only.
 struct BuildRecords {

@@ -30,6 +30,7 @@
 #include <vector>
 
 #include "engine/tree/mktree.h"
+#include "engine/tree/object_record.h"
 #include "engine/tree/tree_stats.h"
 #include "mktree/scene.h"
 #include "mktree/status.h"

@@ -1,10 +1,18 @@
-// mktree's public query API: open a store, classify points, query boxes, and read what each query cost.
+// mktree's public query API: open a store, ask it point and box queries, and read what each query cost.
+//
+// One query shape: a Query is a point or a box, and a mode. Visit is the one way a query runs; Run and
+// RunBatch are thin layers over it, so all three give the same ids and the same statistics:
+//   Visit(query, visit, &stats)           streams each answering id to `visit`, leaf by leaf, holding one
+//                                         leaf's ids at a time however large the answer
+//   Run(query, &result)                   the answer sorted, with its statistics
+//   RunBatch(queries, threads, &results)  Run on many queries from many threads
 //
 //   auto db = mktree::Database::Open("ship.mkt", {.cache_pages = 4096});
 //   if (!db.ok()) { ... db.status().ToString() ... }
-//   std::vector<mktree::ObjectId> hits;
-//   mktree::QueryStats stats;
-//   mktree::Status st = (*db)->QueryBox(box, mktree::QueryMode::kAabb, &hits, &stats);
+//   mktree::QueryResult r;
+//   mktree::Status st = (*db)->Run(mktree::Query::Box(box), &r);  // r.hits, r.stats
+//   st = (*db)->Visit(mktree::Query::Box(box, mktree::QueryMode::kExact), [&](mktree::ObjectId id) { ... },
+//                     /*stats=*/nullptr);
 //
 // Thread safety: a Database is safe to query from many threads at once (the page cache is shared and
 // locked; each query has its own QueryStats). ClearCache must not run concurrently with queries if the
@@ -12,6 +20,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -39,19 +48,28 @@ struct OpenOptions {
   bool direct_io = false;
 };
 
+// A query: the objects containing `point`, or meeting `box` (intervals closed), tested as `mode` says.
+// REQUIRES (else InvalidArgument): finite coordinates; for a box, min <= max on every axis.
 struct Query {
   enum class Kind { kPoint, kBox };
   Kind kind = Kind::kPoint;
-  Vec3d point;
-  Box3d box;
-  static Query Point(const Vec3d& p) { return Query{Kind::kPoint, p, {}}; }
-  static Query Box(const Box3d& b) { return Query{Kind::kBox, {}, b}; }
+  Vec3d point;  // kPoint
+  Box3d box;    // kBox
+  QueryMode mode = QueryMode::kAabb;
+
+  static Query Point(const Vec3d& p, QueryMode mode = QueryMode::kAabb) {
+    return {Kind::kPoint, p, {}, mode};
+  }
+  static Query Box(const Box3d& b, QueryMode mode = QueryMode::kAabb) { return {Kind::kBox, {}, b, mode}; }
 };
 
 struct QueryResult {
   std::vector<ObjectId> hits;  // sorted ids
   QueryStats stats;
 };
+
+// Receives the ids of a streamed answer (Database::Visit).
+using ObjectVisitor = std::function<void(ObjectId)>;
 
 class Database {
  public:
@@ -61,22 +79,27 @@ class Database {
   // the in-RAM structure; refuses truncated, foreign or corrupt files with an error naming the file.
   static Result<std::unique_ptr<Database>> Open(const std::string& path, const OpenOptions& options = {});
 
-  // Objects containing `p` (closed). REQUIRES: finite coordinates (else InvalidArgument).
-  // `hits` is replaced by the sorted answer; `stats` (may be null) is reset and filled.
-  virtual Status QueryPoint(const Vec3d& p, QueryMode mode, std::vector<ObjectId>* hits,
-                            QueryStats* stats) const = 0;
-  // Objects meeting `box` (closed). REQUIRES: finite coordinates and min <= max on every axis.
-  virtual Status QueryBox(const Box3d& box, QueryMode mode, std::vector<ObjectId>* hits,
-                          QueryStats* stats) const = 0;
-  virtual Status Run(const Query& q, QueryMode mode, QueryResult* out) const = 0;
-  // Runs `queries` on `threads` threads (0: hardware concurrency); results in query order. The first
-  // error stops the batch and is returned.
-  virtual Status RunBatch(const std::vector<Query>& queries, QueryMode mode, unsigned threads,
-                          std::vector<QueryResult>* results) const = 0;
+  // Runs `query`, calling `visit` once for each object of the answer: ids in the order their leaves are
+  // read, not sorted, each once. `stats` (may be null) is reset and filled. `visit` runs on the calling
+  // thread after its leaf's pages are released, so it may query this Database too. An exception thrown
+  // by `visit` ends the query with an Internal error. On an error the ids visited so far are an incomplete
+  // answer.
+  virtual Status Visit(const Query& query, const ObjectVisitor& visit, QueryStats* stats) const = 0;
+
+  // Runs `query`: `result->hits` is replaced by the sorted answer, `result->stats` by its statistics.
+  Status Run(const Query& query, QueryResult* result) const;
+
+  // Runs `queries` on `threads` threads (0: hardware concurrency); `(*results)[i]` answers `queries[i]`.
+  // A failed query stops the batch: the error returned is the first failing query's in query order, with
+  // its own code and message, the message prefixed by "query <i>: ". The results are then incomplete.
+  Status RunBatch(const std::vector<Query>& queries, unsigned threads,
+                  std::vector<QueryResult>* results) const;
 
   // Empties the page cache (pages pinned by running queries stay until released).
   virtual void ClearCache() = 0;
 
+  // The store's file, as given to Open.
+  virtual const std::string& path() const = 0;
   virtual uint64_t object_count() const = 0;
   virtual Result<std::string> ObjectName(ObjectId id) const = 0;
   // Scene bounds in world coordinates (the root's box, which is rounded outward to float32 in the store's

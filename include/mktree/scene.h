@@ -39,12 +39,4 @@ struct SceneObject {
   Box3f Aabb() const { return RoundOutward(mesh.Bounds()); }
 };
 
-// What the builder keeps in RAM per object: never the geometry.
-struct ObjectRecord {
-  ObjectId id = 0;
-  uint32_t encoded_bytes = 0;   // bytes this object takes in a leaf page (entry header included)
-  Box3f box;
-  uint64_t spill_offset = 0;    // where its encoded geometry lies in the ingest spill file
-};
-
 }  // namespace mktree

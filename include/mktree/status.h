@@ -1,6 +1,10 @@
 // Status and Result<T>: how every fallible call in mktree reports failure.
 // Exceptions never cross the public API; I/O and parse paths return a Status that names the file
-// (and line or page where there is one).
+// (and line or page where there is one). Both are [[nodiscard]]: a dropped Status is a bug, so code that
+// means to ignore one says so with (void) and a comment why.
+//
+//   MKTREE_RETURN_IF_ERROR(file.Sync());               // returns the Status unless it is ok
+//   MKTREE_ASSIGN_OR_RETURN(auto reader, Open(path));  // reader = the Result's value, or returns its Status
 #pragma once
 
 #include <cassert>
@@ -10,7 +14,7 @@
 
 namespace mktree {
 
-class Status {
+class [[nodiscard]] Status {
  public:
   enum class Code { kOk = 0, kInvalidArgument, kNotFound, kCorruption, kIOError, kUnsupported, kInternal };
 
@@ -62,9 +66,9 @@ class Status {
 
 // A value or a non-ok Status.
 template <typename T>
-class Result {
+class [[nodiscard]] Result {
  public:
-  Result(T value) : value_(std::move(value)) {}  // NOLINT: implicit by design
+  Result(T value) : value_(std::move(value)) {}                                  // NOLINT: implicit by design
   Result(Status status) : status_(std::move(status)) { assert(!status_.ok()); }  // NOLINT
   bool ok() const { return status_.ok(); }
   const Status& status() const { return status_; }
@@ -73,17 +77,31 @@ class Result {
   T&& value() && { return std::move(*value_); }
   T* operator->() { return &*value_; }
   const T* operator->() const { return &*value_; }
-  T& operator*() { return *value_; }
+  T& operator*() & { return *value_; }
+  const T& operator*() const& { return *value_; }
+  T&& operator*() && { return std::move(*value_); }
 
  private:
   Status status_;
   std::optional<T> value_;
 };
 
-#define MKTREE_RETURN_IF_ERROR(expr)           \
-  do {                                         \
-    ::mktree::Status _st = (expr);             \
-    if (!_st.ok()) return _st;                 \
+#define MKTREE_RETURN_IF_ERROR(expr) \
+  do {                               \
+    ::mktree::Status _st = (expr);   \
+    if (!_st.ok()) return _st;       \
   } while (0)
+
+// `lhs = value of expr`, or return expr's Status from the enclosing function (which returns a Status or a
+// Result). `lhs` may declare (`auto x`, `const Foo& x`) or name an existing variable. It expands to
+// several statements: write it as a statement of its own (not an unbraced if's body), one per line.
+#define MKTREE_ASSIGN_OR_RETURN(lhs, ...) \
+  MKTREE_ASSIGN_OR_RETURN_IMPL_(MKTREE_STATUS_CONCAT_(mktree_result_, __LINE__), lhs, __VA_ARGS__)
+#define MKTREE_ASSIGN_OR_RETURN_IMPL_(result, lhs, ...) \
+  auto result = (__VA_ARGS__);                          \
+  if (!result.ok()) return result.status();             \
+  lhs = std::move(result).value()
+#define MKTREE_STATUS_CONCAT_(a, b) MKTREE_STATUS_CONCAT_IMPL_(a, b)
+#define MKTREE_STATUS_CONCAT_IMPL_(a, b) a##b
 
 }  // namespace mktree

@@ -37,12 +37,11 @@ inline void RunQueries(const Database& db, const std::vector<Box3d>& extra) {
     boxes.push_back(centre);
   }
   boxes.insert(boxes.end(), extra.begin(), extra.end());
-  std::vector<ObjectId> hits;
+  QueryResult r;
   for (const Box3d& q : boxes) {
     for (QueryMode mode : {QueryMode::kAabb, QueryMode::kExact}) {
-      if (db.QueryPoint(Vec3d{q.min[0], q.min[1], q.min[2]}, mode, &hits, nullptr).ok())
-        CheckAnswer(db, hits);
-      if (db.QueryBox(q, mode, &hits, nullptr).ok()) CheckAnswer(db, hits);
+      if (db.Run(Query::Point(Vec3d{q.min[0], q.min[1], q.min[2]}, mode), &r).ok()) CheckAnswer(db, r.hits);
+      if (db.Run(Query::Box(q, mode), &r).ok()) CheckAnswer(db, r.hits);
     }
   }
 }

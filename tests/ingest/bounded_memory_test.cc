@@ -88,9 +88,9 @@ TEST(BoundedMemory, GeometryTenTimesTheBudgetBuildsWithinIt) {
   auto db = Database::Open(store);
   ASSERT_TRUE(db.ok()) << db.status().ToString();
   EXPECT_EQ((*db)->object_count(), kObjects);
-  std::vector<ObjectId> hits;
-  ASSERT_TRUE((*db)->QueryPoint({0, 0, 12}, QueryMode::kExact, &hits, nullptr).ok());
-  EXPECT_EQ(hits, std::vector<ObjectId>{0});
+  QueryResult r;
+  ASSERT_TRUE((*db)->Run(Query::Point({0, 0, 12}, QueryMode::kExact), &r).ok());
+  EXPECT_EQ(r.hits, std::vector<ObjectId>{0});
 }
 
 }  // namespace

@@ -118,17 +118,17 @@ Result<std::vector<std::vector<ObjectId>>> Answers(const Database& db, const std
                                                    QueryMode mode) {
   std::vector<std::vector<ObjectId>> out;
   QueryResult r;
-  for (const Query& q : qs) {
-    MKTREE_RETURN_IF_ERROR(db.Run(q, mode, &r));
+  for (Query q : qs) {
+    q.mode = mode;
+    MKTREE_RETURN_IF_ERROR(db.Run(q, &r));
     out.push_back(r.hits);
   }
   return out;
 }
 
 Result<std::vector<std::vector<ObjectId>>> AnswersOf(const std::string& path, const std::vector<Query>& qs) {
-  auto db = Database::Open(path, {.cache_pages = 0});
-  if (!db.ok()) return db.status();
-  return Answers(**db, qs, QueryMode::kExact);
+  MKTREE_ASSIGN_OR_RETURN(auto db, Database::Open(path, {.cache_pages = 0}));
+  return Answers(*db, qs, QueryMode::kExact);
 }
 
 uint64_t FileHash(const std::string& path) {
@@ -193,7 +193,9 @@ class WriterFaultTest : public ::testing::TestWithParam<Backend> {
     ASSERT_TRUE(db.ok()) << db.status().ToString();
     QueryResult r;
     for (size_t i = 0; i < queries_.size(); ++i) {
-      Status st = (*db)->Run(queries_[i], QueryMode::kExact, &r);
+      Query q = queries_[i];
+      q.mode = QueryMode::kExact;
+      Status st = (*db)->Run(q, &r);
       if (st.ok()) {
         EXPECT_EQ(r.hits, new_answers_[i]) << "query " << i;
       } else {
@@ -320,7 +322,9 @@ TEST_P(ReadFaultTest, EveryReadFaultIsAnErrorOrTheRightAnswer) {
     QueryResult r;
     for (size_t i = 0; i < qs.size(); ++i) {
       for (QueryMode mode : {QueryMode::kAabb, QueryMode::kExact}) {
-        Status st = db->Run(qs[i], mode, &r);
+        Query q = qs[i];
+        q.mode = mode;
+        Status st = db->Run(q, &r);
         if (!st.ok()) {
           ++errors;
           EXPECT_TRUE(st.code() == Status::Code::kCorruption || st.code() == Status::Code::kIOError)

@@ -87,12 +87,12 @@ TEST_P(ConcurrentRebuildTest, ReadersSeeOneWholeVersionWhileTheStoreIsRebuilt) {
         if (n != versions[0].objects.size() && n != versions[1].objects.size())
           return fail("a store of " + std::to_string(n) + " objects");
         const Version& v = versions[n == versions[0].objects.size() ? 0 : 1];
-        std::vector<ObjectId> hits;
+        QueryResult r;
         for (int i = 0; i < kQueries; ++i) {
           const int q = (i + t * 7) % kQueries;
-          Status st = (*db)->QueryBox(queries[q], QueryMode::kAabb, &hits, nullptr);
+          Status st = (*db)->Run(Query::Box(queries[q]), &r);
           if (!st.ok()) return fail("query: " + st.ToString());
-          if (hits != v.answers[q]) return fail("query " + std::to_string(q) + ": wrong answer");
+          if (r.hits != v.answers[q]) return fail("query " + std::to_string(q) + ": wrong answer");
         }
       }
     });

@@ -1,7 +1,8 @@
 // The public API on crafted stores (tests/store/crafted_store.h) and under memory limits: a tampered
 // store gives a Corruption naming the file (at Database::Open or at the query that reads the bad leaf),
-// never a hang, a duplicated or missing id; RunBatch keeps the error's code; and an exception (such as
-// std::bad_alloc under RLIMIT_AS) never crosses the API. Crafted* suites run under a short timeout.
+// never a hang, a duplicated or missing id; RunBatch keeps the error's code and message; and an exception
+// (such as std::bad_alloc under RLIMIT_AS) never crosses the API. Crafted* suites run under a short
+// timeout.
 #include <gtest/gtest.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
@@ -55,10 +56,10 @@ class CraftedQueryTest : public ::testing::Test {
 TEST_F(CraftedQueryTest, TheUntouchedStoreAnswersEveryObjectOnce) {
   auto db = WriteAndOpen();
   ASSERT_TRUE(db.ok()) << db.status().ToString();
-  std::vector<ObjectId> hits;
-  ASSERT_TRUE((*db)->QueryBox(Everything(image_), QueryMode::kAabb, &hits, nullptr).ok());
-  ASSERT_EQ(hits.size(), 300u);
-  for (ObjectId i = 0; i < 300; ++i) EXPECT_EQ(hits[i], i);
+  QueryResult r;
+  ASSERT_TRUE((*db)->Run(Query::Box(Everything(image_)), &r).ok());
+  ASSERT_EQ(r.hits.size(), 300u);
+  for (ObjectId i = 0; i < 300; ++i) EXPECT_EQ(r.hits[i], i);
 }
 
 // Routing these would loop forever (a SplitTree cycle) or queue nodes without end (a child cycle).
@@ -88,21 +89,31 @@ TEST_F(CraftedQueryTest, TamperedPagesAreCorruptionAtTheQueryNotAnAnswer) {
   testing::ResealPage(&page);
   auto db = WriteAndOpen();
   ASSERT_TRUE(db.ok()) << db.status().ToString();  // the page is only read by a query
-  std::vector<ObjectId> hits;
-  ExpectCorruptionNamingTheFile((*db)->QueryBox(Everything(image_), QueryMode::kAabb, &hits, nullptr));
-  ExpectCorruptionNamingTheFile((*db)->QueryBox(Everything(image_), QueryMode::kExact, &hits, nullptr));
+  QueryResult r;
+  ExpectCorruptionNamingTheFile((*db)->Run(Query::Box(Everything(image_)), &r));
+  ExpectCorruptionNamingTheFile((*db)->Run(Query::Box(Everything(image_), QueryMode::kExact), &r));
 
-  // RunBatch keeps the failed query's code, and says which query it was.
-  std::vector<Query> queries(5, Query::Point({-1e6, -1e6, -1e6}));  // outside: read nothing
-  queries.push_back(Query::Box(Everything(image_)));
+  // RunBatch returns the first failing query's own Status (in query order, whatever the threads do), its
+  // message prefixed with the query's index: here a Corruption at 5, and an InvalidArgument at 9.
+  std::vector<Query> queries(12, Query::Point({-1e6, -1e6, -1e6}));  // outside: read nothing
+  queries[5] = Query::Box(Everything(image_));
+  queries[9] = Query::Point({std::nan(""), 0, 0});
+  QueryResult alone;
+  const Status corrupt = (*db)->Run(queries[5], &alone);
+  const Status invalid = (*db)->Run(queries[9], &alone);
+  ASSERT_EQ(invalid.code(), Status::Code::kInvalidArgument);
   std::vector<QueryResult> results;
-  for (unsigned threads : {1u, 3u}) {
-    Status st = (*db)->RunBatch(queries, QueryMode::kAabb, threads, &results);
+  for (unsigned threads : {1u, 3u, 12u}) {
+    Status st = (*db)->RunBatch(queries, threads, &results);
     ExpectCorruptionNamingTheFile(st);
-    EXPECT_NE(st.message().find("query 5: "), std::string::npos) << st.message();
+    EXPECT_EQ(st.message(), "query 5: " + corrupt.message());
   }
-  queries.back() = Query::Point({std::nan(""), 0, 0});
-  EXPECT_EQ((*db)->RunBatch(queries, QueryMode::kAabb, 2, &results).code(), Status::Code::kInvalidArgument);
+  std::swap(queries[5], queries[9]);
+  for (unsigned threads : {1u, 3u, 12u}) {
+    Status st = (*db)->RunBatch(queries, threads, &results);
+    EXPECT_EQ(st.code(), Status::Code::kInvalidArgument);
+    EXPECT_EQ(st.message(), "query 5: " + invalid.message());
+  }
 }
 
 // VmSize of this process, in bytes (0 if unknown).
@@ -167,7 +178,7 @@ TEST(CraftedMemoryLimitTest, OpenAndQueriesUnderAMemoryLimitReturnAStatus) {
   std::vector<Query> queries(64, Query::Box(Everything(*img)));
   const int batch = RunUnderMemoryLimit(4 << 20, [&] {
     std::vector<QueryResult> results;
-    Status st = (*db)->RunBatch(queries, QueryMode::kAabb, 16, &results);
+    Status st = (*db)->RunBatch(queries, 16, &results);
     if (!st.ok()) return st.code() == Status::Code::kInternal ? 4 : 3;
     for (const QueryResult& r : results)
       if (r.hits.size() != 300) return 5;

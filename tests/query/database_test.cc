@@ -5,8 +5,10 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <random>
+#include <stdexcept>
 
 #include "engine/geometry/exact_geometry.h"
 #include "engine/ingest/store_builder.h"
@@ -74,8 +76,8 @@ class Brute {
     }
     return out;
   }
-  std::vector<ObjectId> Answer(const Query& q, QueryMode mode) const {
-    return q.kind == Query::Kind::kPoint ? Point(q.point, mode) : Box(q.box, mode);
+  std::vector<ObjectId> Answer(const Query& q) const {
+    return q.kind == Query::Kind::kPoint ? Point(q.point, q.mode) : Box(q.box, q.mode);
   }
 
  private:
@@ -132,8 +134,10 @@ void CheckAll(const Database& db, const std::vector<SceneObject>& objs, const st
   const Brute brute(objs);
   for (size_t i = 0; i < qs.size(); ++i) {
     if (cold) const_cast<Database&>(db).ClearCache();
-    ASSERT_TRUE(db.Run(qs[i], mode, &r).ok()) << "query " << i;
-    const auto expected = brute.Answer(qs[i], mode);
+    Query q = qs[i];
+    q.mode = mode;
+    ASSERT_TRUE(db.Run(q, &r).ok()) << "query " << i;
+    const auto expected = brute.Answer(q);
     ASSERT_EQ(r.hits, expected) << "query " << i << (qs[i].kind == Query::Kind::kPoint ? " point" : " box");
     CheckStats(r, cold);
   }
@@ -173,11 +177,80 @@ TEST_P(DatabaseTest, BatchFromManyThreadsEqualsSingleQueries) {
   ASSERT_TRUE(db.ok());
   const auto qs = RandomQueries(objs, 600, 11);
   std::vector<QueryResult> results;
-  ASSERT_TRUE((*db)->RunBatch(qs, QueryMode::kAabb, 4, &results).ok());
+  ASSERT_TRUE((*db)->RunBatch(qs, 4, &results).ok());
   ASSERT_EQ(results.size(), qs.size());
   const Brute brute(objs);
-  for (size_t i = 0; i < qs.size(); ++i)
-    EXPECT_EQ(results[i].hits, brute.Answer(qs[i], QueryMode::kAabb)) << i;
+  for (size_t i = 0; i < qs.size(); ++i) EXPECT_EQ(results[i].hits, brute.Answer(qs[i])) << i;
+  fs::remove(path);
+}
+
+// Visit is the primitive under Run: the same ids, each once, and the same statistics.
+TEST_P(DatabaseTest, VisitStreamsRunsAnswerEachIdOnce) {
+  const auto objs = testing::ClusteredScene(2000, 21);
+  const std::string path = TempPath("visit.mkt");
+  ASSERT_TRUE(Build(objs, path, Options(GetParam().backend, GetParam().codec, 1024, 2)).ok());
+  auto db = Database::Open(path, {.cache_pages = 32});
+  ASSERT_TRUE(db.ok());
+  for (QueryMode mode : {QueryMode::kAabb, QueryMode::kExact}) {
+    for (Query q : RandomQueries(objs, 200, 23)) {
+      q.mode = mode;
+      QueryResult run;
+      (*db)->ClearCache();
+      ASSERT_TRUE((*db)->Run(q, &run).ok());
+      std::vector<ObjectId> visited;
+      auto collect = [&](ObjectId id) { visited.push_back(id); };
+      QueryStats stats;
+      (*db)->ClearCache();
+      ASSERT_TRUE((*db)->Visit(q, collect, &stats).ok());
+      std::sort(visited.begin(), visited.end());
+      EXPECT_EQ(std::adjacent_find(visited.begin(), visited.end()), visited.end());
+      ASSERT_EQ(visited, run.hits);
+      EXPECT_EQ(stats.ToJsonMembers(), run.stats.ToJsonMembers());
+    }
+  }
+  fs::remove(path);
+}
+
+// `visit` runs once its leaf is released: it may query the same Database, and its exceptions become a
+// Status.
+TEST_P(DatabaseTest, AVisitorMayQueryTheDatabaseAndItsExceptionsAreAStatus) {
+  const auto objs = testing::ClusteredScene(1500, 31);
+  const std::string path = TempPath("nested.mkt");
+  ASSERT_TRUE(Build(objs, path, Options(GetParam().backend, GetParam().codec, 1024, 2)).ok());
+  auto db = Database::Open(path, {.cache_pages = 4});
+  ASSERT_TRUE(db.ok());
+  const Brute brute(objs);
+  const Query whole = Query::Box((*db)->bounds());
+  std::vector<ObjectId> visited;
+  QueryResult inner;
+  size_t nested = 0;
+  auto visit = [&](ObjectId id) {
+    visited.push_back(id);
+    if (id % 100 != 0) return;
+    // Queries around the object's first vertex, from inside the outer query: a point, and a box like it.
+    const std::vector<double>& v = objs[id].mesh.vertices;
+    Box3d near;
+    for (int a = 0; a < 3; ++a) {
+      near.min[a] = v[a] - 1;
+      near.max[a] = v[a] + 1;
+    }
+    for (const Query& q : {Query::Point({v[0], v[1], v[2]}, QueryMode::kExact), Query::Box(near)}) {
+      ASSERT_TRUE((*db)->Run(q, &inner).ok());
+      ASSERT_EQ(inner.hits, brute.Answer(q));
+    }
+    ++nested;
+  };
+  const Status st = (*db)->Visit(whole, visit, nullptr);
+  ASSERT_TRUE(st.ok()) << st.ToString();
+  EXPECT_GT(nested, 10u);
+  std::sort(visited.begin(), visited.end());
+  EXPECT_EQ(visited, brute.Answer(whole));
+
+  auto give_up = [](ObjectId) { throw std::runtime_error("visitor gave up"); };
+  const Status thrown = (*db)->Visit(whole, give_up, nullptr);
+  EXPECT_EQ(thrown.code(), Status::Code::kInternal);
+  EXPECT_NE(thrown.message().find("visitor gave up"), std::string::npos) << thrown.message();
+  EXPECT_NE(thrown.message().find(path), std::string::npos) << thrown.message();
   fs::remove(path);
 }
 
@@ -226,13 +299,14 @@ TEST_P(DatabaseTest, LargeAnswersAndRepeatedQueriesKeepAnswersAndCounts) {
   const Brute brute(objs);
   for (QueryMode mode : {QueryMode::kAabb, QueryMode::kExact}) {
     QueryResult first, again;
-    for (const Query& q : qs) {
+    for (Query q : qs) {
+      q.mode = mode;
       (*db)->ClearCache();
-      ASSERT_TRUE((*db)->Run(q, mode, &first).ok());
+      ASSERT_TRUE((*db)->Run(q, &first).ok());
       ASSERT_EQ(first.hits, brute.Box(q.box, mode));
       CheckStats(first, /*cold=*/true);
       // Repeated with every page cached: the same answer and work, and every page a hit.
-      ASSERT_TRUE((*db)->Run(q, mode, &again).ok());
+      ASSERT_TRUE((*db)->Run(q, &again).ok());
       EXPECT_EQ(again.hits, first.hits);
       EXPECT_EQ(again.stats.pages_touched, first.stats.pages_touched);
       EXPECT_EQ(again.stats.cache_hits, again.stats.pages_touched);
@@ -243,7 +317,7 @@ TEST_P(DatabaseTest, LargeAnswersAndRepeatedQueriesKeepAnswersAndCounts) {
     }
   }
   QueryResult r;
-  ASSERT_TRUE((*db)->Run(qs[0], QueryMode::kAabb, &r).ok());
+  ASSERT_TRUE((*db)->Run(qs[0], &r).ok());
   EXPECT_EQ(r.hits.size(), objs.size());
   fs::remove(path);
 }
@@ -263,12 +337,14 @@ TEST(DatabaseErrors, BadQueriesAreRefused) {
   ASSERT_TRUE(Build(objs, path, Options(Backend::kPagedFile, Codec::kZstd, 4096, 3)).ok());
   auto db = Database::Open(path);
   ASSERT_TRUE(db.ok());
-  std::vector<ObjectId> hits;
-  EXPECT_EQ((*db)->QueryPoint({NAN, 0, 0}, QueryMode::kAabb, &hits, nullptr).code(), Status::Code::kInvalidArgument);
+  QueryResult r;
+  EXPECT_EQ((*db)->Run(Query::Point({NAN, 0, 0}), &r).code(), Status::Code::kInvalidArgument);
   Box3d inverted;
   inverted.min = {1, 1, 1};
   inverted.max = {0, 2, 2};
-  EXPECT_EQ((*db)->QueryBox(inverted, QueryMode::kAabb, &hits, nullptr).code(), Status::Code::kInvalidArgument);
+  EXPECT_EQ((*db)->Run(Query::Box(inverted), &r).code(), Status::Code::kInvalidArgument);
+  auto ignore = [](ObjectId) {};
+  EXPECT_EQ((*db)->Visit(Query::Box(inverted), ignore, nullptr).code(), Status::Code::kInvalidArgument);
   fs::remove(path);
 }
 

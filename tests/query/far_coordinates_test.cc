@@ -72,9 +72,9 @@ Box3d Cube(const double corner[3], double side) {
 }
 
 std::vector<ObjectId> Hits(const Database& db, const Vec3d& p, QueryMode mode) {
-  std::vector<ObjectId> hits;
-  EXPECT_TRUE(db.QueryPoint(p, mode, &hits, nullptr).ok());
-  return hits;
+  QueryResult r;
+  EXPECT_TRUE(db.Run(Query::Point(p, mode), &r).ok());
+  return r.hits;
 }
 
 // The case: a 0.2 m cube at (500000, 5000000, 100) was not found at its centre, in either mode.
@@ -189,12 +189,13 @@ TEST_P(FarCoordinatesTest, MillimetreFeaturesMatchBruteForce) {
       bs.max[k] = box.max[k] - origin[k];
     }
     for (QueryMode mode : {QueryMode::kAabb, QueryMode::kExact}) {
-      std::vector<ObjectId> want, got;
+      std::vector<ObjectId> want;
       for (size_t i = 0; i < objs.size(); ++i)
         if (stored[i].box.Intersects(bs) && (mode == QueryMode::kAabb || MeshMeetsBox(stored[i].mesh, bs)))
           want.push_back(objs[i].id);
-      ASSERT_TRUE(db->QueryBox(box, mode, &got, nullptr).ok());
-      ASSERT_EQ(got, want) << "box " << q;
+      QueryResult got;
+      ASSERT_TRUE(db->Run(Query::Box(box, mode), &got).ok());
+      ASSERT_EQ(got.hits, want) << "box " << q;
     }
   }
   EXPECT_GT(clear_points, 1000);  // the input-geometry check covers most points...

@@ -69,7 +69,7 @@ TEST_P(RealSceneTest, QueriesMatchBruteForce) {
   std::mt19937_64 rng(2024);
   std::uniform_real_distribution<double> unit(0, 1);
   const int n = GetParam().exact ? 150 : 300;
-  std::vector<ObjectId> hits, expected;
+  std::vector<ObjectId> expected;
   for (int i = 0; i < n; ++i) {
     Vec3d p;
     for (int a = 0; a < 3; ++a) p[a] = all.min[a] + unit(rng) * (all.max[a] - all.min[a]);
@@ -81,21 +81,21 @@ TEST_P(RealSceneTest, QueriesMatchBruteForce) {
     }
     for (QueryMode mode : {QueryMode::kAabb, QueryMode::kExact}) {
       if (mode == QueryMode::kExact && !GetParam().exact) continue;
-      QueryStats stats;
-      ASSERT_TRUE((*db)->QueryPoint(p, mode, &hits, &stats).ok());
+      QueryResult r;
+      ASSERT_TRUE((*db)->Run(Query::Point(p, mode), &r).ok());
       expected.clear();
       for (const testing::StoredObject& o : stored)
         if (o.box.Contains(p) && (mode == QueryMode::kAabb || solid[o.id]->Contains(p)))
           expected.push_back(o.id);
-      ASSERT_EQ(hits, expected) << "point " << i;
-      EXPECT_EQ(stats.hits, hits.size());
-      ASSERT_TRUE((*db)->QueryBox(box, mode, &hits, &stats).ok());
+      ASSERT_EQ(r.hits, expected) << "point " << i;
+      EXPECT_EQ(r.stats.hits, r.hits.size());
+      ASSERT_TRUE((*db)->Run(Query::Box(box, mode), &r).ok());
       expected.clear();
       for (const testing::StoredObject& o : stored)
         if (o.box.Intersects(box) && (mode == QueryMode::kAabb || solid[o.id]->MeetsBox(box)))
           expected.push_back(o.id);
-      ASSERT_EQ(hits, expected) << "box " << i;
-      EXPECT_EQ(stats.cache_hits + stats.pages_read, stats.pages_touched);
+      ASSERT_EQ(r.hits, expected) << "box " << i;
+      EXPECT_EQ(r.stats.cache_hits + r.stats.pages_read, r.stats.pages_touched);
     }
   }
 }

@@ -392,7 +392,7 @@ TEST_P(StoreFileTest, KilledWriterLeavesNothingThatOpens) {
     if (!w.ok()) ::_exit(2);
     if (!testing::BuildTestStore(objects_, Options().codec, Options().params, &(*w)->pages(), &built_).ok())
       ::_exit(3);
-    (*w)->pages().Sync();
+    if (!(*w)->pages().Sync().ok()) ::_exit(4);
     ::_exit(0);
   }
   int status = 0;
