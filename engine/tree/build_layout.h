@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "engine/tree/build_memory.h"
+#include "engine/tree/object_record.h"
 #include "mktree/geometry.h"
 #include "mktree/scene.h"
 

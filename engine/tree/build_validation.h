@@ -7,6 +7,7 @@
 
 #include "engine/tree/build_memory.h"
 #include "engine/tree/mktree.h"
+#include "engine/tree/object_record.h"
 #include "mktree/geometry.h"
 #include "mktree/scene.h"
 #include "mktree/status.h"
