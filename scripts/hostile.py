@@ -2396,9 +2396,16 @@ def cat_concurrency(h):
             b = [str(h.mktree), "build", sb, "-o", "s.mkt", "--backend", backend, "-q"]
             c.say("$MKTREE %s & sleep %.2f; $MKTREE %s; wait" % (shlex.join(a[1:]), d, shlex.join(b[1:])))
             pa = spawn(a, c.dir)
-            time.sleep(d)
+            # Watch the first build while waiting: one that ends before the second starts does not overlap it.
+            pa_end, start_b = None, time.monotonic() + d
+            while time.monotonic() < start_b:
+                if pa_end is None and pa.popen.poll() is not None:
+                    pa_end = time.monotonic()
+                time.sleep(0.002)
             pb = spawn(b, c.dir)
             wait_all([pa, pb], 3 * h.timeout)
+            if pa_end is not None:
+                pa.t1 = pa_end
             overlap = pb.t0 < pa.t1
             outcome, why = None, ""
             for label, p in (("first build", pa), ("second build", pb)):

@@ -203,7 +203,7 @@ class StoreDatabase final : public Database {
     auto exact = [&](const ObjectEntryView& e) -> Result<bool> {
       if (!meets_aabb(e)) return false;
       Mesh mesh;
-      MKTREE_RETURN_IF_ERROR(DecodeObjectMesh(e, &mesh));
+      MKTREE_RETURN_IF_ERROR(DecodeStoredMesh(path(), e, &mesh));
       return meets_solid(Classifier(e, mesh));
     };
     std::vector<ObjectId> found = std::exchange(t_spare_ids, {});

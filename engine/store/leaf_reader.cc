@@ -14,6 +14,9 @@ Status CheckLeafEntries(const LeafView& view, const std::string& store_name, uin
     return Status::Corruption(store_name + ": page " + std::to_string(info.first_page) + " (leaf " +
                               std::to_string(leaf) + "): " + what);
   };
+  if (view.payload_bytes() != info.payload_bytes)
+    return fail("holds a payload of " + std::to_string(view.payload_bytes()) + " bytes but the tree says " +
+                std::to_string(info.payload_bytes));
   if (view.size() != info.object_count)
     return fail("holds " + std::to_string(view.size()) + " objects but the tree says " +
                 std::to_string(info.object_count));

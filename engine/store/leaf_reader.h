@@ -27,8 +27,8 @@ struct PinnedLeaf {
 };
 
 // Checks that a parsed leaf holds what the tree and the object table say it does, so that a store
-// tampered with behind valid checksums gives an error, never a duplicated or missing id: exactly
-// info.object_count entries, each id an object that `object_leaf` (the object table's leaf of each
+// tampered with behind valid checksums gives an error, never a duplicated or missing id: the payload
+// size the tree records (info.payload_bytes), exactly info.object_count entries, each id an object that `object_leaf` (the object table's leaf of each
 // object id) puts in leaf `leaf`, no id twice, each entry's box within info.box. With the table checked
 // at open (each leaf's object_count is its number of objects in the table), the entries are then exactly
 // the leaf's objects. `seen` is scratch: all zero (or empty) before the call, and again after it; it
@@ -51,5 +51,11 @@ Status ReadLeaf(PageCache& cache, const std::string& store_name, uint32_t leaf, 
 Result<PinnedLeaf> ReadLeaf(PageCache& cache, const std::string& store_name, uint32_t leaf,
                             const LeafInfo& info, std::span<const uint32_t> object_leaf, uint64_t mem_page,
                             bool verify_checksums, QueryStats* stats);
+
+// DecodeObjectMesh, naming the store in its error (the entry's own checks cannot know the file).
+inline Status DecodeStoredMesh(const std::string& store_name, const ObjectEntryView& e, Mesh* mesh) {
+  Status st = DecodeObjectMesh(e, mesh);
+  return st.ok() ? st : Status::Corruption(store_name + ": " + st.message());
+}
 
 }  // namespace mktree

@@ -10,6 +10,7 @@
 #include <memory>
 #include <vector>
 
+#include "engine/store/leaf_reader.h"
 #include "engine/viz/spool_file.h"
 
 namespace mktree {
@@ -294,7 +295,7 @@ Result<ExportReport> ExportLevel(const StoreReader& store, const std::string& ou
           report.triangles[gi] += 12;
           return sink->Add(g, corners, 8, kBoxTriangles, 12);
         }
-        MKTREE_RETURN_IF_ERROR(DecodeObjectMesh(e, &mesh));
+        MKTREE_RETURN_IF_ERROR(DecodeStoredMesh(store.path(), e, &mesh));
         const auto nv = static_cast<uint32_t>(mesh.vertex_count()),
                    nt = static_cast<uint32_t>(mesh.triangle_count());
         report.vertices[gi] += nv;

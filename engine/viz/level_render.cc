@@ -10,6 +10,7 @@
 #include <cstring>
 #include <limits>
 
+#include "engine/store/leaf_reader.h"
 #include "engine/tree/split_tree_walk.h"
 #include "storage/atomic_file.h"
 
@@ -522,7 +523,7 @@ Result<RenderReport> RenderLevel(const StoreReader& store, const std::string& pn
       store, o.level,
       [&](uint32_t, const ObjectEntryView& e, LevelGroup g) -> Status {
         ++report.objects[GroupIndex(g)];
-        MKTREE_RETURN_IF_ERROR(DecodeObjectMesh(e, &mesh));
+        MKTREE_RETURN_IF_ERROR(DecodeStoredMesh(store.path(), e, &mesh));
         const Rgb base = GroupColour(g);
         for (size_t t = 0; t < mesh.triangle_count(); ++t) {
           const double* p[3];

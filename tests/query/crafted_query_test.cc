@@ -81,6 +81,29 @@ TEST_F(CraftedQueryTest, LeafReferencedTwiceIsRefusedNotAnsweredTwice) {
   ExpectCorruptionNamingTheFile(WriteAndOpen().status());
 }
 
+// An entry whose geometry does not decode fails the exact query with an error naming the store (the
+// hostile campaign's crafted-030 to 032 said only "object N: ...").
+TEST_F(CraftedQueryTest, GeometryThatDoesNotDecodeIsCorruptionNamingTheStore) {
+  auto img = testing::MakeTestImage(testing::MakeObjects(300, 11), {}, Codec::kNone);
+  ASSERT_TRUE(img.ok()) << img.status().ToString();
+  image_ = std::move(img).value();
+  const uint32_t l = testing::LeafWithObjects(image_.tree(), 1);
+  std::vector<uint8_t>& page = image_.pages[image_.tree().leaves[l].first_page];
+  const size_t at = testing::EntryOffsets(page)[0];
+  auto e = ParseObjectEntry(page.data() + at, page.size() - at);
+  ASSERT_TRUE(e.ok());
+  ASSERT_GT(e->triangle_count, 0u);
+  // The entry's last triangle index, past its vertices.
+  storage_internal::Put<uint32_t>(page.data() + at + e->entry_bytes() - 4, e->vertex_count + 1000);
+  testing::ResealPage(&page);
+  auto db = WriteAndOpen();
+  ASSERT_TRUE(db.ok()) << db.status().ToString();
+  QueryResult r;
+  Status st = (*db)->Run(Query::Box(Everything(image_), QueryMode::kExact), &r);
+  ExpectCorruptionNamingTheFile(st);
+  EXPECT_NE(st.message().find("triangle index out of range"), std::string::npos) << st.message();
+}
+
 TEST_F(CraftedQueryTest, TamperedPagesAreCorruptionAtTheQueryNotAnAnswer) {
   const uint32_t l = testing::LeafWithObjects(image_.tree(), 3);
   std::vector<uint8_t>& page = image_.pages[image_.tree().leaves[l].first_page];

@@ -272,6 +272,15 @@ TEST_P(CraftedStoreTest, LeafPageCountMustMatchItsPayload) {
   ExpectRefused("leaf " + std::to_string(l) + ": 2 pages for");
 }
 
+// The leaf record's payload size, resealed within the same page count, must be the page's (hostile
+// campaign: crafted-013 and crafted-051 answered from such stores).
+TEST_P(CraftedStoreTest, LeafPayloadSizeMustMatchItsPage) {
+  const uint32_t l = testing::LeafWithObjects(tree(), 2);
+  tree().leaves[l].payload_bytes += 8;
+  ExpectRefused("holds a payload of " + std::to_string(tree().leaves[l].payload_bytes - 8) +
+                " bytes but the tree says");
+}
+
 TEST_P(CraftedStoreTest, LeafFilterOfTheWrongSizeIsRefused) {
   tree().leaf_filter.assign(12, 0);
   ExpectRefused("leaf filter holds 12 bytes");
@@ -312,8 +321,8 @@ TEST_P(CraftedStoreTest, PageWithAnEntryOutsideTheLeafBoxIsRefusedAtItsRead) {
 }
 
 TEST_P(CraftedStoreTest, PageHoldingFewerEntriesThanItsLeafIsRefusedAtItsRead) {
-  // The last entry dropped from the page, its leaf header rewritten to match: the page is well formed,
-  // and only the tree's count says an object is missing.
+  // The last entry dropped from the page, its leaf header and the tree's payload size rewritten to match:
+  // the page is well formed, and only the tree's count says an object is missing.
   const uint32_t l = testing::LeafWithObjects(tree(), 2);
   EditLeafPage(l, [&](std::vector<uint8_t>& page, const std::vector<size_t>& at) {
     uint8_t* payload = page.data() + kPageHeaderBytes;
@@ -323,6 +332,7 @@ TEST_P(CraftedStoreTest, PageHoldingFewerEntriesThanItsLeafIsRefusedAtItsRead) {
     storage_internal::Put<uint32_t>(payload, count - 1);
     storage_internal::Put<uint64_t>(payload + 8, cut);
     storage_internal::Put<uint32_t>(page.data() + 20, static_cast<uint32_t>(cut));  // page payload bytes
+    tree().leaves[l].payload_bytes = cut;
   });
   ExpectRefused("holds " + std::to_string(tree().leaves[l].object_count - 1) + " objects but the tree says");
 }
