@@ -678,7 +678,7 @@ class SubtreeBuilder {
   }
 
  private:
-  // InPage (DESIGN.md §2): a node of `count` objects whose entries take `bytes` is a leaf.
+  // InPage (docs/design.md §3.1): a node of `count` objects whose entries take `bytes` is a leaf.
   bool IsLeaf(uint32_t count, uint64_t bytes) const { return count == 1 || FitsInOnePage(bytes, mem_page_); }
 
   void ShrinkScratch(size_t n) {
