@@ -6,7 +6,7 @@
 //                    (SplitPolicy::kCompact) on 1 thread
 //   tanker_1m_2t     the same, two threads
 //   tanker_1m_soafill  the same, SplitPolicy::kSoa with the page-fill-aware ranking near the leaves
-//   tanker_1m_soa    the same, plain SOA (DESIGN.md §2.1 exactly): the fill baseline
+//   tanker_1m_soa    the same, plain SOA (docs/design.md §3.5, exactly): the fill baseline
 //   tanker_10m       10,000,000 objects of MakeTankerSource(1e7, seed 1)
 //   tanker_10m_2t    the same, two threads
 //   synthetic_1m     1,000,000 synthetic records (pipes / plates / equipment boxes; no generator)

@@ -1,5 +1,5 @@
 // PageCache: an LRU cache of leaf pages between queries and a PageStore. A miss is one page read from
-// the store, i.e. one disk access (DESIGN.md §3).
+// the store, i.e. one disk access (docs/design.md §8.3).
 //
 // - Capacity is in pages. A pinned page (a live PageHandle) is never evicted; while pages are pinned the
 //   cache may hold more than `capacity` pages, and evicts down to capacity as they are unpinned.

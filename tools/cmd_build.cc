@@ -1,4 +1,4 @@
-// mktree build SCENE... -o STORE: ingest scenes and write a store (DESIGN.md §5).
+// mktree build SCENE... -o STORE: ingest scenes and write a store (docs/cli.md).
 #include <zstd.h>
 
 #include <cstdio>
@@ -71,7 +71,7 @@ int RunBuild(const BuildArgs& a) {
   if (!(a.r >= 0 && a.r < 0.5)) return Fail("--r must be in [0, 0.5)");
   if (a.split_policy == "compact") {
     opts.tuning.split_policy = SplitPolicy::kCompact;
-  } else if (a.split_policy == "soa") {  // DESIGN.md §2.1 exactly
+  } else if (a.split_policy == "soa") {  // docs/design.md §3.5: the reference SOA exactly
     opts.tuning.split_policy = SplitPolicy::kSoa;
     opts.tuning.fill_aware = false;
   } else if (a.split_policy == "soa-fill") {

@@ -1,4 +1,4 @@
-// mktree export STORE --level K -o OUT.ply|OUT.glb [--boxes]: the level-k colouring (DESIGN.md §2.4) as
+// mktree export STORE --level K -o OUT.ply|OUT.glb [--boxes]: the level-k colouring (docs/design.md §9) as
 // coloured geometry, read from the store leaf by leaf (engine/viz/level_export.h).
 #include <chrono>
 #include <cstdio>

@@ -1,4 +1,4 @@
-// `mktree generate tanker --objects N [--seed S] -o SCENE`: writes the synthetic tanker (DESIGN.md §6) as
+// `mktree generate tanker --objects N [--seed S] -o SCENE`: writes the tanker (docs/design.md §12) as
 // .obj or .mks (by extension) and prints a one-line summary.
 #include <chrono>
 #include <cstdio>

@@ -1,5 +1,5 @@
 // mktree render STORE --level K -o OUT.png [--view top|side|front] [--size WxH] [--overlay]: a picture of
-// the level-k colouring (DESIGN.md §2.4), drawn from the store leaf by leaf (engine/viz/level_render.h).
+// the level-k colouring (docs/design.md §9), drawn from the store leaf by leaf (engine/viz/level_render.h).
 #include <chrono>
 #include <cstdio>
 

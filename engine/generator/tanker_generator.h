@@ -1,4 +1,4 @@
-// The synthetic tanker: a deterministic, streamed generator of ship-like scenes of any size (DESIGN.md §6).
+// Synthetic tanker: a deterministic, streamed generator of ship-like scenes of any size (docs/design.md §12).
 //
 // Layout
 //   The hull envelope is the box TankerHullBounds(): x in [0, 300] m along the ship, y in [-25, 25] m across,

@@ -1,4 +1,4 @@
-// Ingest: streams scene objects into a finished store with bounded memory (DESIGN.md §3).
+// Ingest: streams scene objects into a finished store with bounded memory (docs/design.md §10).
 //
 // Each object's edge check (closed? even edge use?) is computed here once and stored in its entry, so
 // that exact queries do not repeat it.

@@ -78,7 +78,7 @@ inline bool BoxWithin(const Box3f& inner, const Box3f& outer) {
 // size: the nodes are in depth-first preorder from the root (left child first), which rules out cycles,
 // shared children and orphans; depths count from 0 at the root (so the tree has at most 256 levels);
 // every child's box lies within its parent's, a leaf node's box is its leaf's, a = R(child 1).min[axis]
-// and b = R(child 0).max[axis] (DESIGN.md 2.1); leaves are numbered in that order, each referenced by
+// and b = R(child 0).max[axis] (docs/design.md §3.3); leaves are numbered in that order, each referenced by
 // exactly one node that it references back, with page ranges in order, disjoint, within `page_count` and
 // as many as its payload needs; each SplitTree is a tree (no split node reached twice, none left over) of
 // at most kMaxSplitTreeLevels levels; every object is in an existing leaf and each leaf's object_count is

@@ -1,5 +1,5 @@
 // The builder's records in RAM (BuildMKTree, mktree_builder.h), before any node is split: the records laid
-// out by the Morton cell of their box centres, and the six key orders of DESIGN §2.1 step 1 ("the paper
+// out by the Morton cell of their box centres, and the six key orders of docs/design.md §3.2 ("the paper
 // sorts six times": min_w and max_w for each axis w), each by an LSD radix sort. Internal to engine/tree.
 #pragma once
 

@@ -1,4 +1,4 @@
-// BuildMKTree: constructs the MKtree (DESIGN.md §2) from per-object records only (id, AABB, encoded
+// BuildMKTree: constructs the MKtree (docs/design.md §2) from per-object records only (id, AABB, encoded
 // bytes; never geometry), in RAM, in O(N log^2 N) time and well under 100 bytes per object.
 //
 // Node layout: nodes in DFS preorder (root 0, left child n+1, right child after the left subtree), so a
@@ -6,7 +6,7 @@
 // follow the previous leaf's (LeafInfo::first_page/page_count from PagesForLeaf in
 // engine/tree/page_budget.h).
 //
-// Splitting: the SOA of §2.1 over the 6 sort keys, ranked as BuildTuning::split_policy says (kSoa: page
+// Splitting (docs/design.md §3): SOA over the 6 sort keys, ranked per BuildTuning::split_policy (kSoa: page
 // waste near the leaves, then |Sm|, slab, balance; kCompact: the wide axes only, margin before slab).
 // Objects entirely inside the slab ("In") are given a side by the SplitTree builder
 // (split_tree_builder.h); TreeNode::a/b are then recomputed from the final children (they can only narrow
@@ -57,7 +57,7 @@ struct BuildResult {
 
 // How an internal node chooses among the SOA candidates (the 6 sort orders x the balanced cut positions k).
 enum class SplitPolicy : uint8_t {
-  // DESIGN.md §2.1 as stated: fewest |Sm|, then the thinner slab, then balance. With
+  // The reference SOA (docs/design.md §3.5): fewest |Sm|, then the thinner slab, then balance. With
   // BuildTuning::fill_aware off this is the SOA exactly; on, page waste ranks first near the leaves.
   kSoa,
   // The SOA over compact candidates: only axes along which the node's objects spread at least

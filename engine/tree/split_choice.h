@@ -1,5 +1,5 @@
 // The split choice of the Splitting Overlap Algorithm (SOA): where an internal node's cut plane goes.
-// The rule, in the paper's notation (docs/design.md §"The Splitting Overlap Algorithm"):
+// The rule, in the paper's notation (docs/design.md §3, "The Splitting Overlap Algorithm"):
 //
 //   A node n holding Sn is a leaf when InPage(Sn): its leaf payload fits in one page of
 //   MemPage = d x BlockSize bytes (or Sn is one object). Otherwise, with N = |Sn| and balance ratio r:

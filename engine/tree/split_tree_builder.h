@@ -1,4 +1,4 @@
-// SplitTree construction (DESIGN.md §2.2): a small kd-tree over the overlap region Q of one internal node
+// SplitTree construction (docs/design.md §4): a small kd-tree over the overlap region Q of one internal node
 // whose cells say which children may hold objects there.
 //
 // Input: the objects whose boxes meet the closed slab a <= w <= b, each clipped to Q, with a side: fixed

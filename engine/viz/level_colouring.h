@@ -1,4 +1,4 @@
-// The level-k colouring of DESIGN.md §2.4, read from a store: every object with its group at its depth-k
+// The level-k colouring of docs/design.md §9, read from a store: every object with its group at its depth-k
 // ancestor node, visited leaf by leaf straight from the leaf pages, so that `mktree export` and
 // `mktree render` hold one leaf (plus their own output state) in RAM, never the scene.
 //

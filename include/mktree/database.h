@@ -105,7 +105,7 @@ class Database {
   // Scene bounds in world coordinates (the root's box, which is rounded outward to float32 in the store's
   // frame); empty for an empty store.
   virtual Box3d bounds() const = 0;
-  // Mean objects per leaf page (B of the I/O floor ceil(T / B), DESIGN.md §4).
+  // Mean objects per leaf page (B of the I/O floor ceil(T / B), docs/design.md §8.3).
   virtual double objects_per_page() const = 0;
   // The builder's statistics as JSON (what `mktree info --json` prints under "tree").
   virtual const std::string& stats_json() const = 0;

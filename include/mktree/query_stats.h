@@ -1,4 +1,4 @@
-// Per-query I/O accounting: a plain struct of counters (DESIGN.md §4).
+// Per-query I/O accounting: a plain struct of counters (docs/design.md §8.3).
 // Invariants: pages_read <= pages_touched; cache_hits + pages_read == pages_touched;
 // with a cold cache pages_read == pages_touched; hits == size of the answer.
 #pragma once

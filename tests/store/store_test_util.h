@@ -178,7 +178,7 @@ inline Status BuildTestStore(const std::vector<SceneObject>& objects, const Code
       n.split_root = s;
       n.child[0] = build(lo, mid, depth + 1);
       n.child[1] = build(mid, hi, depth + 1);
-      // The overlap planes as DESIGN.md 2.1 defines them (stores refuse others).
+      // The overlap planes as docs/design.md §3.3 defines them (stores refuse others).
       n.a = out->tree.nodes[n.child[1]].box.min[n.axis];
       n.b = out->tree.nodes[n.child[0]].box.max[n.axis];
     }

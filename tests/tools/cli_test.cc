@@ -1,4 +1,4 @@
-// The mktree command line (DESIGN.md §5): good runs print what the contract says; bad arguments and bad
+// The mktree command line (docs/cli.md): good runs print what the contract says; bad arguments and bad
 // files give one "error: ..." line naming the file (and line), a non-zero exit, and nothing half-written.
 #include <gtest/gtest.h>
 #include <sys/wait.h>

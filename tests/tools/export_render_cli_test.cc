@@ -1,4 +1,4 @@
-// mktree export and mktree render from the command line (DESIGN.md §5, docs/cli.md): good runs write
+// mktree export and mktree render from the command line (docs/design.md §9, docs/cli.md): good runs write
 // the file with the right magic and size and print a summary; bad arguments and files give one
 // "error: ..." line naming the file, a non-zero exit, and leave nothing behind.
 #include <gtest/gtest.h>

@@ -183,7 +183,7 @@ inline bool LabelAllows(CellLabel l, int side) {
   return (static_cast<uint8_t>(l) & (side == 0 ? 1 : 2)) != 0;
 }
 
-// Every structural property of DESIGN.md §2 and of the flat layout. Returns the number of checks failed
+// Every structural property of docs/design.md §2-4 and the flat layout. Returns the number of checks failed
 // (also reported through gtest).
 inline void CheckTree(const std::vector<ObjectRecord>& recs, const BuildResult& r, const BuildParams& p) {
   const MKTree& t = r.tree;
