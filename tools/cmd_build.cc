@@ -144,7 +144,7 @@ void RegisterBuild(CLI::App& app, CommandRun* run) {
   AddNumberOption(cmd, "--split-budget", &args->split_budget,
                   "SplitTree node budget per internal node (0: none)");
   cmd->add_option("--split-policy", args->split_policy,
-                  "How nodes are split: compact (SOA over compact candidates), soa (DESIGN.md 2.1 exactly) or "
+                  "How nodes are split: compact (SOA over compact candidates), soa (docs/design.md §3.5, exactly) or "
                   "soa-fill (SOA, page fill first near the leaves)")
       ->capture_default_str();
   cmd->add_flag("-q,--quiet", args->quiet, "No progress and no summary");
