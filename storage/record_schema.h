@@ -13,6 +13,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <iterator>
 #include <span>
 #include <string>
 #include <string_view>
@@ -149,6 +150,19 @@ Status DecodeRecords(std::span<const uint8_t> in, std::vector<T>* out) {
   const size_t each = S.encoded_bytes();
   out->assign(in.size() % each == 0 ? in.size() / each : 0, T{});
   return DecodeRecords(S, in, out->data());
+}
+
+// In-RAM records of a schema, as the type-erased functions take them (storage/hdf5_table.h).
+struct RecordsView {
+  const RecordSchema* schema;
+  const void* data;
+  uint64_t count;
+};
+// The records of a contiguous container (vector, string, span) of S's record type.
+template <const RecordSchema& S, typename Container>
+RecordsView Records(const Container& c) {
+  static_assert(sizeof(*std::data(c)) == S.ram_bytes, "the schema describes another record");
+  return {&S, std::data(c), std::size(c)};
 }
 
 }  // namespace mktree
