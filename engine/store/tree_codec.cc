@@ -6,63 +6,38 @@
 
 #include "engine/tree/leaf_filter.h"
 #include "engine/tree/page_budget.h"
-#include "storage/byte_io.h"
 
 namespace mktree {
 
-using storage_internal::ByteReader;
-using storage_internal::ByteWriter;
-
-namespace {
-
-void PutBox(ByteWriter& w, const Box3f& b) {
-  for (int i = 0; i < 3; ++i) w.Put<float>(b.min[i]);
-  for (int i = 0; i < 3; ++i) w.Put<float>(b.max[i]);
+ParamsRecord ToParamsRecord(const BuildParams& p, const CodecOptions& c) {
+  ParamsRecord r;
+  r.block_size = p.block_size;
+  r.blocks_per_page = p.blocks_per_page;
+  r.balance_r = p.balance_r;
+  r.split_tree_node_budget = p.split_tree_node_budget;
+  r.codec = static_cast<uint8_t>(c.codec);
+  r.shuffle = c.shuffle ? 1 : 0;
+  r.zstd_level = c.zstd_level;
+  return r;
 }
-Box3f GetBox(ByteReader& r) {
-  Box3f b;
-  for (int i = 0; i < 3; ++i) b.min[i] = r.Get<float>();
-  for (int i = 0; i < 3; ++i) b.max[i] = r.Get<float>();
-  return b;
-}
-
-Status CheckSize(std::span<const uint8_t> in, size_t record, const char* what) {
-  if (in.size() % record != 0)
-    return Status::Corruption(std::string(what) + " section size " + std::to_string(in.size()) +
-                              " is not a multiple of its record size " + std::to_string(record));
-  return Status::Ok();
-}
-
-}  // namespace
 
 std::vector<uint8_t> EncodeParams(const BuildParams& p, const CodecOptions& c) {
-  std::vector<uint8_t> out;
-  ByteWriter w(&out);
-  w.Put<uint32_t>(p.block_size);
-  w.Put<uint32_t>(p.blocks_per_page);
-  w.Put<double>(p.balance_r);
-  w.Put<uint32_t>(p.split_tree_node_budget);
-  w.Put<uint8_t>(static_cast<uint8_t>(c.codec));
-  w.Put<uint8_t>(c.shuffle ? 1 : 0);
-  w.Put<uint16_t>(0);
-  w.Put<int32_t>(c.zstd_level);
-  return out;
+  const ParamsRecord r = ToParamsRecord(p, c);
+  return EncodeRecords<kParamsRecord>(std::span<const ParamsRecord>(&r, 1));
 }
 
 Status DecodeParams(std::span<const uint8_t> in, BuildParams* p, CodecOptions* c) {
   if (in.size() != kParamsRecordBytes) return Status::Corruption("parameter record has the wrong size");
-  ByteReader r(in.data(), in.size());
-  p->block_size = r.Get<uint32_t>();
-  p->blocks_per_page = r.Get<uint32_t>();
-  p->balance_r = r.Get<double>();
-  p->split_tree_node_budget = r.Get<uint32_t>();
-  const uint8_t codec = r.Get<uint8_t>();
-  const uint8_t shuffle = r.Get<uint8_t>();
-  r.Get<uint16_t>();
-  c->zstd_level = r.Get<int32_t>();
-  if (codec > 1 || shuffle > 1) return Status::Corruption("unknown codec in parameters");
-  c->codec = static_cast<Codec>(codec);
-  c->shuffle = shuffle == 1;
+  ParamsRecord r;
+  MKTREE_RETURN_IF_ERROR(DecodeRecords(kParamsRecord, in, &r));
+  p->block_size = r.block_size;
+  p->blocks_per_page = r.blocks_per_page;
+  p->balance_r = r.balance_r;
+  p->split_tree_node_budget = r.split_tree_node_budget;
+  c->zstd_level = r.zstd_level;
+  if (r.codec > 1 || r.shuffle > 1) return Status::Corruption("unknown codec in parameters");
+  c->codec = static_cast<Codec>(r.codec);
+  c->shuffle = r.shuffle == 1;
   const uint64_t mem_page = p->mem_page();
   if (p->block_size == 0 || p->blocks_per_page == 0 || mem_page <= 64 || mem_page > (uint64_t{1} << 30))
     return Status::Corruption("page size " + std::to_string(mem_page) + " out of range");
@@ -71,136 +46,40 @@ Status DecodeParams(std::span<const uint8_t> in, BuildParams* p, CodecOptions* c
 }
 
 std::vector<uint8_t> EncodeNodes(const std::vector<TreeNode>& nodes) {
-  std::vector<uint8_t> out;
-  out.reserve(nodes.size() * kNodeRecordBytes);
-  ByteWriter w(&out);
-  for (const TreeNode& n : nodes) {
-    PutBox(w, n.box);
-    w.Put<float>(n.a);
-    w.Put<float>(n.b);
-    w.Put<uint32_t>(n.child[0]);
-    w.Put<uint32_t>(n.child[1]);
-    w.Put<uint32_t>(n.leaf);
-    w.Put<uint32_t>(n.split_root);
-    w.Put<uint8_t>(n.axis);
-    w.Put<uint8_t>(n.depth);
-    w.Put<uint16_t>(0);
-  }
-  return out;
+  return EncodeRecords<kNodeRecord>(std::span(nodes));
 }
-
 Status DecodeNodes(std::span<const uint8_t> in, std::vector<TreeNode>* nodes) {
-  MKTREE_RETURN_IF_ERROR(CheckSize(in, kNodeRecordBytes, "node"));
-  ByteReader r(in.data(), in.size());
-  nodes->resize(in.size() / kNodeRecordBytes);
-  for (TreeNode& n : *nodes) {
-    n.box = GetBox(r);
-    n.a = r.Get<float>();
-    n.b = r.Get<float>();
-    n.child[0] = r.Get<uint32_t>();
-    n.child[1] = r.Get<uint32_t>();
-    n.leaf = r.Get<uint32_t>();
-    n.split_root = r.Get<uint32_t>();
-    n.axis = r.Get<uint8_t>();
-    n.depth = r.Get<uint8_t>();
-    r.Get<uint16_t>();
-  }
-  return Status::Ok();
+  return DecodeRecords<kNodeRecord>(in, nodes);
 }
-
 std::vector<uint8_t> EncodeSplitNodes(const std::vector<SplitNode>& nodes) {
-  std::vector<uint8_t> out;
-  out.reserve(nodes.size() * kSplitNodeRecordBytes);
-  ByteWriter w(&out);
-  for (const SplitNode& n : nodes) {
-    w.Put<float>(n.cut);
-    w.Put<uint32_t>(n.child[0]);
-    w.Put<uint32_t>(n.child[1]);
-    w.Put<uint8_t>(n.axis);
-    w.Put<uint8_t>(static_cast<uint8_t>(n.label));
-    w.Put<uint16_t>(0);
-  }
-  return out;
+  return EncodeRecords<kSplitNodeRecord>(std::span(nodes));
 }
-
 Status DecodeSplitNodes(std::span<const uint8_t> in, std::vector<SplitNode>* nodes) {
-  MKTREE_RETURN_IF_ERROR(CheckSize(in, kSplitNodeRecordBytes, "split node"));
-  ByteReader r(in.data(), in.size());
-  nodes->resize(in.size() / kSplitNodeRecordBytes);
-  for (SplitNode& n : *nodes) {
-    n.cut = r.Get<float>();
-    n.child[0] = r.Get<uint32_t>();
-    n.child[1] = r.Get<uint32_t>();
-    n.axis = r.Get<uint8_t>();
-    const uint8_t label = r.Get<uint8_t>();
-    r.Get<uint16_t>();
-    if (label > 3) return Status::Corruption("split node label out of range");
-    n.label = static_cast<CellLabel>(label);
-  }
-  return Status::Ok();
+  return DecodeRecords<kSplitNodeRecord>(in, nodes);
 }
-
 std::vector<uint8_t> EncodeLeaves(const std::vector<LeafInfo>& leaves) {
-  std::vector<uint8_t> out;
-  out.reserve(leaves.size() * kLeafRecordBytes);
-  ByteWriter w(&out);
-  for (const LeafInfo& l : leaves) {
-    PutBox(w, l.box);
-    w.Put<uint32_t>(l.node);
-    w.Put<uint32_t>(l.object_count);
-    w.Put<uint64_t>(l.payload_bytes);
-    w.Put<uint64_t>(l.first_page);
-    w.Put<uint32_t>(l.page_count);
-    w.Put<uint32_t>(0);
-  }
-  return out;
+  return EncodeRecords<kLeafRecord>(std::span(leaves));
 }
-
 Status DecodeLeaves(std::span<const uint8_t> in, std::vector<LeafInfo>* leaves) {
-  MKTREE_RETURN_IF_ERROR(CheckSize(in, kLeafRecordBytes, "leaf"));
-  ByteReader r(in.data(), in.size());
-  leaves->resize(in.size() / kLeafRecordBytes);
-  for (LeafInfo& l : *leaves) {
-    l.box = GetBox(r);
-    l.node = r.Get<uint32_t>();
-    l.object_count = r.Get<uint32_t>();
-    l.payload_bytes = r.Get<uint64_t>();
-    l.first_page = r.Get<uint64_t>();
-    l.page_count = r.Get<uint32_t>();
-    r.Get<uint32_t>();
-  }
-  return Status::Ok();
+  return DecodeRecords<kLeafRecord>(in, leaves);
 }
-
 std::vector<uint8_t> EncodeObjectLeaves(const ObjectTable& t) {
-  std::vector<uint8_t> out(t.leaf.size() * 4);
-  for (size_t i = 0; i < t.leaf.size(); ++i) storage_internal::Put<uint32_t>(out.data() + 4 * i, t.leaf[i]);
-  return out;
+  return EncodeRecords<kObjectLeafColumn>(std::span(t.leaf));
 }
-
 std::vector<uint8_t> EncodeObjectNameEnds(const ObjectTable& t) {
-  std::vector<uint8_t> out(t.name_end.size() * 8);
-  for (size_t i = 0; i < t.name_end.size(); ++i)
-    storage_internal::Put<uint64_t>(out.data() + 8 * i, t.name_end[i]);
-  return out;
+  return EncodeRecords<kObjectNameEndColumn>(std::span(t.name_end));
 }
 
 Status DecodeObjectTable(std::span<const uint8_t> leaves, std::span<const uint8_t> name_ends,
                          std::span<const uint8_t> names, ObjectTable* t) {
-  MKTREE_RETURN_IF_ERROR(CheckSize(leaves, 4, "object leaf"));
-  MKTREE_RETURN_IF_ERROR(CheckSize(name_ends, 8, "object name"));
-  const size_t n = leaves.size() / 4;
-  if (name_ends.size() / 8 != n)
+  MKTREE_RETURN_IF_ERROR(DecodeRecords<kObjectLeafColumn>(leaves, &t->leaf));
+  MKTREE_RETURN_IF_ERROR(DecodeRecords<kObjectNameEndColumn>(name_ends, &t->name_end));
+  if (t->leaf.size() != t->name_end.size())
     return Status::Corruption("object table sections disagree on the object count");
-  t->leaf.resize(n);
-  t->name_end.resize(n);
   uint64_t prev = 0;
-  for (size_t i = 0; i < n; ++i) {
-    t->leaf[i] = storage_internal::Get<uint32_t>(leaves.data() + 4 * i);
-    t->name_end[i] = storage_internal::Get<uint64_t>(name_ends.data() + 8 * i);
-    if (t->name_end[i] < prev || t->name_end[i] > names.size())
-      return Status::Corruption("object name offsets out of order");
-    prev = t->name_end[i];
+  for (const uint64_t end : t->name_end) {
+    if (end < prev || end > names.size()) return Status::Corruption("object name offsets out of order");
+    prev = end;
   }
   if (prev != names.size()) return Status::Corruption("object names section has trailing bytes");
   t->names.assign(reinterpret_cast<const char*>(names.data()), names.size());

@@ -1,7 +1,8 @@
-// Canonical byte encodings of a store's in-RAM structure (tree arrays, build parameters, codec, object
-// table). The paged file stores these bytes as sections; both backends checksum them (XXH3-64), so a
-// flipped byte in the metadata is detected at open. All little-endian and packed (see
-// docs/store_format.md for the record layouts).
+// The records of a store's in-RAM structure (tree arrays, build parameters and codec, object table), each
+// described once by a record schema (storage/record_schema.h) that gives both its canonical byte encoding
+// and its HDF5 compound type. The paged file stores the canonical bytes as sections; both backends
+// checksum them (XXH3-64), so a flipped byte in the metadata is detected at open. All little-endian and
+// packed (see docs/store_format.md for the record layouts).
 // Thread safety: pure functions; ObjectTable is a plain value.
 #pragma once
 
@@ -15,6 +16,7 @@
 #include "engine/tree/mktree.h"
 #include "mktree/scene.h"
 #include "mktree/status.h"
+#include "storage/record_schema.h"
 
 namespace mktree {
 
@@ -37,10 +39,84 @@ struct ObjectTable {
   bool operator==(const ObjectTable&) const = default;
 };
 
-inline constexpr size_t kNodeRecordBytes = 52;
-inline constexpr size_t kSplitNodeRecordBytes = 16;
-inline constexpr size_t kLeafRecordBytes = 56;
-inline constexpr size_t kParamsRecordBytes = 28;
+// The parameter record: the build parameters and the codec, as stored.
+struct ParamsRecord {
+  uint32_t block_size = 0;
+  uint32_t blocks_per_page = 0;
+  double balance_r = 0;
+  uint32_t split_tree_node_budget = 0;
+  uint8_t codec = 0;    // Codec
+  uint8_t shuffle = 0;  // 0 or 1
+  int32_t zstd_level = 0;
+};
+
+// The record schemas. Field names are the HDF5 compound members' (and the HDF5 attributes' for the
+// parameters); changing a name, type or order changes both store formats.
+inline constexpr const char* kCellLabelNames[] = {"EMPTY", "LEFT", "RIGHT", "BOTH"};
+inline constexpr RecordField kNodeFields[] = {
+    MKTREE_RECORD_FIELD("box_min", TreeNode, box.min, kF32),
+    MKTREE_RECORD_FIELD("box_max", TreeNode, box.max, kF32),
+    MKTREE_RECORD_FIELD("a", TreeNode, a, kF32),
+    MKTREE_RECORD_FIELD("b", TreeNode, b, kF32),
+    MKTREE_RECORD_FIELD("child", TreeNode, child, kU32),
+    MKTREE_RECORD_FIELD("leaf", TreeNode, leaf, kU32),
+    MKTREE_RECORD_FIELD("split_root", TreeNode, split_root, kU32),
+    MKTREE_RECORD_FIELD("axis", TreeNode, axis, kU8),
+    MKTREE_RECORD_FIELD("depth", TreeNode, depth, kU8),
+    ReservedField(FieldType::kU16),
+};
+inline constexpr RecordSchema kNodeRecord{"node", sizeof(TreeNode), kNodeFields};
+inline constexpr RecordField kSplitNodeFields[] = {
+    MKTREE_RECORD_FIELD("cut", SplitNode, cut, kF32),
+    MKTREE_RECORD_FIELD("child", SplitNode, child, kU32),
+    MKTREE_RECORD_FIELD("axis", SplitNode, axis, kU8),
+    MKTREE_RECORD_FIELD("label", SplitNode, label, kU8, kCellLabelNames),
+    ReservedField(FieldType::kU16),
+};
+inline constexpr RecordSchema kSplitNodeRecord{"split node", sizeof(SplitNode), kSplitNodeFields};
+inline constexpr RecordField kLeafFields[] = {
+    MKTREE_RECORD_FIELD("box_min", LeafInfo, box.min, kF32),
+    MKTREE_RECORD_FIELD("box_max", LeafInfo, box.max, kF32),
+    MKTREE_RECORD_FIELD("node", LeafInfo, node, kU32),
+    MKTREE_RECORD_FIELD("object_count", LeafInfo, object_count, kU32),
+    MKTREE_RECORD_FIELD("payload_bytes", LeafInfo, payload_bytes, kU64),
+    MKTREE_RECORD_FIELD("first_page", LeafInfo, first_page, kU64),
+    MKTREE_RECORD_FIELD("page_count", LeafInfo, page_count, kU32),
+    ReservedField(FieldType::kU32),
+};
+inline constexpr RecordSchema kLeafRecord{"leaf", sizeof(LeafInfo), kLeafFields};
+inline constexpr RecordField kParamsFields[] = {
+    MKTREE_RECORD_FIELD("block_size", ParamsRecord, block_size, kU32),
+    MKTREE_RECORD_FIELD("blocks_per_page", ParamsRecord, blocks_per_page, kU32),
+    MKTREE_RECORD_FIELD("balance_r", ParamsRecord, balance_r, kF64),
+    MKTREE_RECORD_FIELD("split_tree_node_budget", ParamsRecord, split_tree_node_budget, kU32),
+    MKTREE_RECORD_FIELD("codec", ParamsRecord, codec, kU8),
+    MKTREE_RECORD_FIELD("shuffle", ParamsRecord, shuffle, kU8),
+    ReservedField(FieldType::kU16),
+    MKTREE_RECORD_FIELD("zstd_level", ParamsRecord, zstd_level, kI32),
+};
+inline constexpr RecordSchema kParamsRecord{"parameter", sizeof(ParamsRecord), kParamsFields};
+// The object table's columns (object id = row); names and the leaf filter are kByteColumn.
+inline constexpr RecordField kObjectLeafFields[] = {
+    MakeRecordField("leaf", 0, sizeof(uint32_t), FieldType::kU32)};
+inline constexpr RecordSchema kObjectLeafColumn{"object leaf", sizeof(uint32_t), kObjectLeafFields, false};
+inline constexpr RecordField kObjectNameEndFields[] = {
+    MakeRecordField("name_end", 0, sizeof(uint64_t), FieldType::kU64)};
+inline constexpr RecordSchema kObjectNameEndColumn{"object name", sizeof(uint64_t), kObjectNameEndFields,
+                                                   false};
+
+inline constexpr size_t kNodeRecordBytes = kNodeRecord.encoded_bytes();
+inline constexpr size_t kSplitNodeRecordBytes = kSplitNodeRecord.encoded_bytes();
+inline constexpr size_t kLeafRecordBytes = kLeafRecord.encoded_bytes();
+inline constexpr size_t kParamsRecordBytes = kParamsRecord.encoded_bytes();
+static_assert(kNodeRecordBytes == 52 && kSplitNodeRecordBytes == 16 && kLeafRecordBytes == 56 &&
+              kParamsRecordBytes == 28);
+static_assert(FieldsFitRecord(kNodeRecord) && FieldsFitRecord(kSplitNodeRecord) &&
+              FieldsFitRecord(kLeafRecord) && FieldsFitRecord(kParamsRecord) &&
+              FieldsFitRecord(kObjectLeafColumn) && FieldsFitRecord(kObjectNameEndColumn) &&
+              FieldsFitRecord(kByteColumn));
+
+ParamsRecord ToParamsRecord(const BuildParams& p, const CodecOptions& c);
 
 std::vector<uint8_t> EncodeParams(const BuildParams& p, const CodecOptions& c);
 Status DecodeParams(std::span<const uint8_t> in, BuildParams* p, CodecOptions* c);
