@@ -210,28 +210,32 @@ class SpatialIndexEngine : public Engine {
  public:
   SpatialIndexEngine(const std::string& dir, const CodecOptions& codec, uint32_t leaf_capacity,
                      uint32_t index_capacity)
-      : base_(dir + "/peer_spatialindex"), codec_(codec), leaf_capacity_(leaf_capacity),
+      : base_(dir + "/peer_spatialindex"),
+        codec_(codec),
+        leaf_capacity_(leaf_capacity),
         index_capacity_(index_capacity) {}
   ~SpatialIndexEngine() override { Close(); }
 
   std::string name() const override { return "libspatialindex"; }
   std::vector<std::string> files() const override { return {base_ + ".dat", base_ + ".idx"}; }
   std::string cold_method() const override {
-    return "no buffer; posix_fadvise(DONTNEED) on .dat/.idx before each query (its fstream reads are buffered)";
+    return "no buffer; posix_fadvise(DONTNEED) on .dat/.idx before each query (its fstream reads are "
+           "buffered)";
   }
 
   Status Build(const SceneSpec& scene, Facts* facts) override {
     try {
       std::string base = base_;
-      std::unique_ptr<si::IStorageManager> disk(si::StorageManager::createNewDiskStorageManager(base, kPageBytes));
+      std::unique_ptr<si::IStorageManager> disk(
+          si::StorageManager::createNewDiskStorageManager(base, kPageBytes));
       CountingStorage counting(disk.get(), 0);
       SceneStream stream(scene, codec_);
       si::id_type index_id = 0;
       // fillFactor must lie in (0, 1); capacities are chosen so that floor(capacity * 0.99) is the
       // wanted fan-out (see CapacityFor in peers_bench.cc).
-      std::unique_ptr<si::ISpatialIndex> tree(si::RTree::createAndBulkLoadNewRTree(
-          si::RTree::BLM_STR, stream, counting, 0.99, index_capacity_, leaf_capacity_, 3, si::RTree::RV_RSTAR,
-          index_id));
+      std::unique_ptr<si::ISpatialIndex> tree(
+          si::RTree::createAndBulkLoadNewRTree(si::RTree::BLM_STR, stream, counting, 0.99, index_capacity_,
+                                               leaf_capacity_, 3, si::RTree::RV_RSTAR, index_id));
       tree.reset();
       counting.flush();
       (*facts)["index_id"] = static_cast<double>(index_id);

@@ -42,30 +42,41 @@ int CfRead(sqlite3_file* f, void* buf, int amt, sqlite3_int64 off) {
   CountFile* cf = reinterpret_cast<CountFile*>(f);
   if (cf->main_db) {
     g_io.bytes += static_cast<uint64_t>(amt);
-    if (amt >= static_cast<int>(kSqlitePageBytes)) g_io.pages += static_cast<uint64_t>(amt) / kSqlitePageBytes;
+    if (amt >= static_cast<int>(kSqlitePageBytes))
+      g_io.pages += static_cast<uint64_t>(amt) / kSqlitePageBytes;
   }
   return cf->real->pMethods->xRead(cf->real, buf, amt, off);
 }
-int CfWrite(sqlite3_file* f, const void* b, int n, sqlite3_int64 o) { return Real(f)->pMethods->xWrite(Real(f), b, n, o); }
+int CfWrite(sqlite3_file* f, const void* b, int n, sqlite3_int64 o) {
+  return Real(f)->pMethods->xWrite(Real(f), b, n, o);
+}
 int CfTruncate(sqlite3_file* f, sqlite3_int64 n) { return Real(f)->pMethods->xTruncate(Real(f), n); }
 int CfSync(sqlite3_file* f, int flags) { return Real(f)->pMethods->xSync(Real(f), flags); }
 int CfFileSize(sqlite3_file* f, sqlite3_int64* n) { return Real(f)->pMethods->xFileSize(Real(f), n); }
 int CfLock(sqlite3_file* f, int l) { return Real(f)->pMethods->xLock(Real(f), l); }
 int CfUnlock(sqlite3_file* f, int l) { return Real(f)->pMethods->xUnlock(Real(f), l); }
-int CfCheckReservedLock(sqlite3_file* f, int* out) { return Real(f)->pMethods->xCheckReservedLock(Real(f), out); }
-int CfFileControl(sqlite3_file* f, int op, void* arg) { return Real(f)->pMethods->xFileControl(Real(f), op, arg); }
+int CfCheckReservedLock(sqlite3_file* f, int* out) {
+  return Real(f)->pMethods->xCheckReservedLock(Real(f), out);
+}
+int CfFileControl(sqlite3_file* f, int op, void* arg) {
+  return Real(f)->pMethods->xFileControl(Real(f), op, arg);
+}
 int CfSectorSize(sqlite3_file* f) { return Real(f)->pMethods->xSectorSize(Real(f)); }
 int CfDeviceCharacteristics(sqlite3_file* f) { return Real(f)->pMethods->xDeviceCharacteristics(Real(f)); }
 int CfShmMap(sqlite3_file* f, int pg, int sz, int ext, void volatile** p) {
   return Real(f)->pMethods->xShmMap(Real(f), pg, sz, ext, p);
 }
-int CfShmLock(sqlite3_file* f, int off, int n, int flags) { return Real(f)->pMethods->xShmLock(Real(f), off, n, flags); }
+int CfShmLock(sqlite3_file* f, int off, int n, int flags) {
+  return Real(f)->pMethods->xShmLock(Real(f), off, n, flags);
+}
 void CfShmBarrier(sqlite3_file* f) { Real(f)->pMethods->xShmBarrier(Real(f)); }
 int CfShmUnmap(sqlite3_file* f, int del) { return Real(f)->pMethods->xShmUnmap(Real(f), del); }
 int CfFetch(sqlite3_file* f, sqlite3_int64 off, int amt, void** pp) {
   return Real(f)->pMethods->xFetch(Real(f), off, amt, pp);
 }
-int CfUnfetch(sqlite3_file* f, sqlite3_int64 off, void* p) { return Real(f)->pMethods->xUnfetch(Real(f), off, p); }
+int CfUnfetch(sqlite3_file* f, sqlite3_int64 off, void* p) {
+  return Real(f)->pMethods->xUnfetch(Real(f), off, p);
+}
 
 sqlite3_io_methods MethodsFor(int version) {
   sqlite3_io_methods m{};
@@ -109,7 +120,9 @@ int CvOpen(sqlite3_vfs* vfs, const char* name, sqlite3_file* f, int flags, int* 
   return rc;
 }
 int CvDelete(sqlite3_vfs* v, const char* n, int s) { return RealVfs(v)->xDelete(RealVfs(v), n, s); }
-int CvAccess(sqlite3_vfs* v, const char* n, int f, int* o) { return RealVfs(v)->xAccess(RealVfs(v), n, f, o); }
+int CvAccess(sqlite3_vfs* v, const char* n, int f, int* o) {
+  return RealVfs(v)->xAccess(RealVfs(v), n, f, o);
+}
 int CvFullPathname(sqlite3_vfs* v, const char* n, int k, char* o) {
   return RealVfs(v)->xFullPathname(RealVfs(v), n, k, o);
 }
@@ -121,7 +134,9 @@ int CvRandomness(sqlite3_vfs* v, int n, char* o) { return RealVfs(v)->xRandomnes
 int CvSleep(sqlite3_vfs* v, int us) { return RealVfs(v)->xSleep(RealVfs(v), us); }
 int CvCurrentTime(sqlite3_vfs* v, double* t) { return RealVfs(v)->xCurrentTime(RealVfs(v), t); }
 int CvGetLastError(sqlite3_vfs* v, int n, char* m) { return RealVfs(v)->xGetLastError(RealVfs(v), n, m); }
-int CvCurrentTimeInt64(sqlite3_vfs* v, sqlite3_int64* t) { return RealVfs(v)->xCurrentTimeInt64(RealVfs(v), t); }
+int CvCurrentTimeInt64(sqlite3_vfs* v, sqlite3_int64* t) {
+  return RealVfs(v)->xCurrentTimeInt64(RealVfs(v), t);
+}
 
 constexpr const char* kVfsName = "peers_count";
 
@@ -156,7 +171,8 @@ void RegisterCountingVfs() {
 
 class SqliteEngine : public Engine {
  public:
-  SqliteEngine(const std::string& dir, const CodecOptions& codec) : path_(dir + "/peer_sqlite.db"), codec_(codec) {}
+  SqliteEngine(const std::string& dir, const CodecOptions& codec)
+      : path_(dir + "/peer_sqlite.db"), codec_(codec) {}
   ~SqliteEngine() override { Close(); }
 
   std::string name() const override { return "sqlite-rtree"; }
@@ -169,7 +185,8 @@ class SqliteEngine : public Engine {
     std::filesystem::remove(path_);
     RegisterCountingVfs();
     sqlite3* db = nullptr;
-    if (sqlite3_open_v2(path_.c_str(), &db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE, kVfsName) != SQLITE_OK)
+    if (sqlite3_open_v2(path_.c_str(), &db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE, kVfsName) !=
+        SQLITE_OK)
       return Fail(db, "open");
     db_ = db;
     const std::string setup = "PRAGMA page_size = " + std::to_string(kSqlitePageBytes) +
@@ -214,7 +231,8 @@ class SqliteEngine : public Engine {
     // Pages per table, for B (objects per geometry page). dbstat is compiled into Debian's SQLite; without
     // it, B falls back to objects per page of the whole file.
     sqlite3_stmt* st = nullptr;
-    if (sqlite3_prepare_v2(db_, "SELECT name, count(*) FROM dbstat GROUP BY name", -1, &st, nullptr) == SQLITE_OK) {
+    if (sqlite3_prepare_v2(db_, "SELECT name, count(*) FROM dbstat GROUP BY name", -1, &st, nullptr) ==
+        SQLITE_OK) {
       while (sqlite3_step(st) == SQLITE_ROW)
         (*facts)[std::string("pages_") + reinterpret_cast<const char*>(sqlite3_column_text(st, 0))] =
             sqlite3_column_double(st, 1);
@@ -229,10 +247,12 @@ class SqliteEngine : public Engine {
     Close();
     RegisterCountingVfs();
     sqlite3* db = nullptr;
-    if (sqlite3_open_v2(path_.c_str(), &db, SQLITE_OPEN_READONLY, kVfsName) != SQLITE_OK) return Fail(db, "open");
+    if (sqlite3_open_v2(path_.c_str(), &db, SQLITE_OPEN_READONLY, kVfsName) != SQLITE_OK)
+      return Fail(db, "open");
     db_ = db;
     const uint64_t cache_kib = (warm ? kWarmCacheBytes : kColdCacheBytes) / 1024;
-    const std::string pragma = "PRAGMA cache_size = -" + std::to_string(cache_kib) + "; PRAGMA mmap_size = 0;";
+    const std::string pragma =
+        "PRAGMA cache_size = -" + std::to_string(cache_kib) + "; PRAGMA mmap_size = 0;";
     if (sqlite3_exec(db_, pragma.c_str(), nullptr, nullptr, nullptr) != SQLITE_OK) return Fail("pragma");
     if (sqlite3_prepare_v2(db_,
                            "SELECT rt.id, geom.geom FROM rt CROSS JOIN geom ON geom.id = rt.id"

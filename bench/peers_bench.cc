@@ -81,7 +81,8 @@ using BTree = bgi::rtree<BValue, bgi::rstar<16>>;
 class MktreeEngine : public Engine {
  public:
   MktreeEngine(const std::string& dir, Backend backend, Codec codec) : backend_(backend), codec_(codec) {
-    path_ = dir + "/peer_mktree_" + BackendName(backend) + (codec == Codec::kZstd ? "_zstd" : "_none") + ".mkt";
+    path_ =
+        dir + "/peer_mktree_" + BackendName(backend) + (codec == Codec::kZstd ? "_zstd" : "_none") + ".mkt";
   }
   std::string name() const override {
     return std::string("mktree-") + BackendName(backend_) + (codec_ == Codec::kZstd ? "-zstd" : "-none");
@@ -90,7 +91,8 @@ class MktreeEngine : public Engine {
   std::string cold_method() const override {
     return backend_ == Backend::kPagedFile
                ? "ClearCache() and O_DIRECT page reads" + (notice_.empty() ? "" : " (" + notice_ + ")")
-               : std::string("ClearCache() and posix_fadvise(DONTNEED) before each query (HDF5 reads are buffered)");
+               : std::string(
+                     "ClearCache() and posix_fadvise(DONTNEED) before each query (HDF5 reads are buffered)");
   }
   Status Build(const SceneSpec& scene, Facts* facts) override {
     IngestOptions opts;
@@ -188,7 +190,8 @@ class BoostEngine : public Engine {
     if (!tree_) {
       std::vector<BValue> values;
       values.reserve(boxes_->size());
-      for (size_t i = 0; i < boxes_->size(); ++i) values.emplace_back(ToBBox((*boxes_)[i]), static_cast<ObjectId>(i));
+      for (size_t i = 0; i < boxes_->size(); ++i)
+        values.emplace_back(ToBBox((*boxes_)[i]), static_cast<ObjectId>(i));
       tree_ = std::make_unique<BTree>(values.begin(), values.end());
     }
     return Status::Ok();
@@ -216,8 +219,9 @@ struct Args {
   uint64_t seed = 1;
   std::string dir = "/work/tmp-bench";
   std::string out = ".";
-  std::string engines = "mktree-pagefile-zstd,mktree-pagefile-none,mktree-hdf5-zstd,mktree-hdf5-none,"
-                        "libspatialindex,sqlite-rtree,boost-rtree";
+  std::string engines =
+      "mktree-pagefile-zstd,mktree-pagefile-none,mktree-hdf5-zstd,mktree-hdf5-none,"
+      "libspatialindex,sqlite-rtree,boost-rtree";
   bool smoke = false;
   bool keep = false;
   // libspatialindex capacities (computed by the parent from the scene, passed to build children)
@@ -242,8 +246,10 @@ struct SceneInfo {
 
 std::unique_ptr<Engine> MakeEngine(const std::string& name, const Args& a, const std::vector<Box3f>* boxes) {
   const CodecOptions zstd;  // the codec every peer stores its geometry with: mktree's default
-  if (name == "mktree-pagefile-zstd") return std::make_unique<MktreeEngine>(a.dir, Backend::kPagedFile, Codec::kZstd);
-  if (name == "mktree-pagefile-none") return std::make_unique<MktreeEngine>(a.dir, Backend::kPagedFile, Codec::kNone);
+  if (name == "mktree-pagefile-zstd")
+    return std::make_unique<MktreeEngine>(a.dir, Backend::kPagedFile, Codec::kZstd);
+  if (name == "mktree-pagefile-none")
+    return std::make_unique<MktreeEngine>(a.dir, Backend::kPagedFile, Codec::kNone);
   if (name == "mktree-hdf5-zstd") return std::make_unique<MktreeEngine>(a.dir, Backend::kHdf5, Codec::kZstd);
   if (name == "mktree-hdf5-none") return std::make_unique<MktreeEngine>(a.dir, Backend::kHdf5, Codec::kNone);
   if (name == "libspatialindex") return MakeSpatialIndexEngine(a.dir, zstd, a.lsi_leaf, a.lsi_index);
@@ -343,8 +349,9 @@ std::vector<Workload> MakeWorkloads(const SceneInfo& s, const Args& a, bool tank
     points.queries.push_back(Query::Point(p));
   }
   w.push_back(points);
-  const std::vector<double> fracs = a.smoke ? std::vector<double>{0.001, 0.01}
-                                            : std::vector<double>{0.0002, 0.0005, 0.001, 0.002, 0.005, 0.01, 0.02, 0.05};
+  const std::vector<double> fracs =
+      a.smoke ? std::vector<double>{0.001, 0.01}
+              : std::vector<double>{0.0002, 0.0005, 0.001, 0.002, 0.005, 0.01, 0.02, 0.05};
   for (double f : fracs) {
     char name[32];
     std::snprintf(name, sizeof name, "box%g%%", f * 100);
@@ -396,8 +403,16 @@ struct BuildResult {
 Result<BuildResult> SpawnBuild(const std::string& engine, const Args& a) {
   int fds[2];
   if (pipe(fds) != 0) return Status::IOError("pipe");
-  std::vector<std::string> argv_s = {"peers_bench", "--child-build", engine, "--scene", a.scene, "--dir", a.dir,
-                                     "--lsi-leaf", std::to_string(a.lsi_leaf), "--lsi-index",
+  std::vector<std::string> argv_s = {"peers_bench",
+                                     "--child-build",
+                                     engine,
+                                     "--scene",
+                                     a.scene,
+                                     "--dir",
+                                     a.dir,
+                                     "--lsi-leaf",
+                                     std::to_string(a.lsi_leaf),
+                                     "--lsi-index",
                                      std::to_string(a.lsi_index)};
   std::fflush(stdout);
   const pid_t pid = fork();
@@ -486,23 +501,36 @@ int Main(int argc, char** argv) {
   for (int i = 1; i < argc; ++i) {
     std::string k = argv[i];
     auto next = [&]() -> std::string { return i + 1 < argc ? argv[++i] : ""; };
-    if (k == "--scene") a.scene = next();
-    else if (k == "--name") a.name = next();
-    else if (k == "--queries") a.queries = std::stoull(next());
-    else if (k == "--seed") a.seed = std::stoull(next());
-    else if (k == "--dir") a.dir = next();
-    else if (k == "--out") a.out = next();
-    else if (k == "--engines") a.engines = next();
-    else if (k == "--smoke") a.smoke = true;
-    else if (k == "--keep") a.keep = true;
-    else if (k == "--child-build") a.child_engine = next();
-    else if (k == "--lsi-leaf") a.lsi_leaf = static_cast<uint32_t>(std::stoul(next()));
-    else if (k == "--lsi-index") a.lsi_index = static_cast<uint32_t>(std::stoul(next()));
+    if (k == "--scene")
+      a.scene = next();
+    else if (k == "--name")
+      a.name = next();
+    else if (k == "--queries")
+      a.queries = std::stoull(next());
+    else if (k == "--seed")
+      a.seed = std::stoull(next());
+    else if (k == "--dir")
+      a.dir = next();
+    else if (k == "--out")
+      a.out = next();
+    else if (k == "--engines")
+      a.engines = next();
+    else if (k == "--smoke")
+      a.smoke = true;
+    else if (k == "--keep")
+      a.keep = true;
+    else if (k == "--child-build")
+      a.child_engine = next();
+    else if (k == "--lsi-leaf")
+      a.lsi_leaf = static_cast<uint32_t>(std::stoul(next()));
+    else if (k == "--lsi-index")
+      a.lsi_index = static_cast<uint32_t>(std::stoul(next()));
     else if (k == "--versions") {
       std::printf("%s\n", Versions().c_str());
       return 0;
     } else {
-      std::fprintf(stderr, "error: unknown argument %s (see the comment at the top of bench/peers_bench.cc)\n",
+      std::fprintf(stderr,
+                   "error: unknown argument %s (see the comment at the top of bench/peers_bench.cc)\n",
                    k.c_str());
       return 2;
     }
@@ -529,9 +557,11 @@ int Main(int argc, char** argv) {
   }
   const uint64_t n_objects = scene.boxes.size();
   ChooseSpatialIndexCapacities(scene, &a);
-  std::printf("# peers_bench %s: %llu objects, diagonal %.1f, entry %.0f +- %.0f B (zstd, %llu sampled), read in %.1fs\n",
-              a.name.c_str(), static_cast<unsigned long long>(n_objects), scene.diag, scene.entry_mean, scene.entry_sd,
-              static_cast<unsigned long long>(scene.entries_sampled), Since(t0));
+  std::printf(
+      "# peers_bench %s: %llu objects, diagonal %.1f, entry %.0f +- %.0f B (zstd, %llu sampled), read in "
+      "%.1fs\n",
+      a.name.c_str(), static_cast<unsigned long long>(n_objects), scene.diag, scene.entry_mean,
+      scene.entry_sd, static_cast<unsigned long long>(scene.entries_sampled), Since(t0));
   const std::vector<Workload> workloads = MakeWorkloads(scene, a, tanker);
 
   // Reference answers: Boost.Geometry, itself checked against a brute-force scan on each workload's first
@@ -554,8 +584,8 @@ int Main(int argc, char** argv) {
         for (size_t id = 0; id < scene.boxes.size(); ++id)
           if (scene.boxes[id].Intersects(qb)) brute.push_back(static_cast<ObjectId>(id));
         if (brute != hits) {
-          std::fprintf(stderr, "MISMATCH %s query %zu: boost %zu hits, brute force %zu\n", workloads[w].name.c_str(), i,
-                       hits.size(), brute.size());
+          std::fprintf(stderr, "MISMATCH %s query %zu: boost %zu hits, brute force %zu\n",
+                       workloads[w].name.c_str(), i, hits.size(), brute.size());
           mismatch = true;
         }
       }
@@ -587,8 +617,8 @@ int Main(int argc, char** argv) {
       return 1;
     }
     if (built->facts["objects"] != static_cast<double>(n_objects)) {
-      std::fprintf(stderr, "error: %s built %.0f objects, expected %llu\n", name.c_str(), built->facts["objects"],
-                   static_cast<unsigned long long>(n_objects));
+      std::fprintf(stderr, "error: %s built %.0f objects, expected %llu\n", name.c_str(),
+                   built->facts["objects"], static_cast<unsigned long long>(n_objects));
       return 1;
     }
     builds[name] = *built;
@@ -597,8 +627,8 @@ int Main(int argc, char** argv) {
     file_mib[name] = bytes / 1048576.0;
     B[name] = e->objects_per_page(built->facts);
     std::printf("   built in %.2fs (%.0f objects/s), peak RSS %.0f MiB, %.1f MiB on disk, B = %.2f\n",
-                built->facts["seconds"], n_objects / built->facts["seconds"], built->peak_rss_mib, file_mib[name],
-                B[name]);
+                built->facts["seconds"], n_objects / built->facts["seconds"], built->peak_rss_mib,
+                file_mib[name], B[name]);
 
     std::vector<Row>& r = rows[name];
     r.resize(workloads.size());
@@ -678,9 +708,11 @@ int Main(int argc, char** argv) {
         if (!e->Run(workloads[w].queries[i], &hits, &io).ok()) return 1;
         check(w, i, "warm");
       }
-      std::printf("   %-9s %5zu q  hits %9.1f  pages %8.2f (p50 %5.0f p99 %5.0f, floor %7.2f)  cold %8.0f q/s  warm %9.0f q/s\n",
-                  workloads[w].name.c_str(), row.queries, row.hits, row.pages, row.p50, row.p99, row.floor,
-                  row.cold_qps, row.warm_qps);
+      std::printf(
+          "   %-9s %5zu q  hits %9.1f  pages %8.2f (p50 %5.0f p99 %5.0f, floor %7.2f)  cold %8.0f q/s  warm "
+          "%9.0f q/s\n",
+          workloads[w].name.c_str(), row.queries, row.hits, row.pages, row.p50, row.p99, row.floor,
+          row.cold_qps, row.warm_qps);
     }
     e->Close();
     if (!a.keep)
@@ -693,25 +725,27 @@ int Main(int argc, char** argv) {
   for (const std::string& name : engines) {
     const BuildResult& b = builds[name];
     tsv << "build\t" << a.name << '\t' << n_objects << '\t' << name << '\t' << b.facts.at("seconds") << '\t'
-        << n_objects / b.facts.at("seconds") << '\t' << b.peak_rss_mib << '\t' << file_mib[name] << '\t' << B[name]
-        << '\n';
+        << n_objects / b.facts.at("seconds") << '\t' << b.peak_rss_mib << '\t' << file_mib[name] << '\t'
+        << B[name] << '\n';
     for (size_t w = 0; w < workloads.size(); ++w) {
       const Row& r = rows[name][w];
       tsv << "query\t" << a.name << '\t' << n_objects << '\t' << name << '\t' << workloads[w].name << '\t'
           << workloads[w].frac << '\t' << workloads[w].side_m << '\t' << r.queries << '\t' << r.hits << '\t'
-          << r.pages << '\t' << r.p50 << '\t' << r.p99 << '\t' << r.floor << '\t' << r.inner << '\t' << r.kib << '\t'
-          << r.cold_qps << '\t' << r.warm_qps << '\n';
+          << r.pages << '\t' << r.p50 << '\t' << r.p99 << '\t' << r.floor << '\t' << r.inner << '\t' << r.kib
+          << '\t' << r.cold_qps << '\t' << r.warm_qps << '\n';
     }
   }
 
   std::ofstream md(a.out + "/" + a.name + ".md");
   md << "## " << a.name << ": " << n_objects << " objects (`" << a.scene << "`)\n\n";
-  md << "Scene box (" << scene.bounds.min[0] << ", " << scene.bounds.min[1] << ", " << scene.bounds.min[2] << ") – ("
-     << scene.bounds.max[0] << ", " << scene.bounds.max[1] << ", " << scene.bounds.max[2] << "), diagonal "
-     << Fmt("%.1f", scene.diag) << ". Query seed " << a.seed << ". Encoded entry (mktree zstd, the peers' blob): "
-     << Fmt("%.0f", scene.entry_mean) << " ± " << Fmt("%.0f", scene.entry_sd) << " bytes. libspatialindex leaf "
+  md << "Scene box (" << scene.bounds.min[0] << ", " << scene.bounds.min[1] << ", " << scene.bounds.min[2]
+     << ") – (" << scene.bounds.max[0] << ", " << scene.bounds.max[1] << ", " << scene.bounds.max[2]
+     << "), diagonal " << Fmt("%.1f", scene.diag) << ". Query seed " << a.seed
+     << ". Encoded entry (mktree zstd, the peers' blob): " << Fmt("%.0f", scene.entry_mean) << " ± "
+     << Fmt("%.0f", scene.entry_sd) << " bytes. libspatialindex leaf "
      << "capacity " << a.lsi_leaf << ", index capacity " << a.lsi_index << " (fill factor 0.99).\n\n";
-  md << "### Build\n\n| engine | build s | objects/s | peak RSS MiB | file MiB | B objects/leaf page | cold reads |\n"
+  md << "### Build\n\n| engine | build s | objects/s | peak RSS MiB | file MiB | B objects/leaf page | cold "
+        "reads |\n"
         "|---|---:|---:|---:|---:|---:|---|\n";
   for (const std::string& name : engines) {
     const BuildResult& b = builds[name];
@@ -721,14 +755,17 @@ int Main(int argc, char** argv) {
        << (cold_methods.count(name) ? cold_methods[name] : "in RAM") << " |\n";
   }
   md << "\n### Queries (AABB answers; pages = disk accesses per query with a cold cache)\n\n"
-        "`inner` = pages of internal nodes among them (libspatialindex reads its internal nodes from disk; mktree "
-        "keeps them in RAM); floor = ceil(T/B) with the engine's own B; SQLite pages are 16 KiB, the others 12 KiB."
+        "`inner` = pages of internal nodes among them (libspatialindex reads its internal nodes from disk; "
+        "mktree "
+        "keeps them in RAM); floor = ceil(T/B) with the engine's own B; SQLite pages are 16 KiB, the others "
+        "12 KiB."
         "\n\n";
   for (size_t w = 0; w < workloads.size(); ++w) {
     md << "#### " << workloads[w].name;
     if (workloads[w].side_m > 0) md << " (side " << Fmt("%.3g", workloads[w].side_m) << ")";
     md << ", " << workloads[w].queries.size() << " queries, mean " << Fmt("%.1f", rows[engines[0]][w].hits)
-       << " hits\n\n| engine | pages | p50 | p99 | floor | pages/floor | inner | KiB read | cold q/s | warm q/s |\n"
+       << " hits\n\n| engine | pages | p50 | p99 | floor | pages/floor | inner | KiB read | cold q/s | warm "
+          "q/s |\n"
           "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
     for (const std::string& name : engines) {
       const Row& r = rows[name][w];
@@ -745,8 +782,10 @@ int Main(int argc, char** argv) {
   }
   const std::string m = "mktree-pagefile-zstd";
   if (rows.count(m)) {
-    md << "### Ratios " << m << " ÷ peer (pages, KiB: below 1 is better for mktree; q/s: above 1 is better)\n\n"
-          "| workload | pages ÷ lsi | pages ÷ lsi leaf pages | pages ÷ sqlite | KiB ÷ lsi | KiB ÷ sqlite | cold q/s ÷ lsi "
+    md << "### Ratios " << m
+       << " ÷ peer (pages, KiB: below 1 is better for mktree; q/s: above 1 is better)\n\n"
+          "| workload | pages ÷ lsi | pages ÷ lsi leaf pages | pages ÷ sqlite | KiB ÷ lsi | KiB ÷ sqlite | "
+          "cold q/s ÷ lsi "
           "| cold q/s ÷ sqlite | warm q/s ÷ lsi | warm q/s ÷ sqlite | warm q/s ÷ boost |\n"
           "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
     auto get = [&](const std::string& e, size_t w) -> const Row* {
@@ -758,20 +797,23 @@ int Main(int argc, char** argv) {
       const Row* s = get("sqlite-rtree", w);
       const Row* b = get("boost-rtree", w);
       md << "| " << workloads[w].name << " | " << (l ? Ratio(k.pages, l->pages) : "-") << " | "
-         << (l ? Ratio(k.pages, l->pages - l->inner) : "-") << " | " << (s ? Ratio(k.pages, s->pages) : "-") << " | "
-         << (l ? Ratio(k.kib, l->kib) : "-") << " | " << (s ? Ratio(k.kib, s->kib) : "-") << " | "
+         << (l ? Ratio(k.pages, l->pages - l->inner) : "-") << " | " << (s ? Ratio(k.pages, s->pages) : "-")
+         << " | " << (l ? Ratio(k.kib, l->kib) : "-") << " | " << (s ? Ratio(k.kib, s->kib) : "-") << " | "
          << (l ? Ratio(k.cold_qps, l->cold_qps) : "-") << " | " << (s ? Ratio(k.cold_qps, s->cold_qps) : "-")
-         << " | " << (l ? Ratio(k.warm_qps, l->warm_qps) : "-") << " | " << (s ? Ratio(k.warm_qps, s->warm_qps) : "-")
-         << " | " << (b ? Ratio(k.warm_qps, b->warm_qps) : "-") << " |\n";
+         << " | " << (l ? Ratio(k.warm_qps, l->warm_qps) : "-") << " | "
+         << (s ? Ratio(k.warm_qps, s->warm_qps) : "-") << " | " << (b ? Ratio(k.warm_qps, b->warm_qps) : "-")
+         << " |\n";
     }
     md << "\n";
   }
-  md << (mismatch ? "**ANSWER MISMATCH: see the run's stderr.**\n\n" : "All engines' AABB answers agreed on every query.\n\n");
+  md << (mismatch ? "**ANSWER MISMATCH: see the run's stderr.**\n\n"
+                  : "All engines' AABB answers agreed on every query.\n\n");
   if (mismatch) {
     std::printf("FAILED: answers differ between engines\n");
     return 1;
   }
-  std::printf("ok: %s, all answers agree; wrote %s/%s.md and .tsv\n", a.name.c_str(), a.out.c_str(), a.name.c_str());
+  std::printf("ok: %s, all answers agree; wrote %s/%s.md and .tsv\n", a.name.c_str(), a.out.c_str(),
+              a.name.c_str());
   return 0;
 }
 

@@ -78,8 +78,9 @@ double Percentile(std::vector<double> v, double q) {
 }
 
 BBox ToB(const Box3d& b) {
-  return BBox(BPoint(static_cast<float>(b.min[0]), static_cast<float>(b.min[1]), static_cast<float>(b.min[2])),
-              BPoint(static_cast<float>(b.max[0]), static_cast<float>(b.max[1]), static_cast<float>(b.max[2])));
+  return BBox(
+      BPoint(static_cast<float>(b.min[0]), static_cast<float>(b.min[1]), static_cast<float>(b.min[2])),
+      BPoint(static_cast<float>(b.max[0]), static_cast<float>(b.max[1]), static_cast<float>(b.max[2])));
 }
 
 template <typename Rtree>
@@ -104,18 +105,30 @@ int main(int argc, char** argv) {
   for (int i = 1; i < argc; ++i) {
     std::string k = argv[i];
     auto next = [&]() -> std::string { return i + 1 < argc ? argv[++i] : ""; };
-    if (k == "--objects") a.objects = std::stoull(next());
-    else if (k == "--seed") a.seed = std::stoull(next());
-    else if (k == "--queries") a.queries = std::stoull(next());
-    else if (k == "--backend") a.backend = next();
-    else if (k == "--dir") a.dir = next();
-    else if (k == "--direct-io") a.direct_io = true;
-    else if (k == "--keep") a.keep = true;
-    else if (k == "--reuse") a.reuse = a.keep = true;
-    else if (k == "--only") a.only = next();
-    else if (k == "--mode") a.mode = next();
-    else if (k == "--warm-passes") a.warm_passes = std::max(1, std::stoi(next()));
-    else if (k == "--warm-cache-mib") a.warm_cache_mib = std::stoull(next());
+    if (k == "--objects")
+      a.objects = std::stoull(next());
+    else if (k == "--seed")
+      a.seed = std::stoull(next());
+    else if (k == "--queries")
+      a.queries = std::stoull(next());
+    else if (k == "--backend")
+      a.backend = next();
+    else if (k == "--dir")
+      a.dir = next();
+    else if (k == "--direct-io")
+      a.direct_io = true;
+    else if (k == "--keep")
+      a.keep = true;
+    else if (k == "--reuse")
+      a.reuse = a.keep = true;
+    else if (k == "--only")
+      a.only = next();
+    else if (k == "--mode")
+      a.mode = next();
+    else if (k == "--warm-passes")
+      a.warm_passes = std::max(1, std::stoi(next()));
+    else if (k == "--warm-cache-mib")
+      a.warm_cache_mib = std::stoull(next());
     else {
       std::fprintf(stderr, "unknown argument %s\n", k.c_str());
       return 2;
@@ -127,10 +140,11 @@ int main(int argc, char** argv) {
   std::printf("# query_bench: tanker objects=%llu seed=%llu queries/workload=%zu page=12 KiB direct_io=%d\n",
               static_cast<unsigned long long>(a.objects), static_cast<unsigned long long>(a.seed), a.queries,
               a.direct_io);
-  std::printf("# cores=%ld, cold = engine cache emptied before each query%s; warm = %llu MiB cache, best of %d "
-              "passes\n",
-              sysconf(_SC_NPROCESSORS_ONLN), a.direct_io ? " and O_DIRECT reads" : " (OS page cache not bypassed)",
-              static_cast<unsigned long long>(a.warm_cache_mib), a.warm_passes);
+  std::printf(
+      "# cores=%ld, cold = engine cache emptied before each query%s; warm = %llu MiB cache, best of %d "
+      "passes\n",
+      sysconf(_SC_NPROCESSORS_ONLN), a.direct_io ? " and O_DIRECT reads" : " (OS page cache not bypassed)",
+      static_cast<unsigned long long>(a.warm_cache_mib), a.warm_passes);
 
   // Object AABBs for the peer and for query placement, streamed from the generator.
   std::vector<BValue> values;
@@ -148,13 +162,15 @@ int main(int argc, char** argv) {
       if (!*more) break;
       const Box3f b = o.Aabb();
       scene.Extend(b);
-      values.emplace_back(BBox(BPoint(b.min[0], b.min[1], b.min[2]), BPoint(b.max[0], b.max[1], b.max[2])), o.id);
+      values.emplace_back(BBox(BPoint(b.min[0], b.min[1], b.min[2]), BPoint(b.max[0], b.max[1], b.max[2])),
+                          o.id);
     }
   }
   auto t0 = Clock::now();
   bgi::rtree<BValue, bgi::rstar<16>> rtree(values.begin(), values.end());
   const double rtree_build = Since(t0);
-  std::printf("# boost.geometry rtree (rstar<16>, packing constructor): %.2fs to build in RAM\n", rtree_build);
+  std::printf("# boost.geometry rtree (rstar<16>, packing constructor): %.2fs to build in RAM\n",
+              rtree_build);
 
   std::vector<Workload> workloads;
   {
@@ -208,14 +224,15 @@ int main(int argc, char** argv) {
       }
       struct rusage ru {};
       getrusage(RUSAGE_SELF, &ru);
-      std::printf("build: %.2fs, %.0f objects/s, %.1f MB/s written, store %.1f MiB, raw geometry "
-                  "%.1f MiB (ratio %.2f), peak RSS so far %.0f MiB, %llu leaves, %llu pages\n",
-                  report->total_seconds, a.objects / report->total_seconds,
-                  report->store_bytes / 1e6 / report->write_seconds, report->store_bytes / 1048576.0,
-                  report->raw_geometry_bytes / 1048576.0,
-                  static_cast<double>(report->raw_geometry_bytes) / static_cast<double>(report->store_bytes),
-                  ru.ru_maxrss / 1024.0, static_cast<unsigned long long>(report->tree_stats.leaves),
-                  static_cast<unsigned long long>(report->pages));
+      std::printf(
+          "build: %.2fs, %.0f objects/s, %.1f MB/s written, store %.1f MiB, raw geometry "
+          "%.1f MiB (ratio %.2f), peak RSS so far %.0f MiB, %llu leaves, %llu pages\n",
+          report->total_seconds, a.objects / report->total_seconds,
+          report->store_bytes / 1e6 / report->write_seconds, report->store_bytes / 1048576.0,
+          report->raw_geometry_bytes / 1048576.0,
+          static_cast<double>(report->raw_geometry_bytes) / static_cast<double>(report->store_bytes),
+          ru.ru_maxrss / 1024.0, static_cast<unsigned long long>(report->tree_stats.leaves),
+          static_cast<unsigned long long>(report->pages));
     }
 
     OpenOptions cold_opts;
@@ -267,7 +284,8 @@ int main(int argc, char** argv) {
           warm_qps = std::max(warm_qps, static_cast<double>(w.queries.size()) / Since(t0));
         }
         const double warm_hit_rate =
-            warm_stats.pages_touched ? static_cast<double>(warm_stats.cache_hits) / warm_stats.pages_touched : 1.0;
+            warm_stats.pages_touched ? static_cast<double>(warm_stats.cache_hits) / warm_stats.pages_touched
+                                     : 1.0;
         std::string vs = "-";
         if (mode == QueryMode::kAabb) {
           // Same queries against Boost.Geometry, and the answers cross-checked.
@@ -310,8 +328,8 @@ int main(int argc, char** argv) {
         std::printf("%-8s %-5s %9.2f %9.3f %9.0f %9.0f %9.3f %10.2f %9.3f %11.1f %11.0f %11.0f %8s %7.1f%%\n",
                     w.name.c_str(), mode == QueryMode::kAabb ? "aabb" : "exact", hits / n, mean_pages,
                     Percentile(pages, 0.5), Percentile(pages, 0.99), mean_floor,
-                    mean_floor > 0 ? mean_pages / mean_floor : 0.0, extra / n, 100 * multi / n, cold_qps, warm_qps,
-                    vs.c_str(), 100 * warm_hit_rate);
+                    mean_floor > 0 ? mean_pages / mean_floor : 0.0, extra / n, 100 * multi / n, cold_qps,
+                    warm_qps, vs.c_str(), 100 * warm_hit_rate);
       }
     }
     if (!a.keep) std::filesystem::remove(path);

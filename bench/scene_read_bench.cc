@@ -19,8 +19,8 @@ int main(int argc, char** argv) {
     return 2;
   }
   std::printf("# scene_read_bench: streaming read through OpenSceneFile, one file after another\n");
-  std::printf("%-40s %12s %14s %9s %12s %9s %12s\n", "file", "objects", "triangles", "seconds", "objects/s", "MB/s",
-              "peak RSS MiB");
+  std::printf("%-40s %12s %14s %9s %12s %9s %12s\n", "file", "objects", "triangles", "seconds", "objects/s",
+              "MB/s", "peak RSS MiB");
   for (int i = 1; i < argc; ++i) {
     const auto t0 = std::chrono::steady_clock::now();
     auto src = mktree::OpenSceneFile(argv[i], 0);
@@ -45,8 +45,9 @@ int main(int argc, char** argv) {
     ::stat(argv[i], &st);
     struct rusage ru {};
     getrusage(RUSAGE_SELF, &ru);
-    std::printf("%-40s %12llu %14llu %9.2f %12.0f %9.1f %12.1f\n", argv[i], static_cast<unsigned long long>(objects),
-                static_cast<unsigned long long>(triangles), s, objects / s, st.st_size / 1e6 / s, ru.ru_maxrss / 1024.0);
+    std::printf("%-40s %12llu %14llu %9.2f %12.0f %9.1f %12.1f\n", argv[i],
+                static_cast<unsigned long long>(objects), static_cast<unsigned long long>(triangles), s,
+                objects / s, st.st_size / 1e6 / s, ru.ru_maxrss / 1024.0);
   }
   return 0;
 }

@@ -16,8 +16,9 @@
 //   random_tunings   (only when named) one hash over 400 small builds (seed 11): random scenes of 1 to 6000
 //                    objects (uniform, gridded with many ties, clustered with long objects, all identical at
 //                    +-0) under random BuildParams / BuildTuning (r, page size, fill slack, fill pages, kSoa,
-//                    axis ratio 0), so that a change meant to keep the tree (a speed-up) is checked beyond the
-//                    default tuning of the workloads above. Hash 2b8f318b586d54fc (the same from cbcf6d9 on)
+//                    axis ratio 0), so that a change meant to keep the tree (a speed-up) is checked beyond
+//                    the default tuning of the workloads above. Hash 2b8f318b586d54fc (the same from cbcf6d9
+//                    on)
 // Usage: tree_build_bench [workload...]   (default: all of them)
 //
 // Records: id, Aabb() and encoded_bytes = 64 + mesh.RawGeometryBytes() / 2, a stand-in for the compressed
@@ -92,14 +93,19 @@ std::vector<ObjectRecord> SyntheticRecords(uint64_t n, uint64_t seed) {
     const int cls = static_cast<int>(rng() % 10), along = static_cast<int>(rng() % 3);
     double size[3];
     for (int a = 0; a < 3; ++a) {
-      if (cls < 6) size[a] = a == along ? std::exp(uni(std::log(0.3), std::log(40.0))) : uni(0.05, 0.5);
-      else if (cls < 9) size[a] = a == along ? 0.01 : uni(0.5, 4);
-      else size[a] = uni(0.5, 3);
+      if (cls < 6)
+        size[a] = a == along ? std::exp(uni(std::log(0.3), std::log(40.0))) : uni(0.05, 0.5);
+      else if (cls < 9)
+        size[a] = a == along ? 0.01 : uni(0.5, 4);
+      else
+        size[a] = uni(0.5, 3);
       const double lo = uni(0, std::max(0.0, ext[a] - size[a]));
       r.box.min[a] = static_cast<float>(lo);
       r.box.max[a] = static_cast<float>(lo + size[a]);
     }
-    r.encoded_bytes = static_cast<uint32_t>(cls < 6 ? uni(400, 1600) : cls < 9 ? uni(400, 900) : uni(1000, 3000));
+    r.encoded_bytes = static_cast<uint32_t>(cls < 6   ? uni(400, 1600)
+                                            : cls < 9 ? uni(400, 900)
+                                                      : uni(1000, 3000));
   }
   return recs;
 }
@@ -110,13 +116,15 @@ struct Quality {
   double mean_leaves = 0;
   double mean_answer_leaves = 0;
   double mean_split_nodes = 0;
-  double mean_leaf_boxes = 0;  // leaves whose box contains the point (first 1,000 points): routing by boxes only
+  double mean_leaf_boxes =
+      0;  // leaves whose box contains the point (first 1,000 points): routing by boxes only
   double filtered_leaves = 0;  // leaves the leaf filter lets through (what a query reads)
   double filtered_extra = 0;   // of those, the ones without an answer (the target: <= 0.2)
   double filtered_multi_share = 0;
 };
 
-Quality RoutingQuality(const BuildResult& r, const std::vector<ObjectRecord>& recs, int points, uint64_t seed) {
+Quality RoutingQuality(const BuildResult& r, const std::vector<ObjectRecord>& recs, int points,
+                       uint64_t seed) {
   Quality q;
   if (r.tree.empty()) return q;
   std::mt19937_64 rng(seed);
@@ -280,7 +288,9 @@ std::vector<uint32_t> StrOrder(const std::vector<ObjectRecord>& recs, uint64_t m
   const size_t s = std::max<size_t>(1, static_cast<size_t>(std::ceil(std::cbrt(pages))));
   std::vector<uint32_t> order(recs.size());
   for (uint32_t k = 0; k < recs.size(); ++k) order[k] = k;
-  auto by = [&](int a) { return [&recs, a](uint32_t x, uint32_t y) { return Centre(recs[x], a) < Centre(recs[y], a); }; };
+  auto by = [&](int a) {
+    return [&recs, a](uint32_t x, uint32_t y) { return Centre(recs[x], a) < Centre(recs[y], a); };
+  };
   std::sort(order.begin(), order.end(), by(0));
   const size_t slab = (order.size() + s - 1) / s;
   for (size_t i = 0; i < order.size(); i += slab) {
@@ -293,8 +303,8 @@ std::vector<uint32_t> StrOrder(const std::vector<ObjectRecord>& recs, uint64_t m
   return order;
 }
 
-// FNV-1a over every field of the built tree (nodes, split nodes, leaves, leaf_objects, leaf_offsets), field by
-// field so that struct padding does not count: equal hashes = the same tree (TREE_BENCH_HASH=1 prints it).
+// FNV-1a over every field of the built tree (nodes, split nodes, leaves, leaf_objects, leaf_offsets), field
+// by field so that struct padding does not count: equal hashes = the same tree (TREE_BENCH_HASH=1 prints it).
 struct Fnv {
   uint64_t h = 1469598103934665603ull;
   template <typename T>
@@ -315,7 +325,8 @@ uint64_t TreeHash(const BuildResult& r) {
     f.Add(n.a), f.Add(n.b), f.Add(n.child[0]), f.Add(n.child[1]), f.Add(n.leaf), f.Add(n.split_root);
     f.Add(n.axis), f.Add(n.depth);
   }
-  for (const SplitNode& n : r.tree.split_nodes) f.Add(n.cut), f.Add(n.child[0]), f.Add(n.child[1]), f.Add(n.axis), f.Add(n.label);
+  for (const SplitNode& n : r.tree.split_nodes)
+    f.Add(n.cut), f.Add(n.child[0]), f.Add(n.child[1]), f.Add(n.axis), f.Add(n.label);
   for (const LeafInfo& l : r.tree.leaves) {
     f.AddBox(l.box);
     f.Add(l.node), f.Add(l.object_count), f.Add(l.payload_bytes), f.Add(l.first_page), f.Add(l.page_count);
@@ -351,8 +362,8 @@ void Run(const Workload& w) {
       const double sec = std::chrono::duration<double>(std::chrono::steady_clock::now() - r0).count();
       if (!b.ok()) std::exit(1);
       const BuildTimings& tm = b->timings;
-      std::printf("%-14s repeat %6.3f s  (layout %.3f sorts %.3f nodes %.3f finish %.3f s; stitch %.3f)\n", w.name, sec,
-                  tm.layout, tm.sorts, tm.nodes, tm.finish, tm.stitch);
+      std::printf("%-14s repeat %6.3f s  (layout %.3f sorts %.3f nodes %.3f finish %.3f s; stitch %.3f)\n",
+                  w.name, sec, tm.layout, tm.sorts, tm.nodes, tm.finish, tm.stitch);
     }
   }
   const auto t0 = std::chrono::steady_clock::now();
@@ -367,37 +378,43 @@ void Run(const Workload& w) {
   const double n = double(w.objects);
   if (std::getenv("TREE_BENCH_HASH")) {
     const BuildTimings& tm = built->timings;
-    std::printf("%-14s %6.2f s  %6.2f Mobj/s  peak %6.1f B/obj  tree hash %016llx  nodes %zu  split nodes %zu"
-                "  leaves %zu  (layout %.3f sorts %.3f nodes %.3f finish %.3f s; stitch %.3f of nodes)\n",
-                w.name, secs, n / secs / 1e6, peak / n, (unsigned long long)TreeHash(*built), built->tree.nodes.size(),
-                built->tree.split_nodes.size(), built->tree.leaves.size(), tm.layout, tm.sorts, tm.nodes, tm.finish,
-                tm.stitch);
+    std::printf(
+        "%-14s %6.2f s  %6.2f Mobj/s  peak %6.1f B/obj  tree hash %016llx  nodes %zu  split nodes %zu"
+        "  leaves %zu  (layout %.3f sorts %.3f nodes %.3f finish %.3f s; stitch %.3f of nodes)\n",
+        w.name, secs, n / secs / 1e6, peak / n, (unsigned long long)TreeHash(*built),
+        built->tree.nodes.size(), built->tree.split_nodes.size(), built->tree.leaves.size(), tm.layout,
+        tm.sorts, tm.nodes, tm.finish, tm.stitch);
     std::fflush(stdout);
     if (std::getenv("TREE_BENCH_HASH_ONLY")) return;
   }
   // The records went into the builder; make them again (deterministic) for the brute-force check.
   recs = w.tanker ? TankerRecords(w.objects, 1) : SyntheticRecords(w.objects, 1);
   const Quality q = RoutingQuality(*built, recs, 10000, 99);
-  std::printf("%-14s %9llu obj  %6.2f s  %6.2f Mobj/s  peak %6.1f B/obj (records phase %5.1f)  index %5.2f B/obj"
-              "  tree %5.2f B/obj\n",
-              w.name, (unsigned long long)w.objects, secs, n / secs / 1e6, peak / n, rss_records / n,
-              s.index_bytes_per_object, s.tree_bytes_per_object);
-  std::printf("%-14s phases: layout %.3f s  sorts %.3f s  nodes %.3f s (of which stitch %.3f s)  finish %.3f s\n", "",
-              built->timings.layout, built->timings.sorts, built->timings.nodes, built->timings.stitch,
-              built->timings.finish);
-  std::printf("%-14s height %u  leaves %llu  obj/leaf %.2f  fill mean %.1f%% min %.1f%%  multi-page %llu"
-              "  |Sm| %llu  SplitTree nodes %llu (max %u)  BOTH cells %llu/%llu\n",
-              "", s.height, (unsigned long long)s.leaves, s.mean_objects_per_leaf, 100 * s.mean_page_fill,
-              100 * s.min_page_fill, (unsigned long long)s.multi_page_leaves, (unsigned long long)s.overlap_objects,
-              (unsigned long long)s.split_tree_nodes, s.max_split_tree_nodes, (unsigned long long)s.both_cells,
-              (unsigned long long)s.split_tree_cells);
-  std::printf("%-14s routing: leaves/point %.3f  answer leaves/point %.3f  extra %.3f  >1 leaf %.1f%%"
-              "  split nodes/point %.2f  (leaf boxes containing the point %.3f)\n",
-              "", q.mean_leaves, q.mean_answer_leaves, q.extra_leaves, 100 * q.multi_leaf_share,
-              q.mean_split_nodes, q.mean_leaf_boxes);
-  std::printf("%-14s with the leaf filter (what a query reads): leaves/point %.3f  extra %.3f (target <= 0.2)"
-              "  >1 leaf %.1f%%\n",
-              "", q.filtered_leaves, q.filtered_extra, 100 * q.filtered_multi_share);
+  std::printf(
+      "%-14s %9llu obj  %6.2f s  %6.2f Mobj/s  peak %6.1f B/obj (records phase %5.1f)  index %5.2f B/obj"
+      "  tree %5.2f B/obj\n",
+      w.name, (unsigned long long)w.objects, secs, n / secs / 1e6, peak / n, rss_records / n,
+      s.index_bytes_per_object, s.tree_bytes_per_object);
+  std::printf(
+      "%-14s phases: layout %.3f s  sorts %.3f s  nodes %.3f s (of which stitch %.3f s)  finish %.3f s\n", "",
+      built->timings.layout, built->timings.sorts, built->timings.nodes, built->timings.stitch,
+      built->timings.finish);
+  std::printf(
+      "%-14s height %u  leaves %llu  obj/leaf %.2f  fill mean %.1f%% min %.1f%%  multi-page %llu"
+      "  |Sm| %llu  SplitTree nodes %llu (max %u)  BOTH cells %llu/%llu\n",
+      "", s.height, (unsigned long long)s.leaves, s.mean_objects_per_leaf, 100 * s.mean_page_fill,
+      100 * s.min_page_fill, (unsigned long long)s.multi_page_leaves, (unsigned long long)s.overlap_objects,
+      (unsigned long long)s.split_tree_nodes, s.max_split_tree_nodes, (unsigned long long)s.both_cells,
+      (unsigned long long)s.split_tree_cells);
+  std::printf(
+      "%-14s routing: leaves/point %.3f  answer leaves/point %.3f  extra %.3f  >1 leaf %.1f%%"
+      "  split nodes/point %.2f  (leaf boxes containing the point %.3f)\n",
+      "", q.mean_leaves, q.mean_answer_leaves, q.extra_leaves, 100 * q.multi_leaf_share, q.mean_split_nodes,
+      q.mean_leaf_boxes);
+  std::printf(
+      "%-14s with the leaf filter (what a query reads): leaves/point %.3f  extra %.3f (target <= 0.2)"
+      "  >1 leaf %.1f%%\n",
+      "", q.filtered_leaves, q.filtered_extra, 100 * q.filtered_multi_share);
   const int box_count = static_cast<int>(std::clamp<uint64_t>(300000000 / w.objects, 30, 300));
   std::printf("%-14s boxes (%d, seed 7): leaves with an answer", "", box_count);
   for (double side : {2.0, 8.0}) {
@@ -427,18 +444,20 @@ void RunPacking(uint64_t objects) {
     double pages = 0;
   };
   std::vector<Partition> parts;
-  parts.push_back({"mktree", LeafOf(*built, recs.size()), built->tree.leaves.size(), double(built->stats.pages)});
+  parts.push_back(
+      {"mktree", LeafOf(*built, recs.size()), built->tree.leaves.size(), double(built->stats.pages)});
   for (const char* name : {"morton", "str"}) {
     Partition p{name, {}, 0, 0};
-    const std::vector<uint32_t> order = std::strcmp(name, "morton") == 0 ? MortonOrder(recs, scene)
-                                                                          : StrOrder(recs, params.mem_page());
+    const std::vector<uint32_t> order =
+        std::strcmp(name, "morton") == 0 ? MortonOrder(recs, scene) : StrOrder(recs, params.mem_page());
     p.leaf_of = PackInOrder(recs, order, params.mem_page(), &p.leaves);
     p.pages = double(p.leaves);
     parts.push_back(std::move(p));
   }
-  std::printf("tanker_%llu_packing: leaves holding an answer per query / floor ceil(hits/B), same records and page "
-              "budget; query centres uniform in the scene box (seed 7): 1000 points, 300 boxes per side\n",
-              (unsigned long long)objects);
+  std::printf(
+      "tanker_%llu_packing: leaves holding an answer per query / floor ceil(hits/B), same records and page "
+      "budget; query centres uniform in the scene box (seed 7): 1000 points, 300 boxes per side\n",
+      (unsigned long long)objects);
   std::printf("%-8s %8s %7s %16s %16s %16s %16s\n", "leaves", "count", "B", "point", "box 0.5 m", "box 2 m",
               "box 8 m");
   for (const Partition& p : parts) {
@@ -447,7 +466,8 @@ void RunPacking(uint64_t objects) {
     for (const auto& [side, count] : {std::pair{0.0, 1000}, {0.5, 300}, {2.0, 300}, {8.0, 300}}) {
       const BoxQuality b = BoxLeaves(p.leaf_of, p.leaves, per_page, scene, recs, side, count, 7);
       char cell[32];
-      std::snprintf(cell, sizeof cell, "%.2f/%.2f=%.1fx", b.leaves, b.floor, b.floor > 0 ? b.leaves / b.floor : 0);
+      std::snprintf(cell, sizeof cell, "%.2f/%.2f=%.1fx", b.leaves, b.floor,
+                    b.floor > 0 ? b.leaves / b.floor : 0);
       std::printf(" %16s", cell);
     }
     std::printf("\n");
@@ -471,7 +491,8 @@ void RunRandomTunings() {
         float c, e;
         switch (kind) {
           case 0:
-            c = std::uniform_real_distribution<float>(-50, 50)(rng), e = std::uniform_real_distribution<float>(0, 3)(rng);
+            c = std::uniform_real_distribution<float>(-50, 50)(rng),
+            e = std::uniform_real_distribution<float>(0, 3)(rng);
             break;
           case 1:
             c = static_cast<float>(rng() % 20), e = static_cast<float>(rng() % 3);
@@ -527,9 +548,12 @@ int main(int argc, char** argv) {
 #ifndef NDEBUG
   std::printf("WARNING: built without optimisation (NDEBUG not defined); timings are not meaningful\n");
 #endif
-  std::printf("tree_build_bench: MKtree construction from in-RAM records (BuildParams defaults: MemPage 12288 B,"
-              " r 0.3, SplitTree budget 64)\n");
-  std::printf("records: tanker generator seed 1, encoded_bytes = 64 + RawGeometryBytes/2; 10,000 query points seed 99\n");
+  std::printf(
+      "tree_build_bench: MKtree construction from in-RAM records (BuildParams defaults: MemPage 12288 B,"
+      " r 0.3, SplitTree budget 64)\n");
+  std::printf(
+      "records: tanker generator seed 1, encoded_bytes = 64 + RawGeometryBytes/2; 10,000 query points seed "
+      "99\n");
   for (int i = 1; i < argc; ++i)
     if (std::strcmp(argv[i], "tanker_1m_packing") == 0) mktree::RunPacking(1000000);
   for (int i = 1; i < argc; ++i)

@@ -11,7 +11,8 @@
 
 namespace mktree::storage_internal {
 
-static_assert(std::endian::native == std::endian::little, "mktree on-disk formats assume a little-endian host");
+static_assert(std::endian::native == std::endian::little,
+              "mktree on-disk formats assume a little-endian host");
 
 template <typename T>
 inline void Put(uint8_t* p, T v) {

@@ -37,10 +37,12 @@ Status PreadFull(int fd, void* buf, size_t n, uint64_t offset, const std::string
     const ssize_t r = ::pread(fd, p + done, n - done, static_cast<off_t>(offset + done));
     if (r < 0) {
       if (errno == EINTR) continue;
-      return Status::IOError(name + ": read at offset " + std::to_string(offset + done) + ": " + ErrnoText(errno));
+      return Status::IOError(name + ": read at offset " + std::to_string(offset + done) + ": " +
+                             ErrnoText(errno));
     }
     if (r == 0)
-      return Status::IOError(name + ": short read at offset " + std::to_string(offset + done) + " (file truncated)");
+      return Status::IOError(name + ": short read at offset " + std::to_string(offset + done) +
+                             " (file truncated)");
     done += static_cast<size_t>(r);
   }
   return Status::Ok();
@@ -53,7 +55,8 @@ Status PwriteFull(int fd, const void* buf, size_t n, uint64_t offset, const std:
     const ssize_t r = ops.Pwrite(fd, p + done, n - done, offset + done);
     if (r < 0) {
       if (errno == EINTR) continue;
-      return Status::IOError(name + ": write at offset " + std::to_string(offset + done) + ": " + ErrnoText(errno));
+      return Status::IOError(name + ": write at offset " + std::to_string(offset + done) + ": " +
+                             ErrnoText(errno));
     }
     done += static_cast<size_t>(r);
   }

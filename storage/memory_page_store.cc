@@ -5,8 +5,7 @@
 namespace mktree {
 
 Status MemoryPageStore::ReadPage(uint64_t index, uint8_t* out) const {
-  if (index >= count_)
-    return PageOutOfRange(name_, index, count_);
+  if (index >= count_) return PageOutOfRange(name_, index, count_);
   std::memcpy(out, data_.data() + index * page_bytes_, page_bytes_);
   return Status::Ok();
 }

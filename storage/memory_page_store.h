@@ -41,9 +41,7 @@ class FaultyPageStore : public PageStore {
   // Owns its base (to stand in for a store's pages: StoreReader::WrapPages).
   explicit FaultyPageStore(std::unique_ptr<PageStore> base) : owned_(std::move(base)), base_(owned_.get()) {}
   // The k-th ReadPage call from now (1-based, counting all pages) fails with IOError; 0 disables.
-  void FailNthRead(uint64_t k) {
-    fail_at_ = k == 0 ? 0 : reads_.load() + k;
-  }
+  void FailNthRead(uint64_t k) { fail_at_ = k == 0 ? 0 : reads_.load() + k; }
   // Every read of `page` returns it with byte `offset` XORed with `mask` (a silent media error).
   void FlipByte(uint64_t page, uint64_t offset, uint8_t mask = 0x01) {
     flip_page_ = page;

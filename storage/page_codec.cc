@@ -38,7 +38,8 @@ Result<PageHeader> CheckPage(const uint8_t* page, uint64_t mem_page, bool verify
     if (stored != PageChecksum(page, mem_page)) return fail("checksum mismatch");
   }
   const uint16_t version = Get<uint16_t>(page + 4);
-  if (version != kPageFormatVersion) return fail("unsupported page format version " + std::to_string(version));
+  if (version != kPageFormatVersion)
+    return fail("unsupported page format version " + std::to_string(version));
   PageHeader h;
   h.leaf_index = Get<uint32_t>(page + 8);
   h.page_in_leaf = Get<uint32_t>(page + 12);

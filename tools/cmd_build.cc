@@ -54,12 +54,18 @@ Result<SceneOpener> OpenerFor(const std::string& input) {
 
 int RunBuild(const BuildArgs& a) {
   IngestOptions opts;
-  if (a.backend == "hdf5") opts.store.backend = Backend::kHdf5;
-  else if (a.backend == "pagefile") opts.store.backend = Backend::kPagedFile;
-  else return Fail("--backend must be hdf5 or pagefile, not '" + a.backend + "'");
-  if (a.codec == "zstd") opts.store.codec.codec = Codec::kZstd;
-  else if (a.codec == "none") opts.store.codec.codec = Codec::kNone;
-  else return Fail("--codec must be zstd or none, not '" + a.codec + "'");
+  if (a.backend == "hdf5")
+    opts.store.backend = Backend::kHdf5;
+  else if (a.backend == "pagefile")
+    opts.store.backend = Backend::kPagedFile;
+  else
+    return Fail("--backend must be hdf5 or pagefile, not '" + a.backend + "'");
+  if (a.codec == "zstd")
+    opts.store.codec.codec = Codec::kZstd;
+  else if (a.codec == "none")
+    opts.store.codec.codec = Codec::kNone;
+  else
+    return Fail("--codec must be zstd or none, not '" + a.codec + "'");
   if (a.zstd_level < ZSTD_minCLevel() || a.zstd_level > ZSTD_maxCLevel())
     return Fail("--zstd-level must be from " + std::to_string(ZSTD_minCLevel()) + " to " +
                 std::to_string(ZSTD_maxCLevel()) + ", not " + std::to_string(a.zstd_level));
@@ -108,16 +114,18 @@ int RunBuild(const BuildArgs& a) {
     std::printf("built %s: %llu objects, %llu triangles, %llu leaves, %llu pages of %llu B, height %u\n",
                 a.output.c_str(), static_cast<unsigned long long>(r.objects),
                 static_cast<unsigned long long>(r.triangles),
-                static_cast<unsigned long long>(r.tree_stats.leaves), static_cast<unsigned long long>(r.pages),
+                static_cast<unsigned long long>(r.tree_stats.leaves),
+                static_cast<unsigned long long>(r.pages),
                 static_cast<unsigned long long>(opts.store.params.mem_page()), r.tree_stats.height);
     if (r.origin.x != 0 || r.origin.y != 0 || r.origin.z != 0)
       std::printf("store frame: origin (%.17g, %.17g, %.17g); boxes are kept relative to it\n", r.origin.x,
                   r.origin.y, r.origin.z);
-    std::printf("store %s (raw geometry %s, encoded %s, ratio %.2f), page fill %.1f%%\n",
-                HumanBytes(r.store_bytes).c_str(), HumanBytes(r.raw_geometry_bytes).c_str(),
-                HumanBytes(r.encoded_bytes).c_str(),
-                r.store_bytes ? static_cast<double>(r.raw_geometry_bytes) / static_cast<double>(r.store_bytes) : 0.0,
-                100.0 * r.tree_stats.mean_page_fill);
+    std::printf(
+        "store %s (raw geometry %s, encoded %s, ratio %.2f), page fill %.1f%%\n",
+        HumanBytes(r.store_bytes).c_str(), HumanBytes(r.raw_geometry_bytes).c_str(),
+        HumanBytes(r.encoded_bytes).c_str(),
+        r.store_bytes ? static_cast<double>(r.raw_geometry_bytes) / static_cast<double>(r.store_bytes) : 0.0,
+        100.0 * r.tree_stats.mean_page_fill);
     std::printf("time %.2fs (read %.2fs, tree %.2fs, write %.2fs), %.0f objects/s, peak RSS %s\n",
                 r.total_seconds, r.read_seconds, r.build_seconds, r.write_seconds,
                 static_cast<double>(r.objects) / std::max(r.total_seconds, 1e-9),
@@ -131,8 +139,9 @@ int RunBuild(const BuildArgs& a) {
 void RegisterBuild(CLI::App& app, CommandRun* run) {
   auto args = std::make_shared<BuildArgs>();
   CLI::App* cmd = app.add_subcommand("build", "Ingest scenes and build an MKtree store");
-  cmd->add_option("scenes", args->inputs,
-                  "Scene files (.obj streamed; .mks; glTF/GLB/PLY/STL/OFF/AC3D/... via assimp) or tanker:N[:SEED]")
+  cmd->add_option(
+         "scenes", args->inputs,
+         "Scene files (.obj streamed; .mks; glTF/GLB/PLY/STL/OFF/AC3D/... via assimp) or tanker:N[:SEED]")
       ->required();
   cmd->add_option("-o,--output", args->output, "Store file to write (replaced atomically)")->required();
   cmd->add_option("--backend", args->backend, "hdf5 or pagefile")->capture_default_str();
@@ -143,9 +152,10 @@ void RegisterBuild(CLI::App& app, CommandRun* run) {
   AddNumberOption(cmd, "--r", &args->r, "SOA balance ratio, 0 <= r < 0.5");
   AddNumberOption(cmd, "--split-budget", &args->split_budget,
                   "SplitTree node budget per internal node (0: none)");
-  cmd->add_option("--split-policy", args->split_policy,
-                  "How nodes are split: compact (SOA over compact candidates), soa (docs/design.md §3.5, exactly) or "
-                  "soa-fill (SOA, page fill first near the leaves)")
+  cmd->add_option(
+         "--split-policy", args->split_policy,
+         "How nodes are split: compact (SOA over compact candidates), soa (docs/design.md §3.5, exactly) or "
+         "soa-fill (SOA, page fill first near the leaves)")
       ->capture_default_str();
   cmd->add_flag("-q,--quiet", args->quiet, "No progress and no summary");
   cmd->callback([run, args] { *run = [args] { return RunBuild(*args); }; });

@@ -96,7 +96,8 @@ void RegisterGenerate(CLI::App& app, CommandRun* run) {
   auto opt = std::make_shared<GenerateOptions>();
   CLI::App* generate = app.add_subcommand("generate", "Generate a synthetic scene or a query file");
   generate->require_subcommand(1);
-  CLI::App* cmd = generate->add_subcommand("tanker", "The synthetic tanker (docs/design.md §12) as .obj or .mks");
+  CLI::App* cmd =
+      generate->add_subcommand("tanker", "The synthetic tanker (docs/design.md §12) as .obj or .mks");
   opt->kind = "tanker";
   AddNumberOption(cmd, "--objects", &opt->objects, "Number of objects N (>= 1)")->required()->default_str("");
   AddNumberOption(cmd, "--seed", &opt->seed, "Random seed: the same seed gives the same file");

@@ -65,11 +65,12 @@ int RunInfo(const InfoArgs& a) {
         "\"nodes\": %zu, \"internal_nodes\": %llu, \"leaves\": %zu, \"pages\": %llu, \"height\": %u, "
         "\"block_size\": %u, \"blocks_per_page\": %u, \"page_bytes\": %llu, \"balance_r\": %g, "
         "\"split_nodes\": %zu, \"split_cells\": %llu, \"split_both_cells\": %llu, \"page_fill\": %.4f, "
-        "\"ram_bytes\": %llu, \"leaf_filter_bytes\": %llu, \"origin\": [%.17g, %.17g, %.17g], \"tree\": %s}\n",
+        "\"ram_bytes\": %llu, \"leaf_filter_bytes\": %llu, \"origin\": [%.17g, %.17g, %.17g], \"tree\": "
+        "%s}\n",
         JsonEscape(a.store).c_str(), static_cast<unsigned long long>(file_bytes), backend, codec,
         static_cast<unsigned long long>(r.object_count()), t.nodes.size(),
-        static_cast<unsigned long long>(internal), t.leaves.size(), static_cast<unsigned long long>(pages), height,
-        t.params.block_size, t.params.blocks_per_page, static_cast<unsigned long long>(mem_page),
+        static_cast<unsigned long long>(internal), t.leaves.size(), static_cast<unsigned long long>(pages),
+        height, t.params.block_size, t.params.blocks_per_page, static_cast<unsigned long long>(mem_page),
         t.params.balance_r, t.split_nodes.size(), static_cast<unsigned long long>(split_cells),
         static_cast<unsigned long long>(both_cells), fill, static_cast<unsigned long long>(t.MemoryBytes()),
         static_cast<unsigned long long>(t.FilterMemoryBytes()), t.origin.x, t.origin.y, t.origin.z,
@@ -84,13 +85,15 @@ int RunInfo(const InfoArgs& a) {
   std::printf("pages        %llu of %llu B (%u blocks of %u B), mean fill %.1f%%\n",
               static_cast<unsigned long long>(pages), static_cast<unsigned long long>(mem_page),
               t.params.blocks_per_page, t.params.block_size, 100 * fill);
-  std::printf("objects/page %.2f\n", pages ? static_cast<double>(r.object_count()) / static_cast<double>(pages) : 0.0);
+  std::printf("objects/page %.2f\n",
+              pages ? static_cast<double>(r.object_count()) / static_cast<double>(pages) : 0.0);
   std::printf("split trees  %zu nodes, %llu cells, %llu BOTH\n", t.split_nodes.size(),
               static_cast<unsigned long long>(split_cells), static_cast<unsigned long long>(both_cells));
   const double per = r.object_count() ? 1.0 / static_cast<double>(r.object_count()) : 0.0;
-  std::printf("RAM          %s for nodes and SplitTrees (%.2f B/object), %s for the leaf filter (%.2f B/object)\n",
-              HumanBytes(t.MemoryBytes()).c_str(), static_cast<double>(t.MemoryBytes()) * per,
-              HumanBytes(t.FilterMemoryBytes()).c_str(), static_cast<double>(t.FilterMemoryBytes()) * per);
+  std::printf(
+      "RAM          %s for nodes and SplitTrees (%.2f B/object), %s for the leaf filter (%.2f B/object)\n",
+      HumanBytes(t.MemoryBytes()).c_str(), static_cast<double>(t.MemoryBytes()) * per,
+      HumanBytes(t.FilterMemoryBytes()).c_str(), static_cast<double>(t.FilterMemoryBytes()) * per);
   std::printf("balance r    %g\n", t.params.balance_r);
   std::printf("store frame  origin (%.17g, %.17g, %.17g); geometry is kept relative to it\n", t.origin.x,
               t.origin.y, t.origin.z);
@@ -102,7 +105,8 @@ int RunInfo(const InfoArgs& a) {
 
 void RegisterInfo(CLI::App& app, CommandRun* run) {
   auto args = std::make_shared<InfoArgs>();
-  CLI::App* cmd = app.add_subcommand("info", "Describe a store: objects, nodes, leaves, pages, fill, overlap");
+  CLI::App* cmd =
+      app.add_subcommand("info", "Describe a store: objects, nodes, leaves, pages, fill, overlap");
   cmd->add_option("store", args->store, "Store file")->required();
   cmd->add_flag("--json", args->json, "One JSON object (keys documented in docs/cli.md)");
   cmd->callback([run, args] { *run = [args] { return RunInfo(*args); }; });

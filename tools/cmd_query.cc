@@ -54,8 +54,8 @@ void PrintSummary(const std::map<std::string, KindSummary>& kinds, double per_pa
     double sum = 0;
     for (double x : v) sum += x;
     auto pct = [&](double q) { return v[std::min(v.size() - 1, static_cast<size_t>(q * (n - 1) + 0.5))]; };
-    std::printf("%-12s %8zu %10.2f %10.3f %8.0f %8.0f %10.3f %10.3f\n", name.c_str(), v.size(), k.hits / n, sum / n,
-                pct(0.5), pct(0.99), k.floor / n, k.leaves / n);
+    std::printf("%-12s %8zu %10.2f %10.3f %8.0f %8.0f %10.3f %10.3f\n", name.c_str(), v.size(), k.hits / n,
+                sum / n, pct(0.5), pct(0.99), k.floor / n, k.leaves / n);
   }
 }
 
@@ -121,7 +121,8 @@ void RegisterQuery(CLI::App& app, CommandRun* run) {
   cmd->add_option("store", args->store, "Store file")->required();
   auto* p = cmd->add_option("--point", args->point, "X,Y,Z");
   auto* b = cmd->add_option("--box", args->box, "X0,Y0,Z0,X1,Y1,Z1");
-  auto* f = cmd->add_option("--queries", args->file, "File: one 'point X Y Z' or 'box X0 Y0 Z0 X1 Y1 Z1' a line");
+  auto* f =
+      cmd->add_option("--queries", args->file, "File: one 'point X Y Z' or 'box X0 Y0 Z0 X1 Y1 Z1' a line");
   cmd->add_flag("--exact", args->exact, "Exact geometry instead of AABBs");
   AddNumberOption(cmd, "--cache-pages", &args->cache_pages, "LRU page cache capacity in pages");
   cmd->add_flag("--cold", args->cold, "Empty the cache before each query");

@@ -17,7 +17,8 @@ void RegisterGenerateQueries(CLI::App& app, CommandRun* run);
 void RegisterBuild(CLI::App& app, CommandRun* run);
 void RegisterInfo(CLI::App& app, CommandRun* run);
 void RegisterQuery(CLI::App& app, CommandRun* run);
-void RegisterExport(CLI::App& app, CommandRun* run);  void RegisterRender(CLI::App& app, CommandRun* run);
+void RegisterExport(CLI::App& app, CommandRun* run);
+void RegisterRender(CLI::App& app, CommandRun* run);
 
 // Prints "error: <message>" to stderr and returns 1.
 int Fail(const std::string& message);

@@ -37,8 +37,8 @@ void Progress::Update(const std::string& step, uint64_t done, uint64_t total) {
     }
   } else {
     if (total)
-      std::fprintf(stderr, "%s: %llu/%llu (%.0f%%) %.1fs\n", step.c_str(), static_cast<unsigned long long>(done),
-                   static_cast<unsigned long long>(total),
+      std::fprintf(stderr, "%s: %llu/%llu (%.0f%%) %.1fs\n", step.c_str(),
+                   static_cast<unsigned long long>(done), static_cast<unsigned long long>(total),
                    100.0 * static_cast<double>(done) / static_cast<double>(total), secs);
     else
       std::fprintf(stderr, "%s: %llu %.1fs\n", step.c_str(), static_cast<unsigned long long>(done), secs);

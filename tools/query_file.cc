@@ -36,15 +36,18 @@ bool ParseNumbers(std::string_view text, std::vector<double>* out, std::string* 
 
 Result<Query> MakeQuery(const std::string& kind, const std::vector<double>& v, const std::string& where) {
   if (kind == "point") {
-    if (v.size() != 3) return Status::InvalidArgument(where + ": a point needs 3 numbers, got " + std::to_string(v.size()));
+    if (v.size() != 3)
+      return Status::InvalidArgument(where + ": a point needs 3 numbers, got " + std::to_string(v.size()));
     return Query::Point(Vec3d{v[0], v[1], v[2]});
   }
-  if (v.size() != 6) return Status::InvalidArgument(where + ": a box needs 6 numbers, got " + std::to_string(v.size()));
+  if (v.size() != 6)
+    return Status::InvalidArgument(where + ": a box needs 6 numbers, got " + std::to_string(v.size()));
   Box3d b;
   for (int i = 0; i < 3; ++i) {
     b.min[i] = v[i];
     b.max[i] = v[i + 3];
-    if (b.min[i] > b.max[i]) return Status::InvalidArgument(where + ": box min > max on axis " + std::to_string(i));
+    if (b.min[i] > b.max[i])
+      return Status::InvalidArgument(where + ": box min > max on axis " + std::to_string(i));
   }
   return Query::Box(b);
 }
@@ -68,7 +71,8 @@ Result<std::vector<Query>> ReadQueryFile(const std::string& path) {
     if (kind != "point" && kind != "box")
       return Status::InvalidArgument(where + ": unknown query '" + kind + "' (expected point or box)");
     std::string bad;
-    if (!ParseNumbers(e == std::string::npos ? std::string_view() : std::string_view(line).substr(e), &numbers, &bad))
+    if (!ParseNumbers(e == std::string::npos ? std::string_view() : std::string_view(line).substr(e),
+                      &numbers, &bad))
       return Status::InvalidArgument(where + ": '" + bad + "' is not a finite number");
     auto q = MakeQuery(kind, numbers, where);
     if (!q.ok()) return q.status();

@@ -38,7 +38,9 @@ uint64_t PositionBits(double f) {
 
 // Multiplicative (Fibonacci) hashing: the top `bits` bits of key * 2^64/phi. One multiply; the high bits
 // depend on every key bit, which is what float bit patterns (equal low bits) and vertex pairs need.
-size_t HashTop(uint64_t key, int bits) { return static_cast<size_t>((key * 0x9E3779B97F4A7C15ULL) >> (64 - bits)); }
+size_t HashTop(uint64_t key, int bits) {
+  return static_cast<size_t>((key * 0x9E3779B97F4A7C15ULL) >> (64 - bits));
+}
 
 int Log2(size_t pow2) { return std::countr_zero(pow2); }
 
@@ -151,7 +153,8 @@ void TallyWide(const Mesh& mesh, const std::vector<uint32_t>& canon, EdgeCheck* 
   };
   std::vector<Use> uses;
   for (size_t t = 0; t + 2 < mesh.triangles.size(); t += 3) {
-    const uint32_t c[3] = {canon[mesh.triangles[t]], canon[mesh.triangles[t + 1]], canon[mesh.triangles[t + 2]]};
+    const uint32_t c[3] = {canon[mesh.triangles[t]], canon[mesh.triangles[t + 1]],
+                           canon[mesh.triangles[t + 2]]};
     if (c[0] == c[1] || c[1] == c[2] || c[2] == c[0]) continue;
     for (int k = 0; k < 3; ++k) {
       const uint32_t a = c[k], b = c[(k + 1) % 3];
@@ -174,7 +177,8 @@ EdgeCheck CheckEdges(const Mesh& mesh) {
   const size_t n = mesh.vertex_count();
   // Out-of-range indices are a corrupt mesh, not a closed one.
   for (size_t t = 0; t + 2 < mesh.triangles.size(); t += 3)
-    if (mesh.triangles[t] >= n || mesh.triangles[t + 1] >= n || mesh.triangles[t + 2] >= n) return EdgeCheck{};
+    if (mesh.triangles[t] >= n || mesh.triangles[t + 1] >= n || mesh.triangles[t + 2] >= n)
+      return EdgeCheck{};
   WeldByPosition(mesh, &s);
 
   EdgeCheck r;

@@ -26,8 +26,8 @@ constexpr size_t kKeepMeshBytes = 64 << 10;
 struct Batch {
   std::vector<SceneObject> objects;  // slots reused across batches; objects[0, count) are live
   size_t count = 0;
-  std::vector<uint8_t> entries;       // the entries, back to back
-  std::vector<size_t> entry_end;      // entry i is entries[entry_end[i-1], entry_end[i])
+  std::vector<uint8_t> entries;   // the entries, back to back
+  std::vector<size_t> entry_end;  // entry i is entries[entry_end[i-1], entry_end[i])
   std::vector<Box3f> boxes;
   size_t error_at = std::numeric_limits<size_t>::max();  // the first object that failed, if any
   Status error;
@@ -43,7 +43,8 @@ void EncodeBatch(const EncoderOptions& options, Batch* b) {
   for (size_t i = 0; i < b->count; ++i) {
     const SceneObject& obj = b->objects[i];
     const EdgeCheck edges = CheckEdges(obj.mesh);
-    const uint8_t shape = kShapeKnown | (edges.even ? kShapeEvenEdges : 0) | (edges.closed ? kShapeClosed : 0);
+    const uint8_t shape =
+        kShapeKnown | (edges.even ? kShapeEvenEdges : 0) | (edges.closed ? kShapeClosed : 0);
     Box3f box;
     auto encoded = EncodeObjectEntry(obj, options.origin, options.codec, &b->entries, shape, &box);
     if (!encoded.ok()) {
@@ -156,7 +157,8 @@ Status EncodeObjects(const EncoderOptions& options, const ObjectReader& read, co
     for (size_t i = 0; i < b->count; ++i) {
       if (i == b->error_at) return b->error;
       const size_t begin = i == 0 ? 0 : b->entry_end[i - 1];
-      const EncodedObject e{b->boxes[i], std::span<const uint8_t>(b->entries.data() + begin, b->entry_end[i] - begin)};
+      const EncodedObject e{b->boxes[i],
+                            std::span<const uint8_t>(b->entries.data() + begin, b->entry_end[i] - begin)};
       MKTREE_RETURN_IF_ERROR(sink(b->objects[i], e));
       Mesh& m = b->objects[i].mesh;
       if (8 * m.vertices.capacity() + 4 * m.triangles.capacity() > kKeepMeshBytes) m = Mesh{};

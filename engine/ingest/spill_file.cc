@@ -23,7 +23,8 @@ Status PreadvFull(int fd, iovec* iov, size_t n, uint64_t offset, const std::stri
   while (n > 0) {
     const ssize_t got = ::preadv(fd, iov, static_cast<int>(n), static_cast<off_t>(offset));
     if (got < 0 && errno == EINTR) continue;
-    if (got <= 0) return Status::IOError(path + ": read failed: " + (got < 0 ? std::strerror(errno) : "short read"));
+    if (got <= 0)
+      return Status::IOError(path + ": read failed: " + (got < 0 ? std::strerror(errno) : "short read"));
     offset += static_cast<uint64_t>(got);
     size_t left = static_cast<size_t>(got);
     while (n > 0 && left >= iov->iov_len) {
@@ -38,7 +39,7 @@ Status PreadvFull(int fd, iovec* iov, size_t n, uint64_t offset, const std::stri
   }
   return Status::Ok();
 }
-}
+}  // namespace
 
 SpillFile::~SpillFile() {
   if (fd_ >= 0) ::close(fd_);
@@ -75,7 +76,8 @@ Result<uint64_t> SpillFile::Append(const void* data, uint64_t size) {
 Status SpillFile::Flush() {
   size_t done = 0;
   while (done < buffer_.size()) {
-    ssize_t n = ::pwrite(fd_, buffer_.data() + done, buffer_.size() - done, static_cast<off_t>(flushed_ + done));
+    ssize_t n =
+        ::pwrite(fd_, buffer_.data() + done, buffer_.size() - done, static_cast<off_t>(flushed_ + done));
     if (n < 0) {
       if (errno == EINTR) continue;
       return Status::IOError(path_ + ": write failed: " + std::strerror(errno));
@@ -88,20 +90,23 @@ Status SpillFile::Flush() {
 }
 
 Status SpillFile::ReadAt(uint64_t offset, uint64_t size, void* out) const {
-  if (offset + size > flushed_) return Status::Internal(path_ + ": read past the flushed end of the spill file");
+  if (offset + size > flushed_)
+    return Status::Internal(path_ + ": read past the flushed end of the spill file");
   auto* p = static_cast<uint8_t*>(out);
   uint64_t done = 0;
   while (done < size) {
     ssize_t n = ::pread(fd_, p + done, size - done, static_cast<off_t>(offset + done));
     if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) return Status::IOError(path_ + ": read failed: " + (n < 0 ? std::strerror(errno) : "short read"));
+    if (n <= 0)
+      return Status::IOError(path_ + ": read failed: " + (n < 0 ? std::strerror(errno) : "short read"));
     done += static_cast<uint64_t>(n);
   }
   return Status::Ok();
 }
 
 Status SpillFile::ReadMany(std::vector<Range>* ranges) const {
-  std::sort(ranges->begin(), ranges->end(), [](const Range& a, const Range& b) { return a.offset < b.offset; });
+  std::sort(ranges->begin(), ranges->end(),
+            [](const Range& a, const Range& b) { return a.offset < b.offset; });
   std::vector<uint8_t> gap(kMaxGapBytes);  // discarded; preadv writes each gap here
   std::vector<iovec> iov;
   iov.reserve(kMaxIovecs);
@@ -112,7 +117,8 @@ Status SpillFile::ReadMany(std::vector<Range>* ranges) const {
     return st;
   };
   for (const Range& r : *ranges) {
-    if (r.offset + r.size > flushed_) return Status::Internal(path_ + ": read past the flushed end of the spill file");
+    if (r.offset + r.size > flushed_)
+      return Status::Internal(path_ + ": read past the flushed end of the spill file");
     if (r.size == 0) continue;
     // Ranges may overlap (two readers of one entry): then start a new run rather than read backwards.
     const bool joins = !iov.empty() && r.offset >= run_end && r.offset - run_end <= kMaxGapBytes &&

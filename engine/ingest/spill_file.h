@@ -49,8 +49,8 @@ class SpillFile {
   int fd_ = -1;
   std::string path_;
   std::vector<uint8_t> buffer_;
-  uint64_t size_ = 0;       // bytes appended, buffered or not
-  uint64_t flushed_ = 0;    // bytes on disk
+  uint64_t size_ = 0;     // bytes appended, buffered or not
+  uint64_t flushed_ = 0;  // bytes on disk
 };
 
 // Reads a spill file front to back in large blocks (after Flush): for data spilled in the order it is

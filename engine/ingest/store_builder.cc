@@ -23,7 +23,9 @@ namespace mktree {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double Seconds(Clock::time_point since) { return std::chrono::duration<double>(Clock::now() - since).count(); }
+double Seconds(Clock::time_point since) {
+  return std::chrono::duration<double>(Clock::now() - since).count();
+}
 
 constexpr uint64_t kProgressEvery = 1 << 15;
 // Entry bytes read from the spill at a time when writing pages: large enough that a window's reads
@@ -112,10 +114,14 @@ Vec3d ChooseStoreOrigin(const Box3d& first) {
 
 const char* IngestStageName(IngestStage stage) {
   switch (stage) {
-    case IngestStage::kRead: return "read";
-    case IngestStage::kBuildTree: return "build tree";
-    case IngestStage::kWritePages: return "write pages";
-    case IngestStage::kWriteTable: return "write object table";
+    case IngestStage::kRead:
+      return "read";
+    case IngestStage::kBuildTree:
+      return "build tree";
+    case IngestStage::kWritePages:
+      return "write pages";
+    case IngestStage::kWriteTable:
+      return "write object table";
   }
   return "?";
 }
@@ -212,9 +218,10 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
   report.objects = next_id;
   progress(IngestStage::kRead, next_id, next_id);
   if (report.objects == 0)
-    return Status::InvalidArgument(
-        (options.input_name.empty() ? store_path + ": not built" : options.input_name + ": " + store_path + " not built") +
-        ": empty scene, no object with geometry in the input");
+    return Status::InvalidArgument((options.input_name.empty()
+                                        ? store_path + ": not built"
+                                        : options.input_name + ": " + store_path + " not built") +
+                                   ": empty scene, no object with geometry in the input");
   MKTREE_RETURN_IF_ERROR(geometry.Flush());
   MKTREE_RETURN_IF_ERROR(names.Flush());
   report.read_seconds = Seconds(start);
@@ -241,7 +248,8 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
   //    instead of one per entry (1M pread calls were ~1 s of a 1M-object build).
   const auto write_start = Clock::now();
   std::vector<uint64_t> spill_offset(entry_bytes.size());
-  for (size_t id = 1; id < spill_offset.size(); ++id) spill_offset[id] = spill_offset[id - 1] + entry_bytes[id - 1];
+  for (size_t id = 1; id < spill_offset.size(); ++id)
+    spill_offset[id] = spill_offset[id - 1] + entry_bytes[id - 1];
   if (!spill_offset.empty() && spill_offset.back() + entry_bytes.back() != geometry.size())
     return Status::Internal(geometry.path() + ": spill size does not match its entries");
   const uint64_t mem_page = options.store.params.mem_page();
@@ -302,7 +310,8 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
   }
   window = {};
   report.pages = page;
-  if (!tree.IndexLeafFilter()) return Status::Internal("leaf filter does not match the leaves' object counts");
+  if (!tree.IndexLeafFilter())
+    return Status::Internal("leaf filter does not match the leaves' object counts");
   progress(IngestStage::kWritePages, tree.leaves.size(), tree.leaves.size());
   spill_offset = {};
   entry_bytes = {};

@@ -36,11 +36,12 @@ const char* IngestStageName(IngestStage stage);
 using IngestProgress = std::function<void(IngestStage stage, uint64_t done, uint64_t total)>;
 
 struct IngestOptions {
-  StoreOptions store;          // backend, codec, build parameters
-  BuildTuning tuning;          // tree quality knobs that are not persisted (split policy, threads)
-  std::string spill_dir;       // where the spill files go; empty: next to the output store
-  uint32_t threads = 0;        // threads encoding objects (edge check, codec), the caller's included; 0: one per core
-  IngestProgress progress;     // optional
+  StoreOptions store;     // backend, codec, build parameters
+  BuildTuning tuning;     // tree quality knobs that are not persisted (split policy, threads)
+  std::string spill_dir;  // where the spill files go; empty: next to the output store
+  uint32_t threads =
+      0;  // threads encoding objects (edge check, codec), the caller's included; 0: one per core
+  IngestProgress progress;  // optional
   // What the inputs are called in errors that concern the input as a whole (an empty scene); empty: the
   // error names the store.
   std::string input_name;
@@ -51,10 +52,10 @@ struct IngestReport {
   Vec3d origin;                       // the store frame's origin (ChooseStoreOrigin)
   std::vector<std::string> warnings;  // the readers' and the build's, one line each
   uint64_t triangles = 0;
-  uint64_t raw_geometry_bytes = 0;   // Mesh::RawGeometryBytes summed
-  uint64_t encoded_bytes = 0;        // leaf entry bytes summed (after the codec)
+  uint64_t raw_geometry_bytes = 0;  // Mesh::RawGeometryBytes summed
+  uint64_t encoded_bytes = 0;       // leaf entry bytes summed (after the codec)
   uint64_t pages = 0;
-  uint64_t store_bytes = 0;          // size of the finished file
+  uint64_t store_bytes = 0;  // size of the finished file
   double read_seconds = 0, build_seconds = 0, write_seconds = 0, total_seconds = 0;
   TreeStats tree_stats;
 };

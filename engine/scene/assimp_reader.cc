@@ -178,8 +178,9 @@ class AssimpReader final : public SceneSource {
             }
             if (std::fabs(w[0]) > kMaxCoordinate || std::fabs(w[1]) > kMaxCoordinate ||
                 std::fabs(w[2]) > kMaxCoordinate)
-              return Status::Corruption(path_ + ": node '" + node.mName.C_Str() +
-                                        "': vertex coordinate beyond 2^124 in magnitude (after its transform)");
+              return Status::Corruption(
+                  path_ + ": node '" + node.mName.C_Str() +
+                  "': vertex coordinate beyond 2^124 in magnitude (after its transform)");
             remap_[v] = static_cast<uint32_t>(out->vertex_count());
             out->vertices.insert(out->vertices.end(), w, w + 3);
           }

@@ -181,8 +181,8 @@ class MkSceneSource final : public SceneSource {
   const uint64_t file_size_;
   const ObjectId first_id_;
   const uint64_t coordinate_bytes_;  // 4 (version 1) or 8
-  uint64_t offset_;       // file offset of the current record
-  uint64_t objects_ = 0;  // records read so far
+  uint64_t offset_;                  // file offset of the current record
+  uint64_t objects_ = 0;             // records read so far
   bool done_ = false;
   bool failed_ = false;
   std::vector<uint8_t> record_;

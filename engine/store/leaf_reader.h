@@ -28,11 +28,12 @@ struct PinnedLeaf {
 
 // Checks that a parsed leaf holds what the tree and the object table say it does, so that a store
 // tampered with behind valid checksums gives an error, never a duplicated or missing id: the payload
-// size the tree records (info.payload_bytes), exactly info.object_count entries, each id an object that `object_leaf` (the object table's leaf of each
-// object id) puts in leaf `leaf`, no id twice, each entry's box within info.box. With the table checked
-// at open (each leaf's object_count is its number of objects in the table), the entries are then exactly
-// the leaf's objects. `seen` is scratch: all zero (or empty) before the call, and again after it; it
-// grows to one bit per object. Errors are Corruption naming the store and the leaf's first page.
+// size the tree records (info.payload_bytes), exactly info.object_count entries, each id an object that
+// `object_leaf` (the object table's leaf of each object id) puts in leaf `leaf`, no id twice, each entry's
+// box within info.box. With the table checked at open (each leaf's object_count is its number of objects in
+// the table), the entries are then exactly the leaf's objects. `seen` is scratch: all zero (or empty) before
+// the call, and again after it; it grows to one bit per object. Errors are Corruption naming the store and
+// the leaf's first page.
 Status CheckLeafEntries(const LeafView& view, const std::string& store_name, uint32_t leaf,
                         const LeafInfo& info, std::span<const uint32_t> object_leaf,
                         std::vector<uint64_t>* seen);

@@ -72,7 +72,8 @@ void QueuePrefetched(const MKTree& t, uint32_t i, std::vector<uint32_t>* queue) 
   } else {
     for (uint32_t c : n.child) {
       __builtin_prefetch(&t.nodes[c]);
-      __builtin_prefetch(reinterpret_cast<const char*>(&t.nodes[c] + 1) - 1);  // a node may straddle two lines
+      __builtin_prefetch(reinterpret_cast<const char*>(&t.nodes[c] + 1) -
+                         1);  // a node may straddle two lines
     }
     if (n.split_root != kNoIndex) __builtin_prefetch(&t.split_nodes[n.split_root]);
   }

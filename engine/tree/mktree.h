@@ -16,9 +16,9 @@ inline constexpr uint32_t kNoIndex = 0xffffffffu;
 
 // Build parameters, persisted with the store.
 struct BuildParams {
-  uint32_t block_size = 4096;        // bytes per disk block
-  uint32_t blocks_per_page = 3;      // d: MemPage = d * block_size
-  double balance_r = 0.3;            // SOA balance ratio, 0 <= r < 0.5
+  uint32_t block_size = 4096;            // bytes per disk block
+  uint32_t blocks_per_page = 3;          // d: MemPage = d * block_size
+  double balance_r = 0.3;                // SOA balance ratio, 0 <= r < 0.5
   uint32_t split_tree_node_budget = 64;  // max SplitTree nodes per internal node
   uint64_t mem_page() const { return uint64_t{block_size} * blocks_per_page; }
 };
@@ -26,9 +26,9 @@ struct BuildParams {
 // One MKtree node. Internal: axis in {0,1,2}, both children set, `leaf` = kNoIndex.
 // Leaf: axis = 3, children kNoIndex, `leaf` indexes MKTree::leaves.
 struct TreeNode {
-  Box3f box;                 // R(Sn): union of the boxes of the node's objects
-  float a = 0;               // plane pi0: min over Sn2 of min_w
-  float b = 0;               // plane pi1: max over Sn1 of max_w; a >= b means no overlap slab
+  Box3f box;    // R(Sn): union of the boxes of the node's objects
+  float a = 0;  // plane pi0: min over Sn2 of min_w
+  float b = 0;  // plane pi1: max over Sn1 of max_w; a >= b means no overlap slab
   uint32_t child[2] = {kNoIndex, kNoIndex};
   uint32_t leaf = kNoIndex;
   uint32_t split_root = kNoIndex;  // root of this node's SplitTree in MKTree::split_nodes, or kNoIndex
@@ -52,9 +52,9 @@ struct SplitNode {
 // A leaf: its objects are in pages [first_page, first_page + page_count) of the store.
 struct LeafInfo {
   Box3f box;
-  uint32_t node = kNoIndex;      // its TreeNode
+  uint32_t node = kNoIndex;  // its TreeNode
   uint32_t object_count = 0;
-  uint64_t payload_bytes = 0;    // encoded leaf bytes (LeafPayloadBytes of its objects)
+  uint64_t payload_bytes = 0;  // encoded leaf bytes (LeafPayloadBytes of its objects)
   uint64_t first_page = 0;
   uint32_t page_count = 1;
 };
@@ -64,9 +64,9 @@ struct MKTree {
   // The store frame: every box here (nodes, leaves, leaf filter, entries) is in coordinates world - origin
   // (engine/store/object_codec.h). Queries are moved into it before routing.
   Vec3d origin;
-  std::vector<TreeNode> nodes;       // nodes[0] is the root (when not empty)
+  std::vector<TreeNode> nodes;  // nodes[0] is the root (when not empty)
   std::vector<SplitNode> split_nodes;
-  std::vector<LeafInfo> leaves;      // in page order
+  std::vector<LeafInfo> leaves;  // in page order
   // The leaf filter (engine/tree/leaf_filter.h): kLeafFilterBytesPerObject bytes per object, leaf by
   // leaf in leaf order, each leaf's objects in page order. Empty: no filter (every routed leaf is read).
   std::vector<uint8_t> leaf_filter;

@@ -50,8 +50,8 @@ std::string Fmt(const char* f, double v) {
 
 }  // namespace
 
-TreeStats ComputeTreeStats(const MKTree& tree, uint64_t object_count, std::span<const uint32_t> overlap_counts,
-                           int threads) {
+TreeStats ComputeTreeStats(const MKTree& tree, uint64_t object_count,
+                           std::span<const uint32_t> overlap_counts, int threads) {
   TreeStats s;
   s.objects = object_count;
   s.mem_page = tree.params.mem_page();
@@ -230,18 +230,20 @@ std::string TreeStats::ToString() const {
                 (unsigned long long)objects, height, (unsigned long long)internal_nodes,
                 (unsigned long long)leaves, (unsigned long long)pages, (unsigned long long)mem_page);
   s += buf;
-  std::snprintf(buf, sizeof buf,
-                "objects/leaf min %u mean %.2f max %u; page fill mean %.1f%% min %.1f%%; multi-page leaves %llu\n",
-                min_objects_per_leaf, mean_objects_per_leaf, max_objects_per_leaf, 100 * mean_page_fill,
-                100 * min_page_fill, (unsigned long long)multi_page_leaves);
+  std::snprintf(
+      buf, sizeof buf,
+      "objects/leaf min %u mean %.2f max %u; page fill mean %.1f%% min %.1f%%; multi-page leaves %llu\n",
+      min_objects_per_leaf, mean_objects_per_leaf, max_objects_per_leaf, 100 * mean_page_fill,
+      100 * min_page_fill, (unsigned long long)multi_page_leaves);
   s += buf;
   std::snprintf(buf, sizeof buf,
                 "SplitTrees: %llu nodes (largest %u), %llu cells, %llu BOTH; |Sm| total %s\n",
-                (unsigned long long)split_tree_nodes, max_split_tree_nodes, (unsigned long long)split_tree_cells,
-                (unsigned long long)both_cells,
+                (unsigned long long)split_tree_nodes, max_split_tree_nodes,
+                (unsigned long long)split_tree_cells, (unsigned long long)both_cells,
                 has_overlap_counts ? std::to_string(overlap_objects).c_str() : "unknown");
   s += buf;
-  std::snprintf(buf, sizeof buf, "RAM: index (internal nodes + SplitTrees) %.2f B/object, whole tree %.2f B/object\n",
+  std::snprintf(buf, sizeof buf,
+                "RAM: index (internal nodes + SplitTrees) %.2f B/object, whole tree %.2f B/object\n",
                 index_bytes_per_object, tree_bytes_per_object);
   s += buf;
   s += "depth  nodes  internal  mean|Sm|  slab/extent  sp.nodes  BOTH%cells  BOTH%vol\n";

@@ -19,13 +19,17 @@ struct Vec3d {
 struct Box3d {
   std::array<double, 3> min{std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(),
                             std::numeric_limits<double>::infinity()};
-  std::array<double, 3> max{-std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity(),
+  std::array<double, 3> max{-std::numeric_limits<double>::infinity(),
+                            -std::numeric_limits<double>::infinity(),
                             -std::numeric_limits<double>::infinity()};
   bool empty() const { return min[0] > max[0] || min[1] > max[1] || min[2] > max[2]; }
   void Extend(double x, double y, double z) {
-    min[0] = std::min(min[0], x); max[0] = std::max(max[0], x);
-    min[1] = std::min(min[1], y); max[1] = std::max(max[1], y);
-    min[2] = std::min(min[2], z); max[2] = std::max(max[2], z);
+    min[0] = std::min(min[0], x);
+    max[0] = std::max(max[0], x);
+    min[1] = std::min(min[1], y);
+    max[1] = std::max(max[1], y);
+    min[2] = std::min(min[2], z);
+    max[2] = std::max(max[2], z);
   }
   bool Contains(const Vec3d& p) const {  // closed
     return p.x >= min[0] && p.x <= max[0] && p.y >= min[1] && p.y <= max[1] && p.z >= min[2] && p.z <= max[2];

@@ -20,8 +20,8 @@ inline constexpr double kMaxCoordinate = 0x1p124;
 // each). Readers give world coordinates at the precision of their input; a mesh decoded from a store is in
 // the store's frame (world minus the store's origin, see engine/store/object_codec.h).
 struct Mesh {
-  std::vector<double> vertices;      // 3 * vertex_count()
-  std::vector<uint32_t> triangles;   // 3 * triangle_count()
+  std::vector<double> vertices;     // 3 * vertex_count()
+  std::vector<uint32_t> triangles;  // 3 * triangle_count()
   size_t vertex_count() const { return vertices.size() / 3; }
   size_t triangle_count() const { return triangles.size() / 3; }
   // Bounds of the vertices, computed in double precision. Empty box for an empty mesh.

@@ -107,7 +107,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   mktree::PageCache cache(&store, 2);
   mktree::QueryStats stats;
   mktree::PinnedLeaf pinned;
-  if (Status st = mktree::ReadLeaf(cache, store.name(), leaf, info, object_leaf, mem_page, true, &stats, &pinned);
+  if (Status st =
+          mktree::ReadLeaf(cache, store.name(), leaf, info, object_leaf, mem_page, true, &stats, &pinned);
       !st.ok()) {
     mktree::fuzz::Refused(st.ToString());
     return 0;

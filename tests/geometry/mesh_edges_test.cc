@@ -135,7 +135,8 @@ TEST(MeshEdgesTest, MatchesBruteForceOnRandomMeshes) {
       for (int k = 0; k < 3; ++k) m.triangles.push_back(static_cast<uint32_t>(rng() % m.vertex_count()));
     if (trial % 5 == 0 && !m.triangles.empty()) {  // every triangle twice: even, and closed if flipped
       const size_t t = m.triangles.size();
-      for (size_t i = 0; i < t; i += 3) m.triangles.insert(m.triangles.end(), {m.triangles[i], m.triangles[i + 2], m.triangles[i + 1]});
+      for (size_t i = 0; i < t; i += 3)
+        m.triangles.insert(m.triangles.end(), {m.triangles[i], m.triangles[i + 2], m.triangles[i + 1]});
     }
     const EdgeCheck want = BruteForceEdges(m), got = CheckEdges(m);
     ASSERT_EQ(got.closed, want.closed) << "trial " << trial;

@@ -83,8 +83,8 @@ TEST(BoundedMemory, GeometryTenTimesTheBudgetBuildsWithinIt) {
   ASSERT_TRUE(WIFEXITED(status));
   ASSERT_EQ(WEXITSTATUS(status), 0);
   const uint64_t peak = static_cast<uint64_t>(ru.ru_maxrss) * 1024;
-  EXPECT_LE(peak, kBudget) << "peak RSS " << (peak >> 20) << " MiB for " << ((raw_per_object * kObjects) >> 20)
-                           << " MiB of geometry";
+  EXPECT_LE(peak, kBudget) << "peak RSS " << (peak >> 20) << " MiB for "
+                           << ((raw_per_object * kObjects) >> 20) << " MiB of geometry";
   auto db = Database::Open(store);
   ASSERT_TRUE(db.ok()) << db.status().ToString();
   EXPECT_EQ((*db)->object_count(), kObjects);

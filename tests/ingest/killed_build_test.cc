@@ -23,8 +23,10 @@ std::vector<SceneObject> Cubes(int n) {
     o.id = static_cast<ObjectId>(i);
     o.name = "cube_" + std::to_string(i);
     const float x = static_cast<float>(i % 30), y = static_cast<float>(i / 30);
-    for (int v = 0; v < 8; ++v) o.mesh.vertices.insert(o.mesh.vertices.end(), {x + (v & 1), y + ((v >> 1) & 1), float((v >> 2) & 1)});
-    o.mesh.triangles = {0, 2, 3, 0, 3, 1, 4, 5, 7, 4, 7, 6, 0, 1, 5, 0, 5, 4, 2, 6, 7, 2, 7, 3, 0, 4, 6, 0, 6, 2, 1, 3, 7, 1, 7, 5};
+    for (int v = 0; v < 8; ++v)
+      o.mesh.vertices.insert(o.mesh.vertices.end(), {x + (v & 1), y + ((v >> 1) & 1), float((v >> 2) & 1)});
+    o.mesh.triangles = {0, 2, 3, 0, 3, 1, 4, 5, 7, 4, 7, 6, 0, 1, 5, 0, 5, 4,
+                        2, 6, 7, 2, 7, 3, 0, 4, 6, 0, 6, 2, 1, 3, 7, 1, 7, 5};
     objs.push_back(std::move(o));
   }
   return objs;

@@ -29,8 +29,11 @@ std::string TempPath(const std::string& name) {
 
 // Two inputs continuing one numbering, so that the reader also crosses from one source to the next.
 std::vector<SceneOpener> TwoTankers(uint64_t first, uint64_t second) {
-  return {[first](ObjectId id) -> Result<std::unique_ptr<SceneSource>> { return MakeTankerSource(first, 7, id); },
-          [second](ObjectId id) -> Result<std::unique_ptr<SceneSource>> { return MakeTankerSource(second, 8, id); }};
+  return {
+      [first](ObjectId id) -> Result<std::unique_ptr<SceneSource>> { return MakeTankerSource(first, 7, id); },
+      [second](ObjectId id) -> Result<std::unique_ptr<SceneSource>> {
+        return MakeTankerSource(second, 8, id);
+      }};
 }
 
 struct Built {
@@ -90,8 +93,9 @@ void MakeCube(ObjectId id, ObjectId bad, SceneObject* obj) {
   obj->name += std::to_string(id);
   obj->mesh.vertices.clear();
   for (int c = 0; c < 8; ++c)
-    obj->mesh.vertices.insert(obj->mesh.vertices.end(),
-                              {static_cast<float>(id + (c & 1)), static_cast<float>(c >> 1 & 1), static_cast<float>(c >> 2)});
+    obj->mesh.vertices.insert(
+        obj->mesh.vertices.end(),
+        {static_cast<float>(id + (c & 1)), static_cast<float>(c >> 1 & 1), static_cast<float>(c >> 2)});
   if (id == bad) obj->mesh.vertices[0] = std::numeric_limits<float>::infinity();
   obj->mesh.triangles = {0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4,
                          2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6, 1, 3, 5, 3, 7, 5};

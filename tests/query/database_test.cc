@@ -323,7 +323,8 @@ TEST_P(DatabaseTest, LargeAnswersAndRepeatedQueriesKeepAnswersAndCounts) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Backends, DatabaseTest,
-                         ::testing::Values(Config{Backend::kHdf5, Codec::kZstd}, Config{Backend::kHdf5, Codec::kNone},
+                         ::testing::Values(Config{Backend::kHdf5, Codec::kZstd},
+                                           Config{Backend::kHdf5, Codec::kNone},
                                            Config{Backend::kPagedFile, Codec::kZstd},
                                            Config{Backend::kPagedFile, Codec::kNone}),
                          [](const auto& info) {

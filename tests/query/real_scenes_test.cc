@@ -102,7 +102,8 @@ TEST_P(RealSceneTest, QueriesMatchBruteForce) {
 
 INSTANTIATE_TEST_SUITE_P(
     SharedData, RealSceneTest,
-    ::testing::Values(RealScene{"buildings/duplex.obj", false}, RealScene{"buildings/steel_mini_project.obj", false},
+    ::testing::Values(RealScene{"buildings/duplex.obj", false},
+                      RealScene{"buildings/steel_mini_project.obj", false},
                       RealScene{"city/denhaag_01.obj", false}, RealScene{"ships/ContainerShip.ac", false},
                       RealScene{"ships/Freighter.ac", false}, RealScene{"ships/truman.ac", false},
                       RealScene{"meshes/fandisk.off", true}, RealScene{"meshes/3torus.off", true},

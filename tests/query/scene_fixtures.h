@@ -18,7 +18,8 @@ inline Mesh BoxMesh(const Box3d& b) {
     m.vertices.push_back((i & 4) ? b.max[2] : b.min[2]);
   }
   // Faces as quads (outward by right-hand rule), split in two triangles each.
-  const uint32_t quads[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
+  const uint32_t quads[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4},
+                                {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
   for (const auto& q : quads) {
     m.triangles.insert(m.triangles.end(), {q[0], q[1], q[2], q[0], q[2], q[3]});
   }
@@ -45,8 +46,8 @@ inline Mesh PrismMesh(int axis, double cu, double cv, double r, double lo, doubl
     m.triangles.insert(m.triangles.end(), {a, b, b + n, a, b + n, a + n});
   }
   for (uint32_t s = 1; s + 1 < n; ++s) {
-    m.triangles.insert(m.triangles.end(), {0, s + 1, s});              // bottom cap, facing -axis
-    m.triangles.insert(m.triangles.end(), {n, n + s, n + s + 1});      // top cap, facing +axis
+    m.triangles.insert(m.triangles.end(), {0, s + 1, s});          // bottom cap, facing -axis
+    m.triangles.insert(m.triangles.end(), {n, n + s, n + s + 1});  // top cap, facing +axis
   }
   return m;
 }
@@ -61,7 +62,8 @@ inline std::vector<SceneObject> ClusteredScene(size_t n, uint64_t seed) {
   for (int c = 0; c < clusters; ++c) centres.push_back({unit(rng) * 100, unit(rng) * 40, unit(rng) * 20});
   for (size_t i = 0; i < n; ++i) {
     const auto& c = centres[rng() % centres.size()];
-    const double x = c[0] + (unit(rng) - 0.5) * 20, y = c[1] + (unit(rng) - 0.5) * 10, z = c[2] + (unit(rng) - 0.5) * 6;
+    const double x = c[0] + (unit(rng) - 0.5) * 20, y = c[1] + (unit(rng) - 0.5) * 10,
+                 z = c[2] + (unit(rng) - 0.5) * 6;
     SceneObject o;
     o.name = "obj_" + std::to_string(i);
     const double kind = unit(rng);

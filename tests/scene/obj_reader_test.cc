@@ -216,7 +216,8 @@ TEST(ObjReaderErrorTest, NonFiniteAndOutOfRangeCoordinates) {
   ExpectError(std::string(kThree) + "v 0 0 1e309\n", 4, "coordinate out of range '1e309'");
   ExpectError(std::string(kThree) + "v 0 0 -1e400\n", 4, "coordinate out of range '-1e400'");
   // Finite doubles beyond 2^124 could not be kept as float32 offsets in a store (include/mktree/scene.h).
-  ExpectError(std::string(kThree) + "v 0 3e37 0\n", 4, "coordinate out of range '3e37' (at most 2^124 in magnitude)");
+  ExpectError(std::string(kThree) + "v 0 3e37 0\n", 4,
+              "coordinate out of range '3e37' (at most 2^124 in magnitude)");
 }
 
 TEST(ObjReaderErrorTest, IndexZeroAndOutOfRange) {

@@ -84,9 +84,9 @@ TEST(PageCacheTest, EvictsLeastRecentlyUsedDeterministically) {
   ASSERT_TRUE(cache.Pin(0, nullptr).ok());  // 0 becomes most recent: order (old->new) 1, 2, 0
   ASSERT_TRUE(cache.Pin(3, nullptr).ok());  // evicts 1
   EXPECT_EQ(cache.resident_pages(), 3u);
-  EXPECT_TRUE(Resident(cache, 2));  // order now 0, 3, 2
-  EXPECT_TRUE(Resident(cache, 0));  // 3, 2, 0
-  EXPECT_TRUE(Resident(cache, 3));  // 2, 0, 3
+  EXPECT_TRUE(Resident(cache, 2));   // order now 0, 3, 2
+  EXPECT_TRUE(Resident(cache, 0));   // 3, 2, 0
+  EXPECT_TRUE(Resident(cache, 3));   // 2, 0, 3
   EXPECT_FALSE(Resident(cache, 1));  // miss: evicts 2 -> 0, 3, 1
   EXPECT_FALSE(Resident(cache, 2));  // evicts 0 -> 3, 1, 2
   EXPECT_TRUE(Resident(cache, 3));

@@ -150,7 +150,8 @@ TEST(ObjectCodecTest, CorruptEntriesAreRefused) {
   EXPECT_FALSE(ParseObjectEntry(with(32, 99).data(), n).ok());  // counts disagree with raw size
   // Boxes that are not finite or inverted (fuzz regression store_open/entry-box-infinite-extent: an
   // infinite extent overflowed the local frame's exponent).
-  for (float bad : {std::numeric_limits<float>::infinity(), std::numeric_limits<float>::quiet_NaN(), -1e30f}) {
+  for (float bad :
+       {std::numeric_limits<float>::infinity(), std::numeric_limits<float>::quiet_NaN(), -1e30f}) {
     std::vector<uint8_t> b = buf;
     storage_internal::Put<float>(b.data() + 16, bad);  // box.max.x
     auto e = ParseObjectEntry(b.data(), n);

@@ -54,7 +54,8 @@ TEST_F(CliTest, BuildInfoQueryOnASmallScene) {
   Write("two.obj", kCube);
   for (const char* backend : {"hdf5", "pagefile"}) {
     SCOPED_TRACE(backend);
-    RunResult b = Mktree("build " + P("two.obj") + " -o " + P("two.mkt") + " --backend " + backend + " --quiet");
+    RunResult b =
+        Mktree("build " + P("two.obj") + " -o " + P("two.mkt") + " --backend " + backend + " --quiet");
     ASSERT_EQ(b.code, 0) << b.err;
     RunResult info = Mktree("info " + P("two.mkt") + " --json");
     ASSERT_EQ(info.code, 0) << info.err;
@@ -62,7 +63,8 @@ TEST_F(CliTest, BuildInfoQueryOnASmallScene) {
     EXPECT_NE(info.out.find(std::string("\"backend\": \"") + backend + "\""), std::string::npos) << info.out;
     RunResult q = Mktree("query " + P("two.mkt") + " --point 0.5,0.5,0.5 --cold");
     ASSERT_EQ(q.code, 0) << q.err;
-    EXPECT_NE(q.out.find("{\"query\": 0, \"kind\": \"point\", \"hits\": [0], \"pages_read\": 1"), std::string::npos)
+    EXPECT_NE(q.out.find("{\"query\": 0, \"kind\": \"point\", \"hits\": [0], \"pages_read\": 1"),
+              std::string::npos)
         << q.out;
     RunResult qb = Mktree("query " + P("two.mkt") + " --box 0.5,0.5,0.5,2.5,0.6,0.6 --exact");
     ASSERT_EQ(qb.code, 0) << qb.err;
@@ -80,9 +82,12 @@ TEST_F(CliTest, BuildInfoQueryOnASmallScene) {
 TEST_F(CliTest, UtmCoordinatesAreAnsweredAndTheOriginIsShown) {
   std::string obj = "o cube\n";
   for (int i = 0; i < 8; ++i)
-    obj += "v " + std::to_string(500000.0 + 0.2 * (i & 1)) + " " + std::to_string(5000000.0 + 0.2 * (i >> 1 & 1)) +
-           " " + std::to_string(100.0 + 0.2 * (i >> 2)) + "\n";
-  obj += "f 1 2 4\nf 1 4 3\nf 5 6 8\nf 5 8 7\nf 1 2 6\nf 1 6 5\nf 3 4 8\nf 3 8 7\nf 1 3 7\nf 1 7 5\nf 2 4 8\nf 2 8 6\n";
+    obj += "v " + std::to_string(500000.0 + 0.2 * (i & 1)) + " " +
+           std::to_string(5000000.0 + 0.2 * (i >> 1 & 1)) + " " + std::to_string(100.0 + 0.2 * (i >> 2)) +
+           "\n";
+  obj +=
+      "f 1 2 4\nf 1 4 3\nf 5 6 8\nf 5 8 7\nf 1 2 6\nf 1 6 5\nf 3 4 8\nf 3 8 7\nf 1 3 7\nf 1 7 5\nf 2 4 8\nf "
+      "2 8 6\n";
   Write("utm.obj", obj);
   for (const char* backend : {"hdf5", "pagefile"}) {
     SCOPED_TRACE(backend);
@@ -131,7 +136,8 @@ TEST_F(CliTest, EmptySceneIsRefused) {
   Write("empty.obj", "# nothing but a comment\nv 0 0 0\n");
   RunResult r = Mktree("build " + P("empty.obj") + " -o " + P("out.mkt"));
   EXPECT_NE(r.code, 0);
-  EXPECT_NE(r.err.find(P("empty.obj") + ": " + P("out.mkt") + " not built: empty scene"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find(P("empty.obj") + ": " + P("out.mkt") + " not built: empty scene"), std::string::npos)
+      << r.err;
   EXPECT_EQ(Files(), std::vector<std::string>{"empty.obj"});
 }
 
@@ -169,7 +175,8 @@ TEST_F(CliTest, TruncatedOrForeignStoreIsRefused) {
   Write("two.obj", kCube);
   for (const char* backend : {"hdf5", "pagefile"}) {
     SCOPED_TRACE(backend);
-    ASSERT_EQ(Mktree("build " + P("two.obj") + " -o " + P("two.mkt") + " --quiet --backend " + backend).code, 0);
+    ASSERT_EQ(Mktree("build " + P("two.obj") + " -o " + P("two.mkt") + " --quiet --backend " + backend).code,
+              0);
     const auto size = fs::file_size(P("two.mkt"));
     for (uintmax_t keep : {uintmax_t{0}, uintmax_t{7}, size / 2, size - 1}) {
       fs::copy_file(P("two.mkt"), P("cut.mkt"), fs::copy_options::overwrite_existing);

@@ -14,10 +14,10 @@ namespace mktree {
 namespace {
 
 using testing::CheckTree;
+using testing::kAllPolicies;
 using testing::MakeScene;
 using testing::SceneKind;
 using testing::WithPolicy;
-using testing::kAllPolicies;
 
 ObjectRecord Rec(ObjectId id, Box3f box, uint32_t bytes = 1000) {
   ObjectRecord r;
@@ -90,7 +90,8 @@ TEST(BuildMKTree, RejectsTheFirstBadObjectOfALargeInput) {
   const float nan = std::numeric_limits<float>::quiet_NaN();
   const uint32_t n = 200000;
   std::vector<ObjectRecord> good;
-  for (uint32_t i = 0; i < n; ++i) good.push_back(Rec(i, B(i % 97, i % 89, i % 83, i % 97 + 1, i % 89 + 1, i % 83 + 1)));
+  for (uint32_t i = 0; i < n; ++i)
+    good.push_back(Rec(i, B(i % 97, i % 89, i % 83, i % 97 + 1, i % 89 + 1, i % 83 + 1)));
   BuildTuning two;
   two.threads = 2;
   const float inf = std::numeric_limits<float>::infinity();
@@ -98,7 +99,7 @@ TEST(BuildMKTree, RejectsTheFirstBadObjectOfALargeInput) {
     std::vector<std::pair<uint32_t, Box3f>> bad;  // (position, bad box)
     uint32_t first;
   } cases[] = {
-      {{{150000, B(0, 0, nan, 1, 1, 1)}}, 150000},                                // second half only
+      {{{150000, B(0, 0, nan, 1, 1, 1)}}, 150000},                               // second half only
       {{{170000, B(0, 2, 0, 1, 1, 1)}, {30000, B(0, 0, 0, inf, 1, 1)}}, 30000},  // both halves
       {{{99999, B(0, 0, 0, 1, 1, nan)}, {100000, B(0, 0, 3, 1, 1, 1)}}, 99999},  // either side of the middle
   };
@@ -145,16 +146,17 @@ TEST(BuildMKTree, RejectsBadParams) {
 // Structure, planes, groups and the SplitTree invariant on every kind of scene, both thread counts, every
 // split policy (and the SOA without the fill-aware ranking).
 TEST(BuildMKTree, StructureOnAllSceneKinds) {
-  for (SceneKind kind : {SceneKind::kUniform, SceneKind::kClustered, SceneKind::kIdentical, SceneKind::kPlates,
-                         SceneKind::kHuge, SceneKind::kOversized, SceneKind::kShip, SceneKind::kGrid}) {
+  for (SceneKind kind :
+       {SceneKind::kUniform, SceneKind::kClustered, SceneKind::kIdentical, SceneKind::kPlates,
+        SceneKind::kHuge, SceneKind::kOversized, SceneKind::kShip, SceneKind::kGrid}) {
     for (size_t n : {2u, 9u, 100u, 3000u}) {
       for (int threads : {1, 2}) {
         for (int variant = 0; variant < 3; ++variant) {
           BuildTuning tune = WithPolicy(variant == 2 ? SplitPolicy::kSoa : kAllPolicies[variant]);
           tune.fill_aware = variant != 2;
           tune.threads = threads;
-          SCOPED_TRACE(std::string(testing::Name(kind)) + " n=" + std::to_string(n) + " threads=" +
-                       std::to_string(threads) + " policy=" + testing::Name(tune.split_policy) +
+          SCOPED_TRACE(std::string(testing::Name(kind)) + " n=" + std::to_string(n) +
+                       " threads=" + std::to_string(threads) + " policy=" + testing::Name(tune.split_policy) +
                        (tune.fill_aware ? "" : " plain"));
           auto recs = MakeScene(kind, n, 17 + n);
           BuildParams p;
@@ -172,8 +174,8 @@ TEST(BuildMKTree, StructureWithExtremeParams) {
     for (uint32_t budget : {0u, 1u, 3u, 64u, 1000u}) {
       for (SceneKind kind : {SceneKind::kUniform, SceneKind::kShip, SceneKind::kGrid}) {
         for (SplitPolicy policy : kAllPolicies) {
-          SCOPED_TRACE(std::string(testing::Name(kind)) + " r=" + std::to_string(ratio) + " budget=" +
-                       std::to_string(budget) + " policy=" + testing::Name(policy));
+          SCOPED_TRACE(std::string(testing::Name(kind)) + " r=" + std::to_string(ratio) +
+                       " budget=" + std::to_string(budget) + " policy=" + testing::Name(policy));
           auto recs = MakeScene(kind, 2000, 5);
           BuildParams p;
           p.balance_r = ratio;
@@ -230,7 +232,8 @@ void ExpectSameTree(const BuildResult& r1, const BuildResult& r2) {
   for (size_t i = 0; i < r1.tree.leaves.size(); ++i) {
     const LeafInfo &x = r1.tree.leaves[i], &y = r2.tree.leaves[i];
     ASSERT_TRUE(x.box == y.box && x.node == y.node && x.object_count == y.object_count &&
-                x.payload_bytes == y.payload_bytes && x.first_page == y.first_page && x.page_count == y.page_count)
+                x.payload_bytes == y.payload_bytes && x.first_page == y.first_page &&
+                x.page_count == y.page_count)
         << "leaf " << i;
   }
   EXPECT_EQ(r1.stats.overlap_objects, r2.stats.overlap_objects);
@@ -455,7 +458,8 @@ TEST(BuildMKTree, RootSplitMinimisesTheOverlapSetByBruteForce) {
           std::vector<size_t> order(n);
           for (size_t i = 0; i < n; ++i) order[i] = i;
           std::stable_sort(order.begin(), order.end(), [&](size_t x, size_t y) {
-            return key == 0 ? recs[x].box.min[w] < recs[y].box.min[w] : recs[x].box.max[w] < recs[y].box.max[w];
+            return key == 0 ? recs[x].box.min[w] < recs[y].box.min[w]
+                            : recs[x].box.max[w] < recs[y].box.max[w];
           });
           for (size_t k = std::max<size_t>(k_lo, 1); k <= std::min(k_hi, n - 1); ++k) {
             float a = std::numeric_limits<float>::infinity(), b = -a;
@@ -472,7 +476,8 @@ TEST(BuildMKTree, RootSplitMinimisesTheOverlapSetByBruteForce) {
       ASSERT_FALSE(root.is_leaf());
       size_t root_sm = 0;
       if (root.a < root.b)
-        for (const auto& rc : recs) root_sm += rc.box.max[root.axis] > root.a && rc.box.min[root.axis] < root.b;
+        for (const auto& rc : recs)
+          root_sm += rc.box.max[root.axis] > root.a && rc.box.min[root.axis] < root.b;
       EXPECT_LE(root_sm, best) << testing::Name(kind) << " seed " << seed;
       EXPECT_EQ(r->stats.levels[0].overlap_objects, root_sm);
     }

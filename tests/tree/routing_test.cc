@@ -87,13 +87,14 @@ void CheckPoints(const Fixture& f, const std::vector<Vec3d>& pts) {
     QueryStats st;
     f.built.tree.RoutePoint(p, &leaves, &st);
     EXPECT_EQ(st.leaves_visited, leaves.size());
-    for (size_t i = 1; i < leaves.size(); ++i) ASSERT_LT(leaves[i - 1], leaves[i]) << "leaf order / duplicates";
+    for (size_t i = 1; i < leaves.size(); ++i)
+      ASSERT_LT(leaves[i - 1], leaves[i]) << "leaf order / duplicates";
     std::fill(reached.begin(), reached.end(), 0);
     for (uint32_t l : leaves) reached[l] = 1;
     for (size_t i = 0; i < f.recs.size(); ++i) {
       if (f.recs[i].box.Contains(p)) {
-        ASSERT_TRUE(reached[f.leaf_of[i]]) << "point (" << p.x << "," << p.y << "," << p.z << ") misses object "
-                                           << f.recs[i].id;
+        ASSERT_TRUE(reached[f.leaf_of[i]])
+            << "point (" << p.x << "," << p.y << "," << p.z << ") misses object " << f.recs[i].id;
       }
     }
   }
@@ -117,8 +118,10 @@ void CheckBoxes(const Fixture& f, size_t count, uint64_t seed) {
       }
       const int face = static_cast<int>(rng() % 7);
       if (face < 6) {
-        if (face % 2) q.min[face / 2] = q.max[face / 2];
-        else q.max[face / 2] = q.min[face / 2];
+        if (face % 2)
+          q.min[face / 2] = q.max[face / 2];
+        else
+          q.max[face / 2] = q.min[face / 2];
       }
     } else {  // random boxes of varied size; mode 2: thin slabs through a node's plane
       for (int a = 0; a < 3; ++a) {

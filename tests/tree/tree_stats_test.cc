@@ -40,8 +40,8 @@ TEST(TreeStats, CountsAgreeWithTheTree) {
   EXPECT_TRUE(s.has_overlap_counts);
   EXPECT_GT(s.index_bytes_per_object, 0.0);
   const std::string j = s.ToJson();
-  for (const char* key : {"\"height\"", "\"leaves\"", "\"mean_page_fill\"", "\"levels\"", "\"both_cell_share\"",
-                          "\"overlap_objects\"", "\"index_bytes_per_object\""})
+  for (const char* key : {"\"height\"", "\"leaves\"", "\"mean_page_fill\"", "\"levels\"",
+                          "\"both_cell_share\"", "\"overlap_objects\"", "\"index_bytes_per_object\""})
     EXPECT_NE(j.find(key), std::string::npos) << key;
   EXPECT_EQ(j.front(), '{');
   EXPECT_EQ(j.back(), '}');

@@ -16,26 +16,34 @@
 namespace mktree::testing {
 
 enum class SceneKind {
-  kUniform,     // boxes of mixed sizes spread uniformly
-  kClustered,   // a few dense clusters
-  kIdentical,   // every box the same
-  kPlates,      // zero-thickness boxes (min == max on one axis), on a coarse grid
-  kHuge,        // one box covering everything among small ones
-  kOversized,   // some objects bigger than a page
-  kShip,        // long thin axis-aligned pipes, plates and chunky equipment, coordinates on a 0.5 grid
-  kGrid,        // unit cubes on an integer lattice: many exactly touching faces
+  kUniform,    // boxes of mixed sizes spread uniformly
+  kClustered,  // a few dense clusters
+  kIdentical,  // every box the same
+  kPlates,     // zero-thickness boxes (min == max on one axis), on a coarse grid
+  kHuge,       // one box covering everything among small ones
+  kOversized,  // some objects bigger than a page
+  kShip,       // long thin axis-aligned pipes, plates and chunky equipment, coordinates on a 0.5 grid
+  kGrid,       // unit cubes on an integer lattice: many exactly touching faces
 };
 
 inline const char* Name(SceneKind k) {
   switch (k) {
-    case SceneKind::kUniform: return "uniform";
-    case SceneKind::kClustered: return "clustered";
-    case SceneKind::kIdentical: return "identical";
-    case SceneKind::kPlates: return "plates";
-    case SceneKind::kHuge: return "huge";
-    case SceneKind::kOversized: return "oversized";
-    case SceneKind::kShip: return "ship";
-    case SceneKind::kGrid: return "grid";
+    case SceneKind::kUniform:
+      return "uniform";
+    case SceneKind::kClustered:
+      return "clustered";
+    case SceneKind::kIdentical:
+      return "identical";
+    case SceneKind::kPlates:
+      return "plates";
+    case SceneKind::kHuge:
+      return "huge";
+    case SceneKind::kOversized:
+      return "oversized";
+    case SceneKind::kShip:
+      return "ship";
+    case SceneKind::kGrid:
+      return "grid";
   }
   return "?";
 }
@@ -51,7 +59,8 @@ inline BuildTuning WithPolicy(SplitPolicy p) {
   return t;
 }
 
-inline std::vector<ObjectRecord> MakeScene(SceneKind kind, size_t n, uint64_t seed, uint64_t mem_page = 12288) {
+inline std::vector<ObjectRecord> MakeScene(SceneKind kind, size_t n, uint64_t seed,
+                                           uint64_t mem_page = 12288) {
   std::mt19937_64 rng(seed);
   auto uni = [&](double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(rng); };
   auto pick = [&](int n_) { return static_cast<int>(rng() % static_cast<uint64_t>(n_)); };
@@ -124,7 +133,8 @@ inline std::vector<ObjectRecord> MakeScene(SceneKind kind, size_t n, uint64_t se
     out[n / 2].box.max = {110, 110, 110};
   }
   if (kind == SceneKind::kOversized) {
-    for (size_t i = 0; i < n; i += 37) out[i].encoded_bytes = static_cast<uint32_t>(mem_page * (1 + rng() % 3));
+    for (size_t i = 0; i < n; i += 37)
+      out[i].encoded_bytes = static_cast<uint32_t>(mem_page * (1 + rng() % 3));
   }
   return out;
 }
@@ -280,8 +290,8 @@ inline void CheckTree(const std::vector<ObjectRecord>& recs, const BuildResult& 
       const int side = k < nr.begin[n.child[1]] ? 0 : 1;
       for (const auto& [label, region] : cells) {
         if (region.Intersects(bx)) {
-          ASSERT_TRUE(LabelAllows(label, side)) << "SplitTree invariant broken at node " << i << ", object "
-                                                << r.leaf_objects[k];
+          ASSERT_TRUE(LabelAllows(label, side))
+              << "SplitTree invariant broken at node " << i << ", object " << r.leaf_objects[k];
         }
       }
     }
