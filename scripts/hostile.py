@@ -1246,7 +1246,7 @@ def mut_payload_bytes(m, r):
     a = m.leaf(i)
     a["payload"] += 8
     m.set_leaf(i, a)
-    return "leaf %d's payload bytes +8" % i
+    return i, "leaf %d's payload bytes +8" % i  # found when the leaf is read: the queries read it
 
 
 def mut_depth_lie(m, r):
@@ -1581,7 +1581,7 @@ def cat_crafted(h):
                 h.setup_notes.append("crafted %s %s not applicable: %s" % (backend, fn.__name__, e))
                 shutil.rmtree(c.dir)
                 continue
-            if kind == "p":
+            if isinstance(res, tuple):  # a tampered leaf, found when it is read
                 li, what = res
                 # A box over the tampered leaf (world coordinates) so that the page is read.
                 pm = load_model(str(src))
