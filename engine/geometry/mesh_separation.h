@@ -7,7 +7,16 @@
 //           inside the other (no triangles cross; found by point-in-solid). -s is an upper bound on the
 //           penetration depth, the length of the shortest translation that separates the solids.
 // Objects whose mesh is not closed (some edge not used by exactly two triangles) are surfaces: they meet
-// what their triangles meet, and nothing is inside them.
+// what their triangles meet, and nothing is inside them (a surface lying inside a solid does not meet it).
+//
+// Method (docs/clash.md section 2): the 26-DOP bounds reject the pair (Kdop::Gap); then any meeting triangle
+// pair (exact, engine/geometry/triangle_pair.h) through the triangle hierarchies, or all filtered pairs
+// when both meshes have at most kBruteForceTriangles triangles; then, for two solids, one vertex of each
+// connected component against the other's solid (SolidClassifier); then the gap (hierarchy distance).
+// Depth bounds of meeting pairs: depth_upper = the smallest overlap of the two 26-DOPs' intervals over
+// the 13 directions (normalised), depth_lower = the largest distance from a vertex of one solid inside
+// the other solid to the other's surface (0 when no vertex is inside, or when either is a surface),
+// clamped to depth_upper.
 //
 // Thread-safety: a ClashShape is immutable after construction and may be shared by threads; Separate is
 // a pure function of its arguments.
@@ -18,9 +27,11 @@
 #include <memory>
 #include <optional>
 
+#include "engine/geometry/kdop.h"
 #include "engine/geometry/mesh_edges.h"
 #include "mktree/geometry.h"
 #include "mktree/scene.h"
+#include "mktree/status.h"
 
 namespace mktree {
 
@@ -51,6 +62,8 @@ class ClashShape {
   // A closed mesh bounds a solid (containment is tested); otherwise the object is a surface.
   bool solid() const;
   Box3d bounds() const;
+  // The 26-DOP of the vertices (the bound Separate rejects with).
+  const Kdop& kdop() const;
   // Heap bytes held (hierarchy, bound, classifier), for caches that budget their memory.
   size_t MemoryBytes() const;
 
@@ -81,6 +94,14 @@ struct Separation {
   Vec3d point_a;
   Vec3d point_b;
 };
+
+// Both meshes at most this many triangles: Separate tests all pairs of triangles whose boxes meet the other
+// mesh's box instead of walking the hierarchies.
+inline constexpr size_t kBruteForceTriangles = 32;
+
+// OK when ClashShape's preconditions hold (finite vertices, indices in range, whole triangles); else
+// InvalidArgument naming the first bad vertex or triangle (the caller adds the file or object name).
+Status ValidateClashMesh(const Mesh& mesh);
 
 // The separation of `a` and `b`. The gap of pairs apart is computed only when it is < `max_distance`
 // (the clearance C; 0 asks only whether they meet); pairs farther report +infinity. `stats` may be null.
