@@ -19,6 +19,8 @@ void RegisterInfo(CLI::App& app, CommandRun* run);
 void RegisterQuery(CLI::App& app, CommandRun* run);
 void RegisterExport(CLI::App& app, CommandRun* run);
 void RegisterRender(CLI::App& app, CommandRun* run);
+void RegisterClash(CLI::App& app, CommandRun* run);
+void RegisterCollide(CLI::App& app, CommandRun* run);
 
 // Prints "error: <message>" to stderr and returns 1.
 int Fail(const std::string& message);

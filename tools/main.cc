@@ -23,6 +23,7 @@ int main(int argc, char** argv) {
   RegisterInfo(app, &run);
   RegisterQuery(app, &run);
   RegisterExport(app, &run), RegisterRender(app, &run);
+  RegisterClash(app, &run), RegisterCollide(app, &run);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -9,6 +9,7 @@
 #include <type_traits>
 #include <utility>
 
+#include "engine/clash/clash_engine.h"
 #include "engine/core/guarded.h"
 #include "engine/geometry/exact_geometry.h"
 #include "engine/query/store_database.h"
@@ -132,6 +133,15 @@ class StoreDatabase final : public Database {
     });
   }
 
+  Status SelfClash(const ClashOptions& options, const ClashVisitor& visit, ClashStats* stats) const override {
+    return Guarded(path(), [&] { return RunSelfClash(ClashStoreView(), options, visit, stats); });
+  }
+  Status Collide(const Mesh& mesh, const std::optional<RigidTransform>& transform,
+                 const ClashOptions& options, const ClashVisitor& visit, ClashStats* stats) const override {
+    return Guarded(path(),
+                   [&] { return RunCollide(ClashStoreView(), mesh, transform, options, visit, stats); });
+  }
+
   void ClearCache() override { cache_.Clear(); }
   const std::string& path() const override { return reader_->path(); }
   uint64_t object_count() const override { return reader_->object_count(); }
@@ -162,6 +172,10 @@ class StoreDatabase final : public Database {
   Vec3d ToStoreFrame(const Vec3d& p) const {
     const Vec3d& o = reader_->tree().origin;
     return {p.x - o.x, p.y - o.y, p.z - o.z};
+  }
+
+  ClashStore ClashStoreView() const {
+    return ClashStore{*reader_, cache_, options_.verify_checksums, options_.cache_pages};
   }
 
   // Pins the leaf's pages, verifies and parses them, and appends to `found` the objects that answer;

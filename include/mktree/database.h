@@ -22,9 +22,11 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
+#include "mktree/clash.h"
 #include "mktree/geometry.h"
 #include "mktree/query_stats.h"
 #include "mktree/scene.h"
@@ -94,6 +96,17 @@ class Database {
   // its own code and message, the message prefixed by "query <i>: ". The results are then incomplete.
   Status RunBatch(const std::vector<Query>& queries, unsigned threads,
                   std::vector<QueryResult>* results) const;
+
+  // Clash detection (mktree/clash.h, docs/clash.md). SelfClash: every pair of the store's objects that
+  // clashes under `options`. Collide: every object that clashes with `mesh` (world coordinates) moved by
+  // `transform` (none: as it is); its pairs have b = kCollideObject. Pairs go to `visit` on the calling
+  // thread, in an order that does not depend on options.threads; `stats` (may be null) is reset and
+  // filled. Pages are read through this Database's cache; the self-clash keeps decoded leaves in a window
+  // of OpenOptions::cache_pages pages. On an error the pairs visited so far are an incomplete answer.
+  virtual Status SelfClash(const ClashOptions& options, const ClashVisitor& visit,
+                           ClashStats* stats) const = 0;
+  virtual Status Collide(const Mesh& mesh, const std::optional<RigidTransform>& transform,
+                         const ClashOptions& options, const ClashVisitor& visit, ClashStats* stats) const = 0;
 
   // Empties the page cache (pages pinned by running queries stay until released).
   virtual void ClearCache() = 0;

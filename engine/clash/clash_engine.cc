@@ -1,0 +1,395 @@
+#include "engine/clash/clash_engine.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <thread>
+#include <utility>
+#include <vector>
+
+#include "engine/clash/leaf_pairs.h"
+#include "engine/clash/pair_rules.h"
+#include "engine/clash/sweep_schedule.h"
+#include "engine/clash/work_pool.h"
+#include "engine/geometry/mesh_separation.h"
+#include "engine/store/leaf_reader.h"
+#include "engine/tree/leaf_filter.h"
+
+namespace mktree {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double Since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+unsigned ThreadCount(unsigned t) { return t ? t : std::max(1u, std::thread::hardware_concurrency()); }
+
+// Pairs found in one batch, in the leaf pairs' order per pair.
+constexpr size_t kBatchPairs = 1024;
+
+// The edge check ingest stored with the entry (computed by ClashShape when absent).
+std::optional<EdgeCheck> StoredEdges(const ObjectEntryView& e) {
+  if (!(e.shape_flags & kShapeKnown)) return std::nullopt;
+  EdgeCheck edges;
+  edges.even = (e.shape_flags & kShapeEvenEdges) != 0;
+  edges.closed = (e.shape_flags & kShapeClosed) != 0;
+  return edges;
+}
+
+// One object of a decoded leaf: its float32 box, and its mesh and shape when some candidate pair may
+// need them (NeededObjects).
+struct LoadedObject {
+  ObjectId id = 0;
+  Box3d box;
+  std::unique_ptr<Mesh> mesh;
+  std::unique_ptr<ClashShape> shape;
+};
+struct LoadedLeaf {
+  std::vector<LoadedObject> objects;
+};
+
+// What the tests of one leaf pair (or one collide chunk) found.
+struct PairWork {
+  std::vector<ClashPair> found;
+  uint64_t candidates = 0, excluded = 0;
+  NarrowStats narrow;
+  void Clear() {
+    found.clear();
+    candidates = excluded = 0;
+    narrow = {};
+  }
+};
+
+// Hands pairs to the visitor in order: the cap, unreported touches and the class counts.
+struct Emitter {
+  const ClashOptions& o;
+  const ClashVisitor& visit;
+  ClashStats& s;
+  void Add(const PairWork& w) {
+    s.candidate_pairs += w.candidates;
+    s.excluded_pairs += w.excluded;
+    s.bound_rejects += w.narrow.bound_rejects;
+    s.triangle_tests += w.narrow.triangle_tests;
+    s.containment_tests += w.narrow.containment_tests;
+    for (const ClashPair& p : w.found) {
+      clash::CountClass(p, &s);
+      if (p.cls == ClashClass::kTouch && !o.report_touch) {
+        ++s.unreported_touches;
+      } else if (s.reported_pairs >= o.max_pairs) {
+        ++s.capped_pairs;
+      } else {
+        ++s.reported_pairs;
+        if (visit) visit(p);
+      }
+    }
+  }
+};
+
+// The I/O counts of a call: the cache's, and which pages were looked up.
+struct IoCount {
+  QueryStats q;
+  std::vector<uint8_t> touched;
+  void Mark(const LeafInfo& info) {
+    for (uint64_t p = info.first_page; p < info.first_page + info.page_count; ++p) {
+      if (p >= touched.size()) touched.resize(p + 1, 0);
+      touched[p] = 1;
+    }
+  }
+  void Fill(ClashStats* s) const {
+    s->pages_read = q.pages_read;
+    s->pages_touched = q.pages_touched;
+    s->distinct_pages = static_cast<uint64_t>(std::count(touched.begin(), touched.end(), 1));
+  }
+};
+
+uint64_t StorePages(const MKTree& tree) {
+  uint64_t n = 0;
+  for (const LeafInfo& l : tree.leaves) n += l.page_count;
+  return n;
+}
+
+// Tests the candidate pairs of leaves p and q (the same leaf: its pairs i < j).
+Status TestLeafPair(const LoadedLeaf& lp, const LoadedLeaf& lq, bool same, const ClashOptions& o,
+                    const clash::Exclusions& ex, const Vec3d& origin, PairWork* w) {
+  const double c = o.clearance;
+  const auto& A = lp.objects;
+  const auto& B = lq.objects;
+  for (size_t i = 0; i < A.size(); ++i) {
+    for (size_t j = same ? i + 1 : 0; j < B.size(); ++j) {
+      if (!clash::GrownMeet(A[i].box, B[j].box, c)) continue;
+      ++w->candidates;
+      const LoadedObject* a = &A[i];
+      const LoadedObject* b = &B[j];
+      if (a->id > b->id) std::swap(a, b);
+      if (ex.Excluded(a->id, b->id)) {
+        ++w->excluded;
+        continue;
+      }
+      if (!a->shape || !b->shape)
+        return Status::Internal("clash: objects " + std::to_string(a->id) + " and " + std::to_string(b->id) +
+                                " are a candidate pair the leaf filter did not admit");
+      const Separation sep = Separate(*a->shape, *b->shape, c, &w->narrow);
+      ClashPair pair;
+      if (clash::Classify(sep, o, a->id, b->id, origin, &pair)) w->found.push_back(pair);
+    }
+  }
+  return Status::Ok();
+}
+
+// The first error of `errors` (in order), or Ok.
+Status FirstError(const std::vector<Status>& errors) {
+  for (const Status& e : errors)
+    if (!e.ok()) return e;
+  return Status::Ok();
+}
+
+}  // namespace
+
+Status RunSelfClash(const ClashStore& st, const ClashOptions& o, const ClashVisitor& visit,
+                    ClashStats* stats) {
+  ClashStats local;
+  ClashStats& s = stats ? *stats : local;
+  s = ClashStats();
+  MKTREE_RETURN_IF_ERROR(clash::CheckOptions(o));
+  const Clock::time_point start = Clock::now();
+  const StoreReader& reader = st.reader;
+  const MKTree& tree = reader.tree();
+  const std::string& pages_name = reader.pages().name();
+  s.store_pages = StorePages(tree);
+  clash::WorkPool pool(ThreadCount(o.threads));
+  const clash::Exclusions ex(o, reader.object_count(), [&](uint64_t i) { return reader.objects().name(i); });
+
+  // Broad phase: leaf pairs through the tree, the leaf filter, the plan.
+  std::vector<clash::LeafPair> pairs = clash::TreeLeafPairs(tree, o.clearance);
+  s.leaf_pairs_tree = pairs.size();
+  clash::NeededObjects needed;
+  clash::FilterLeafPairs(tree, o.clearance, pool, &pairs, &needed);
+  s.leaf_pairs_visited = pairs.size();
+  const clash::SweepPlan plan = clash::PlanSweep(tree, std::move(pairs), st.window_pages, kBatchPairs);
+  s.leaf_reads = plan.leaf_reads;
+  s.leaf_rereads = plan.leaf_rereads;
+  s.broad_seconds = Since(start);
+
+  std::vector<std::unique_ptr<LoadedLeaf>> window(tree.leaves.size());
+  std::vector<PinnedLeaf> pinned;
+  IoCount io;
+  Emitter emit{o, visit, s};
+  std::vector<PairWork> work;
+  std::vector<Status> errors;
+  struct DecodeTask {
+    size_t load;  // index into the batch's loads
+    uint32_t pos;
+  };
+  std::vector<DecodeTask> tasks;
+  std::vector<std::unique_ptr<LoadedLeaf>> loaded;
+  for (size_t bi = 0; bi < plan.batches.size(); ++bi) {
+    const clash::SweepBatch& b = plan.batches[bi];
+    for (uint32_t leaf : b.evict) window[leaf].reset();
+
+    // Read: the pages in sweep order on this thread (so that the cache's counts do not depend on the
+    // threads), then the meshes and shapes of the objects that may be in a pair, on all threads.
+    Clock::time_point t = Clock::now();
+    if (pinned.size() < b.load.size()) pinned.resize(b.load.size());
+    loaded.clear();
+    tasks.clear();
+    for (size_t i = 0; i < b.load.size(); ++i) {
+      const uint32_t leaf = b.load[i];
+      const LeafInfo& info = tree.leaves[leaf];
+      MKTREE_RETURN_IF_ERROR(ReadLeaf(st.cache, pages_name, leaf, info, reader.objects().leaf,
+                                      tree.params.mem_page(), st.verify_checksums, &io.q, &pinned[i]));
+      io.Mark(info);
+      auto l = std::make_unique<LoadedLeaf>();
+      const auto& entries = pinned[i].view.entries();
+      l->objects.resize(entries.size());
+      for (uint32_t pos = 0; pos < entries.size(); ++pos) {
+        l->objects[pos].id = entries[pos].id;
+        l->objects[pos].box = clash::ToBox3d(entries[pos].box);
+        if (needed(tree, leaf, pos)) tasks.push_back({i, pos});
+      }
+      loaded.push_back(std::move(l));
+    }
+    errors.assign(tasks.size(), Status::Ok());
+    pool.For(tasks.size(), [&](size_t k) {
+      const DecodeTask& task = tasks[k];
+      const ObjectEntryView& e = pinned[task.load].view.entry(task.pos);
+      LoadedObject& obj = loaded[task.load]->objects[task.pos];
+      obj.mesh = std::make_unique<Mesh>();
+      errors[k] = DecodeStoredMesh(reader.path(), e, obj.mesh.get());
+      if (errors[k].ok()) obj.shape = std::make_unique<ClashShape>(*obj.mesh, StoredEdges(e));
+    });
+    for (size_t i = 0; i < b.load.size(); ++i) pinned[i].Release();
+    MKTREE_RETURN_IF_ERROR(FirstError(errors));
+    for (size_t i = 0; i < b.load.size(); ++i) window[b.load[i]] = std::move(loaded[i]);
+    s.read_seconds += Since(t);
+
+    // Narrow phase: the batch's leaf pairs on all threads, handed on in order.
+    t = Clock::now();
+    const size_t n = b.pair_end - b.pair_begin;
+    if (work.size() < n) work.resize(n);
+    errors.assign(n, Status::Ok());
+    pool.For(n, [&](size_t k) {
+      const clash::LeafPair& lp = plan.pairs[b.pair_begin + k];
+      work[k].Clear();
+      errors[k] = TestLeafPair(*window[lp.p], *window[lp.q], lp.p == lp.q, o, ex, tree.origin, &work[k]);
+    });
+    MKTREE_RETURN_IF_ERROR(FirstError(errors));
+    s.narrow_seconds += Since(t);
+    for (size_t k = 0; k < n; ++k) emit.Add(work[k]);
+    for (uint32_t leaf : b.drop) window[leaf].reset();
+    if (o.progress) o.progress(bi + 1, plan.batches.size());
+  }
+  io.Fill(&s);
+  s.total_seconds = Since(start);
+  return Status::Ok();
+}
+
+namespace {
+
+Status CheckQueryMesh(const Mesh& mesh, const std::optional<RigidTransform>& transform) {
+  if (mesh.triangles.empty() || mesh.vertices.empty())
+    return Status::InvalidArgument("collide: the object's mesh is empty");
+  if (mesh.vertices.size() % 3 || mesh.triangles.size() % 3)
+    return Status::InvalidArgument("collide: the object's mesh arrays are not triples");
+  for (double v : mesh.vertices)
+    if (!std::isfinite(v)) return Status::InvalidArgument("collide: the object has a non-finite vertex");
+  for (uint32_t t : mesh.triangles)
+    if (t >= mesh.vertex_count())
+      return Status::InvalidArgument("collide: the object has a triangle index out of range");
+  if (transform) {
+    const double* m = transform->rotation;
+    const Vec3d& tr = transform->translation;
+    for (int i = 0; i < 9; ++i)
+      if (!std::isfinite(m[i])) return Status::InvalidArgument("collide: a non-finite rotation");
+    if (!std::isfinite(tr.x) || !std::isfinite(tr.y) || !std::isfinite(tr.z))
+      return Status::InvalidArgument("collide: a non-finite translation");
+    for (int i = 0; i < 3; ++i) {
+      for (int j = 0; j < 3; ++j) {
+        const double dot = m[3 * i] * m[3 * j] + m[3 * i + 1] * m[3 * j + 1] + m[3 * i + 2] * m[3 * j + 2];
+        if (std::abs(dot - (i == j ? 1.0 : 0.0)) > 1e-9)
+          return Status::InvalidArgument("collide: the rotation is not orthonormal");
+      }
+    }
+    const double det = m[0] * (m[4] * m[8] - m[5] * m[7]) - m[1] * (m[3] * m[8] - m[5] * m[6]) +
+                       m[2] * (m[3] * m[7] - m[4] * m[6]);
+    if (det < 0) return Status::InvalidArgument("collide: the rotation is a reflection");
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+Status RunCollide(const ClashStore& st, const Mesh& mesh, const std::optional<RigidTransform>& transform,
+                  const ClashOptions& o, const ClashVisitor& visit, ClashStats* stats) {
+  ClashStats local;
+  ClashStats& s = stats ? *stats : local;
+  s = ClashStats();
+  MKTREE_RETURN_IF_ERROR(clash::CheckOptions(o));
+  MKTREE_RETURN_IF_ERROR(CheckQueryMesh(mesh, transform));
+  const Clock::time_point start = Clock::now();
+  const StoreReader& reader = st.reader;
+  const MKTree& tree = reader.tree();
+  const std::string& pages_name = reader.pages().name();
+  s.store_pages = StorePages(tree);
+
+  // The object in the store's frame.
+  Mesh q;
+  q.triangles = mesh.triangles;
+  q.vertices.resize(mesh.vertices.size());
+  for (size_t v = 0; v < mesh.vertex_count(); ++v) {
+    Vec3d p{mesh.vertices[3 * v], mesh.vertices[3 * v + 1], mesh.vertices[3 * v + 2]};
+    if (transform) p = transform->Apply(p);
+    for (int i = 0; i < 3; ++i) q.vertices[3 * v + i] = p[i] - tree.origin[i];
+  }
+  for (double v : q.vertices)
+    if (!std::isfinite(v))
+      return Status::InvalidArgument("collide: the moved object has a non-finite vertex");
+  const ClashShape shape(q);
+  const Box3d qbox = q.Bounds();
+  const Box3d grown = clash::Grow(qbox, o.clearance);
+
+  // Broad phase: the leaves the grown box reaches, then those the leaf filter admits.
+  std::vector<uint32_t> leaves;
+  QueryStats route;
+  if (!tree.empty()) tree.RouteBox(grown, &leaves, &route);
+  s.leaf_pairs_tree = leaves.size();
+  const bool filter = !tree.leaf_filter.empty() && tree.leaf_filter_begin.size() == tree.leaves.size() + 1;
+  std::erase_if(leaves, [&](uint32_t leaf) {
+    if (!filter) return false;
+    const LeafInfo& info = tree.leaves[leaf];
+    return !FilterMeetsBox(info.box, tree.leaf_filter.data() + tree.leaf_filter_begin[leaf],
+                           info.object_count, grown);
+  });
+  s.leaf_pairs_visited = leaves.size();
+  s.leaf_reads = leaves.size();
+  s.broad_seconds = Since(start);
+
+  clash::WorkPool pool(ThreadCount(o.threads));
+  IoCount io;
+  Emitter emit{o, visit, s};
+  std::vector<LoadedObject> objs;
+  std::vector<std::optional<EdgeCheck>> edges;
+  std::vector<PairWork> work;
+  std::vector<Status> errors;
+  // Candidates are decoded as their leaves are read (pages released at once) and tested in chunks.
+  auto flush = [&]() -> Status {
+    const Clock::time_point t = Clock::now();
+    work.resize(std::max(work.size(), objs.size()));
+    errors.assign(objs.size(), Status::Ok());
+    pool.For(objs.size(), [&](size_t k) {
+      work[k].Clear();
+      const ClashShape other(*objs[k].mesh, edges[k]);
+      const Separation sep = Separate(other, shape, o.clearance, &work[k].narrow);
+      ClashPair pair;
+      if (clash::Classify(sep, o, objs[k].id, kCollideObject, tree.origin, &pair))
+        work[k].found.push_back(pair);
+    });
+    s.narrow_seconds += Since(t);
+    MKTREE_RETURN_IF_ERROR(FirstError(errors));
+    for (size_t k = 0; k < objs.size(); ++k) emit.Add(work[k]);
+    objs.clear();
+    edges.clear();
+    return Status::Ok();
+  };
+  PinnedLeaf pinned;
+  uint64_t candidates = 0, excluded = 0;
+  for (uint32_t leaf : leaves) {
+    const Clock::time_point t = Clock::now();
+    const LeafInfo& info = tree.leaves[leaf];
+    MKTREE_RETURN_IF_ERROR(ReadLeaf(st.cache, pages_name, leaf, info, reader.objects().leaf,
+                                    tree.params.mem_page(), st.verify_checksums, &io.q, &pinned));
+    io.Mark(info);
+    for (const ObjectEntryView& e : pinned.view.entries()) {
+      const Box3d box = clash::ToBox3d(e.box);
+      if (!clash::GrownMeet(box, qbox, o.clearance)) continue;
+      ++candidates;
+      if (o.exclude && o.exclude(e.id, kCollideObject)) {
+        ++excluded;
+        continue;
+      }
+      LoadedObject obj;
+      obj.id = e.id;
+      obj.box = box;
+      obj.mesh = std::make_unique<Mesh>();
+      Status dst = DecodeStoredMesh(reader.path(), e, obj.mesh.get());
+      if (!dst.ok()) {
+        pinned.Release();
+        return dst;
+      }
+      objs.push_back(std::move(obj));
+      edges.push_back(StoredEdges(e));
+    }
+    pinned.Release();
+    s.read_seconds += Since(t);
+    if (objs.size() >= 256) MKTREE_RETURN_IF_ERROR(flush());
+  }
+  MKTREE_RETURN_IF_ERROR(flush());
+  s.candidate_pairs = candidates;
+  s.excluded_pairs = excluded;
+  io.Fill(&s);
+  s.total_seconds = Since(start);
+  return Status::Ok();
+}
+
+}  // namespace mktree

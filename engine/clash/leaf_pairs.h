@@ -1,0 +1,43 @@
+// The broad phase over the in-RAM tree: which leaves can hold a pair of objects closer than C, found
+// without reading any leaf page.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "engine/clash/work_pool.h"
+#include "engine/tree/leaf_filter.h"
+#include "engine/tree/mktree.h"
+
+namespace mktree::clash {
+
+struct LeafPair {
+  uint32_t p = 0, q = 0;  // p <= q; p == q: the pairs inside one leaf
+  bool operator==(const LeafPair&) const = default;
+};
+
+// Every unordered pair of leaves (a leaf with itself included) whose node boxes grown by c meet, by a
+// dual traversal from the root: a node with itself descends to its children's three pairs, two nodes
+// descend the larger. Each unordered pair once, in traversal order.
+std::vector<LeafPair> TreeLeafPairs(const MKTree& tree, double c);
+
+// Objects of the store indexed as the leaf filter is: leaf_filter_begin[leaf] (bytes) / 8 + position.
+struct NeededObjects {
+  std::unique_ptr<std::atomic<uint8_t>[]> flags;
+  bool all = false;  // no leaf filter: every object may be needed
+  bool operator()(const MKTree& tree, uint32_t leaf, uint32_t pos) const {
+    return all || flags[tree.leaf_filter_begin[leaf] / kLeafFilterBytesPerObject + pos].load(
+                      std::memory_order_relaxed) != 0;
+  }
+};
+
+// Keeps the pairs in which the leaf filter's quantised boxes (which contain the objects' float32 boxes)
+// admit a pair of distinct objects whose boxes grown by c meet, and marks those objects in *needed. A
+// pair dropped here cannot hold a candidate pair, so its leaves need not be read for it. Without a leaf
+// filter every pair is kept and every object needed.
+void FilterLeafPairs(const MKTree& tree, double c, WorkPool& pool, std::vector<LeafPair>* pairs,
+                     NeededObjects* needed);
+
+}  // namespace mktree::clash

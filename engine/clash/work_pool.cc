@@ -1,0 +1,79 @@
+#include "engine/clash/work_pool.h"
+
+#include <utility>
+
+namespace mktree::clash {
+
+WorkPool::WorkPool(unsigned threads) {
+  try {
+    for (unsigned t = 1; t < threads; ++t) workers_.emplace_back([this] { Work(); });
+  } catch (...) {
+    // A thread that cannot start leaves its share to the others.
+  }
+}
+
+WorkPool::~WorkPool() {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    stop_ = true;
+  }
+  start_.notify_all();
+  for (auto& t : workers_) t.join();
+}
+
+void WorkPool::RunShare() {
+  // Called with mu_ held; returns with it held.
+  std::unique_lock<std::mutex> lock(mu_, std::adopt_lock);
+  ++busy_;
+  while (next_ < n_ && !error_) {
+    const size_t i = next_++;
+    lock.unlock();
+    try {
+      (*f_)(i);
+    } catch (...) {
+      lock.lock();
+      if (!error_) error_ = std::current_exception();
+      continue;
+    }
+    lock.lock();
+  }
+  if (--busy_ == 0) done_.notify_all();
+  lock.release();
+}
+
+void WorkPool::Work() {
+  std::unique_lock<std::mutex> lock(mu_);
+  uint64_t seen = generation_;
+  for (;;) {
+    start_.wait(lock, [&] { return stop_ || generation_ != seen; });
+    if (stop_) return;
+    seen = generation_;
+    lock.release();  // RunShare adopts the held lock
+    RunShare();
+    lock = std::unique_lock<std::mutex>(mu_, std::adopt_lock);
+  }
+}
+
+void WorkPool::For(size_t n, const std::function<void(size_t)>& f) {
+  if (n == 0) return;
+  if (workers_.empty() || n == 1) {
+    for (size_t i = 0; i < n; ++i) f(i);
+    return;
+  }
+  std::unique_lock<std::mutex> lock(mu_);
+  f_ = &f;
+  n_ = n;
+  next_ = 0;
+  error_ = nullptr;
+  ++generation_;
+  start_.notify_all();
+  lock.release();
+  RunShare();
+  lock = std::unique_lock<std::mutex>(mu_, std::adopt_lock);
+  done_.wait(lock, [&] { return busy_ == 0 && (next_ >= n_ || error_); });
+  f_ = nullptr;
+  n_ = 0;
+  if (error_) std::rethrow_exception(std::exchange(error_, nullptr));
+}
+
+}  // namespace mktree::clash

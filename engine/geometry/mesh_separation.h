@@ -1,0 +1,110 @@
+// Narrow phase of clash detection: how two objects' triangle meshes meet, or how far apart they are.
+//
+// The separation s(A, B) of two objects (docs/clash.md):
+//   s > 0   the solids are apart; s is the Euclidean gap between them (the smallest distance between
+//           their surfaces), exact up to double rounding of the stored float32 vertices.
+//   s <= 0  they meet: surfaces cross or touch (closed triangles share a point), or one solid is wholly
+//           inside the other (no triangles cross; found by point-in-solid). -s is an upper bound on the
+//           penetration depth, the length of the shortest translation that separates the solids.
+// Objects whose mesh is not closed (some edge not used by exactly two triangles) are surfaces: they meet
+// what their triangles meet, and nothing is inside them (a surface lying inside a solid does not meet it).
+//
+// Method (docs/clash.md section 2): the 26-DOP bounds reject the pair (Kdop::Gap); then any meeting triangle
+// pair (exact, engine/geometry/triangle_pair.h) through the triangle hierarchies, or all filtered pairs
+// when both meshes have at most kBruteForceTriangles triangles; then, for two solids, one vertex of each
+// connected component against the other's solid (SolidClassifier); then the gap (hierarchy distance).
+// Depth bounds of meeting pairs: depth_upper = the smallest overlap of the two 26-DOPs' intervals over
+// the 13 directions (normalised), depth_lower = the largest distance from a vertex of one solid inside
+// the other solid to the other's surface (0 when no vertex is inside, or when either is a surface),
+// clamped to depth_upper.
+//
+// Thread-safety: a ClashShape is immutable after construction and may be shared by threads; Separate is
+// a pure function of its arguments.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <optional>
+
+#include "engine/geometry/kdop.h"
+#include "engine/geometry/mesh_edges.h"
+#include "mktree/geometry.h"
+#include "mktree/scene.h"
+#include "mktree/status.h"
+
+namespace mktree {
+
+struct NarrowStats {
+  uint64_t bound_rejects = 0;      // pairs decided apart by the per-object bounds, before any triangle
+  uint64_t triangle_tests = 0;     // triangle-triangle intersection and distance tests
+  uint64_t containment_tests = 0;  // point-in-solid tests
+  void Add(const NarrowStats& o) {
+    bound_rejects += o.bound_rejects;
+    triangle_tests += o.triangle_tests;
+    containment_tests += o.containment_tests;
+  }
+};
+
+// One object prepared for the narrow phase: its mesh, its tight bound (cheap rejection before any
+// triangle), a hierarchy over its triangles and its point-in-solid classifier, built once and used for
+// every pair the object is in. Both shapes of a pair must be in the same frame (a store's frame).
+class ClashShape {
+ public:
+  // `edges`: the mesh's edge check as stored at ingest (computed when absent). REQUIRES: `mesh` outlives
+  // the shape; finite vertices; every triangle index < vertex_count().
+  explicit ClashShape(const Mesh& mesh, const std::optional<EdgeCheck>& edges = std::nullopt);
+  ~ClashShape();
+  ClashShape(ClashShape&&) noexcept;
+  ClashShape& operator=(ClashShape&&) noexcept;
+
+  const Mesh& mesh() const;
+  // A closed mesh bounds a solid (containment is tested); otherwise the object is a surface.
+  bool solid() const;
+  Box3d bounds() const;
+  // The 26-DOP of the vertices (the bound Separate rejects with).
+  const Kdop& kdop() const;
+  // Heap bytes held (hierarchy, bound, classifier), for caches that budget their memory.
+  size_t MemoryBytes() const;
+
+  struct Impl;
+  const Impl& impl() const { return *impl_; }
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+enum class Meeting : uint8_t {
+  kApart,         // s > 0
+  kSurfacesMeet,  // some triangle of A meets some triangle of B (crossing, touching or coplanar overlap)
+  kAInsideB,      // no triangles meet; A's solid is wholly inside B's
+  kBInsideA,
+};
+
+struct Separation {
+  Meeting meeting = Meeting::kApart;
+  // s as above. Apart: the gap when it is below the `max_distance` asked, else +infinity (not computed).
+  // Meeting: -depth_upper.
+  double distance = 0;
+  // Meeting: the penetration depth lies in [depth_lower, depth_upper]; equal when known exactly.
+  double depth_lower = 0;
+  double depth_upper = 0;
+  // Apart (gap computed): the closest points of A and of B. Meeting: a point where they meet (both the
+  // same: a point common to both surfaces, or a point of the inner solid).
+  Vec3d point_a;
+  Vec3d point_b;
+};
+
+// Both meshes at most this many triangles: Separate tests all pairs of triangles whose boxes meet the other
+// mesh's box instead of walking the hierarchies.
+inline constexpr size_t kBruteForceTriangles = 32;
+
+// OK when ClashShape's preconditions hold (finite vertices, indices in range, whole triangles); else
+// InvalidArgument naming the first bad vertex or triangle (the caller adds the file or object name).
+Status ValidateClashMesh(const Mesh& mesh);
+
+// The separation of `a` and `b`. The gap of pairs apart is computed only when it is < `max_distance`
+// (the clearance C; 0 asks only whether they meet); pairs farther report +infinity. `stats` may be null.
+Separation Separate(const ClashShape& a, const ClashShape& b, double max_distance, NarrowStats* stats);
+
+}  // namespace mktree

@@ -1,0 +1,253 @@
+#include "engine/geometry/triangle_hierarchy.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+
+namespace mktree {
+namespace {
+
+Box3d TriangleBox(const TriangleHierarchy::Triangle& t) {
+  Box3d b;
+  for (const Vec3d& v : t) b.Extend(v.x, v.y, v.z);
+  return b;
+}
+
+bool BoxesMeet(const Box3d& a, const Box3d& b) {
+  for (int k = 0; k < 3; ++k)
+    if (a.max[k] < b.min[k] || b.max[k] < a.min[k]) return false;
+  return true;
+}
+
+double BoxExtent(const Box3d& b) {
+  return (b.max[0] - b.min[0]) + (b.max[1] - b.min[1]) + (b.max[2] - b.min[2]);
+}
+
+double PointBoxDistanceSquared(const Vec3d& p, const Box3d& b) {
+  double d2 = 0;
+  for (int k = 0; k < 3; ++k) {
+    const double d = std::max({b.min[k] - p[k], p[k] - b.max[k], 0.0});
+    d2 += d * d;
+  }
+  return d2;
+}
+
+}  // namespace
+
+double BoxDistanceSquared(const Box3d& a, const Box3d& b) {
+  double d2 = 0;
+  for (int k = 0; k < 3; ++k) {
+    const double d = std::max({b.min[k] - a.max[k], a.min[k] - b.max[k], 0.0});
+    d2 += d * d;
+  }
+  return d2;
+}
+
+TriangleHierarchy::TriangleHierarchy(const Mesh& mesh) {
+  const size_t n = mesh.triangle_count();
+  if (n == 0) return;
+  triangles_.resize(n);
+  mesh_index_.resize(n);
+  std::vector<Vec3d> centroids(n);
+  for (size_t t = 0; t < n; ++t) {
+    for (int c = 0; c < 3; ++c) {
+      const double* v = &mesh.vertices[3 * size_t{mesh.triangles[3 * t + c]}];
+      triangles_[t][c] = {v[0], v[1], v[2]};
+    }
+    const Triangle& tr = triangles_[t];
+    centroids[t] = {(tr[0].x + tr[1].x + tr[2].x) / 3, (tr[0].y + tr[1].y + tr[2].y) / 3,
+                    (tr[0].z + tr[1].z + tr[2].z) / 3};
+    mesh_index_[t] = static_cast<uint32_t>(t);
+  }
+  nodes_.reserve(2 * (n / kLeafTriangles) + 1);
+  nodes_.emplace_back();
+  Build(0, 0, static_cast<uint32_t>(n), centroids);
+  // Leaf order: permute the corners once, after the build has settled the order of mesh_index_.
+  std::vector<Triangle> ordered(n);
+  for (size_t i = 0; i < n; ++i) ordered[i] = triangles_[mesh_index_[i]];
+  triangles_ = std::move(ordered);
+  // Boxes, bottom-up (children always follow their parent in the array).
+  for (size_t i = nodes_.size(); i-- > 0;) {
+    Node& node = nodes_[i];
+    node.box = Box3d{};
+    if (node.leaf()) {
+      for (uint32_t t = node.first; t < node.first + node.count; ++t)
+        for (const Vec3d& v : triangles_[t]) node.box.Extend(v.x, v.y, v.z);
+    } else {
+      for (uint32_t c = node.first; c < node.first + 2; ++c) {
+        node.box.Extend(nodes_[c].box.min[0], nodes_[c].box.min[1], nodes_[c].box.min[2]);
+        node.box.Extend(nodes_[c].box.max[0], nodes_[c].box.max[1], nodes_[c].box.max[2]);
+      }
+    }
+  }
+}
+
+// Builds the subtree of node `self` over mesh_index_[first, first + count).
+void TriangleHierarchy::Build(uint32_t self, uint32_t first, uint32_t count, std::vector<Vec3d>& centroids) {
+  if (count <= kLeafTriangles) {
+    nodes_[self].first = first;
+    nodes_[self].count = count;
+    return;
+  }
+  Box3d cb;
+  for (uint32_t i = first; i < first + count; ++i) {
+    const Vec3d& c = centroids[mesh_index_[i]];
+    cb.Extend(c.x, c.y, c.z);
+  }
+  int axis = 0;
+  for (int k = 1; k < 3; ++k)
+    if (cb.max[k] - cb.min[k] > cb.max[axis] - cb.min[axis]) axis = k;
+  const uint32_t half = count / 2;
+  uint32_t* begin = mesh_index_.data() + first;
+  std::nth_element(begin, begin + half, begin + count,
+                   [&](uint32_t x, uint32_t y) { return centroids[x][axis] < centroids[y][axis]; });
+  const uint32_t left = static_cast<uint32_t>(nodes_.size());
+  nodes_[self].first = left;
+  nodes_[self].count = 0;
+  nodes_.resize(nodes_.size() + 2);
+  Build(left, first, half, centroids);
+  Build(left + 1, first + half, count - half, centroids);
+}
+
+size_t TriangleHierarchy::MemoryBytes() const {
+  return nodes_.capacity() * sizeof(Node) + triangles_.capacity() * sizeof(Triangle) +
+         mesh_index_.capacity() * sizeof(uint32_t);
+}
+
+namespace {
+
+struct NodePair {
+  uint32_t a, b;
+};
+
+// Which node of the pair to open: the inner one, or the larger of two inner ones.
+bool OpenA(const TriangleHierarchy::Node& na, const TriangleHierarchy::Node& nb) {
+  if (na.leaf()) return false;
+  if (nb.leaf()) return true;
+  return BoxExtent(na.box) >= BoxExtent(nb.box);
+}
+
+}  // namespace
+
+bool TriangleHierarchy::FindMeeting(const TriangleHierarchy& a, const TriangleHierarchy& b, Pair* found,
+                                    uint64_t* tests) {
+  if (a.nodes_.empty() || b.nodes_.empty()) return false;
+  uint64_t n_tests = 0;
+  bool met = false;
+  std::vector<NodePair> stack;
+  stack.push_back({0, 0});
+  while (!stack.empty() && !met) {
+    const NodePair p = stack.back();
+    stack.pop_back();
+    const Node& na = a.nodes_[p.a];
+    const Node& nb = b.nodes_[p.b];
+    if (!BoxesMeet(na.box, nb.box)) continue;
+    if (na.leaf() && nb.leaf()) {
+      for (uint32_t i = na.first; i < na.first + na.count && !met; ++i) {
+        const Box3d bi = TriangleBox(a.triangles_[i]);
+        if (!BoxesMeet(bi, nb.box)) continue;
+        for (uint32_t j = nb.first; j < nb.first + nb.count; ++j) {
+          if (!BoxesMeet(bi, TriangleBox(b.triangles_[j]))) continue;
+          ++n_tests;
+          if (TrianglesMeet(a.triangles_[i].data(), b.triangles_[j].data())) {
+            *found = {i, j};
+            met = true;
+            break;
+          }
+        }
+      }
+    } else if (OpenA(na, nb)) {
+      stack.push_back({na.first + 1, p.b});
+      stack.push_back({na.first, p.b});
+    } else {
+      stack.push_back({p.a, nb.first + 1});
+      stack.push_back({p.a, nb.first});
+    }
+  }
+  if (tests) *tests += n_tests;
+  return met;
+}
+
+bool TriangleHierarchy::ClosestBelow(const TriangleHierarchy& a, const TriangleHierarchy& b, double bound,
+                                     ClosestPoints* closest, uint64_t* tests) {
+  if (a.nodes_.empty() || b.nodes_.empty() || !(bound > 0)) return false;
+  uint64_t n_tests = 0;
+  double best2 = bound * bound;
+  bool found = false;
+  struct Item {
+    uint32_t a, b;
+    double d2;
+  };
+  std::vector<Item> stack;
+  stack.push_back({0, 0, BoxDistanceSquared(a.nodes_[0].box, b.nodes_[0].box)});
+  while (!stack.empty()) {
+    const Item p = stack.back();
+    stack.pop_back();
+    if (p.d2 >= best2) continue;
+    const Node& na = a.nodes_[p.a];
+    const Node& nb = b.nodes_[p.b];
+    if (na.leaf() && nb.leaf()) {
+      for (uint32_t i = na.first; i < na.first + na.count; ++i) {
+        const Box3d bi = TriangleBox(a.triangles_[i]);
+        if (BoxDistanceSquared(bi, nb.box) >= best2) continue;
+        for (uint32_t j = nb.first; j < nb.first + nb.count; ++j) {
+          if (BoxDistanceSquared(bi, TriangleBox(b.triangles_[j])) >= best2) continue;
+          ++n_tests;
+          const ClosestPoints c = TriangleFeatureClosest(a.triangles_[i].data(), b.triangles_[j].data());
+          if (c.distance_squared < best2) {
+            best2 = c.distance_squared;
+            *closest = c;
+            found = true;
+          }
+        }
+      }
+      continue;
+    }
+    Item c0, c1;
+    if (OpenA(na, nb)) {
+      c0 = {na.first, p.b, BoxDistanceSquared(a.nodes_[na.first].box, nb.box)};
+      c1 = {na.first + 1, p.b, BoxDistanceSquared(a.nodes_[na.first + 1].box, nb.box)};
+    } else {
+      c0 = {p.a, nb.first, BoxDistanceSquared(na.box, b.nodes_[nb.first].box)};
+      c1 = {p.a, nb.first + 1, BoxDistanceSquared(na.box, b.nodes_[nb.first + 1].box)};
+    }
+    if (c0.d2 < c1.d2) std::swap(c0, c1);  // the nearer pair is popped first
+    if (c0.d2 < best2) stack.push_back(c0);
+    if (c1.d2 < best2) stack.push_back(c1);
+  }
+  if (tests) *tests += n_tests;
+  return found;
+}
+
+double TriangleHierarchy::PointDistanceSquared(const Vec3d& p) const {
+  double best2 = std::numeric_limits<double>::infinity();
+  if (nodes_.empty()) return best2;
+  struct Item {
+    uint32_t node;
+    double d2;
+  };
+  std::vector<Item> stack;
+  stack.push_back({0, PointBoxDistanceSquared(p, nodes_[0].box)});
+  while (!stack.empty()) {
+    const Item it = stack.back();
+    stack.pop_back();
+    if (it.d2 >= best2) continue;
+    const Node& n = nodes_[it.node];
+    if (n.leaf()) {
+      for (uint32_t t = n.first; t < n.first + n.count; ++t) {
+        const Triangle& tr = triangles_[t];
+        best2 = std::min(best2, PointTriangleClosest(p, tr[0], tr[1], tr[2]).distance_squared);
+      }
+      continue;
+    }
+    Item c0{n.first, PointBoxDistanceSquared(p, nodes_[n.first].box)};
+    Item c1{n.first + 1, PointBoxDistanceSquared(p, nodes_[n.first + 1].box)};
+    if (c0.d2 < c1.d2) std::swap(c0, c1);
+    if (c0.d2 < best2) stack.push_back(c0);
+    if (c1.d2 < best2) stack.push_back(c1);
+  }
+  return best2;
+}
+
+}  // namespace mktree

@@ -1,0 +1,75 @@
+// A bounding-volume hierarchy over one mesh's triangles: a binary tree of axis-aligned boxes in a flat
+// array, built top-down by median splits of the triangle centroids on the longest axis (O(T log T)),
+// leaves of at most kLeafTriangles triangles. The triangles' corners are copied in leaf order, so a leaf
+// is read from one contiguous block.
+//
+// Queries between two hierarchies walk pairs of nodes (a dual traversal), descending the larger box:
+//   - FindMeeting: the first triangle pair that meets (exact TrianglesMeet), pruning node pairs whose
+//     boxes are disjoint;
+//   - ClosestBelow: the closest triangle pair at distance < a bound, pruning node pairs whose box distance
+//     is >= the best found so far (the nearer child pair is visited first);
+//   - PointDistanceSquared: the squared distance from a point to the surface.
+//
+// Thread-safety: immutable after construction; queries may run concurrently.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "engine/geometry/triangle_pair.h"
+#include "mktree/geometry.h"
+#include "mktree/scene.h"
+
+namespace mktree {
+
+class TriangleHierarchy {
+ public:
+  static constexpr uint32_t kLeafTriangles = 4;
+
+  // REQUIRES: every triangle index < mesh.vertex_count(). The hierarchy copies what it needs.
+  explicit TriangleHierarchy(const Mesh& mesh);
+
+  using Triangle = std::array<Vec3d, 3>;
+  struct Node {
+    Box3d box;
+    uint32_t first = 0;  // leaf: first triangle (leaf order); inner: index of the left child (right: +1)
+    uint32_t count = 0;  // leaf: number of triangles (> 0); inner: 0
+    bool leaf() const { return count != 0; }
+  };
+
+  size_t triangle_count() const { return triangles_.size(); }
+  const std::vector<Node>& nodes() const { return nodes_; }
+  const Triangle& triangle(uint32_t i) const { return triangles_[i]; }  // leaf order
+  uint32_t mesh_triangle(uint32_t i) const { return mesh_index_[i]; }   // its index in the mesh
+  Box3d bounds() const { return nodes_.empty() ? Box3d{} : nodes_[0].box; }
+  size_t MemoryBytes() const;
+
+  struct Pair {
+    uint32_t a = 0, b = 0;  // leaf-order triangle indices
+  };
+  // A meeting triangle pair, or false. `tests` (may be null) counts exact triangle tests.
+  static bool FindMeeting(const TriangleHierarchy& a, const TriangleHierarchy& b, Pair* found,
+                          uint64_t* tests);
+
+  // The closest triangle pair at distance < `bound` (> 0), or false when every pair is at >= bound.
+  // REQUIRES: no triangle pair meets (the exact meeting test is skipped). `tests` counts distance tests.
+  static bool ClosestBelow(const TriangleHierarchy& a, const TriangleHierarchy& b, double bound,
+                           ClosestPoints* closest, uint64_t* tests);
+
+  // Squared distance from p to the closest triangle (+infinity for an empty mesh).
+  double PointDistanceSquared(const Vec3d& p) const;
+
+ private:
+  void Build(uint32_t self, uint32_t first, uint32_t count, std::vector<Vec3d>& centroids);
+
+  std::vector<Node> nodes_;
+  std::vector<Triangle> triangles_;
+  std::vector<uint32_t> mesh_index_;
+};
+
+// Squared distance between two boxes (0 when they meet).
+double BoxDistanceSquared(const Box3d& a, const Box3d& b);
+
+}  // namespace mktree

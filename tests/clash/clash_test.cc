@@ -1,0 +1,434 @@
+// The clash engine against brute force: every object pair's Separate over the geometry the store keeps
+// (tests/store/stored_geometry.h), without the tree, the leaf filter or the sweep.
+#include "mktree/clash.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <map>
+#include <random>
+#include <string>
+#include <tuple>
+#include <vector>
+
+#include "engine/geometry/mesh_separation.h"
+#include "engine/ingest/store_builder.h"
+#include "engine/scene/scene_source.h"
+#include "engine/scene/vector_scene_source.h"
+#include "mktree/database.h"
+#include "query/scene_fixtures.h"
+#include "store/stored_geometry.h"
+#include "test_dirs.h"
+
+namespace mktree {
+namespace {
+
+using testing::BoxMesh;
+
+std::string TempPath(const std::string& name) {
+  static const testing::TempDir dir("mktree_clash");
+  return dir.file(name);
+}
+
+Status Build(const std::vector<SceneObject>& objs, const std::string& path, Backend backend,
+             uint32_t block = 512, uint32_t d = 2) {
+  IngestOptions o;
+  o.store.backend = backend;
+  o.store.params.block_size = block;
+  o.store.params.blocks_per_page = d;
+  std::vector<SceneOpener> in{[&objs](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
+    return std::unique_ptr<SceneSource>(new VectorSceneSource(&objs, first));
+  }};
+  auto r = BuildStore(in, path, o);
+  return r.ok() ? Status::Ok() : r.status();
+}
+
+// The oracle's own rules (not engine/clash's): class of a separation, as docs/clash.md §1 states them.
+bool OracleClass(const Separation& s, double c, double t, ClashPair* p) {
+  if (s.meeting == Meeting::kApart) {
+    if (!(s.distance < c)) return false;
+    p->cls = ClashClass::kClearance;
+    p->meeting = ClashMeeting::kApart;
+  } else {
+    p->cls = s.depth_lower > t    ? ClashClass::kHard
+             : s.depth_upper <= t ? ClashClass::kTouch
+                                  : ClashClass::kHard;
+    p->meeting = s.meeting == Meeting::kSurfacesMeet ? ClashMeeting::kCross
+                 : s.meeting == Meeting::kAInsideB   ? ClashMeeting::kAInsideB
+                                                     : ClashMeeting::kBInsideA;
+    p->depth_lower = s.depth_lower;
+    p->depth_upper = s.depth_upper;
+  }
+  p->distance = s.distance;
+  p->point_a = s.point_a;
+  p->point_b = s.point_b;
+  return true;
+}
+
+struct Oracle {
+  Vec3d origin;
+  std::vector<testing::StoredObject> objects;
+  std::vector<std::unique_ptr<ClashShape>> shapes;
+
+  Oracle(const std::vector<SceneObject>& scene, const Vec3d& o)
+      : origin(o), objects(testing::StoredScene(scene, o)) {
+    for (const auto& x : objects) shapes.push_back(std::make_unique<ClashShape>(x.mesh));
+  }
+  Oracle(const std::vector<SceneObject>& scene)
+      : Oracle(scene, ChooseStoreOrigin(scene.front().mesh.Bounds())) {}
+
+  // Every pair a < b (only_near: only those whose stored boxes grown by c meet, by a sort on x).
+  std::vector<ClashPair> All(double c, double t, bool only_near = false) const {
+    std::vector<ClashPair> out;
+    const size_t n = objects.size();
+    auto test = [&](size_t i, size_t j) {
+      const Separation s = Separate(*shapes[i], *shapes[j], c, nullptr);
+      ClashPair p;
+      p.a = objects[i].id;
+      p.b = objects[j].id;
+      if (!OracleClass(s, c, t, &p)) return;
+      for (Vec3d* q : {&p.point_a, &p.point_b}) *q = {q->x + origin.x, q->y + origin.y, q->z + origin.z};
+      out.push_back(p);
+    };
+    if (!only_near) {
+      for (size_t i = 0; i < n; ++i)
+        for (size_t j = i + 1; j < n; ++j) test(i, j);
+    } else {
+      std::vector<size_t> by_x(n);
+      for (size_t i = 0; i < n; ++i) by_x[i] = i;
+      std::sort(by_x.begin(), by_x.end(),
+                [&](size_t x, size_t y) { return objects[x].box.min[0] < objects[y].box.min[0]; });
+      for (size_t k = 0; k < n; ++k) {
+        const Box3f& a = objects[by_x[k]].box;
+        for (size_t m = k + 1; m < n && double{objects[by_x[m]].box.min[0]} - c <= a.max[0]; ++m) {
+          const Box3f& b = objects[by_x[m]].box;
+          bool meet = true;
+          for (int ax = 0; ax < 3; ++ax)
+            meet = meet && double{a.min[ax]} - c <= b.max[ax] && double{b.min[ax]} - c <= a.max[ax];
+          if (meet) test(std::min(by_x[k], by_x[m]), std::max(by_x[k], by_x[m]));
+        }
+      }
+    }
+    std::sort(out.begin(), out.end(),
+              [](const ClashPair& x, const ClashPair& y) { return std::tie(x.a, x.b) < std::tie(y.a, y.b); });
+    return out;
+  }
+};
+
+std::vector<ClashPair> Sorted(std::vector<ClashPair> v) {
+  std::sort(v.begin(), v.end(),
+            [](const ClashPair& x, const ClashPair& y) { return std::tie(x.a, x.b) < std::tie(y.a, y.b); });
+  return v;
+}
+
+void ExpectSame(const std::vector<ClashPair>& got, const std::vector<ClashPair>& want) {
+  ASSERT_EQ(got.size(), want.size());
+  for (size_t i = 0; i < got.size(); ++i) {
+    SCOPED_TRACE("pair " + std::to_string(want[i].a) + " " + std::to_string(want[i].b));
+    EXPECT_EQ(got[i].a, want[i].a);
+    EXPECT_EQ(got[i].b, want[i].b);
+    EXPECT_EQ(got[i].cls, want[i].cls);
+    EXPECT_EQ(got[i].meeting, want[i].meeting);
+    EXPECT_EQ(got[i].distance, want[i].distance);
+    EXPECT_EQ(got[i].depth_lower, want[i].depth_lower);
+    EXPECT_EQ(got[i].depth_upper, want[i].depth_upper);
+    EXPECT_EQ(got[i].depth_exact, want[i].depth_lower == want[i].depth_upper);
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_EQ(got[i].point_a[k], want[i].point_a[k]);
+      EXPECT_EQ(got[i].point_b[k], want[i].point_b[k]);
+    }
+  }
+}
+
+Box3d B(double x0, double y0, double z0, double x1, double y1, double z1) {
+  Box3d b;
+  b.min[0] = x0, b.min[1] = y0, b.min[2] = z0, b.max[0] = x1, b.max[1] = y1, b.max[2] = z1;
+  return b;
+}
+
+// Random boxes and prisms plus planted pairs, coordinates dyadic so that the store keeps them exactly:
+// contained, crossing, touching (gap exactly 0), overlapping by less than T, coplanar faces, near misses.
+std::vector<SceneObject> PlantedScene(size_t n, uint64_t seed) {
+  std::vector<SceneObject> objs = testing::ClusteredScene(n, seed);
+  std::mt19937_64 rng(seed + 1);
+  auto add = [&](const std::string& name, const Mesh& m) {
+    SceneObject o;
+    o.name = name;
+    o.mesh = m;
+    objs.push_back(std::move(o));
+  };
+  for (int k = 0; k < 12; ++k) {
+    const double x = 8.0 * static_cast<double>(rng() % 16), y = -40.0 - 8.0 * (rng() % 4),
+                 z = 4.0 * (rng() % 4);
+    const std::string g = "plant" + std::to_string(k) + "/";
+    add(g + "outer", BoxMesh(B(x, y, z, x + 2, y + 2, z + 2)));
+    add(g + "inner", BoxMesh(B(x + 0.5, y + 0.5, z + 0.5, x + 1, y + 1, z + 1)));          // contained
+    add(g + "cross", BoxMesh(B(x + 1.5, y + 0.25, z + 0.25, x + 3, y + 0.75, z + 0.75)));  // crossing
+    add(g + "touch", BoxMesh(B(x - 1, y, z, x, y + 1, z + 1)));                            // gap exactly 0
+    add(g + "shallow",
+        BoxMesh(B(x + 0.25, y + 1.9990234375, z + 1.25, x + 0.75, y + 3, z + 1.75)));  // 2^-10 deep
+    add(g + "coplanar", BoxMesh(B(x + 0.5, y - 1, z, x + 1.5, y, z + 2)));             // shares a face plane
+    add(g + "nearmiss", BoxMesh(B(x, y, z + 2.03125, x + 1, y + 1, z + 3)));           // gap 1/32
+  }
+  for (size_t i = 0; i < objs.size(); ++i) objs[i].id = static_cast<ObjectId>(i);
+  return objs;
+}
+
+std::vector<ClashPair> SelfClash(const Database& db, const ClashOptions& o, ClashStats* stats) {
+  std::vector<ClashPair> got;
+  const Status st = db.SelfClash(
+      o, [&](const ClashPair& p) { got.push_back(p); }, stats);
+  EXPECT_TRUE(st.ok()) << st.ToString();
+  return got;
+}
+
+class ClashBackends : public ::testing::TestWithParam<Backend> {};
+
+TEST_P(ClashBackends, SelfClashMatchesBruteForceForEveryCacheSize) {
+  const auto scene = PlantedScene(700, 7);
+  const std::string path = TempPath(std::string("planted_") + BackendName(GetParam()));
+  ASSERT_TRUE(Build(scene, path, GetParam()).ok());
+  const Oracle oracle(scene);
+  for (double c : {0.0, 0.05}) {
+    const auto want = oracle.All(c, 0.002);
+    ASSERT_FALSE(want.empty());
+    size_t classes[3] = {};
+    for (const auto& p : want) ++classes[static_cast<int>(p.cls)];
+    EXPECT_GT(classes[0], 0u);
+    EXPECT_GT(classes[1], 0u);
+    if (c > 0) EXPECT_GT(classes[2], 0u);
+    // The planted contained pairs are found by containment, not by crossing triangles.
+    EXPECT_TRUE(std::any_of(want.begin(), want.end(), [](const ClashPair& p) {
+      return p.meeting == ClashMeeting::kAInsideB || p.meeting == ClashMeeting::kBInsideA;
+    }));
+    for (uint64_t cache : {0ull, 8ull, 1000000ull}) {
+      SCOPED_TRACE("C " + std::to_string(c) + " cache " + std::to_string(cache));
+      auto db = Database::Open(path, {.cache_pages = cache});
+      ASSERT_TRUE(db.ok()) << db.status().ToString();
+      ClashOptions o;
+      o.clearance = c;
+      ClashStats s;
+      const auto got = SelfClash(**db, o, &s);
+      ExpectSame(Sorted(got), want);
+      EXPECT_EQ(s.reported_pairs, want.size());
+      EXPECT_EQ(s.hard, classes[0]);
+      EXPECT_EQ(s.touch, classes[1]);
+      EXPECT_EQ(s.clearance, classes[2]);
+      EXPECT_LE(s.distinct_pages, s.store_pages);
+      EXPECT_LE(s.leaf_pairs_visited, s.leaf_pairs_tree);
+      EXPECT_GE(s.leaf_reads, s.leaf_rereads);
+      if (cache >= 1000000) {
+        EXPECT_EQ(s.leaf_rereads, 0u);
+        EXPECT_EQ(s.pages_read, s.distinct_pages);
+      }
+      if (cache == 0) EXPECT_EQ(s.pages_read, s.pages_touched);
+    }
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Both, ClashBackends, ::testing::Values(Backend::kHdf5, Backend::kPagedFile),
+                         [](const auto& info) { return std::string(BackendName(info.param)); });
+
+TEST(Clash, SameOutputInTheSameOrderForAnyThreadCount) {
+  const auto scene = PlantedScene(900, 11);
+  const std::string path = TempPath("threads");
+  ASSERT_TRUE(Build(scene, path, Backend::kPagedFile).ok());
+  auto db = Database::Open(path, {.cache_pages = 16});
+  ASSERT_TRUE(db.ok());
+  ClashOptions o;
+  o.clearance = 0.05;
+  o.threads = 1;
+  ClashStats s1;
+  const auto one = SelfClash(**db, o, &s1);
+  ASSERT_FALSE(one.empty());
+  for (unsigned t : {2u, 4u}) {
+    o.threads = t;
+    ClashStats st;
+    const auto got = SelfClash(**db, o, &st);
+    ExpectSame(got, one);  // the same sequence, not only the same set
+    EXPECT_EQ(st.pages_read, s1.pages_read);
+    EXPECT_EQ(st.candidate_pairs, s1.candidate_pairs);
+    EXPECT_EQ(st.triangle_tests, s1.triangle_tests);
+  }
+}
+
+TEST(Clash, ExclusionsAndTheCapCountWhatTheyLeaveOut) {
+  const auto scene = PlantedScene(300, 5);
+  const std::string path = TempPath("exclusions");
+  ASSERT_TRUE(Build(scene, path, Backend::kHdf5).ok());
+  auto db = Database::Open(path);
+  ASSERT_TRUE(db.ok());
+  const Oracle oracle(scene);
+  const auto all = oracle.All(0, 0.002);
+  auto group = [&](ObjectId id) {
+    const std::string& n = scene[id].name;
+    const size_t at = n.find('/');
+    return at == std::string::npos ? std::string() : n.substr(0, at);
+  };
+  std::vector<ClashPair> want;
+  for (const auto& p : all)
+    if (group(p.a).empty() || group(p.a) != group(p.b)) want.push_back(p);
+  ASSERT_LT(want.size(), all.size());
+
+  ClashOptions o;
+  o.exclude_group_separator = "/";
+  ClashStats s;
+  ExpectSame(Sorted(SelfClash(**db, o, &s)), want);
+  EXPECT_GE(s.excluded_pairs, all.size() - want.size());
+
+  // A predicate: pairs with an even sum.
+  o.exclude_group_separator.clear();
+  o.exclude = [](ObjectId a, ObjectId b) { return (a + b) % 2 == 0; };
+  want.clear();
+  for (const auto& p : all)
+    if ((p.a + p.b) % 2) want.push_back(p);
+  ExpectSame(Sorted(SelfClash(**db, o, &s)), want);
+
+  // The cap: the first N of the uncapped sequence, the rest counted.
+  o.exclude = nullptr;
+  ClashStats full;
+  const auto uncapped = SelfClash(**db, o, &full);
+  o.max_pairs = 5;
+  ClashStats capped;
+  const auto got = SelfClash(**db, o, &capped);
+  ASSERT_EQ(got.size(), 5u);
+  ExpectSame(got, std::vector<ClashPair>(uncapped.begin(), uncapped.begin() + 5));
+  EXPECT_EQ(capped.reported_pairs + capped.capped_pairs, uncapped.size());
+  EXPECT_EQ(capped.hard + capped.touch + capped.clearance, full.hard + full.touch + full.clearance);
+
+  // Touch pairs counted, not reported.
+  o.max_pairs = UINT64_MAX;
+  o.report_touch = false;
+  ClashStats nt;
+  const auto no_touch = SelfClash(**db, o, &nt);
+  EXPECT_EQ(nt.unreported_touches, full.touch);
+  EXPECT_EQ(no_touch.size() + nt.unreported_touches, uncapped.size());
+  for (const auto& p : no_touch) EXPECT_NE(p.cls, ClashClass::kTouch);
+}
+
+TEST(Clash, BadOptionsAreErrors) {
+  const auto scene = PlantedScene(50, 3);
+  const std::string path = TempPath("bad");
+  ASSERT_TRUE(Build(scene, path, Backend::kHdf5).ok());
+  auto db = Database::Open(path);
+  ASSERT_TRUE(db.ok());
+  for (double bad : {-1.0, double{NAN}, double{INFINITY}}) {
+    ClashOptions o;
+    o.clearance = bad;
+    EXPECT_EQ((*db)->SelfClash(o, nullptr, nullptr).code(), Status::Code::kInvalidArgument);
+    o.clearance = 0;
+    o.touch_tolerance = bad;
+    EXPECT_EQ((*db)->SelfClash(o, nullptr, nullptr).code(), Status::Code::kInvalidArgument);
+  }
+  Mesh empty;
+  EXPECT_EQ((*db)->Collide(empty, std::nullopt, {}, nullptr, nullptr).code(), Status::Code::kInvalidArgument);
+  Mesh nan = BoxMesh(B(0, 0, 0, 1, 1, 1));
+  nan.vertices[4] = NAN;
+  EXPECT_EQ((*db)->Collide(nan, std::nullopt, {}, nullptr, nullptr).code(), Status::Code::kInvalidArgument);
+  Mesh bad_index = BoxMesh(B(0, 0, 0, 1, 1, 1));
+  bad_index.triangles[5] = 99;
+  EXPECT_EQ((*db)->Collide(bad_index, std::nullopt, {}, nullptr, nullptr).code(),
+            Status::Code::kInvalidArgument);
+  RigidTransform shear;
+  shear.rotation[1] = 0.5;
+  EXPECT_EQ((*db)->Collide(BoxMesh(B(0, 0, 0, 1, 1, 1)), shear, {}, nullptr, nullptr).code(),
+            Status::Code::kInvalidArgument);
+  RigidTransform mirror;
+  mirror.rotation[0] = -1;
+  EXPECT_EQ((*db)->Collide(BoxMesh(B(0, 0, 0, 1, 1, 1)), mirror, {}, nullptr, nullptr).code(),
+            Status::Code::kInvalidArgument);
+}
+
+TEST(Clash, CollideWithATransformMatchesBruteForce) {
+  const auto scene = PlantedScene(600, 9);
+  const std::string path = TempPath("collide");
+  ASSERT_TRUE(Build(scene, path, Backend::kPagedFile).ok());
+  const Vec3d origin = ChooseStoreOrigin(scene.front().mesh.Bounds());
+  const Oracle oracle(scene, origin);
+  const Mesh pipe = testing::PrismMesh(0, 0, 0, 0.4, -15, 15, 12);
+  // Through the centre of a random object and of a planted one.
+  auto centre = [&](size_t i) {
+    const Box3d b = scene[i].mesh.Bounds();
+    return Vec3d{(b.min[0] + b.max[0]) / 2, (b.min[1] + b.max[1]) / 2, (b.min[2] + b.max[2]) / 2};
+  };
+  for (const RigidTransform& tr : {RigidTransform::FromEulerDegrees(0, 0, 30, centre(10)),
+                                   RigidTransform::FromEulerDegrees(10, 20, 30, centre(scene.size() - 5))}) {
+    // The oracle moves the object itself, into the store frame, and tests every object.
+    Mesh moved = pipe;
+    for (size_t v = 0; v < pipe.vertex_count(); ++v) {
+      const Vec3d p = tr.Apply({pipe.vertices[3 * v], pipe.vertices[3 * v + 1], pipe.vertices[3 * v + 2]});
+      for (int i = 0; i < 3; ++i) moved.vertices[3 * v + i] = p[i] - origin[i];
+    }
+    const ClashShape q(moved);
+    for (double c : {0.0, 0.25}) {
+      std::vector<ClashPair> want;
+      for (size_t i = 0; i < oracle.objects.size(); ++i) {
+        ClashPair p;
+        p.a = oracle.objects[i].id;
+        p.b = kCollideObject;
+        if (!OracleClass(Separate(*oracle.shapes[i], q, c, nullptr), c, 0.002, &p)) continue;
+        for (Vec3d* x : {&p.point_a, &p.point_b}) *x = {x->x + origin.x, x->y + origin.y, x->z + origin.z};
+        want.push_back(p);
+      }
+      ASSERT_FALSE(want.empty());
+      auto db = Database::Open(path, {.cache_pages = 4});
+      ASSERT_TRUE(db.ok());
+      ClashOptions o;
+      o.clearance = c;
+      o.threads = 3;
+      std::vector<ClashPair> got;
+      ClashStats s;
+      ASSERT_TRUE((*db)
+                      ->Collide(
+                          pipe, tr, o, [&](const ClashPair& p) { got.push_back(p); }, &s)
+                      .ok());
+      ExpectSame(Sorted(got), want);
+      EXPECT_LE(s.leaf_pairs_visited, s.leaf_pairs_tree);
+      EXPECT_LE(s.distinct_pages, s.store_pages);
+      EXPECT_LT(s.distinct_pages, s.store_pages);  // it reads only what its box reaches
+    }
+  }
+}
+
+// Real scenes: brute force restricted to pairs whose stored boxes grown by C meet (a pair whose boxes do
+// not meet so cannot be closer than C).
+void RealScene(const std::string& file, double c, size_t max_objects = SIZE_MAX) {
+  const std::string input = std::string(MKTREE_SHARED_DATA) + "/" + file;
+  if (!std::filesystem::exists(input)) GTEST_SKIP() << input << " missing";
+  auto src = OpenSceneFile(input);
+  ASSERT_TRUE(src.ok()) << src.status().ToString();
+  std::vector<SceneObject> scene;
+  SceneObject o;
+  for (;;) {
+    auto more = (*src)->Next(&o);
+    ASSERT_TRUE(more.ok()) << more.status().ToString();
+    if (!*more || scene.size() >= max_objects) break;
+    scene.push_back(o);
+  }
+  const std::string path = TempPath("real_" + std::filesystem::path(file).stem().string());
+  ASSERT_TRUE(Build(scene, path, Backend::kPagedFile, 4096, 3).ok());
+  const Oracle oracle(scene);
+  const auto want = oracle.All(c, 0.002, /*only_near=*/true);
+  auto db = Database::Open(path, {.cache_pages = 8});
+  ASSERT_TRUE(db.ok());
+  ClashOptions opt;
+  opt.clearance = c;
+  opt.threads = 2;
+  ClashStats s;
+  ExpectSame(Sorted(SelfClash(**db, opt, &s)), want);
+  std::printf("%s: %zu objects, %zu pairs (hard %llu touch %llu clearance %llu), pages read %llu of %llu\n",
+              file.c_str(), scene.size(), want.size(), (unsigned long long)s.hard,
+              (unsigned long long)s.touch, (unsigned long long)s.clearance, (unsigned long long)s.pages_read,
+              (unsigned long long)s.store_pages);
+}
+
+TEST(ClashRealScenes, SteelStructure) { RealScene("buildings/steel_mini_project.obj", 0.01); }
+TEST(ClashRealScenes, Duplex) { RealScene("buildings/duplex.obj", 0.05); }
+TEST(ClashRealScenes, DenHaagSlice) { RealScene("city/denhaag_01.obj", 0.5, 800); }
+TEST(ClashRealScenes, DuplexIfc) { RealScene("buildings/duplex.ifc", 0.05); }
+TEST(ClashRealScenes, OfficeIfc) { RealScene("buildings/Office_A_20110811.ifc", 0.0); }
+
+}  // namespace
+}  // namespace mktree
