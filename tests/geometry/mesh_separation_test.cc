@@ -214,8 +214,10 @@ TEST(Separate, PipeThroughPlate) {
   const Mesh pipe = PipeMesh(16, 0.05, -1, 1), plate = BoxMesh({-1, -1, -0.01}, {1, 1, 0.01});
   const Separation r = Check(pipe, plate, 0, "pipe, plate");
   EXPECT_EQ(r.meeting, Meeting::kSurfacesMeet);
-  EXPECT_EQ(r.depth_lower, 0);    // no vertex of either is inside the other
-  EXPECT_GT(r.depth_upper, 0.9);  // so the clash is hard, its depth inexact
+  // No vertex of either is inside the other, but the plate's diagonal edges run through the pipe's axis:
+  // their midpoint there is the pipe's inradius from its surface.
+  EXPECT_NEAR(r.depth_lower, 0.05 * std::cos(std::numbers::pi / 16), 1e-6);
+  EXPECT_GT(r.depth_upper, 0.9);
   EXPECT_NEAR(std::fabs(r.point_a.z), 0.01, 1e-6);
 }
 
