@@ -324,6 +324,50 @@ TEST(Separate, RandomSmallMeshesAgainstBruteForce) {
   EXPECT_GT(near, 30);
 }
 
+// Two overlapping axis-aligned boxes: the penetration depth is exactly the smallest overlap of their
+// x, y and z intervals. Both bounds must hold; the upper one is exact here.
+TEST(Separate, DepthBoundsHoldForOverlappingBoxes) {
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(0, 1);
+  int exact = 0;
+  for (int i = 0; i < 300; ++i) {
+    Vec3d lo[2], hi[2];
+    for (int k = 0; k < 2; ++k) {
+      lo[k] = {u(rng), u(rng), u(rng)};
+      hi[k] = {lo[k].x + 0.2 + u(rng), lo[k].y + 0.2 + u(rng), lo[k].z + 0.2 + u(rng)};
+    }
+    const Mesh a = BoxMesh(lo[0], hi[0]), b = BoxMesh(lo[1], hi[1]);
+    // The depth of the boxes as stored (BoxMesh rounds corners to float).
+    const Box3d ba = a.Bounds(), bb = b.Bounds();
+    double depth = kInf;
+    for (int k = 0; k < 3; ++k)
+      depth = std::min(depth, std::min(ba.max[k] - bb.min[k], bb.max[k] - ba.min[k]));
+    if (depth < 0) continue;
+    const ClashShape sa(a), sb(b);
+    const Separation r = Separate(sa, sb, 0, nullptr);
+    ASSERT_NE(r.meeting, Meeting::kApart);
+    EXPECT_LE(r.depth_lower, depth + 1e-12);
+    EXPECT_GE(r.depth_upper, depth - 1e-12);
+    EXPECT_NEAR(r.depth_upper, depth, 1e-12);
+    exact += r.depth_lower > depth - 1e-9;
+    // The options change the work, never the answer (depth_lower: only how far it is raised).
+    SeparateOptions aabb;
+    aabb.bound_directions = kAabbDirections;
+    aabb.brute_force_triangles = 0;
+    const Separation s = Separate(sa, sb, 0, nullptr, aabb);
+    EXPECT_EQ(s.meeting, r.meeting);
+    EXPECT_EQ(s.depth_upper, r.depth_upper);
+    EXPECT_EQ(s.depth_lower, r.depth_lower);
+    SeparateOptions enough;
+    enough.depth_lower_enough = 0.002;
+    const Separation e = Separate(sa, sb, 0, nullptr, enough);
+    EXPECT_EQ(e.depth_upper, r.depth_upper);
+    EXPECT_LE(e.depth_lower, r.depth_lower);
+    EXPECT_GE(e.depth_lower, std::min(r.depth_lower, 0.002));
+  }
+  EXPECT_GT(exact, 10);  // a box corner deep inside the other makes the lower bound exact too
+}
+
 TEST(Separate, TranslationInvariance) {
   const Mesh a = Transformed(BoxMesh({0, 0, 0}, {1, 0.5, 0.2}), 0.4, {1, 2, 3}, {0, 0, 0});
   const Mesh b = Transformed(UvSphereMesh(8, 12, 0.3), 0.1, {0, 0, 1}, {1.1, 0.3, 0.2});
