@@ -314,9 +314,25 @@ void SetDepth(const Impl& a, const Impl& b, double gap, double enough, Separatio
 
 // A vertex of some component of solid `x` inside solid `y`, when no triangles meet.
 bool ComponentInside(const Impl& x, const Impl& y, Vec3d* point, NarrowStats* st) {
+  // The classifier counts points within its tolerance of y's surface as inside; such a point decides
+  // nothing here (no triangles meet, so it may lie just outside), and a vertex clear of it is used.
+  const double tol2 = 4 * y.classifier->tolerance() * y.classifier->tolerance();
+  bool unsure = false;
   for (uint32_t v : x.component_vertices) {
     const Vec3d p = VertexAt(x.mesh, v);
     if (!y.kdop.Contains(p)) continue;
+    ++st->containment_tests;
+    if (!y.classifier->Contains(p)) continue;
+    if (y.hierarchy.PointDistanceSquared(p, tol2) > tol2) {
+      *point = p;
+      return true;
+    }
+    unsure = true;
+  }
+  if (!unsure) return false;
+  for (size_t i = 0; i < x.mesh.vertex_count(); ++i) {  // rare: any vertex of x clear of y's surface
+    const Vec3d p = VertexAt(x.mesh, i);
+    if (!y.kdop.Contains(p) || y.hierarchy.PointDistanceSquared(p, tol2) <= tol2) continue;
     ++st->containment_tests;
     if (y.classifier->Contains(p)) {
       *point = p;

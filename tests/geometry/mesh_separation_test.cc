@@ -73,11 +73,21 @@ Truth BruteForce(const Mesh& a, const Mesh& b, double reach) {
       }
   const bool sa = IsClosedMesh(a) && a.triangle_count() > 0, sb = IsClosedMesh(b) && b.triangle_count() > 0;
   if (sa && sb) {
-    // With no triangles meeting, each connected component is wholly in or out: test every vertex.
-    for (size_t i = 0; i < a.vertex_count(); ++i)
-      if (PointInSolid(b, testing::VertexOf(a, i))) return {Meeting::kAInsideB, 0};
-    for (size_t i = 0; i < b.vertex_count(); ++i)
-      if (PointInSolid(a, testing::VertexOf(b, i))) return {Meeting::kBInsideA, 0};
+    // With no triangles meeting, each connected component is wholly in or out: test every vertex that is
+    // clear of the other's surface (the classifier counts points within its tolerance as inside).
+    auto inside = [](const Mesh& x, const Mesh& y) {
+      SolidClassifierOptions many;
+      many.expected_queries = x.vertex_count();
+      const SolidClassifier in_y(y, many);
+      const double clear = 2 * in_y.tolerance();
+      for (size_t i = 0; i < x.vertex_count(); ++i) {
+        const Vec3d v = testing::VertexOf(x, i);
+        if (in_y.Contains(v) && testing::SurfaceDistance(y, v) > clear) return true;
+      }
+      return false;
+    };
+    if (inside(a, b)) return {Meeting::kAInsideB, 0};
+    if (inside(b, a)) return {Meeting::kBInsideA, 0};
   }
   for (const Tri* x : na)
     for (const Tri* y : nb)
@@ -207,6 +217,18 @@ TEST(Separate, BoxesOverlappingByOneMillimetre) {
     const Separation r = Check(a, b, 0, "into a larger box");
     EXPECT_NEAR(r.depth_upper, 0.001, 1e-7);
     EXPECT_NEAR(r.depth_lower, 0.001, 1e-7);  // the bounds coincide (up to float32 vertices)
+  }
+}
+
+// A gap far below the point classifier's surface tolerance is still a gap, not containment.
+TEST(Separate, GapBelowTheSurfaceToleranceIsApart) {
+  const Mesh a = BoxMesh({0, 0, 0}, {1, 1, 1});
+  for (double gap : {1e-12, 1e-14}) {
+    const Mesh b = Shifted(BoxMesh({1, 0.25, 0.25}, {2, 0.75, 0.75}), {gap, 0, 0});
+    const Separation r = Check(a, b, 0.01, "tiny gap");
+    EXPECT_EQ(r.meeting, Meeting::kApart);
+    EXPECT_NEAR(r.distance, gap, 1e-15);
+    EXPECT_GT(r.distance, 0);
   }
 }
 
