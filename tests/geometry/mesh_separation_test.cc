@@ -7,6 +7,7 @@
 #include <limits>
 #include <numbers>
 #include <random>
+#include <thread>
 #include <vector>
 
 #include "engine/geometry/mesh_edges.h"
@@ -402,6 +403,37 @@ TEST(Separate, TranslationInvariance) {
     EXPECT_EQ(s.meeting, r.meeting);
     EXPECT_NEAR(s.distance, r.distance, 1e-11 * (1 + std::fabs(d.x)));
     EXPECT_NEAR(s.point_a.x - d.x, r.point_a.x, 1e-9 * (1 + std::fabs(d.x)));
+  }
+}
+
+// Shapes are shared read-only by threads (the per-thread scratch must not leak between them).
+TEST(Separate, ConcurrentCallsAgreeWithOneThread) {
+  std::vector<Mesh> meshes;
+  for (int i = 0; i < 12; ++i) {
+    meshes.push_back(Transformed(UvSphereMesh(8, 10, 0.4), 0.1 * i, {1, 0, 1}, {0.3 * i, 0.1 * (i % 3), 0}));
+    meshes.push_back(BoxMesh({0.3 * i, 0, 0}, {0.3 * i + 0.05, 0.05, 0.05}));  // small: brute-force path
+  }
+  std::vector<ClashShape> shapes;
+  for (const Mesh& m : meshes) shapes.emplace_back(m);
+  auto all = [&] {
+    std::vector<Separation> out;
+    for (size_t i = 0; i < shapes.size(); ++i)
+      for (size_t j = i + 1; j < shapes.size(); ++j)
+        out.push_back(Separate(shapes[i], shapes[j], 0.2, nullptr));
+    return out;
+  };
+  const std::vector<Separation> want = all();
+  std::vector<std::vector<Separation>> got(4);
+  std::vector<std::thread> threads;
+  for (auto& g : got) threads.emplace_back([&g, &all] { g = all(); });
+  for (auto& t : threads) t.join();
+  for (const auto& g : got) {
+    ASSERT_EQ(g.size(), want.size());
+    for (size_t k = 0; k < g.size(); ++k) {
+      EXPECT_EQ(g[k].meeting, want[k].meeting);
+      EXPECT_EQ(g[k].distance, want[k].distance);
+      EXPECT_EQ(g[k].depth_lower, want[k].depth_lower);
+    }
   }
 }
 
