@@ -364,15 +364,15 @@ Separation Separate(const ClashShape& shape_a, const ClashShape& shape_b, double
     // Nothing to meet.
   } else if (limit > 0 ? gap >= limit : gap > 0) {
     ++st.bound_rejects;
-  } else if (Vec3d ta[3], tb[3];
-             FindMeetingTriangles(a, b, options.brute_force_triangles, ta, tb, &st.triangle_tests)) {
+  } else if (Vec3d ta[3], tb[3]; gap <= 0 && FindMeetingTriangles(a, b, options.brute_force_triangles, ta, tb,
+                                                                  &st.triangle_tests)) {
     r.meeting = Meeting::kSurfacesMeet;
     const ClosestPoints c = TriangleTriangleClosest(ta, tb);
     r.point_a = r.point_b = c.on_a;
     SetDepth(a, b, full_gap, options.depth_lower_enough, &r, &st);
   } else {
     Vec3d p;
-    if (a.solid() && b.solid()) {
+    if (gap <= 0 && a.solid() && b.solid()) {  // a positive bound gap already says apart
       if (ComponentInside(a, b, &p, &st))
         r.meeting = Meeting::kAInsideB;
       else if (ComponentInside(b, a, &p, &st))

@@ -15,8 +15,9 @@
 // connected component against the other's solid (SolidClassifier); then the gap (hierarchy distance).
 // Depth bounds of meeting pairs: depth_upper = the smallest overlap of the two objects' projection
 // intervals over the 13 26-DOP directions and the face normals of small meshes, depth_lower = the largest
-// distance from a vertex of one solid inside the other solid to the other's surface (0 when no vertex is
-// inside, or when either is a surface), clamped to depth_upper.
+// distance to the other's surface of a point of one solid's surface inside the other solid (vertices, and
+// edge points between the other surface's crossings; 0 when none is inside, or when either is a surface),
+// clamped to depth_upper.
 //
 // Thread-safety: a ClashShape is immutable after construction and may be shared by threads; Separate is
 // a pure function of its arguments.
@@ -114,7 +115,8 @@ Status ValidateClashMesh(const Mesh& mesh);
 // (the clearance C; 0 asks only whether they meet); pairs farther report +infinity. `stats` may be null.
 Separation Separate(const ClashShape& a, const ClashShape& b, double max_distance, NarrowStats* stats);
 
-// Knobs for measurements (bench/narrow_bench.cc); the defaults are what Separate above uses.
+// Options; the defaults are what Separate above uses. The first two exist for measurements
+// (bench/narrow_bench.cc); the clash traversal should pass depth_lower_enough = T.
 struct SeparateOptions {
   int bound_directions = kKdopDirections;  // 3: AABB, 9: 18-DOP, 13: 26-DOP (the rejection test only)
   size_t brute_force_triangles = kBruteForceTriangles;
