@@ -1,6 +1,7 @@
 #include "engine/geometry/mesh_separation.h"
 
 #include <algorithm>
+#include <cfloat>
 #include <cmath>
 #include <limits>
 #include <numeric>
@@ -25,6 +26,58 @@ struct ClashShape::Impl {
       classifier.emplace(m, options);
       component_vertices = ComponentVertices(m);
     }
+    FaceDirections();
+  }
+
+  // The distinct unit normals of a small mesh's triangles with the vertices' projection intervals on
+  // them: more candidate directions for the depth upper bound (for convex solids meeting face to face
+  // the exact depth is attained along one of them).
+  void FaceDirections() {
+    double largest = 0;
+    for (double c : mesh.vertices) largest = std::max(largest, std::fabs(c));
+    // Rounding of a projection onto a unit vector (|d| = 1 within a few ulp): a few ulp of the largest
+    // coordinate sum.
+    projection_slack = 16 * DBL_EPSILON * 3 * largest;
+    // Depths below the classifier's surface tolerance are not depths (such points count as on the surface).
+    negligible2 = SurfaceTolerance(bounds) * SurfaceTolerance(bounds);
+    if (mesh.triangle_count() > kMaxDepthDirectionTriangles ||
+        mesh.vertex_count() > kMaxDepthDirectionVertices)
+      return;
+    for (size_t t = 0; t < mesh.triangle_count() && directions.size() < kMaxDepthDirections; ++t) {
+      const Vec3d a = At(mesh.triangles[3 * t]), b = At(mesh.triangles[3 * t + 1]),
+                  c = At(mesh.triangles[3 * t + 2]);
+      const Vec3d u{b.x - a.x, b.y - a.y, b.z - a.z}, v{c.x - a.x, c.y - a.y, c.z - a.z};
+      Vec3d n{u.y * v.z - u.z * v.y, u.z * v.x - u.x * v.z, u.x * v.y - u.y * v.x};
+      const double len = std::sqrt(n.x * n.x + n.y * n.y + n.z * n.z);
+      if (!(len > 0)) continue;
+      n = {n.x / len, n.y / len, n.z / len};
+      // Opposite normals give the same intervals.
+      if (n.x < 0 || (n.x == 0 && (n.y < 0 || (n.y == 0 && n.z < 0)))) n = {-n.x, -n.y, -n.z};
+      bool seen = false;
+      for (const Vec3d& d : directions)
+        seen |= std::fabs(d.x - n.x) + std::fabs(d.y - n.y) + std::fabs(d.z - n.z) < 1e-9;
+      if (!seen) directions.push_back(n);
+    }
+    for (const Vec3d& d : directions) {
+      const auto [lo, hi] = ProjectionInterval(mesh, d);
+      direction_lo.push_back(lo);
+      direction_hi.push_back(hi);
+    }
+  }
+
+  Vec3d At(uint32_t i) const {
+    return {mesh.vertices[3 * size_t{i}], mesh.vertices[3 * size_t{i} + 1], mesh.vertices[3 * size_t{i} + 2]};
+  }
+
+  static std::pair<double, double> ProjectionInterval(const Mesh& m, const Vec3d& d) {
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    for (size_t i = 0; i < m.vertex_count(); ++i) {
+      const double* v = &m.vertices[3 * i];
+      const double p = v[0] * d.x + v[1] * d.y + v[2] * d.z;
+      lo = std::min(lo, p);
+      hi = std::max(hi, p);
+    }
+    return {lo, hi};
   }
 
   // One vertex of each connected component (vertices with equal coordinates are one point), so that a
@@ -72,6 +125,10 @@ struct ClashShape::Impl {
   TriangleHierarchy hierarchy;
   std::optional<SolidClassifier> classifier;  // closed meshes only: open ones are surfaces
   std::vector<uint32_t> component_vertices;
+  std::vector<Vec3d> directions;  // FaceDirections
+  std::vector<double> direction_lo, direction_hi;
+  double projection_slack = 0;
+  double negligible2 = 0;
 };
 
 ClashShape::ClashShape(const Mesh& mesh, const std::optional<EdgeCheck>& edges)
@@ -131,16 +188,19 @@ bool BruteForceMeeting(const TriangleHierarchy& a, const TriangleHierarchy& b, V
       if (x.max[k] < y.min[k] || y.max[k] < x.min[k]) return false;
     return true;
   };
-  Box3d boxes_b[kBruteForceTriangles];
-  uint32_t idx_b[kBruteForceTriangles];
-  size_t nb = 0;
+  // Per-thread scratch: Separate runs once per candidate pair, an allocation each would show.
+  thread_local std::vector<Box3d> boxes_b;
+  thread_local std::vector<uint32_t> idx_b;
+  boxes_b.clear();
+  idx_b.clear();
   for (uint32_t j = 0; j < b.triangle_count(); ++j) {
     const Box3d x = box_of(b.triangle(j));
     if (meet(x, ba)) {
-      boxes_b[nb] = x;
-      idx_b[nb++] = j;
+      boxes_b.push_back(x);
+      idx_b.push_back(j);
     }
   }
+  const size_t nb = idx_b.size();
   for (uint32_t i = 0; i < a.triangle_count() && nb > 0; ++i) {
     const Box3d x = box_of(a.triangle(i));
     if (!meet(x, bb)) continue;
@@ -157,9 +217,9 @@ bool BruteForceMeeting(const TriangleHierarchy& a, const TriangleHierarchy& b, V
   return false;
 }
 
-bool FindMeetingTriangles(const Impl& a, const Impl& b, Vec3d* ta, Vec3d* tb, uint64_t* tests) {
-  if (a.hierarchy.triangle_count() <= kBruteForceTriangles &&
-      b.hierarchy.triangle_count() <= kBruteForceTriangles)
+bool FindMeetingTriangles(const Impl& a, const Impl& b, size_t brute_force, Vec3d* ta, Vec3d* tb,
+                          uint64_t* tests) {
+  if (a.hierarchy.triangle_count() <= brute_force && b.hierarchy.triangle_count() <= brute_force)
     return BruteForceMeeting(a.hierarchy, b.hierarchy, ta, tb, tests);
   TriangleHierarchy::Pair pair;
   if (!TriangleHierarchy::FindMeeting(a.hierarchy, b.hierarchy, &pair, tests)) return false;
@@ -169,31 +229,110 @@ bool FindMeetingTriangles(const Impl& a, const Impl& b, Vec3d* ta, Vec3d* tb, ui
 }
 
 // The deepest vertex of solid `x` inside solid `y`: its distance to y's surface (0 when none is inside).
-double DeepestVertex(const Impl& x, const Impl& y, NarrowStats* st) {
-  double deepest2 = 0;
-  for (size_t i = 0; i < x.mesh.vertex_count(); ++i) {
+// Raises *deepest2 to v's squared distance to y's surface when v is in y's solid and deeper. The solid
+// test first: it is cheap on small meshes, and the distance query then stops as soon as it finds a
+// triangle no farther than *deepest2 (vertices on the other's surface, as in touching members).
+bool InsideDeeper(const Vec3d& v, const Impl& y, double* deepest2, NarrowStats* st) {
+  ++st->containment_tests;
+  if (!y.classifier->Contains(v)) return false;
+  const double floor2 = std::max(*deepest2, y.negligible2);
+  const double d2 = y.hierarchy.PointDistanceSquared(v, floor2);
+  if (d2 <= floor2) return false;
+  *deepest2 = d2;
+  return true;
+}
+
+// Stops once the depth reaches `stop` (the answer can then not change what it is used for).
+double DeepestVertex(const Impl& x, const Impl& y, double deepest, double stop, NarrowStats* st) {
+  double deepest2 = deepest * deepest;
+  for (size_t i = 0; i < x.mesh.vertex_count() && deepest2 < stop * stop; ++i) {
     const Vec3d v = VertexAt(x.mesh, i);
     if (!y.kdop.Contains(v)) continue;
-    ++st->containment_tests;
-    if (!y.classifier->Contains(v)) continue;
-    deepest2 = std::max(deepest2, y.hierarchy.PointDistanceSquared(v));
+    if (!InsideDeeper(v, y, &deepest2, st)) continue;
   }
   return std::sqrt(deepest2);
 }
 
-void SetDepth(const Impl& a, const Impl& b, double gap, Separation* r, NarrowStats* st) {
+// The deepest point of solid `x`'s edges inside solid `y`, sampled at the midpoints of the pieces into
+// which y's surface cuts each edge (each piece is wholly inside or outside y): a point of x's surface in
+// y at distance d from y's surface bounds the depth below by d, like a vertex.
+double DeepestEdgePoint(const Impl& x, const Impl& y, double deepest, double stop, NarrowStats* st) {
+  thread_local std::vector<double> cuts;
+  double deepest2 = deepest * deepest;
+  const Mesh& m = x.mesh;
+  for (size_t t = 0; t < m.triangle_count() && deepest2 < stop * stop; ++t)
+    for (int e = 0; e < 3; ++e) {
+      const uint32_t i = m.triangles[3 * t + e], j = m.triangles[3 * t + (e + 1) % 3];
+      if (i > j) continue;  // each edge of a closed indexed mesh once
+      const Vec3d p = VertexAt(m, i), q = VertexAt(m, j);
+      cuts.clear();
+      y.hierarchy.SegmentCrossings(p, q, &cuts);
+      if (cuts.empty()) continue;
+      cuts.push_back(0);
+      cuts.push_back(1);
+      std::sort(cuts.begin(), cuts.end());
+      for (size_t k = 0; k + 1 < cuts.size(); ++k) {
+        const double s = 0.5 * (cuts[k] + cuts[k + 1]);
+        const Vec3d v{p.x + s * (q.x - p.x), p.y + s * (q.y - p.y), p.z + s * (q.z - p.z)};
+        InsideDeeper(v, y, &deepest2, st);
+      }
+    }
+  return std::sqrt(deepest2);
+}
+
+// The smallest overlap of the two objects' projections over x's face directions, or +infinity.
+double FaceDirectionOverlap(const Impl& x, const Impl& y) {
+  double best = std::numeric_limits<double>::infinity();
+  for (size_t k = 0; k < x.directions.size(); ++k) {
+    const auto [lo, hi] = Impl::ProjectionInterval(y.mesh, x.directions[k]);
+    const double overlap = std::min(x.direction_hi[k] - lo, hi - x.direction_lo[k]);
+    best = std::min(best, overlap + x.projection_slack + y.projection_slack);
+    if (best <= 0) break;
+  }
+  return best;
+}
+
+void SetDepth(const Impl& a, const Impl& b, double gap, double enough, Separation* r, NarrowStats* st) {
   r->depth_upper = std::max(0.0, -gap);
+  if (r->depth_upper > 0 && b.mesh.vertex_count() <= kMaxDepthDirectionVertices &&
+      a.mesh.vertex_count() <= kMaxDepthDirectionVertices) {
+    // y's own slack covers rounding of its vertices' projections on x's directions (as large or larger
+    // coordinates make it larger); both are added.
+    const double faces = std::min(FaceDirectionOverlap(a, b), FaceDirectionOverlap(b, a));
+    r->depth_upper = std::min(r->depth_upper, std::max(0.0, faces));
+  }
   r->distance = -r->depth_upper;
   if (!a.solid() || !b.solid()) return;  // a surface has no inside: depth_lower stays 0
-  const double lower = std::max(DeepestVertex(a, b, st), DeepestVertex(b, a, st));
+  // Vertices first (cheap), then points on edges; each stage only when the bound can still grow.
+  const double stop = std::min(r->depth_upper, enough);
+  double lower = DeepestVertex(a, b, 0, stop, st);
+  lower = DeepestVertex(b, a, lower, stop, st);
+  lower = DeepestEdgePoint(a, b, lower, stop, st);
+  lower = DeepestEdgePoint(b, a, lower, stop, st);
   r->depth_lower = std::min(lower, r->depth_upper);
 }
 
 // A vertex of some component of solid `x` inside solid `y`, when no triangles meet.
 bool ComponentInside(const Impl& x, const Impl& y, Vec3d* point, NarrowStats* st) {
+  // The classifier counts points within its tolerance of y's surface as inside; such a point decides
+  // nothing here (no triangles meet, so it may lie just outside), and a vertex clear of it is used.
+  const double tol2 = 4 * y.classifier->tolerance() * y.classifier->tolerance();
+  bool unsure = false;
   for (uint32_t v : x.component_vertices) {
     const Vec3d p = VertexAt(x.mesh, v);
     if (!y.kdop.Contains(p)) continue;
+    ++st->containment_tests;
+    if (!y.classifier->Contains(p)) continue;
+    if (y.hierarchy.PointDistanceSquared(p, tol2) > tol2) {
+      *point = p;
+      return true;
+    }
+    unsure = true;
+  }
+  if (!unsure) return false;
+  for (size_t i = 0; i < x.mesh.vertex_count(); ++i) {  // rare: any vertex of x clear of y's surface
+    const Vec3d p = VertexAt(x.mesh, i);
+    if (!y.kdop.Contains(p) || y.hierarchy.PointDistanceSquared(p, tol2) <= tol2) continue;
     ++st->containment_tests;
     if (y.classifier->Contains(p)) {
       *point = p;
@@ -207,6 +346,11 @@ bool ComponentInside(const Impl& x, const Impl& y, Vec3d* point, NarrowStats* st
 
 Separation Separate(const ClashShape& shape_a, const ClashShape& shape_b, double max_distance,
                     NarrowStats* stats) {
+  return Separate(shape_a, shape_b, max_distance, stats, SeparateOptions{});
+}
+
+Separation Separate(const ClashShape& shape_a, const ClashShape& shape_b, double max_distance,
+                    NarrowStats* stats, const SeparateOptions& options) {
   const Impl& a = shape_a.impl();
   const Impl& b = shape_b.impl();
   NarrowStats st;
@@ -214,19 +358,21 @@ Separation Separate(const ClashShape& shape_a, const ClashShape& shape_b, double
   r.meeting = Meeting::kApart;
   r.distance = std::numeric_limits<double>::infinity();
   const double limit = max_distance > 0 ? max_distance : 0;
-  const double gap = a.kdop.Gap(b.kdop);
+  const double gap = a.kdop.Gap(b.kdop, std::clamp(options.bound_directions, 1, kKdopDirections));
+  const double full_gap = options.bound_directions >= kKdopDirections ? gap : a.kdop.Gap(b.kdop);
   if (a.hierarchy.triangle_count() == 0 || b.hierarchy.triangle_count() == 0) {
     // Nothing to meet.
   } else if (limit > 0 ? gap >= limit : gap > 0) {
     ++st.bound_rejects;
-  } else if (Vec3d ta[3], tb[3]; FindMeetingTriangles(a, b, ta, tb, &st.triangle_tests)) {
+  } else if (Vec3d ta[3], tb[3]; gap <= 0 && FindMeetingTriangles(a, b, options.brute_force_triangles, ta, tb,
+                                                                  &st.triangle_tests)) {
     r.meeting = Meeting::kSurfacesMeet;
     const ClosestPoints c = TriangleTriangleClosest(ta, tb);
     r.point_a = r.point_b = c.on_a;
-    SetDepth(a, b, gap, &r, &st);
+    SetDepth(a, b, full_gap, options.depth_lower_enough, &r, &st);
   } else {
     Vec3d p;
-    if (a.solid() && b.solid()) {
+    if (gap <= 0 && a.solid() && b.solid()) {  // a positive bound gap already says apart
       if (ComponentInside(a, b, &p, &st))
         r.meeting = Meeting::kAInsideB;
       else if (ComponentInside(b, a, &p, &st))
@@ -234,7 +380,7 @@ Separation Separate(const ClashShape& shape_a, const ClashShape& shape_b, double
     }
     if (r.meeting != Meeting::kApart) {
       r.point_a = r.point_b = p;
-      SetDepth(a, b, gap, &r, &st);
+      SetDepth(a, b, full_gap, options.depth_lower_enough, &r, &st);
     } else if (limit > 0) {
       ClosestPoints c;
       if (TriangleHierarchy::ClosestBelow(a.hierarchy, b.hierarchy, limit, &c, &st.triangle_tests)) {

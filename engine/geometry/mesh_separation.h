@@ -13,9 +13,10 @@
 // pair (exact, engine/geometry/triangle_pair.h) through the triangle hierarchies, or all filtered pairs
 // when both meshes have at most kBruteForceTriangles triangles; then, for two solids, one vertex of each
 // connected component against the other's solid (SolidClassifier); then the gap (hierarchy distance).
-// Depth bounds of meeting pairs: depth_upper = the smallest overlap of the two 26-DOPs' intervals over
-// the 13 directions (normalised), depth_lower = the largest distance from a vertex of one solid inside
-// the other solid to the other's surface (0 when no vertex is inside, or when either is a surface),
+// Depth bounds of meeting pairs: depth_upper = the smallest overlap of the two objects' projection
+// intervals over the 13 26-DOP directions and the face normals of small meshes, depth_lower = the largest
+// distance to the other's surface of a point of one solid's surface inside the other solid (vertices, and
+// edge points between the other surface's crossings; 0 when none is inside, or when either is a surface),
 // clamped to depth_upper.
 //
 // Thread-safety: a ClashShape is immutable after construction and may be shared by threads; Separate is
@@ -24,6 +25,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <optional>
 
@@ -99,6 +101,12 @@ struct Separation {
 // mesh's box instead of walking the hierarchies.
 inline constexpr size_t kBruteForceTriangles = 32;
 
+// Meshes with at most this many triangles and vertices keep up to kMaxDepthDirections distinct face
+// normals as extra directions for depth_upper (each costs a pass over the other mesh's vertices).
+inline constexpr size_t kMaxDepthDirectionTriangles = 512;
+inline constexpr size_t kMaxDepthDirectionVertices = 1024;
+inline constexpr size_t kMaxDepthDirections = 64;
+
 // OK when ClashShape's preconditions hold (finite vertices, indices in range, whole triangles); else
 // InvalidArgument naming the first bad vertex or triangle (the caller adds the file or object name).
 Status ValidateClashMesh(const Mesh& mesh);
@@ -106,5 +114,19 @@ Status ValidateClashMesh(const Mesh& mesh);
 // The separation of `a` and `b`. The gap of pairs apart is computed only when it is < `max_distance`
 // (the clearance C; 0 asks only whether they meet); pairs farther report +infinity. `stats` may be null.
 Separation Separate(const ClashShape& a, const ClashShape& b, double max_distance, NarrowStats* stats);
+
+// Options; the defaults are what Separate above uses. The first two exist for measurements
+// (bench/narrow_bench.cc); the clash traversal should pass depth_lower_enough = T.
+struct SeparateOptions {
+  int bound_directions = kKdopDirections;  // 3: AABB, 9: 18-DOP, 13: 26-DOP (the rejection test only)
+  size_t brute_force_triangles = kBruteForceTriangles;
+  // Stop raising depth_lower once it exceeds this: a caller that only needs to know whether the depth
+  // exceeds the touch tolerance T passes T (the pair is then hard, and the search for deeper points,
+  // the costliest part of a meeting pair, ends). depth_lower is then still a valid lower bound, but may
+  // depend on the order of the arguments.
+  double depth_lower_enough = std::numeric_limits<double>::infinity();
+};
+Separation Separate(const ClashShape& a, const ClashShape& b, double max_distance, NarrowStats* stats,
+                    const SeparateOptions& options);
 
 }  // namespace mktree

@@ -135,7 +135,8 @@ bool TriangleHierarchy::FindMeeting(const TriangleHierarchy& a, const TriangleHi
   if (a.nodes_.empty() || b.nodes_.empty()) return false;
   uint64_t n_tests = 0;
   bool met = false;
-  std::vector<NodePair> stack;
+  thread_local std::vector<NodePair> stack;  // per thread: no allocation per query
+  stack.clear();
   stack.push_back({0, 0});
   while (!stack.empty() && !met) {
     const NodePair p = stack.back();
@@ -179,7 +180,8 @@ bool TriangleHierarchy::ClosestBelow(const TriangleHierarchy& a, const TriangleH
     uint32_t a, b;
     double d2;
   };
-  std::vector<Item> stack;
+  thread_local std::vector<Item> stack;
+  stack.clear();
   stack.push_back({0, 0, BoxDistanceSquared(a.nodes_[0].box, b.nodes_[0].box)});
   while (!stack.empty()) {
     const Item p = stack.back();
@@ -220,14 +222,15 @@ bool TriangleHierarchy::ClosestBelow(const TriangleHierarchy& a, const TriangleH
   return found;
 }
 
-double TriangleHierarchy::PointDistanceSquared(const Vec3d& p) const {
+double TriangleHierarchy::PointDistanceSquared(const Vec3d& p, double enough) const {
   double best2 = std::numeric_limits<double>::infinity();
   if (nodes_.empty()) return best2;
   struct Item {
     uint32_t node;
     double d2;
   };
-  std::vector<Item> stack;
+  thread_local std::vector<Item> stack;
+  stack.clear();
   stack.push_back({0, PointBoxDistanceSquared(p, nodes_[0].box)});
   while (!stack.empty()) {
     const Item it = stack.back();
@@ -239,6 +242,7 @@ double TriangleHierarchy::PointDistanceSquared(const Vec3d& p) const {
         const Triangle& tr = triangles_[t];
         best2 = std::min(best2, PointTriangleClosest(p, tr[0], tr[1], tr[2]).distance_squared);
       }
+      if (best2 <= enough) return best2;
       continue;
     }
     Item c0{n.first, PointBoxDistanceSquared(p, nodes_[n.first].box)};
@@ -248,6 +252,44 @@ double TriangleHierarchy::PointDistanceSquared(const Vec3d& p) const {
     if (c1.d2 < best2) stack.push_back(c1);
   }
   return best2;
+}
+
+void TriangleHierarchy::SegmentCrossings(const Vec3d& p, const Vec3d& q, std::vector<double>* out) const {
+  if (nodes_.empty()) return;
+  Box3d seg;
+  seg.Extend(p.x, p.y, p.z);
+  seg.Extend(q.x, q.y, q.z);
+  const Vec3d d{q.x - p.x, q.y - p.y, q.z - p.z};
+  thread_local std::vector<uint32_t> stack;
+  stack.assign(1, 0);
+  while (!stack.empty()) {
+    const Node& n = nodes_[stack.back()];
+    stack.pop_back();
+    if (!BoxesMeet(n.box, seg)) continue;
+    if (!n.leaf()) {
+      stack.push_back(n.first);
+      stack.push_back(n.first + 1);
+      continue;
+    }
+    for (uint32_t t = n.first; t < n.first + n.count; ++t) {
+      // Moller-Trumbore on the segment.
+      const Triangle& tr = triangles_[t];
+      const Vec3d e1{tr[1].x - tr[0].x, tr[1].y - tr[0].y, tr[1].z - tr[0].z};
+      const Vec3d e2{tr[2].x - tr[0].x, tr[2].y - tr[0].y, tr[2].z - tr[0].z};
+      const Vec3d h{d.y * e2.z - d.z * e2.y, d.z * e2.x - d.x * e2.z, d.x * e2.y - d.y * e2.x};
+      const double det = e1.x * h.x + e1.y * h.y + e1.z * h.z;
+      if (det == 0) continue;
+      const double f = 1 / det;
+      const Vec3d s{p.x - tr[0].x, p.y - tr[0].y, p.z - tr[0].z};
+      const double u = f * (s.x * h.x + s.y * h.y + s.z * h.z);
+      if (u < 0 || u > 1) continue;
+      const Vec3d c{s.y * e1.z - s.z * e1.y, s.z * e1.x - s.x * e1.z, s.x * e1.y - s.y * e1.x};
+      const double v = f * (d.x * c.x + d.y * c.y + d.z * c.z);
+      if (v < 0 || u + v > 1) continue;
+      const double at = f * (e2.x * c.x + e2.y * c.y + e2.z * c.z);
+      if (at > 0 && at < 1) out->push_back(at);
+    }
+  }
 }
 
 }  // namespace mktree

@@ -58,8 +58,13 @@ class TriangleHierarchy {
   static bool ClosestBelow(const TriangleHierarchy& a, const TriangleHierarchy& b, double bound,
                            ClosestPoints* closest, uint64_t* tests);
 
-  // Squared distance from p to the closest triangle (+infinity for an empty mesh).
-  double PointDistanceSquared(const Vec3d& p) const;
+  // Squared distance from p to the closest triangle (+infinity for an empty mesh). With `enough` > 0 it
+  // may stop at any value <= enough once one is found (for callers that only need "more than enough?").
+  double PointDistanceSquared(const Vec3d& p, double enough = 0) const;
+
+  // Appends to `t` the parameters s in (0, 1) where the segment p + s (q - p) crosses a triangle's plane
+  // inside the triangle (double precision, not exact: for sampling points, not for decisions).
+  void SegmentCrossings(const Vec3d& p, const Vec3d& q, std::vector<double>* t) const;
 
  private:
   void Build(uint32_t self, uint32_t first, uint32_t count, std::vector<Vec3d>& centroids);

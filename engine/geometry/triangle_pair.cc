@@ -132,6 +132,17 @@ ClosestPoints Better(const ClosestPoints& x, const ClosestPoints& y) {
   return y.distance_squared < x.distance_squared ? y : x;
 }
 
+ClosestPoints PointSegmentClosest(const Vec3d& p, const Vec3d& a, const Vec3d& b) {
+  const Vec3d ab = Sub(b, a);
+  const double l2 = Dot(ab, ab);
+  const double s = l2 > 0 ? std::clamp(Dot(Sub(p, a), ab) / l2, 0.0, 1.0) : 0.0;
+  ClosestPoints out;
+  out.on_a = p;
+  out.on_b = Add(a, Scale(ab, s));
+  out.distance_squared = Dist2(p, out.on_b);
+  return out;
+}
+
 // Closest points of segment pq and triangle abc, assuming the segment does not cross the triangle's
 // interior transversally (then a closest pair involves an endpoint or a triangle edge).
 ClosestPoints SegmentTriangleFeatures(const Vec3d& p, const Vec3d& q, const Vec3d& a, const Vec3d& b,
@@ -259,9 +270,9 @@ ClosestPoints PointTriangleClosest(const Vec3d& p, const Vec3d& a, const Vec3d& 
       return out;
     }
   }
-  ClosestPoints best = SegmentSegmentClosest(p, p, a, b);
-  best = Better(best, SegmentSegmentClosest(p, p, b, c));
-  best = Better(best, SegmentSegmentClosest(p, p, c, a));
+  ClosestPoints best = PointSegmentClosest(p, a, b);
+  best = Better(best, PointSegmentClosest(p, b, c));
+  best = Better(best, PointSegmentClosest(p, c, a));
   return best;
 }
 

@@ -7,6 +7,7 @@
 #include <limits>
 #include <numbers>
 #include <random>
+#include <thread>
 #include <vector>
 
 #include "engine/geometry/mesh_edges.h"
@@ -73,11 +74,21 @@ Truth BruteForce(const Mesh& a, const Mesh& b, double reach) {
       }
   const bool sa = IsClosedMesh(a) && a.triangle_count() > 0, sb = IsClosedMesh(b) && b.triangle_count() > 0;
   if (sa && sb) {
-    // With no triangles meeting, each connected component is wholly in or out: test every vertex.
-    for (size_t i = 0; i < a.vertex_count(); ++i)
-      if (PointInSolid(b, testing::VertexOf(a, i))) return {Meeting::kAInsideB, 0};
-    for (size_t i = 0; i < b.vertex_count(); ++i)
-      if (PointInSolid(a, testing::VertexOf(b, i))) return {Meeting::kBInsideA, 0};
+    // With no triangles meeting, each connected component is wholly in or out: test every vertex that is
+    // clear of the other's surface (the classifier counts points within its tolerance as inside).
+    auto inside = [](const Mesh& x, const Mesh& y) {
+      SolidClassifierOptions many;
+      many.expected_queries = x.vertex_count();
+      const SolidClassifier in_y(y, many);
+      const double clear = 2 * in_y.tolerance();
+      for (size_t i = 0; i < x.vertex_count(); ++i) {
+        const Vec3d v = testing::VertexOf(x, i);
+        if (in_y.Contains(v) && testing::SurfaceDistance(y, v) > clear) return true;
+      }
+      return false;
+    };
+    if (inside(a, b)) return {Meeting::kAInsideB, 0};
+    if (inside(b, a)) return {Meeting::kBInsideA, 0};
   }
   for (const Tri* x : na)
     for (const Tri* y : nb)
@@ -210,12 +221,26 @@ TEST(Separate, BoxesOverlappingByOneMillimetre) {
   }
 }
 
+// A gap far below the point classifier's surface tolerance is still a gap, not containment.
+TEST(Separate, GapBelowTheSurfaceToleranceIsApart) {
+  const Mesh a = BoxMesh({0, 0, 0}, {1, 1, 1});
+  for (double gap : {1e-12, 1e-14}) {
+    const Mesh b = Shifted(BoxMesh({1, 0.25, 0.25}, {2, 0.75, 0.75}), {gap, 0, 0});
+    const Separation r = Check(a, b, 0.01, "tiny gap");
+    EXPECT_EQ(r.meeting, Meeting::kApart);
+    EXPECT_NEAR(r.distance, gap, 1e-15);
+    EXPECT_GT(r.distance, 0);
+  }
+}
+
 TEST(Separate, PipeThroughPlate) {
   const Mesh pipe = PipeMesh(16, 0.05, -1, 1), plate = BoxMesh({-1, -1, -0.01}, {1, 1, 0.01});
   const Separation r = Check(pipe, plate, 0, "pipe, plate");
   EXPECT_EQ(r.meeting, Meeting::kSurfacesMeet);
-  EXPECT_EQ(r.depth_lower, 0);    // no vertex of either is inside the other
-  EXPECT_GT(r.depth_upper, 0.9);  // so the clash is hard, its depth inexact
+  // No vertex of either is inside the other, but the plate's diagonal edges run through the pipe's axis:
+  // their midpoint there is the pipe's inradius from its surface.
+  EXPECT_NEAR(r.depth_lower, 0.05 * std::cos(std::numbers::pi / 16), 1e-6);
+  EXPECT_GT(r.depth_upper, 0.9);
   EXPECT_NEAR(std::fabs(r.point_a.z), 0.01, 1e-6);
 }
 
@@ -322,6 +347,50 @@ TEST(Separate, RandomSmallMeshesAgainstBruteForce) {
   EXPECT_GT(near, 30);
 }
 
+// Two overlapping axis-aligned boxes: the penetration depth is exactly the smallest overlap of their
+// x, y and z intervals. Both bounds must hold; the upper one is exact here.
+TEST(Separate, DepthBoundsHoldForOverlappingBoxes) {
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(0, 1);
+  int exact = 0;
+  for (int i = 0; i < 300; ++i) {
+    Vec3d lo[2], hi[2];
+    for (int k = 0; k < 2; ++k) {
+      lo[k] = {u(rng), u(rng), u(rng)};
+      hi[k] = {lo[k].x + 0.2 + u(rng), lo[k].y + 0.2 + u(rng), lo[k].z + 0.2 + u(rng)};
+    }
+    const Mesh a = BoxMesh(lo[0], hi[0]), b = BoxMesh(lo[1], hi[1]);
+    // The depth of the boxes as stored (BoxMesh rounds corners to float).
+    const Box3d ba = a.Bounds(), bb = b.Bounds();
+    double depth = kInf;
+    for (int k = 0; k < 3; ++k)
+      depth = std::min(depth, std::min(ba.max[k] - bb.min[k], bb.max[k] - ba.min[k]));
+    if (depth < 0) continue;
+    const ClashShape sa(a), sb(b);
+    const Separation r = Separate(sa, sb, 0, nullptr);
+    ASSERT_NE(r.meeting, Meeting::kApart);
+    EXPECT_LE(r.depth_lower, depth + 1e-12);
+    EXPECT_GE(r.depth_upper, depth - 1e-12);
+    EXPECT_NEAR(r.depth_upper, depth, 1e-12);
+    exact += r.depth_lower > depth - 1e-9;
+    // The options change the work, never the answer (depth_lower: only how far it is raised).
+    SeparateOptions aabb;
+    aabb.bound_directions = kAabbDirections;
+    aabb.brute_force_triangles = 0;
+    const Separation s = Separate(sa, sb, 0, nullptr, aabb);
+    EXPECT_EQ(s.meeting, r.meeting);
+    EXPECT_EQ(s.depth_upper, r.depth_upper);
+    EXPECT_EQ(s.depth_lower, r.depth_lower);
+    SeparateOptions enough;
+    enough.depth_lower_enough = 0.002;
+    const Separation e = Separate(sa, sb, 0, nullptr, enough);
+    EXPECT_EQ(e.depth_upper, r.depth_upper);
+    EXPECT_LE(e.depth_lower, r.depth_lower);
+    EXPECT_GE(e.depth_lower, std::min(r.depth_lower, 0.002));
+  }
+  EXPECT_GT(exact, 10);  // a box corner deep inside the other makes the lower bound exact too
+}
+
 TEST(Separate, TranslationInvariance) {
   const Mesh a = Transformed(BoxMesh({0, 0, 0}, {1, 0.5, 0.2}), 0.4, {1, 2, 3}, {0, 0, 0});
   const Mesh b = Transformed(UvSphereMesh(8, 12, 0.3), 0.1, {0, 0, 1}, {1.1, 0.3, 0.2});
@@ -334,6 +403,37 @@ TEST(Separate, TranslationInvariance) {
     EXPECT_EQ(s.meeting, r.meeting);
     EXPECT_NEAR(s.distance, r.distance, 1e-11 * (1 + std::fabs(d.x)));
     EXPECT_NEAR(s.point_a.x - d.x, r.point_a.x, 1e-9 * (1 + std::fabs(d.x)));
+  }
+}
+
+// Shapes are shared read-only by threads (the per-thread scratch must not leak between them).
+TEST(Separate, ConcurrentCallsAgreeWithOneThread) {
+  std::vector<Mesh> meshes;
+  for (int i = 0; i < 12; ++i) {
+    meshes.push_back(Transformed(UvSphereMesh(8, 10, 0.4), 0.1 * i, {1, 0, 1}, {0.3 * i, 0.1 * (i % 3), 0}));
+    meshes.push_back(BoxMesh({0.3 * i, 0, 0}, {0.3 * i + 0.05, 0.05, 0.05}));  // small: brute-force path
+  }
+  std::vector<ClashShape> shapes;
+  for (const Mesh& m : meshes) shapes.emplace_back(m);
+  auto all = [&] {
+    std::vector<Separation> out;
+    for (size_t i = 0; i < shapes.size(); ++i)
+      for (size_t j = i + 1; j < shapes.size(); ++j)
+        out.push_back(Separate(shapes[i], shapes[j], 0.2, nullptr));
+    return out;
+  };
+  const std::vector<Separation> want = all();
+  std::vector<std::vector<Separation>> got(4);
+  std::vector<std::thread> threads;
+  for (auto& g : got) threads.emplace_back([&g, &all] { g = all(); });
+  for (auto& t : threads) t.join();
+  for (const auto& g : got) {
+    ASSERT_EQ(g.size(), want.size());
+    for (size_t k = 0; k < g.size(); ++k) {
+      EXPECT_EQ(g[k].meeting, want[k].meeting);
+      EXPECT_EQ(g[k].distance, want[k].distance);
+      EXPECT_EQ(g[k].depth_lower, want[k].depth_lower);
+    }
   }
 }
 
