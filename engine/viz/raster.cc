@@ -188,10 +188,12 @@ void Rasterizer::Triangle(double ax, double ay, double ad, double bx, double by,
   }
   const double minx = std::min({ax, bx, cx}), maxx = std::max({ax, bx, cx});
   const double miny = std::min({ay, by, cy}), maxy = std::max({ay, by, cy});
-  const int x0 = std::max(0, static_cast<int>(std::floor(minx))),
-            x1 = std::min<int>(w_ - 1, static_cast<int>(std::floor(maxx)));
-  const int y0 = std::max(0, static_cast<int>(std::floor(miny))),
-            y1 = std::min<int>(h_ - 1, static_cast<int>(std::floor(maxy)));
+  // Culled before the casts: a focused view puts far triangles at coordinates no int holds.
+  if (maxx < 0 || maxy < 0 || minx >= w_ || miny >= h_) return;
+  const int x0 = static_cast<int>(std::floor(std::max(minx, 0.0))),
+            x1 = static_cast<int>(std::floor(std::min(maxx, w_ - 1.0)));
+  const int y0 = static_cast<int>(std::floor(std::max(miny, 0.0))),
+            y1 = static_cast<int>(std::floor(std::min(maxy, h_ - 1.0)));
   if (x0 > x1 || y0 > y1) return;
   // Edge e(p) = (q - p0) x (p - p0) for each edge p0 -> q; inside when all three are >= 0. Conservative:
   // accept a sample when the edge passes within its half-sample square (margin = L1 norm of the edge / 2).
@@ -274,7 +276,7 @@ Shader::Shader(const Frame& f, const Box3f& bounds) : f_(f) {
 }
 
 uint64_t Shader::Draw(const Mesh& mesh, Rgb base, uint32_t object, uint8_t layer, uint32_t ss,
-                      Rasterizer* raster) const {
+                      Rasterizer* raster, double fade) const {
   const Frame& f = f_;
   const double* light = light_;
   uint64_t drawn = 0;
@@ -291,8 +293,10 @@ uint64_t Shader::Draw(const Mesh& mesh, Rgb base, uint32_t object, uint8_t layer
     const double dc = (f.D(p[0]) + f.D(p[1]) + f.D(p[2])) / 3;
     const double cue = 0.72 + 0.28 * std::clamp((dc - d_lo_) / d_span_, 0.0, 1.0);
     const double shade = (0.40 + 0.60 * lambert) * cue;
-    const Rgb c{static_cast<uint8_t>(base.r * shade), static_cast<uint8_t>(base.g * shade),
-                static_cast<uint8_t>(base.b * shade)};
+    Rgb c{static_cast<uint8_t>(base.r * shade), static_cast<uint8_t>(base.g * shade),
+          static_cast<uint8_t>(base.b * shade)};
+    if (fade > 0)
+      for (uint8_t* v : {&c.r, &c.g, &c.b}) *v = static_cast<uint8_t>(*v + std::lround((255 - *v) * fade));
     raster->Triangle(f.X(f.U(p[0])) * ss, f.Y(f.V(p[0])) * ss, f.D(p[0]), f.X(f.U(p[1])) * ss,
                      f.Y(f.V(p[1])) * ss, f.D(p[1]), f.X(f.U(p[2])) * ss, f.Y(f.V(p[2])) * ss, f.D(p[2]), c,
                      object, layer);

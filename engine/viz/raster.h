@@ -111,9 +111,9 @@ class Shader {
  public:
   Shader(const Frame& f, const Box3f& bounds);
   // Rasterizes every triangle of `mesh` (store frame) in `base` colour shaded; returns the count drawn.
-  // `ss` is the samples per pixel along each axis.
-  uint64_t Draw(const Mesh& mesh, Rgb base, uint32_t object, uint8_t layer, uint32_t ss,
-                Rasterizer* raster) const;
+  // `ss` is the samples per pixel along each axis; `fade` in [0, 1] blends the shaded colour toward white.
+  uint64_t Draw(const Mesh& mesh, Rgb base, uint32_t object, uint8_t layer, uint32_t ss, Rasterizer* raster,
+                double fade = 0) const;
 
  private:
   Frame f_;
