@@ -36,7 +36,7 @@ class LineParser {
   explicit LineParser(std::string_view s) : s_(s) {}
 
   struct Fields {
-    std::string_view a, b, cls;  // raw texts (numbers as written; the class without its quotes)
+    std::string_view a, b, cls;  // values as written (the class without its quotes if a string)
     bool has_a = false, has_b = false, has_cls = false;
     bool cls_is_string = false;
   };
@@ -69,7 +69,7 @@ class LineParser {
         if (seen) {
           if (*seen) return "key \"" + std::string(key) + "\" given twice";
           *seen = true;
-          *slot = is_string ? text.substr(1, text.size() - 2) : text;
+          *slot = is_string && slot == &out->cls ? text.substr(1, text.size() - 2) : text;
         }
         Ws();
         if (Eat('}')) break;

@@ -126,6 +126,7 @@ Result<ClashRenderReport> RenderClashes(const StoreReader& store, const ClashMar
                                    " leaves no room for the picture above the legend");
   const viz::Frame f = viz::FitFrame(o.view, report.framed, margin, area_w, area_h);
   report.pixels_per_metre = f.scale;
+  report.frame = f;
   const viz::Shader shader(f, report.framed);
 
   viz::Rasterizer raster(o.width * ss, o.height * ss);

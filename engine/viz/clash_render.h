@@ -49,8 +49,9 @@ struct ClashRenderReport {
   uint64_t triangles = 0;                         // triangles rasterized
   uint32_t samples_per_pixel = 1;
   double pixels_per_metre = 0;
-  Box3f framed;    // the box fitted to the picture (store frame)
-  Box3f pair_box;  // with focus: the union of the pair's boxes, outlined in the picture
+  Box3f framed;      // the box fitted to the picture (store frame)
+  Box3f pair_box;    // with focus: the union of the pair's boxes, outlined in the picture
+  viz::Frame frame;  // store frame to output pixels
 };
 
 // Renders `store` with the objects of `marks` (read for this store: marks.worst has one byte per object)
