@@ -8,12 +8,15 @@
 #include <gtest/gtest.h>
 #include <png.h>
 
+#include <array>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 
 #include "engine/ingest/store_builder.h"
 #include "engine/scene/obj_reader.h"
 #include "engine/viz/clash_pairs_file.h"
+#include "engine/viz/level_export.h"
 #include "test_dirs.h"
 #include "tool_runner.h"
 
@@ -375,6 +378,85 @@ TEST_P(ClashRenderTest, ToolPrintsCountsAndRefusesMalformedPairs) {
   EXPECT_EQ(run.code, 0) << run.err;
   EXPECT_TRUE(fs::exists(png));
   fs::remove(png);
+}
+
+// export --clashes: the PLY's vertex colours are the clash colours, each where its objects are; the GLB has
+// one mesh per class present.
+TEST_P(ClashRenderTest, ExportColoursVerticesByClass) {
+  auto marks = ReadClashPairs(pairs_, kObjects);
+  ASSERT_TRUE(marks.ok()) << marks.status().ToString();
+  const std::string ply = TempPath("clash_" + name_ + ".ply"), glb = TempPath("clash_" + name_ + ".glb");
+  ExportOptions o;
+  o.clashes = &*marks;
+  auto r = ExportLevel(*reader_, ply, o);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_EQ(r->objects[int(ClashClass::kHard)], 2u);
+  EXPECT_EQ(r->objects[int(ClashClass::kTouch)], 2u);
+  EXPECT_EQ(r->objects[int(ClashClass::kClearance)], 0u);
+  EXPECT_EQ(r->objects[int(ClashClass::kNone)], kObjects - 4);
+  const std::string text = testing::Slurp(ply);
+  const std::string end = "end_header\n";
+  const size_t body = text.find(end);
+  ASSERT_NE(body, std::string::npos);
+  EXPECT_NE(text.find("comment mktree export: clashes"), std::string::npos);
+  const uint64_t nv = r->total_vertices();
+  ASSERT_GE(text.size(), body + end.size() + 15 * nv);
+  std::array<uint64_t, kClashClasses> seen{};
+  for (uint64_t i = 0; i < nv; ++i) {
+    const char* v = text.data() + body + end.size() + 15 * i;
+    float xyz[3];
+    std::memcpy(xyz, v, 12);
+    const Rgb c{static_cast<uint8_t>(v[12]), static_cast<uint8_t>(v[13]), static_cast<uint8_t>(v[14])};
+    int cls = -1;
+    for (int k = 0; k < kClashClasses; ++k)
+      if (c == ClashColour(static_cast<ClashClass>(k))) cls = k;
+    ASSERT_GE(cls, 0) << "vertex " << i << " has a colour of no class";
+    ++seen[cls];
+    auto inside = [&](const Box3d& b) {
+      for (int k = 0; k < 3; ++k)
+        if (xyz[k] < b.min[k] - 1e-4 || xyz[k] > b.max[k] + 1e-4) return false;
+      return true;
+    };
+    if (cls == int(ClashClass::kHard)) {
+      EXPECT_TRUE(inside(kA) || inside(kB)) << xyz[0] << " " << xyz[1];
+    }
+    if (cls == int(ClashClass::kTouch)) {
+      EXPECT_TRUE(inside(kC) || inside(kD)) << xyz[0] << " " << xyz[1];
+    }
+  }
+  for (int k = 0; k < kClashClasses; ++k) EXPECT_EQ(seen[k], r->vertices[k]) << k;
+  EXPECT_GT(seen[int(ClashClass::kHard)], 0u);
+
+  o.boxes = true;
+  o.format = ExportFormat::kGlb;
+  r = ExportLevel(*reader_, glb, o);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_EQ(r->vertices[int(ClashClass::kHard)], 16u);
+  const std::string g = testing::Slurp(glb);
+  EXPECT_NE(g.find("\"name\":\"hard\""), std::string::npos);
+  EXPECT_NE(g.find("\"name\":\"touch\""), std::string::npos);
+  EXPECT_NE(g.find("\"name\":\"no_clash\""), std::string::npos);
+  EXPECT_EQ(g.find("\"name\":\"clearance\""), std::string::npos);
+  EXPECT_NE(g.find("mktree export (clashes)"), std::string::npos);
+
+  // The tool: counts on stdout; a malformed pairs file leaves no output.
+  const fs::path scratch = Dir().path();
+  fs::remove(ply);
+  auto run = testing::RunMktree("export " + store_ + " --clashes " + pairs_ + " -o " + ply, scratch);
+  ASSERT_EQ(run.code, 0) << run.err;
+  EXPECT_NE(run.out.find("(hard 2, touch 2, clearance 0, no clash " + std::to_string(kObjects - 4) + ")"),
+            std::string::npos)
+      << run.out;
+  fs::remove(ply);
+  const std::string bad = TempPath("bad_export.jsonl");
+  WriteFile(bad, "{\"a\": 5, \"b\": 4, \"class\": \"hard\"}\n");
+  run = testing::RunMktree("export " + store_ + " --clashes " + bad + " -o " + ply, scratch);
+  EXPECT_EQ(run.code, 1);
+  EXPECT_NE(run.err.find(bad + ":1: a = 5 and b = 4"), std::string::npos) << run.err;
+  EXPECT_FALSE(fs::exists(ply));
+  run = testing::RunMktree("export " + store_ + " -o " + ply, scratch);
+  EXPECT_EQ(run.code, 1);
+  EXPECT_NE(run.err.find("exactly one"), std::string::npos) << run.err;
 }
 
 INSTANTIATE_TEST_SUITE_P(Backends, ClashRenderTest, ::testing::Values(Backend::kPagedFile, Backend::kHdf5),
