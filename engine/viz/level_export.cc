@@ -1,6 +1,7 @@
 #include "engine/viz/level_export.h"
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cctype>
 #include <charconv>
@@ -11,6 +12,7 @@
 #include <vector>
 
 #include "engine/store/leaf_reader.h"
+#include "engine/viz/clash_render.h"
 #include "engine/viz/spool_file.h"
 
 namespace mktree {
@@ -46,11 +48,45 @@ std::string Num(double v) {
   return std::string(b, std::to_chars(b, b + sizeof b, v).ptr);
 }
 
+// What the groups are called and coloured: the level-k groups (GroupIndex) or the clash classes (ClashClass).
+struct Palette {
+  std::array<Rgb, kLevelGroups> colour;
+  std::array<std::string, kLevelGroups> name;
+  std::string comment;    // the PLY comment's colouring
+  std::string generator;  // in the glTF asset's generator
+};
+
+Palette LevelPalette(int level) {
+  Palette p;
+  for (int g = 0; g < kLevelGroups; ++g) {
+    p.colour[g] = GroupColour(static_cast<LevelGroup>(g));
+    p.name[g] = GroupName(static_cast<LevelGroup>(g));
+  }
+  p.comment = "level " + std::to_string(level) +
+              " colouring: blue Sn1 side, red Sn2 side, green overlap set Sm, grey leaf at depth <= " +
+              std::to_string(level);
+  p.generator = "level " + std::to_string(level);
+  return p;
+}
+
+Palette ClashPalette() {
+  static_assert(kClashClasses == kLevelGroups);
+  Palette p;
+  for (int c = 0; c < kClashClasses; ++c) {
+    p.colour[c] = ClashColour(static_cast<ClashClass>(c));
+    p.name[c] = c == 0 ? "no_clash" : ClashClassName(static_cast<ClashClass>(c));
+  }
+  p.comment =
+      "clashes: red hard, orange touch, yellow clearance (worst class of each object), grey in no pair";
+  p.generator = "clashes";
+  return p;
+}
+
 // Where exported objects go: one call per object, then Finish.
 class GeometrySink {
  public:
   virtual ~GeometrySink() = default;
-  virtual Status Add(LevelGroup g, const float* xyz, uint32_t vertices, const uint32_t* tris,
+  virtual Status Add(int g, const float* xyz, uint32_t vertices, const uint32_t* tris,
                      uint32_t triangles) = 0;
   virtual Status Finish(AtomicFile* out) = 0;
 };
@@ -63,15 +99,14 @@ Status SpoolError(const std::string& path) {
 // PLY wants after all vertices) go to a scratch file that is appended.
 class PlySink final : public GeometrySink {
  public:
-  static Result<std::unique_ptr<PlySink>> Create(AtomicFile* out, int level, const Vec3d& origin) {
+  static Result<std::unique_ptr<PlySink>> Create(AtomicFile* out, const Palette& palette,
+                                                 const Vec3d& origin) {
     auto faces = OpenSpoolFile(out->target());
     if (!faces.ok()) return faces.status();
-    auto sink = std::unique_ptr<PlySink>(new PlySink(out, std::move(*faces)));
-    std::string h = "ply\nformat binary_little_endian 1.0\ncomment mktree export: level " +
-                    std::to_string(level) +
-                    " colouring: blue Sn1 side, red Sn2 side, green overlap set Sm, grey leaf at depth <= " +
-                    std::to_string(level) + "\ncomment origin " + Num(origin.x) + " " + Num(origin.y) + " " +
-                    Num(origin.z) + " (world = vertex + origin)\nelement vertex ";
+    auto sink = std::unique_ptr<PlySink>(new PlySink(out, std::move(*faces), palette));
+    std::string h = "ply\nformat binary_little_endian 1.0\ncomment mktree export: " + palette.comment +
+                    "\ncomment origin " + Num(origin.x) + " " + Num(origin.y) + " " + Num(origin.z) +
+                    " (world = vertex + origin)\nelement vertex ";
     sink->vertex_count_at_ = h.size();
     h += std::string(kDigits, '0');
     h += "\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\nproperty uchar green\n"
@@ -83,10 +118,10 @@ class PlySink final : public GeometrySink {
     return sink;
   }
 
-  Status Add(LevelGroup g, const float* xyz, uint32_t nv, const uint32_t* tris, uint32_t nt) override {
+  Status Add(int g, const float* xyz, uint32_t nv, const uint32_t* tris, uint32_t nt) override {
     if (vertices_ + nv > std::numeric_limits<uint32_t>::max())
       return Status::InvalidArgument(path_ + ": more than 2^32 - 1 vertices (PLY indices are uint32)");
-    const Rgb c = GroupColour(g);
+    const Rgb c = palette_.colour[g];
     buf_.resize(size_t{15} * nv);
     for (uint32_t i = 0; i < nv; ++i) {
       uint8_t* p = buf_.data() + size_t{15} * i;
@@ -121,7 +156,8 @@ class PlySink final : public GeometrySink {
 
  private:
   static constexpr int kDigits = 10;  // up to 2^32 - 1, zero-padded: PLY readers parse counts as integers
-  PlySink(AtomicFile* out, FilePtr faces) : path_(out->target()), faces_(std::move(faces)), out_(out) {}
+  PlySink(AtomicFile* out, FilePtr faces, const Palette& palette)
+      : path_(out->target()), faces_(std::move(faces)), out_(out), palette_(palette) {}
 
   static Status Patch(AtomicFile* out, size_t at, uint64_t value) {
     char digits[kDigits + 1];
@@ -132,6 +168,7 @@ class PlySink final : public GeometrySink {
   std::string path_;
   FilePtr faces_;
   AtomicFile* out_ = nullptr;
+  Palette palette_;
   std::vector<uint8_t> buf_;
   uint64_t vertices_ = 0, faces_count_ = 0;
   size_t vertex_count_at_ = 0, face_count_at_ = 0;
@@ -146,8 +183,9 @@ double SrgbToLinear(uint8_t c) {
 // needs every size) and then the binary chunk from the spools.
 class GlbSink final : public GeometrySink {
  public:
-  static Result<std::unique_ptr<GlbSink>> Create(const std::string& path, int level, const Vec3d& origin) {
-    auto sink = std::unique_ptr<GlbSink>(new GlbSink(path, level, origin));
+  static Result<std::unique_ptr<GlbSink>> Create(const std::string& path, const Palette& palette,
+                                                 const Vec3d& origin) {
+    auto sink = std::unique_ptr<GlbSink>(new GlbSink(path, palette, origin));
     for (Group& g : sink->groups_) {
       auto p = OpenSpoolFile(path);
       if (!p.ok()) return p.status();
@@ -159,8 +197,8 @@ class GlbSink final : public GeometrySink {
     return sink;
   }
 
-  Status Add(LevelGroup lg, const float* xyz, uint32_t nv, const uint32_t* tris, uint32_t nt) override {
-    Group& g = groups_[GroupIndex(lg)];
+  Status Add(int gi, const float* xyz, uint32_t nv, const uint32_t* tris, uint32_t nt) override {
+    Group& g = groups_[gi];
     if (g.vertices + nv > std::numeric_limits<uint32_t>::max())
       return Status::InvalidArgument(path_ +
                                      ": more than 2^32 - 1 vertices in one group (glTF uint32 indices)");
@@ -185,9 +223,8 @@ class GlbSink final : public GeometrySink {
     for (int gi = 0; gi < kLevelGroups; ++gi) {
       const Group& g = groups_[gi];
       if (g.triangles == 0) continue;
-      const LevelGroup lg = static_cast<LevelGroup>(gi);
-      const Rgb c = GroupColour(lg);
-      const std::string name = GroupName(lg), sep = n ? "," : "";
+      const Rgb c = palette_.colour[gi];
+      const std::string name = palette_.name[gi], sep = n ? "," : "";
       const std::string s = std::to_string(n);
       scene_nodes += sep + s;
       nodes += sep + "{\"name\":\"" + name + "\",\"mesh\":" + s + ",\"translation\":[" + Num(origin_.x) +
@@ -212,9 +249,8 @@ class GlbSink final : public GeometrySink {
           ",\"componentType\":5125,\"count\":" + std::to_string(3 * g.triangles) + ",\"type\":\"SCALAR\"}";
       ++n;
     }
-    std::string json = "{\"asset\":{\"version\":\"2.0\",\"generator\":\"mktree export (level " +
-                       std::to_string(level_) + ")\"},\"scene\":0,\"scenes\":[{\"nodes\":[" + scene_nodes +
-                       "]}]";
+    std::string json = "{\"asset\":{\"version\":\"2.0\",\"generator\":\"mktree export (" +
+                       palette_.generator + ")\"},\"scene\":0,\"scenes\":[{\"nodes\":[" + scene_nodes + "]}]";
     if (n) {
       json += ",\"nodes\":[" + nodes + "],\"meshes\":[" + meshes + "],\"materials\":[" + materials +
               "],\"buffers\":[{\"byteLength\":" + std::to_string(offset) + "}],\"bufferViews\":[" + views +
@@ -253,10 +289,10 @@ class GlbSink final : public GeometrySink {
     float max[3] = {std::numeric_limits<float>::lowest(), std::numeric_limits<float>::lowest(),
                     std::numeric_limits<float>::lowest()};
   };
-  GlbSink(std::string path, int level, const Vec3d& origin)
-      : path_(std::move(path)), level_(level), origin_(origin) {}
+  GlbSink(std::string path, const Palette& palette, const Vec3d& origin)
+      : path_(std::move(path)), palette_(palette), origin_(origin) {}
   std::string path_;
-  int level_;
+  Palette palette_;
   Vec3d origin_;
   Group groups_[kLevelGroups];
   std::vector<uint32_t> idx_;
@@ -268,15 +304,21 @@ Result<ExportReport> ExportLevel(const StoreReader& store, const std::string& ou
                                  const ExportOptions& options) {
   if (options.level < 0)
     return Status::InvalidArgument("level " + std::to_string(options.level) + ": levels start at 0");
+  const ClashMarks* clashes = options.clashes;
+  if (clashes && clashes->worst.size() != store.object_count())
+    return Status::InvalidArgument(store.path() + ": the clash marks were read for " +
+                                   std::to_string(clashes->worst.size()) + " objects, the store has " +
+                                   std::to_string(store.object_count()));
+  const Palette palette = clashes ? ClashPalette() : LevelPalette(options.level);
   auto out = AtomicFile::Create(out_path);
   if (!out.ok()) return out.status();
   std::unique_ptr<GeometrySink> sink;
   if (options.format == ExportFormat::kPly) {
-    auto s = PlySink::Create(out->get(), options.level, store.tree().origin);
+    auto s = PlySink::Create(out->get(), palette, store.tree().origin);
     if (!s.ok()) return s.status();
     sink = std::move(*s);
   } else {
-    auto s = GlbSink::Create(out_path, options.level, store.tree().origin);
+    auto s = GlbSink::Create(out_path, palette, store.tree().origin);
     if (!s.ok()) return s.status();
     sink = std::move(*s);
   }
@@ -285,15 +327,15 @@ Result<ExportReport> ExportLevel(const StoreReader& store, const std::string& ou
   std::vector<float> xyz;  // store frame, float32 as both formats hold positions
   float corners[24];
   Status st = ForEachObjectAtLevel(
-      store, options.level,
-      [&](uint32_t, const ObjectEntryView& e, LevelGroup g) -> Status {
-        const int gi = GroupIndex(g);
+      store, clashes ? 0 : options.level,
+      [&](uint32_t, const ObjectEntryView& e, LevelGroup lg) -> Status {
+        const int gi = clashes ? clashes->worst[e.id] : GroupIndex(lg);
         ++report.objects[gi];
         if (options.boxes) {
           BoxCorners(e.box, corners);
           report.vertices[gi] += 8;
           report.triangles[gi] += 12;
-          return sink->Add(g, corners, 8, kBoxTriangles, 12);
+          return sink->Add(gi, corners, 8, kBoxTriangles, 12);
         }
         MKTREE_RETURN_IF_ERROR(DecodeStoredMesh(store.path(), e, &mesh));
         const auto nv = static_cast<uint32_t>(mesh.vertex_count()),
@@ -301,7 +343,7 @@ Result<ExportReport> ExportLevel(const StoreReader& store, const std::string& ou
         report.vertices[gi] += nv;
         report.triangles[gi] += nt;
         xyz.assign(mesh.vertices.begin(), mesh.vertices.end());
-        return sink->Add(g, xyz.data(), nv, mesh.triangles.data(), nt);
+        return sink->Add(gi, xyz.data(), nv, mesh.triangles.data(), nt);
       },
       options.progress);
   if (!st.ok()) return st;

@@ -1,5 +1,5 @@
-// `mktree export`: the level-k colouring (engine/viz/level_colouring.h) written as coloured geometry that
-// MeshLab, Blender and glTF viewers open.
+// `mktree export`: the level-k colouring (engine/viz/level_colouring.h), or the clashes of a pairs file
+// (`clashes`), written as coloured geometry that MeshLab, Blender and glTF viewers open.
 //
 //   PLY (.ply): binary little-endian; one vertex list (float x, y, z; uchar red, green, blue) and one face
 //     list (uchar count, uint indices); each object's vertices carry its group colour. Streamed: vertices
@@ -23,6 +23,7 @@
 #include <string>
 
 #include "engine/store/store_file.h"
+#include "engine/viz/clash_pairs_file.h"
 #include "engine/viz/level_colouring.h"
 #include "mktree/status.h"
 
@@ -37,12 +38,16 @@ struct ExportOptions {
   int level = 0;  // k: colour by the group at the depth-k ancestor (>= 0)
   ExportFormat format = ExportFormat::kPly;
   bool boxes = false;  // AABBs instead of object geometry
+  // Optional: colour by clash class instead of the level-k group (`level` is then unused): each object in
+  // the colour of its worst class (clash_render.h's ClashColour), one glTF mesh per class ("hard",
+  // "touch", "clearance", "no_clash"), and the report's counts indexed by ClashClass. Not owned.
+  const ClashMarks* clashes = nullptr;
   // Optional: (leaves done, leaves total).
   std::function<void(uint64_t, uint64_t)> progress;
 };
 
 struct ExportReport {
-  GroupCounts objects{};  // per group (GroupIndex)
+  GroupCounts objects{};  // per group (GroupIndex), or per ClashClass with `clashes`
   GroupCounts vertices{};
   GroupCounts triangles{};
   uint64_t bytes = 0;  // size of the written file

@@ -13,7 +13,7 @@
 //
 // Rendering: 2 x 2 samples per pixel when the picture has at most 4 Mpixels (1 otherwise), averaged;
 // triangles are rasterized conservatively (every sample whose square the triangle touches), so pipes and
-// plates thinner than a sample still show. Memory: the sample buffers (13 bytes a sample) and one leaf.
+// plates thinner than a sample still show. Memory: the sample buffers (14 bytes a sample) and one leaf.
 //
 // Thread safety: RenderLevel only reads `store`.
 #pragma once
@@ -25,13 +25,10 @@
 
 #include "engine/store/store_file.h"
 #include "engine/viz/level_colouring.h"
+#include "engine/viz/raster.h"
 #include "mktree/status.h"
 
 namespace mktree {
-
-enum class RenderView { kTop, kSide, kFront };
-// "top", "side", "front"; InvalidArgument otherwise.
-const char* RenderViewName(RenderView v);
 
 struct RenderOptions {
   int level = 0;  // k (>= 0)
