@@ -16,6 +16,8 @@ PACKAGES=(
   libpng-dev         # mktree render
   libbenchmark-dev   # bench/
   libspatialindex-dev libsqlite3-dev  # bench/ peers
+  libcgal-dev        # bench/ clash peer, tests/ exact oracle
+  libfcl-dev         # bench/ clash peer
 )
 missing=()
 for p in "${PACKAGES[@]}"; do
