@@ -297,7 +297,8 @@ double SqDist(const Prim& x, const Prim& y) {
 
 class CgalRun {
  public:
-  CgalRun(const std::vector<Obj>& objs, double clearance) : objs_(objs), c_(clearance), side_(objs.size()) {}
+  // side_ has one slot more than objs: the collide query object's (index objs.size()).
+  CgalRun(const std::vector<Obj>& objs, double clearance) : objs_(objs), c_(clearance), side_(objs.size() + 1) {}
 
   // Objects i and j (indexes into objs, or the --object as `query`) given their boxes met grown by C.
   void Test(const Obj& A, const Obj& B, size_t ia, size_t ib, long long a, long long b,
@@ -493,7 +494,7 @@ int Main(int argc, char** argv) {
       CGAL::box_intersection_d(qb.begin(), qb.end(), boxes.begin(), boxes.end(),
                                [&](const ObjBox&, const ObjBox& y) {
                                  size_t j = y.info();
-                                 run.Test(query[0], objs[j], SIZE_MAX, j, -1, objs[j].id, &found);
+                                 run.Test(query[0], objs[j], objs.size(), j, -1, objs[j].id, &found);
                                });
     }
     clash_s = Since(t1);

@@ -18,6 +18,7 @@ PACKAGES=(
   libspatialindex-dev libsqlite3-dev  # bench/ peers
   libcgal-dev        # bench/ clash peer, tests/ exact oracle
   libfcl-dev         # bench/ clash peer
+  time               # /usr/bin/time: peak RSS of the engines scripts/bench_clash.py runs
 )
 missing=()
 for p in "${PACKAGES[@]}"; do

@@ -198,7 +198,9 @@ TEST_P(ClashBackends, SelfClashMatchesBruteForceForEveryCacheSize) {
     for (const auto& p : want) ++classes[static_cast<int>(p.cls)];
     EXPECT_GT(classes[0], 0u);
     EXPECT_GT(classes[1], 0u);
-    if (c > 0) EXPECT_GT(classes[2], 0u);
+    if (c > 0) {
+      EXPECT_GT(classes[2], 0u);
+    }
     // The planted contained pairs are found by containment, not by crossing triangles.
     EXPECT_TRUE(std::any_of(want.begin(), want.end(), [](const ClashPair& p) {
       return p.meeting == ClashMeeting::kAInsideB || p.meeting == ClashMeeting::kBInsideA;
@@ -223,7 +225,9 @@ TEST_P(ClashBackends, SelfClashMatchesBruteForceForEveryCacheSize) {
         EXPECT_EQ(s.leaf_rereads, 0u);
         EXPECT_EQ(s.pages_read, s.distinct_pages);
       }
-      if (cache == 0) EXPECT_EQ(s.pages_read, s.pages_touched);
+      if (cache == 0) {
+        EXPECT_EQ(s.pages_read, s.pages_touched);
+      }
     }
   }
 }
