@@ -362,7 +362,13 @@ class CgalRun {
     }
     if (!side->ok) return false;
     ++containment_tests;
-    return (*side->tester)(Vertex(A.mesh, A.mesh.triangles[0])) == CGAL::ON_BOUNDED_SIDE;
+    // The first vertex of A not on B's boundary decides (a beam end resting on a slab's face from inside
+    // has its end vertices on the boundary).
+    for (size_t v = 0; v < A.mesh.vertex_count(); ++v) {
+      const CGAL::Bounded_side side_of = (*side->tester)(Vertex(A.mesh, v));
+      if (side_of != CGAL::ON_BOUNDARY) return side_of == CGAL::ON_BOUNDED_SIDE;
+    }
+    return false;
   }
 
   struct Side {
