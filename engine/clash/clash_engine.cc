@@ -130,7 +130,7 @@ Status TestLeafPair(const LoadedLeaf& lp, const LoadedLeaf& lq, bool same, const
       if (!a->shape || !b->shape)
         return Status::Internal("clash: objects " + std::to_string(a->id) + " and " + std::to_string(b->id) +
                                 " are a candidate pair the leaf filter did not admit");
-      const Separation sep = Separate(*a->shape, *b->shape, c, &w->narrow);
+      const Separation sep = Separate(*a->shape, *b->shape, c, &w->narrow, clash::NarrowOptions(o));
       ClashPair pair;
       if (clash::Classify(sep, o, a->id, b->id, origin, &pair)) w->found.push_back(pair);
     }
@@ -340,7 +340,7 @@ Status RunCollide(const ClashStore& st, const Mesh& mesh, const std::optional<Ri
     pool.For(objs.size(), [&](size_t k) {
       work[k].Clear();
       const ClashShape other(*objs[k].mesh, edges[k]);
-      const Separation sep = Separate(other, shape, o.clearance, &work[k].narrow);
+      const Separation sep = Separate(other, shape, o.clearance, &work[k].narrow, clash::NarrowOptions(o));
       ClashPair pair;
       if (clash::Classify(sep, o, objs[k].id, kCollideObject, tree.origin, &pair))
         work[k].found.push_back(pair);

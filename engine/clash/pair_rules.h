@@ -41,6 +41,14 @@ inline Box3d Grow(const Box3d& b, double c) {
 // InvalidArgument unless C and T are finite and >= 0.
 Status CheckOptions(const ClashOptions& o);
 
+// The narrow phase as a clash needs it: the depth's lower bound is searched only until it passes T, since
+// past T the class is decided (the costliest part of a meeting pair).
+inline SeparateOptions NarrowOptions(const ClashOptions& o) {
+  SeparateOptions n;
+  n.depth_lower_enough = o.touch_tolerance;
+  return n;
+}
+
 // ClashOptions' exclusions over a store's names: the group of each object (its name up to the separator)
 // computed once, then the caller's predicate.
 class Exclusions {

@@ -84,7 +84,9 @@ struct Oracle {
     std::vector<ClashPair> out;
     const size_t n = objects.size();
     auto test = [&](size_t i, size_t j) {
-      const Separation s = Separate(*shapes[i], *shapes[j], c, nullptr);
+      SeparateOptions narrow;
+      narrow.depth_lower_enough = t;  // as a clash asks it (engine/clash/pair_rules.h)
+      const Separation s = Separate(*shapes[i], *shapes[j], c, nullptr, narrow);
       ClashPair p;
       p.a = objects[i].id;
       p.b = objects[j].id;
@@ -372,7 +374,9 @@ TEST(Clash, CollideWithATransformMatchesBruteForce) {
         ClashPair p;
         p.a = oracle.objects[i].id;
         p.b = kCollideObject;
-        if (!OracleClass(Separate(*oracle.shapes[i], q, c, nullptr), c, 0.002, &p)) continue;
+        SeparateOptions narrow;
+        narrow.depth_lower_enough = 0.002;
+        if (!OracleClass(Separate(*oracle.shapes[i], q, c, nullptr, narrow), c, 0.002, &p)) continue;
         for (Vec3d* x : {&p.point_a, &p.point_b}) *x = {x->x + origin.x, x->y + origin.y, x->z + origin.z};
         want.push_back(p);
       }
