@@ -298,7 +298,8 @@ double SqDist(const Prim& x, const Prim& y) {
 class CgalRun {
  public:
   // side_ has one slot more than objs: the collide query object's (index objs.size()).
-  CgalRun(const std::vector<Obj>& objs, double clearance) : objs_(objs), c_(clearance), side_(objs.size() + 1) {}
+  CgalRun(const std::vector<Obj>& objs, double clearance)
+      : objs_(objs), c_(clearance), side_(objs.size() + 1) {}
 
   // Objects i and j (indexes into objs, or the --object as `query`) given their boxes met grown by C.
   void Test(const Obj& A, const Obj& B, size_t ia, size_t ib, long long a, long long b,
