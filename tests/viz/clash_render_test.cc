@@ -19,6 +19,7 @@
 #include "engine/viz/level_export.h"
 #include "test_dirs.h"
 #include "tool_runner.h"
+#include "viz/png_image.h"
 
 namespace mktree {
 namespace {
@@ -34,25 +35,6 @@ std::string TempPath(const std::string& name) { return Dir().file(name); }
 void WriteFile(const std::string& path, const std::string& text) {
   std::ofstream out(path, std::ios::binary);
   out << text;
-}
-
-struct Image {
-  uint32_t width = 0, height = 0;
-  std::vector<uint8_t> rgb;
-  const uint8_t* at(int x, int y) const { return &rgb[3 * (size_t(y) * width + x)]; }
-};
-
-Image ReadPng(const std::string& path) {
-  Image img;
-  png_image p{};
-  p.version = PNG_IMAGE_VERSION;
-  EXPECT_TRUE(png_image_begin_read_from_file(&p, path.c_str())) << path << ": " << p.message;
-  p.format = PNG_FORMAT_RGB;
-  img.width = p.width;
-  img.height = p.height;
-  img.rgb.resize(PNG_IMAGE_SIZE(p));
-  EXPECT_TRUE(png_image_finish_read(&p, nullptr, img.rgb.data(), 0, nullptr)) << p.message;
-  return img;
 }
 
 enum class Hue { kRed, kOrange, kYellow, kGrey, kWhite, kOther };

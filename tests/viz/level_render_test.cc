@@ -14,6 +14,7 @@
 #include "engine/scene/vector_scene_source.h"
 #include "query/scene_fixtures.h"
 #include "test_dirs.h"
+#include "viz/png_image.h"
 
 namespace mktree {
 namespace {
@@ -24,25 +25,6 @@ namespace fs = std::filesystem;
 std::string TempPath(const std::string& name) {
   static const testing::TempDir dir("mktree_render");
   return dir.file(name);
-}
-
-struct Image {
-  uint32_t width = 0, height = 0;
-  std::vector<uint8_t> rgb;
-  const uint8_t* at(uint32_t x, uint32_t y) const { return &rgb[3 * (size_t{y} * width + x)]; }
-};
-
-Image ReadPng(const std::string& path) {
-  Image img;
-  png_image p{};
-  p.version = PNG_IMAGE_VERSION;
-  EXPECT_TRUE(png_image_begin_read_from_file(&p, path.c_str())) << path << ": " << p.message;
-  p.format = PNG_FORMAT_RGB;
-  img.width = p.width;
-  img.height = p.height;
-  img.rgb.resize(PNG_IMAGE_SIZE(p));
-  EXPECT_TRUE(png_image_finish_read(&p, nullptr, img.rgb.data(), 0, nullptr)) << p.message;
-  return img;
 }
 
 // Pixels of the picture area (above the legend strip) by dominant hue.
