@@ -75,6 +75,8 @@ const char* MeetingName(ClashMeeting m) {
       return "b_inside_a";
     case ClashMeeting::kApart:
       return "apart";
+    case ClashMeeting::kResolutionGap:
+      return "resolution_gap";
   }
   return "cross";
 }
@@ -99,7 +101,9 @@ std::string PairLine(const ClashPair& p) {
   AppendPoint(&s, p.point_b);
   s += ", \"meeting\": \"";
   s += MeetingName(p.meeting);
-  s += "\"}\n";
+  s += "\", \"resolution\": ";
+  AppendReal(&s, p.resolution);
+  s += "}\n";
   return s;
 }
 

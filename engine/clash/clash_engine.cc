@@ -43,6 +43,7 @@ std::optional<EdgeCheck> StoredEdges(const ObjectEntryView& e) {
 struct LoadedObject {
   ObjectId id = 0;
   Box3d box;
+  double resolution = 0;  // CoordinateResolution of its entry
   std::unique_ptr<Mesh> mesh;
   std::unique_ptr<ClashShape> shape;
 };
@@ -130,9 +131,11 @@ Status TestLeafPair(const LoadedLeaf& lp, const LoadedLeaf& lq, bool same, const
       if (!a->shape || !b->shape)
         return Status::Internal("clash: objects " + std::to_string(a->id) + " and " + std::to_string(b->id) +
                                 " are a candidate pair the leaf filter did not admit");
-      const Separation sep = Separate(*a->shape, *b->shape, c, &w->narrow, clash::NarrowOptions(o));
+      const double r = a->resolution + b->resolution;
+      const Separation sep = Separate(*a->shape, *b->shape, clash::NarrowMaxDistance(o, r), &w->narrow,
+                                      clash::NarrowOptions(o, r));
       ClashPair pair;
-      if (clash::Classify(sep, o, a->id, b->id, origin, &pair)) w->found.push_back(pair);
+      if (clash::Classify(sep, o, r, a->id, b->id, origin, &pair)) w->found.push_back(pair);
     }
   }
   return Status::Ok();
@@ -206,6 +209,7 @@ Status RunSelfClash(const ClashStore& st, const ClashOptions& o, const ClashVisi
       for (uint32_t pos = 0; pos < entries.size(); ++pos) {
         l->objects[pos].id = entries[pos].id;
         l->objects[pos].box = clash::ToBox3d(entries[pos].box);
+        l->objects[pos].resolution = CoordinateResolution(entries[pos].box);
         if (needed(tree, leaf, pos)) tasks.push_back({i, pos});
       }
       loaded.push_back(std::move(l));
@@ -340,9 +344,11 @@ Status RunCollide(const ClashStore& st, const Mesh& mesh, const std::optional<Ri
     pool.For(objs.size(), [&](size_t k) {
       work[k].Clear();
       const ClashShape other(*objs[k].mesh, edges[k]);
-      const Separation sep = Separate(other, shape, o.clearance, &work[k].narrow, clash::NarrowOptions(o));
+      const double r = objs[k].resolution;
+      const Separation sep =
+          Separate(other, shape, clash::NarrowMaxDistance(o, r), &work[k].narrow, clash::NarrowOptions(o, r));
       ClashPair pair;
-      if (clash::Classify(sep, o, objs[k].id, kCollideObject, tree.origin, &pair))
+      if (clash::Classify(sep, o, r, objs[k].id, kCollideObject, tree.origin, &pair))
         work[k].found.push_back(pair);
     });
     s.narrow_seconds += Since(t);
@@ -371,6 +377,7 @@ Status RunCollide(const ClashStore& st, const Mesh& mesh, const std::optional<Ri
       LoadedObject obj;
       obj.id = e.id;
       obj.box = box;
+      obj.resolution = CoordinateResolution(e.box);
       obj.mesh = std::make_unique<Mesh>();
       Status dst = DecodeStoredMesh(reader.path(), e, obj.mesh.get());
       if (!dst.ok()) {

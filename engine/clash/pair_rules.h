@@ -2,6 +2,9 @@
 // narrow-phase Separation becomes a reported ClashPair (docs/clash.md §1).
 #pragma once
 
+#include <algorithm>
+#include <cmath>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -41,11 +44,20 @@ inline Box3d Grow(const Box3d& b, double c) {
 // InvalidArgument unless C and T are finite and >= 0.
 Status CheckOptions(const ClashOptions& o);
 
-// The narrow phase as a clash needs it: the depth's lower bound is searched only until it passes T, since
-// past T the class is decided (the costliest part of a meeting pair).
-inline SeparateOptions NarrowOptions(const ClashOptions& o) {
+// A pair's coordinate resolution: the sum of both objects' CoordinateResolution (engine/store/
+// object_codec.h; 0 for a mesh that was never stored, as Collide's). Gaps and depths up to it are
+// rounding of the store's float32 vertices, not geometry: an exact touch in the input may be stored as a
+// gap or an overlap that small. Such pairs are touches (docs/clash.md §1).
+//
+// The narrow phase as a clash needs it: the gap is computed up to max(C, resolution) (beyond C only to
+// know whether it is within the resolution); the depth's lower bound is searched only until it passes
+// max(T, resolution), since past it the class is decided (the costliest part of a meeting pair).
+inline double NarrowMaxDistance(const ClashOptions& o, double resolution) {
+  return std::max(o.clearance, std::nextafter(resolution, std::numeric_limits<double>::infinity()));
+}
+inline SeparateOptions NarrowOptions(const ClashOptions& o, double resolution) {
   SeparateOptions n;
-  n.depth_lower_enough = o.touch_tolerance;
+  n.depth_lower_enough = std::max(o.touch_tolerance, resolution);
   return n;
 }
 
@@ -72,9 +84,10 @@ class Exclusions {
 };
 
 // The reported pair for the separation `s` of objects a < b (shapes in the store's frame, `origin` its
-// origin), or false when the pair is no clash: apart by C or more.
-bool Classify(const Separation& s, const ClashOptions& o, ObjectId a, ObjectId b, const Vec3d& origin,
-              ClashPair* out);
+// origin; `resolution` the pair's, as above), or false when the pair is no clash: apart by more than
+// the resolution and by C or more.
+bool Classify(const Separation& s, const ClashOptions& o, double resolution, ObjectId a, ObjectId b,
+              const Vec3d& origin, ClashPair* out);
 
 // Adds a classified pair's class to the counts of `stats`.
 void CountClass(const ClashPair& p, ClashStats* stats);

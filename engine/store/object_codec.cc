@@ -110,6 +110,24 @@ double LocalBase(float lo, float hi) {
   return std::ldexp(1.0, extent > 0 ? std::max(std::ilogb(extent) + 1, -100) : -100);
 }
 
+}  // namespace
+
+double CoordinateResolution(const Box3f& box) {
+  double sum = 0;
+  for (int c = 0; c < 3; ++c) {
+    const double base = LocalBase(box.min[c], box.max[c]);
+    // One float32 ulp of the local coordinate, 2^k * 2^-23 (half from rounding, up to one when the
+    // rounded value is stepped back into the box); a few double ulps of the largest magnitude involved
+    // from the subtractions and the sum that decodes (bounded generously by 2^-50).
+    const double mag = std::fabs(double{box.min[c]}) + std::fabs(double{box.max[c]}) + 2 * base;
+    const double e = std::ldexp(base, -23) + std::ldexp(mag, -50);
+    sum += e * e;
+  }
+  return std::sqrt(sum);
+}
+
+namespace {
+
 // The object's AABB in the store frame and its vertices in its local frame (see the header).
 Status LocalFrame(const SceneObject& obj, const Vec3d& origin, std::vector<float>* local, Box3f* box) {
   const Mesh& m = obj.mesh;

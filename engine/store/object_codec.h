@@ -98,6 +98,11 @@ Result<ObjectEntryView> ParseObjectEntry(const uint8_t* data, size_t n);
 // build and copy per entry).
 Status ParseObjectEntry(const uint8_t* data, size_t n, ObjectEntryView* out);
 
+// How far a vertex inside `box` (the entry's AABB) may lie from where the input put it: per axis one
+// float32 ulp of its local coordinate plus the double arithmetic of encoding and decoding. Two objects
+// whose input surfaces touch exactly are at most the sum of their resolutions apart once stored.
+double CoordinateResolution(const Box3f& box);
+
 // Decompresses and un-transforms an entry's geometry into *mesh, in the store frame (box.min + local).
 // Corruption on bad data (zstd failure, size mismatch, a triangle index out of range, a vertex outside the
 // entry's box).

@@ -9,6 +9,8 @@
 //   clearance  0 < s < C.
 // The depth is known as an interval [depth_lower, depth_upper]: hard when depth_lower > T, touch when
 // depth_upper <= T, otherwise hard with depth_exact false (a clash is never hidden as a touch).
+// The store keeps vertices in float32, so an exact touch in the input may come back as a tiny gap or
+// overlap: gaps and depths up to the pair's resolution (ClashPair::resolution) are touches too.
 // Each unordered pair is reported once, with a < b. Points are in world coordinates.
 //
 //   mktree::ClashOptions o;
@@ -37,6 +39,9 @@ enum class ClashMeeting : uint8_t {
   kAInsideB,  // no triangles meet; a's solid lies wholly inside b's
   kBInsideA,
   kApart,  // a clearance pair: s > 0
+  // A touch by the store's resolution: the stored surfaces are apart by at most the rounding of their
+  // float32 vertices (ClashPair::resolution), as exact touches in the input often end up.
+  kResolutionGap,
 };
 
 // In Collide, b is the query mesh: b = kCollideObject, a is the store's object.
@@ -46,11 +51,14 @@ struct ClashPair {
   ObjectId a = 0, b = 0;  // a < b
   ClashClass cls = ClashClass::kHard;
   ClashMeeting meeting = ClashMeeting::kCross;
-  double distance = 0;                      // s: the gap (clearance pairs), -depth_upper (meeting pairs)
+  double distance = 0;  // s: the gap (clearance and resolution-gap pairs), -depth_upper (meeting pairs)
   double depth_lower = 0, depth_upper = 0;  // meeting pairs; 0 for clearance pairs
   bool depth_exact = true;                  // depth_lower == depth_upper
   // Clearance: the closest points of a and of b. Meeting: a point where they meet (the same point twice).
   Vec3d point_a, point_b;
+  // How far the stored vertices of a and b together may be from the input's (float32 rounding in each
+  // object's local frame): gaps and depths up to it are touches.
+  double resolution = 0;
 };
 
 // Says whether the pair (a, b), a < b, is left out before its geometry is tested. Called from worker

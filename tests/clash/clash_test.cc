@@ -7,6 +7,8 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <iterator>
+#include <limits>
 #include <map>
 #include <random>
 #include <string>
@@ -17,6 +19,7 @@
 #include "engine/ingest/store_builder.h"
 #include "engine/scene/scene_source.h"
 #include "engine/scene/vector_scene_source.h"
+#include "engine/store/object_codec.h"
 #include "mktree/database.h"
 #include "query/scene_fixtures.h"
 #include "store/stored_geometry.h"
@@ -45,16 +48,24 @@ Status Build(const std::vector<SceneObject>& objs, const std::string& path, Back
   return r.ok() ? Status::Ok() : r.status();
 }
 
-// The oracle's own rules (not engine/clash's): class of a separation, as docs/clash.md §1 states them.
-bool OracleClass(const Separation& s, double c, double t, ClashPair* p) {
+// The oracle's own rules (not engine/clash's): class of a separation, as docs/clash.md §1 states them,
+// with r the pair's resolution (the sum of both objects' CoordinateResolution).
+bool OracleClass(const Separation& s, double c, double t, double r, ClashPair* p) {
+  p->resolution = r;
   if (s.meeting == Meeting::kApart) {
-    if (!(s.distance < c)) return false;
-    p->cls = ClashClass::kClearance;
-    p->meeting = ClashMeeting::kApart;
+    if (s.distance <= r) {
+      p->cls = ClashClass::kTouch;
+      p->meeting = ClashMeeting::kResolutionGap;
+    } else {
+      if (!(s.distance < c)) return false;
+      p->cls = ClashClass::kClearance;
+      p->meeting = ClashMeeting::kApart;
+    }
   } else {
-    p->cls = s.depth_lower > t    ? ClashClass::kHard
-             : s.depth_upper <= t ? ClashClass::kTouch
-                                  : ClashClass::kHard;
+    const double touch = std::max(t, r);
+    p->cls = s.depth_lower > touch    ? ClashClass::kHard
+             : s.depth_upper <= touch ? ClashClass::kTouch
+                                      : ClashClass::kHard;
     p->meeting = s.meeting == Meeting::kSurfacesMeet ? ClashMeeting::kCross
                  : s.meeting == Meeting::kAInsideB   ? ClashMeeting::kAInsideB
                                                      : ClashMeeting::kBInsideA;
@@ -84,13 +95,16 @@ struct Oracle {
     std::vector<ClashPair> out;
     const size_t n = objects.size();
     auto test = [&](size_t i, size_t j) {
+      const double r = CoordinateResolution(objects[i].box) + CoordinateResolution(objects[j].box);
       SeparateOptions narrow;
-      narrow.depth_lower_enough = t;  // as a clash asks it (engine/clash/pair_rules.h)
-      const Separation s = Separate(*shapes[i], *shapes[j], c, nullptr, narrow);
+      narrow.depth_lower_enough = std::max(t, r);  // as a clash asks it (engine/clash/pair_rules.h)
+      // Gaps up to r are computed too: they decide resolution touches.
+      const double reach = std::max(c, std::nextafter(r, std::numeric_limits<double>::infinity()));
+      const Separation s = Separate(*shapes[i], *shapes[j], reach, nullptr, narrow);
       ClashPair p;
       p.a = objects[i].id;
       p.b = objects[j].id;
-      if (!OracleClass(s, c, t, &p)) return;
+      if (!OracleClass(s, c, t, r, &p)) return;
       for (Vec3d* q : {&p.point_a, &p.point_b}) *q = {q->x + origin.x, q->y + origin.y, q->z + origin.z};
       out.push_back(p);
     };
@@ -137,6 +151,7 @@ void ExpectSame(const std::vector<ClashPair>& got, const std::vector<ClashPair>&
     EXPECT_EQ(got[i].depth_lower, want[i].depth_lower);
     EXPECT_EQ(got[i].depth_upper, want[i].depth_upper);
     EXPECT_EQ(got[i].depth_exact, want[i].depth_lower == want[i].depth_upper);
+    EXPECT_EQ(got[i].resolution, want[i].resolution);
     for (int k = 0; k < 3; ++k) {
       EXPECT_EQ(got[i].point_a[k], want[i].point_a[k]);
       EXPECT_EQ(got[i].point_b[k], want[i].point_b[k]);
@@ -374,9 +389,11 @@ TEST(Clash, CollideWithATransformMatchesBruteForce) {
         ClashPair p;
         p.a = oracle.objects[i].id;
         p.b = kCollideObject;
+        const double r = CoordinateResolution(oracle.objects[i].box);  // the query mesh is not stored
         SeparateOptions narrow;
-        narrow.depth_lower_enough = 0.002;
-        if (!OracleClass(Separate(*oracle.shapes[i], q, c, nullptr, narrow), c, 0.002, &p)) continue;
+        narrow.depth_lower_enough = std::max(0.002, r);
+        const double reach = std::max(c, std::nextafter(r, std::numeric_limits<double>::infinity()));
+        if (!OracleClass(Separate(*oracle.shapes[i], q, reach, nullptr, narrow), c, 0.002, r, &p)) continue;
         for (Vec3d* x : {&p.point_a, &p.point_b}) *x = {x->x + origin.x, x->y + origin.y, x->z + origin.z};
         want.push_back(p);
       }
@@ -400,21 +417,97 @@ TEST(Clash, CollideWithATransformMatchesBruteForce) {
   }
 }
 
+// Boxes that touch exactly in the input's doubles at coordinates float32 cannot hold (UTM-sized, random
+// decimals): stored, many come back a hair apart or overlapping. Each must still be a touch, with T = 0
+// too, and a pair 1 mm apart no clash at C = 0.
+TEST(Clash, ExactInputTouchesStayTouchesAfterEncoding) {
+  std::mt19937_64 rng(23);
+  std::uniform_real_distribution<double> u(0, 1);
+  std::vector<SceneObject> scene;
+  auto add = [&](const Box3d& b) {
+    SceneObject o;
+    o.id = static_cast<ObjectId>(scene.size());
+    o.name = "b" + std::to_string(o.id);
+    o.mesh = BoxMesh(b);
+    scene.push_back(std::move(o));
+  };
+  const int kPairs = 150;
+  for (int k = 0; k < kPairs; ++k) {
+    const double x = 500000 + 40 * k + u(rng), y = 5000000 + u(rng) * 30, z = 10 + u(rng) * 5;
+    const double w = 0.3 + 4 * u(rng), h = 0.2 + 3 * u(rng);
+    const int axis = k % 3;
+    Box3d a = B(x, y, z, x + w, y + h, z + w);
+    Box3d b = a;
+    b.min[axis] = a.max[axis];  // touching on a face, exactly in doubles
+    b.max[axis] = a.max[axis] + 0.1 + u(rng);
+    add(a);
+    add(b);
+    Box3d far = b;  // 1 mm beyond b
+    far.min[axis] = b.max[axis] + 0.001;
+    far.max[axis] = far.min[axis] + 0.5;
+    add(far);
+  }
+  const std::string path = TempPath("exact_touches");
+  ASSERT_TRUE(Build(scene, path, Backend::kPagedFile).ok());
+  auto db = Database::Open(path, {.cache_pages = 16});
+  ASSERT_TRUE(db.ok());
+  for (double t : {0.0, 0.002}) {
+    ClashOptions o;
+    o.touch_tolerance = t;
+    ClashStats s;
+    const auto got = SelfClash(**db, o, &s);
+    ASSERT_EQ(got.size(), static_cast<size_t>(kPairs));
+    size_t by_resolution = 0;
+    for (const ClashPair& p : got) {
+      SCOPED_TRACE("pair " + std::to_string(p.a) + " " + std::to_string(p.b));
+      EXPECT_EQ(p.a % 3, 0u);
+      EXPECT_EQ(p.b, p.a + 1);
+      EXPECT_EQ(p.cls, ClashClass::kTouch);
+      EXPECT_GT(p.resolution, 0);
+      EXPECT_LT(p.resolution, 1e-5);
+      if (p.meeting == ClashMeeting::kResolutionGap) {
+        ++by_resolution;
+        EXPECT_GT(p.distance, 0);
+        EXPECT_LE(p.distance, p.resolution);
+      } else {
+        EXPECT_LE(p.depth_upper, std::max(t, p.resolution));
+      }
+    }
+    // The encoding really did part some of them (else this test tests nothing new).
+    EXPECT_GT(by_resolution, 0u);
+    EXPECT_EQ(s.touch, static_cast<uint64_t>(kPairs));
+    EXPECT_EQ(s.hard + s.clearance, 0u);
+  }
+}
+
 // Real scenes: brute force restricted to pairs whose stored boxes grown by C meet (a pair whose boxes do
 // not meet so cannot be closer than C).
-void RealScene(const std::string& file, double c, size_t max_objects = SIZE_MAX) {
-  const std::string input = std::string(MKTREE_SHARED_DATA) + "/" + file;
-  if (!std::filesystem::exists(input)) GTEST_SKIP() << input << " missing";
-  auto src = OpenSceneFile(input);
-  ASSERT_TRUE(src.ok()) << src.status().ToString();
+std::vector<SceneObject> LoadScene(const std::string& input, size_t max_objects) {
   std::vector<SceneObject> scene;
+  auto src = OpenSceneFile(input);
+  EXPECT_TRUE(src.ok()) << src.status().ToString();
+  if (!src.ok()) return scene;
   SceneObject o;
   for (;;) {
     auto more = (*src)->Next(&o);
-    ASSERT_TRUE(more.ok()) << more.status().ToString();
-    if (!*more || scene.size() >= max_objects) break;
+    EXPECT_TRUE(more.ok()) << more.status().ToString();
+    if (!more.ok() || !*more || scene.size() >= max_objects) break;
     scene.push_back(o);
   }
+  return scene;
+}
+
+bool BoxesMeet(const Box3d& a, const Box3d& b) {
+  for (int i = 0; i < 3; ++i)
+    if (a.min[i] > b.max[i] || b.min[i] > a.max[i]) return false;
+  return true;
+}
+
+void RealScene(const std::string& file, double c, size_t max_objects = SIZE_MAX) {
+  const std::string input = std::string(MKTREE_SHARED_DATA) + "/" + file;
+  if (!std::filesystem::exists(input)) GTEST_SKIP() << input << " missing";
+  const std::vector<SceneObject> scene = LoadScene(input, max_objects);
+  ASSERT_FALSE(scene.empty());
   const std::string path = TempPath("real_" + std::filesystem::path(file).stem().string());
   ASSERT_TRUE(Build(scene, path, Backend::kPagedFile, 4096, 3).ok());
   const Oracle oracle(scene);
@@ -431,6 +524,59 @@ void RealScene(const std::string& file, double c, size_t max_objects = SIZE_MAX)
               (unsigned long long)s.touch, (unsigned long long)s.clearance, (unsigned long long)s.pages_read,
               (unsigned long long)s.store_pages);
 }
+
+// Every pair that meets in the input's own doubles (surfaces cross or touch, or containment) is reported
+// at C = 0 as a clash of some class, whatever the float32 encoding did to its gap (docs/clash.md §1).
+void InputMeetingsAreFound(const std::string& file) {
+  const std::string input = std::string(MKTREE_SHARED_DATA) + "/" + file;
+  if (!std::filesystem::exists(input)) GTEST_SKIP() << input << " missing";
+  const std::vector<SceneObject> scene = LoadScene(input, SIZE_MAX);
+  ASSERT_FALSE(scene.empty());
+  const std::string path = TempPath("input_" + std::filesystem::path(file).stem().string());
+  ASSERT_TRUE(Build(scene, path, Backend::kPagedFile, 4096, 3).ok());
+  std::vector<std::unique_ptr<ClashShape>> shapes;
+  std::vector<Box3d> boxes;
+  for (const SceneObject& x : scene) {
+    shapes.push_back(std::make_unique<ClashShape>(x.mesh));
+    boxes.push_back(x.mesh.Bounds());
+  }
+  std::vector<size_t> by_x(scene.size());
+  for (size_t i = 0; i < by_x.size(); ++i) by_x[i] = i;
+  std::sort(by_x.begin(), by_x.end(), [&](size_t x, size_t y) { return boxes[x].min[0] < boxes[y].min[0]; });
+  std::vector<std::pair<ObjectId, ObjectId>> meeting;
+  for (size_t k = 0; k < by_x.size(); ++k) {
+    const Box3d& a = boxes[by_x[k]];
+    for (size_t m = k + 1; m < by_x.size() && boxes[by_x[m]].min[0] <= a.max[0]; ++m) {
+      const Box3d& b = boxes[by_x[m]];
+      if (!BoxesMeet(a, b)) continue;
+      const size_t i = std::min(by_x[k], by_x[m]), j = std::max(by_x[k], by_x[m]);
+      if (Separate(*shapes[i], *shapes[j], 0, nullptr).meeting != Meeting::kApart)
+        meeting.emplace_back(scene[i].id, scene[j].id);
+    }
+  }
+  std::sort(meeting.begin(), meeting.end());
+  ASSERT_FALSE(meeting.empty());
+  auto db = Database::Open(path, {.cache_pages = 8});
+  ASSERT_TRUE(db.ok());
+  ClashOptions opt;
+  opt.threads = 2;
+  ClashStats s;
+  std::vector<std::pair<ObjectId, ObjectId>> got;
+  for (const ClashPair& p : SelfClash(**db, opt, &s)) got.emplace_back(p.a, p.b);
+  std::sort(got.begin(), got.end());
+  std::vector<std::pair<ObjectId, ObjectId>> missed;
+  std::set_difference(meeting.begin(), meeting.end(), got.begin(), got.end(), std::back_inserter(missed));
+  ASSERT_TRUE(missed.empty()) << missed.size() << " of " << meeting.size() << " input meetings missed, first "
+                              << missed.front().first << " " << missed.front().second;
+  std::printf("%s: %zu pairs meet in the input, all found; %llu reported (%llu touch)\n", file.c_str(),
+              meeting.size(), (unsigned long long)s.reported_pairs, (unsigned long long)s.touch);
+}
+
+TEST(ClashRealScenes, SteelInputMeetingsAreFound) {
+  InputMeetingsAreFound("buildings/steel_mini_project.obj");
+}
+TEST(ClashRealScenes, DuplexInputMeetingsAreFound) { InputMeetingsAreFound("buildings/duplex.obj"); }
+TEST(ClashRealScenes, DenHaagInputMeetingsAreFound) { InputMeetingsAreFound("city/denhaag_01.obj"); }
 
 TEST(ClashRealScenes, SteelStructure) { RealScene("buildings/steel_mini_project.obj", 0.01); }
 TEST(ClashRealScenes, Duplex) { RealScene("buildings/duplex.obj", 0.05); }
