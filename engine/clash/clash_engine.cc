@@ -28,6 +28,10 @@ unsigned ThreadCount(unsigned t) { return t ? t : std::max(1u, std::thread::hard
 
 // Pairs found in one batch, in the leaf pairs' order per pair.
 constexpr size_t kBatchPairs = 1024;
+// Collide tests candidates in chunks of about this many objects, with at most this many leaves pinned
+// in the cache meanwhile (their entries are decoded on the worker threads).
+constexpr size_t kCollideChunk = 256;
+constexpr size_t kCollidePinnedLeaves = 16;
 
 // The edge check ingest stored with the entry (computed by ClashShape when absent).
 std::optional<EdgeCheck> StoredEdges(const ObjectEntryView& e) {
@@ -332,64 +336,69 @@ Status RunCollide(const ClashStore& st, const Mesh& mesh, const std::optional<Ri
   clash::WorkPool pool(ThreadCount(o.threads));
   IoCount io;
   Emitter emit{o, visit, s};
-  std::vector<LoadedObject> objs;
-  std::vector<std::optional<EdgeCheck>> edges;
+  // Candidates are found as their leaves are read (on this thread, in leaf order); their leaves stay
+  // pinned until a chunk of candidates is decoded, prepared and tested on all threads.
+  struct Candidate {
+    size_t pin;  // index into pins
+    uint32_t pos;
+  };
+  std::vector<PinnedLeaf> pins(kCollidePinnedLeaves);
+  size_t pinned = 0;
+  std::vector<Candidate> chunk;
   std::vector<PairWork> work;
   std::vector<Status> errors;
-  // Candidates are decoded as their leaves are read (pages released at once) and tested in chunks.
   auto flush = [&]() -> Status {
     const Clock::time_point t = Clock::now();
-    work.resize(std::max(work.size(), objs.size()));
-    errors.assign(objs.size(), Status::Ok());
-    pool.For(objs.size(), [&](size_t k) {
+    work.resize(std::max(work.size(), chunk.size()));
+    errors.assign(chunk.size(), Status::Ok());
+    pool.For(chunk.size(), [&](size_t k) {
       work[k].Clear();
-      const ClashShape other(*objs[k].mesh, edges[k]);
-      const double r = objs[k].resolution;
+      const ObjectEntryView& e = pins[chunk[k].pin].view.entry(chunk[k].pos);
+      Mesh mesh;
+      errors[k] = DecodeStoredMesh(reader.path(), e, &mesh);
+      if (!errors[k].ok()) return;
+      const ClashShape other(mesh, StoredEdges(e));
+      const double r = CoordinateResolution(e.box);
       const Separation sep =
           Separate(other, shape, clash::NarrowMaxDistance(o, r), &work[k].narrow, clash::NarrowOptions(o, r));
       ClashPair pair;
-      if (clash::Classify(sep, o, r, objs[k].id, kCollideObject, tree.origin, &pair))
-        work[k].found.push_back(pair);
+      if (clash::Classify(sep, o, r, e.id, kCollideObject, tree.origin, &pair)) work[k].found.push_back(pair);
     });
+    for (size_t i = 0; i < pinned; ++i) pins[i].Release();
+    pinned = 0;
     s.narrow_seconds += Since(t);
     MKTREE_RETURN_IF_ERROR(FirstError(errors));
-    for (size_t k = 0; k < objs.size(); ++k) emit.Add(work[k]);
-    objs.clear();
-    edges.clear();
+    for (size_t k = 0; k < chunk.size(); ++k) emit.Add(work[k]);
+    chunk.clear();
     return Status::Ok();
   };
-  PinnedLeaf pinned;
   uint64_t candidates = 0, excluded = 0;
   for (uint32_t leaf : leaves) {
     const Clock::time_point t = Clock::now();
     const LeafInfo& info = tree.leaves[leaf];
+    PinnedLeaf& pin = pins[pinned];
     MKTREE_RETURN_IF_ERROR(ReadLeaf(st.cache, pages_name, leaf, info, reader.objects().leaf,
-                                    tree.params.mem_page(), st.verify_checksums, &io.q, &pinned));
+                                    tree.params.mem_page(), st.verify_checksums, &io.q, &pin));
     io.Mark(info);
-    for (const ObjectEntryView& e : pinned.view.entries()) {
-      const Box3d box = clash::ToBox3d(e.box);
-      if (!clash::GrownMeet(box, qbox, o.clearance)) continue;
+    const size_t before = chunk.size();
+    const auto& entries = pin.view.entries();
+    for (uint32_t pos = 0; pos < entries.size(); ++pos) {
+      const ObjectEntryView& e = entries[pos];
+      if (!clash::GrownMeet(clash::ToBox3d(e.box), qbox, o.clearance)) continue;
       ++candidates;
       if (o.exclude && o.exclude(e.id, kCollideObject)) {
         ++excluded;
         continue;
       }
-      LoadedObject obj;
-      obj.id = e.id;
-      obj.box = box;
-      obj.resolution = CoordinateResolution(e.box);
-      obj.mesh = std::make_unique<Mesh>();
-      Status dst = DecodeStoredMesh(reader.path(), e, obj.mesh.get());
-      if (!dst.ok()) {
-        pinned.Release();
-        return dst;
-      }
-      objs.push_back(std::move(obj));
-      edges.push_back(StoredEdges(e));
+      chunk.push_back({pinned, pos});
     }
-    pinned.Release();
+    if (chunk.size() > before) {
+      ++pinned;
+    } else {
+      pin.Release();
+    }
     s.read_seconds += Since(t);
-    if (objs.size() >= 256) MKTREE_RETURN_IF_ERROR(flush());
+    if (chunk.size() >= kCollideChunk || pinned == pins.size()) MKTREE_RETURN_IF_ERROR(flush());
   }
   MKTREE_RETURN_IF_ERROR(flush());
   s.candidate_pairs = candidates;

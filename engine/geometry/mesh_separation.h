@@ -79,7 +79,7 @@ class ClashShape {
 enum class Meeting : uint8_t {
   kApart,         // s > 0
   kSurfacesMeet,  // some triangle of A meets some triangle of B (crossing, touching or coplanar overlap)
-  kAInsideB,      // no triangles meet; A's solid is wholly inside B's
+  kAInsideB,      // no triangles meet; A's solid (or a component of it) lies wholly inside B's
   kBInsideA,
 };
 

@@ -36,7 +36,7 @@ enum class ClashClass : uint8_t { kHard, kTouch, kClearance };
 
 enum class ClashMeeting : uint8_t {
   kCross,     // some triangle of a meets some triangle of b (crossing, touching or coplanar)
-  kAInsideB,  // no triangles meet; a's solid lies wholly inside b's
+  kAInsideB,  // no triangles meet; a's solid (or a component of it) lies wholly inside b's
   kBInsideA,
   kApart,  // a clearance pair: s > 0
   // A touch by the store's resolution: the stored surfaces are apart by at most the rounding of their
