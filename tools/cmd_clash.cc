@@ -123,12 +123,13 @@ std::string SummaryLine(const ClashStats& s) {
       u("reported_pairs", s.reported_pairs) + ", " + u("capped_pairs", s.capped_pairs) + ", " +
       u("unreported_touches", s.unreported_touches) + ", " + u("pages_touched", s.pages_touched) + ", " +
       u("distinct_pages", s.distinct_pages) + ", " + u("leaf_reads", s.leaf_reads) + ", " +
-      u("leaf_rereads", s.leaf_rereads) + ", " + u("leaf_pairs_tree", s.leaf_pairs_tree) + ", " +
-      u("leaf_pairs_visited", s.leaf_pairs_visited) + ", " + u("candidate_pairs", s.candidate_pairs) + ", " +
-      u("excluded_pairs", s.excluded_pairs) + ", " + u("bound_rejects", s.bound_rejects) + ", " +
-      u("triangle_tests", s.triangle_tests) + ", " + u("containment_tests", s.containment_tests) + ", " +
-      d("broad_seconds", s.broad_seconds) + ", " + d("read_seconds", s.read_seconds) + ", " +
-      d("narrow_seconds", s.narrow_seconds) + ", " + u("peak_rss_bytes", PeakRssBytes()) + "}\n";
+      u("leaf_rereads", s.leaf_rereads) + ", " + u("window_peak_bytes", s.window_peak_bytes) + ", " +
+      u("leaf_pairs_tree", s.leaf_pairs_tree) + ", " + u("leaf_pairs_visited", s.leaf_pairs_visited) + ", " +
+      u("candidate_pairs", s.candidate_pairs) + ", " + u("excluded_pairs", s.excluded_pairs) + ", " +
+      u("bound_rejects", s.bound_rejects) + ", " + u("triangle_tests", s.triangle_tests) + ", " +
+      u("containment_tests", s.containment_tests) + ", " + d("broad_seconds", s.broad_seconds) + ", " +
+      d("read_seconds", s.read_seconds) + ", " + d("narrow_seconds", s.narrow_seconds) + ", " +
+      u("peak_rss_bytes", PeakRssBytes()) + "}\n";
   return line;
 }
 

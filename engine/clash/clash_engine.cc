@@ -53,6 +53,7 @@ struct LoadedObject {
 };
 struct LoadedLeaf {
   std::vector<LoadedObject> objects;
+  uint64_t bytes = 0;  // heap held by its meshes and shapes (about)
 };
 
 // What the tests of one leaf pair (or one collide chunk) found.
@@ -180,6 +181,7 @@ Status RunSelfClash(const ClashStore& st, const ClashOptions& o, const ClashVisi
   s.broad_seconds = Since(start);
 
   std::vector<std::unique_ptr<LoadedLeaf>> window(tree.leaves.size());
+  uint64_t window_bytes = 0;
   std::vector<PinnedLeaf> pinned;
   IoCount io;
   Emitter emit{o, visit, s};
@@ -193,7 +195,11 @@ Status RunSelfClash(const ClashStore& st, const ClashOptions& o, const ClashVisi
   std::vector<std::unique_ptr<LoadedLeaf>> loaded;
   for (size_t bi = 0; bi < plan.batches.size(); ++bi) {
     const clash::SweepBatch& b = plan.batches[bi];
-    for (uint32_t leaf : b.evict) window[leaf].reset();
+    auto drop = [&](uint32_t leaf) {
+      if (window[leaf]) window_bytes -= window[leaf]->bytes;
+      window[leaf].reset();
+    };
+    for (uint32_t leaf : b.evict) drop(leaf);
 
     // Read: the pages in sweep order on this thread (so that the cache's counts do not depend on the
     // threads), then the meshes and shapes of the objects that may be in a pair, on all threads.
@@ -229,7 +235,15 @@ Status RunSelfClash(const ClashStore& st, const ClashOptions& o, const ClashVisi
     });
     for (size_t i = 0; i < b.load.size(); ++i) pinned[i].Release();
     MKTREE_RETURN_IF_ERROR(FirstError(errors));
-    for (size_t i = 0; i < b.load.size(); ++i) window[b.load[i]] = std::move(loaded[i]);
+    for (size_t i = 0; i < b.load.size(); ++i) {
+      for (const LoadedObject& obj : loaded[i]->objects)
+        if (obj.mesh)
+          loaded[i]->bytes += sizeof(LoadedObject) + obj.mesh->vertices.capacity() * sizeof(double) +
+                              obj.mesh->triangles.capacity() * sizeof(uint32_t) + obj.shape->MemoryBytes();
+      window_bytes += loaded[i]->bytes;
+      window[b.load[i]] = std::move(loaded[i]);
+    }
+    s.window_peak_bytes = std::max(s.window_peak_bytes, window_bytes);
     s.read_seconds += Since(t);
 
     // Narrow phase: the batch's leaf pairs on all threads, handed on in order.
@@ -245,7 +259,7 @@ Status RunSelfClash(const ClashStore& st, const ClashOptions& o, const ClashVisi
     MKTREE_RETURN_IF_ERROR(FirstError(errors));
     s.narrow_seconds += Since(t);
     for (size_t k = 0; k < n; ++k) emit.Add(work[k]);
-    for (uint32_t leaf : b.drop) window[leaf].reset();
+    for (uint32_t leaf : b.drop) drop(leaf);
     if (o.progress) o.progress(bi + 1, plan.batches.size());
   }
   io.Fill(&s);

@@ -90,6 +90,9 @@ struct ClashStats {
   uint64_t store_pages = 0;     // leaf pages in the store
   uint64_t leaf_reads = 0;      // leaves read and decoded, re-reads included
   uint64_t leaf_rereads = 0;    // reads of a leaf that had left the window while it still had partners
+  // The most memory the window of decoded leaves (meshes and narrow-phase shapes) held at once, about;
+  // the window holds as many leaves as the cache has pages (self-clash only).
+  uint64_t window_peak_bytes = 0;
   // Broad phase.
   uint64_t leaf_pairs_tree = 0;     // leaf pairs (a leaf with itself included) whose boxes grown by C meet
   uint64_t leaf_pairs_visited = 0;  // of those, the pairs the leaf filter let through: read and tested
