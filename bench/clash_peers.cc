@@ -14,6 +14,7 @@
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Polygon_mesh_processing/orient_polygon_soup.h>
 #include <CGAL/Polygon_mesh_processing/polygon_soup_to_polygon_mesh.h>
+#include <CGAL/Polygon_mesh_processing/repair_polygon_soup.h>
 #include <CGAL/Side_of_triangle_mesh.h>
 #include <CGAL/Surface_mesh.h>
 #include <CGAL/box_intersection_d.h>
@@ -328,9 +329,15 @@ class CgalRun {
     if (c_ > 0 && best < c_ * c_) out->push_back({a, b, Meet::kApart, std::sqrt(best), {}});
   }
 
-  uint64_t candidates = 0, triangle_tests = 0, containment_tests = 0, side_meshes = 0;
+  uint64_t candidates = 0, triangle_tests = 0, containment_tests = 0, side_meshes = 0, side_failures = 0;
 
  private:
+  struct Side {
+    SMesh mesh;
+    bool ok = false;
+    std::unique_ptr<CGAL::Side_of_triangle_mesh<SMesh, K>> tester;
+  };
+
   void CollectTriangles(const Obj& o, const Box3d& other, std::vector<ObjBox>* out) {
     CGAL::Bbox_3 region = Grown(other, c_);
     for (size_t t = 0; t < o.mesh.triangle_count(); ++t) {
@@ -341,42 +348,58 @@ class CgalRun {
     }
   }
 
-  // Is A's solid wholly inside B's (no triangles meet)? B must be closed; A's box inside B's box.
+  // Does a part of solid A lie inside solid B, given that no triangles meet? Both must be closed: an open
+  // mesh is a surface, nothing is inside it and it is inside nothing (docs/clash.md, section 1). With no
+  // triangles meeting, each connected component of A lies wholly inside or wholly outside B, so A meets B
+  // this way iff some vertex of A is strictly inside B. Every vertex is tested (one per component would
+  // do, but finding components is what mktree does; the peer stays naive). A vertex on B's boundary would
+  // mean the triangles meet; it decides nothing.
   bool Inside(const Obj& A, const Obj& B, size_t ib) {
-    if (ib == SIZE_MAX || !B.closed) return false;
-    for (int k = 0; k < 3; ++k)
-      if (A.box.min[k] < B.box.min[k] || A.box.max[k] > B.box.max[k]) return false;
+    if (ib == SIZE_MAX || !A.closed || !B.closed) return false;
+    auto in_box = [&](size_t v) {
+      for (int k = 0; k < 3; ++k) {
+        const double x = A.mesh.vertices[3 * v + k];
+        if (x < B.box.min[k] || x > B.box.max[k]) return false;
+      }
+      return true;
+    };
+    size_t first = 0;
+    while (first < A.mesh.vertex_count() && !in_box(first)) ++first;
+    if (first == A.mesh.vertex_count()) return false;  // no vertex of A in B's box
     auto& side = side_[ib];
-    if (!side) {
-      ++side_meshes;
-      auto entry = std::make_unique<Side>();
-      std::vector<P3> pts;
-      for (size_t v = 0; v < B.mesh.vertex_count(); ++v) pts.push_back(Vertex(B.mesh, v));
-      std::vector<std::array<size_t, 3>> faces;
-      for (size_t t = 0; t < B.mesh.triangle_count(); ++t)
-        faces.push_back({B.mesh.triangles[3 * t], B.mesh.triangles[3 * t + 1], B.mesh.triangles[3 * t + 2]});
-      CGAL::Polygon_mesh_processing::orient_polygon_soup(pts, faces);
-      CGAL::Polygon_mesh_processing::polygon_soup_to_polygon_mesh(pts, faces, entry->mesh);
-      entry->ok = CGAL::is_closed(entry->mesh) && CGAL::is_triangle_mesh(entry->mesh);
-      if (entry->ok) entry->tester = std::make_unique<CGAL::Side_of_triangle_mesh<SMesh, K>>(entry->mesh);
-      side = std::move(entry);
-    }
+    if (!side) side = MakeSide(B);
     if (!side->ok) return false;
     ++containment_tests;
-    // The first vertex of A not on B's boundary decides (a beam end resting on a slab's face from inside
-    // has its end vertices on the boundary).
-    for (size_t v = 0; v < A.mesh.vertex_count(); ++v) {
-      const CGAL::Bounded_side side_of = (*side->tester)(Vertex(A.mesh, v));
-      if (side_of != CGAL::ON_BOUNDARY) return side_of == CGAL::ON_BOUNDED_SIDE;
-    }
+    for (size_t v = first; v < A.mesh.vertex_count(); ++v)
+      if (in_box(v) && (*side->tester)(Vertex(A.mesh, v)) == CGAL::ON_BOUNDED_SIDE) return true;
     return false;
   }
 
-  struct Side {
-    SMesh mesh;
-    bool ok = false;
-    std::unique_ptr<CGAL::Side_of_triangle_mesh<SMesh, K>> tester;
-  };
+  // B as a CGAL Surface_mesh for Side_of_triangle_mesh, which needs a closed triangle mesh. The stored
+  // mesh may repeat a point under several vertex indexes (the real scenes do: a steel plate has 32
+  // vertices for its 12 triangles), so the soup is repaired first (equal points merged, triangles with
+  // two equal corners dropped), as CheckEdges judges closedness on positions too.
+  std::unique_ptr<Side> MakeSide(const Obj& B) {
+    ++side_meshes;
+    auto entry = std::make_unique<Side>();
+    std::vector<P3> pts;
+    for (size_t v = 0; v < B.mesh.vertex_count(); ++v) pts.push_back(Vertex(B.mesh, v));
+    std::vector<std::vector<size_t>> faces;
+    for (size_t t = 0; t < B.mesh.triangle_count(); ++t)
+      faces.push_back({B.mesh.triangles[3 * t], B.mesh.triangles[3 * t + 1], B.mesh.triangles[3 * t + 2]});
+    namespace PMP = CGAL::Polygon_mesh_processing;
+    PMP::repair_polygon_soup(pts, faces);
+    PMP::orient_polygon_soup(pts, faces);
+    PMP::polygon_soup_to_polygon_mesh(pts, faces, entry->mesh);
+    entry->ok =
+        !CGAL::is_empty(entry->mesh) && CGAL::is_closed(entry->mesh) && CGAL::is_triangle_mesh(entry->mesh);
+    if (entry->ok)
+      entry->tester = std::make_unique<CGAL::Side_of_triangle_mesh<SMesh, K>>(entry->mesh);
+    else
+      ++side_failures;  // closed by CheckEdges, not by CGAL: no containment for this B (counted, reported)
+    return entry;
+  }
+
   const std::vector<Obj>& objs_;
   double c_;
   std::vector<std::unique_ptr<Side>> side_;
@@ -508,7 +531,8 @@ int Main(int argc, char** argv) {
     candidates = run.candidates;
     extra = ", \"triangle_tests\": " + std::to_string(run.triangle_tests) +
             ", \"containment_tests\": " + std::to_string(run.containment_tests) +
-            ", \"side_meshes\": " + std::to_string(run.side_meshes);
+            ", \"side_meshes\": " + std::to_string(run.side_meshes) +
+            ", \"side_mesh_failures\": " + std::to_string(run.side_failures);
   }
   std::sort(found.begin(), found.end(),
             [](const Pair& x, const Pair& y) { return x.a != y.a ? x.a < y.a : x.b < y.b; });
