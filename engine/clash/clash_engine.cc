@@ -185,7 +185,12 @@ Status RunSelfClash(const ClashStore& st, const ClashOptions& o, const ClashVisi
   std::vector<PinnedLeaf> pinned;
   IoCount io;
   Emitter emit{o, visit, s};
-  std::vector<PairWork> work;
+  std::vector<PairWork> work, previous;  // this batch's results, the last batch's (not yet handed on)
+  size_t previous_count = 0;
+  auto emit_previous = [&] {
+    for (size_t k = 0; k < previous_count; ++k) emit.Add(previous[k]);
+    previous_count = 0;
+  };
   std::vector<Status> errors;
   struct DecodeTask {
     size_t load;  // index into the batch's loads
@@ -246,22 +251,28 @@ Status RunSelfClash(const ClashStore& st, const ClashOptions& o, const ClashVisi
     s.window_peak_bytes = std::max(s.window_peak_bytes, window_bytes);
     s.read_seconds += Since(t);
 
-    // Narrow phase: the batch's leaf pairs on all threads, handed on in order.
+    // Narrow phase: the batch's leaf pairs on all threads; meanwhile this thread hands the previous
+    // batch's pairs on, in order (formatting and writing millions of pairs is serial work).
     t = Clock::now();
     const size_t n = b.pair_end - b.pair_begin;
     if (work.size() < n) work.resize(n);
     errors.assign(n, Status::Ok());
-    pool.For(n, [&](size_t k) {
-      const clash::LeafPair& lp = plan.pairs[b.pair_begin + k];
-      work[k].Clear();
-      errors[k] = TestLeafPair(*window[lp.p], *window[lp.q], lp.p == lp.q, o, ex, tree.origin, &work[k]);
-    });
+    pool.For(
+        n,
+        [&](size_t k) {
+          const clash::LeafPair& lp = plan.pairs[b.pair_begin + k];
+          work[k].Clear();
+          errors[k] = TestLeafPair(*window[lp.p], *window[lp.q], lp.p == lp.q, o, ex, tree.origin, &work[k]);
+        },
+        [&] { emit_previous(); });
     MKTREE_RETURN_IF_ERROR(FirstError(errors));
     s.narrow_seconds += Since(t);
-    for (size_t k = 0; k < n; ++k) emit.Add(work[k]);
+    std::swap(work, previous);
+    previous_count = n;
     for (uint32_t leaf : b.drop) drop(leaf);
     if (o.progress) o.progress(bi + 1, plan.batches.size());
   }
+  emit_previous();
   io.Fill(&s);
   s.total_seconds = Since(start);
   return Status::Ok();

@@ -54,10 +54,20 @@ void WorkPool::Work() {
   }
 }
 
-void WorkPool::For(size_t n, const std::function<void(size_t)>& f) {
-  if (n == 0) return;
-  if (workers_.empty() || n == 1) {
+void WorkPool::For(size_t n, const std::function<void(size_t)>& f) { For(n, f, nullptr); }
+
+void WorkPool::For(size_t n, const std::function<void(size_t)>& f, const std::function<void()>& side) {
+  if (workers_.empty() || n <= 1) {
+    std::exception_ptr side_error;
+    if (side) {
+      try {
+        side();
+      } catch (...) {
+        side_error = std::current_exception();
+      }
+    }
     for (size_t i = 0; i < n; ++i) f(i);
+    if (side_error) std::rethrow_exception(side_error);
     return;
   }
   std::unique_lock<std::mutex> lock(mu_);
@@ -67,6 +77,16 @@ void WorkPool::For(size_t n, const std::function<void(size_t)>& f) {
   error_ = nullptr;
   ++generation_;
   start_.notify_all();
+  lock.unlock();
+  std::exception_ptr side_error;
+  if (side) {
+    try {
+      side();
+    } catch (...) {
+      side_error = std::current_exception();
+    }
+  }
+  lock.lock();
   lock.release();
   RunShare();
   lock = std::unique_lock<std::mutex>(mu_, std::adopt_lock);
@@ -74,6 +94,7 @@ void WorkPool::For(size_t n, const std::function<void(size_t)>& f) {
   f_ = nullptr;
   n_ = 0;
   if (error_) std::rethrow_exception(std::exchange(error_, nullptr));
+  if (side_error) std::rethrow_exception(side_error);
 }
 
 }  // namespace mktree::clash

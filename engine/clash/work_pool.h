@@ -25,6 +25,10 @@ class WorkPool {
   // Runs f(i) for every i in [0, n), in any order and on any thread, and returns when all are done. The
   // first exception f throws is rethrown here (the remaining iterations are skipped).
   void For(size_t n, const std::function<void(size_t)>& f);
+  // The same, while the calling thread first runs side() (work that must stay on it, such as handing
+  // earlier results to a visitor) and then joins the loop. An exception from side() is rethrown once the
+  // loop is done.
+  void For(size_t n, const std::function<void(size_t)>& f, const std::function<void()>& side);
 
  private:
   void Work();

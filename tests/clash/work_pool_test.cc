@@ -1,0 +1,60 @@
+// The clash engine's worker pool: every iteration once, the side work on the calling thread, errors.
+#include "engine/clash/work_pool.h"
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <stdexcept>
+#include <thread>
+#include <vector>
+
+namespace mktree::clash {
+namespace {
+
+TEST(WorkPool, EveryIterationOnceWithSideWorkOnTheCallingThread) {
+  for (unsigned threads : {1u, 2u, 4u}) {
+    WorkPool pool(threads);
+    for (size_t n : {size_t{0}, size_t{1}, size_t{7}, size_t{1000}}) {
+      std::vector<std::atomic<int>> hits(n);
+      std::thread::id side_thread;
+      int sides = 0;
+      pool.For(
+          n, [&](size_t i) { hits[i].fetch_add(1); },
+          [&] {
+            side_thread = std::this_thread::get_id();
+            ++sides;
+          });
+      EXPECT_EQ(sides, 1);
+      EXPECT_EQ(side_thread, std::this_thread::get_id());
+      for (size_t i = 0; i < n; ++i)
+        EXPECT_EQ(hits[i].load(), 1) << threads << " threads, n " << n << ", i " << i;
+    }
+  }
+}
+
+TEST(WorkPool, ASideErrorComesBackAfterTheLoopIsDone) {
+  for (unsigned threads : {1u, 2u}) {
+    WorkPool pool(threads);
+    std::atomic<size_t> done{0};
+    EXPECT_THROW(pool.For(
+                     500, [&](size_t) { done.fetch_add(1); }, [] { throw std::runtime_error("side"); }),
+                 std::runtime_error);
+    EXPECT_EQ(done.load(), 500u);  // nothing still runs against the caller's state
+    // The pool is usable afterwards.
+    std::atomic<size_t> again{0};
+    pool.For(10, [&](size_t) { again.fetch_add(1); });
+    EXPECT_EQ(again.load(), 10u);
+  }
+}
+
+TEST(WorkPool, ALoopErrorIsRethrown) {
+  WorkPool pool(2);
+  EXPECT_THROW(pool.For(100,
+                        [](size_t i) {
+                          if (i == 37) throw std::runtime_error("37");
+                        }),
+               std::runtime_error);
+}
+
+}  // namespace
+}  // namespace mktree::clash
