@@ -25,10 +25,16 @@
 //   mktree::Status st = (*db)->Run(mktree::Query::Box(box), &r);  // r.hits, r.stats
 //   st = (*db)->Visit(mktree::Query::Box(box, mktree::QueryMode::kExact), [&](mktree::ObjectId id) { ... },
 //                     /*stats=*/nullptr);
+//   mktree::Result<bool> any = (*db)->Any(mktree::Query::Box(box), nullptr);  // reads up to the first hit
+//   st = (*db)->RunBatchStreamed(queries, {.threads = 4}, [&](uint64_t i, const mktree::QueryResult& r) {
+//     ...;  // r answers queries[i]; results come in order of i
+//     return mktree::Status::Ok();
+//   });
 //
 // Thread safety: a Database is safe to query from many threads at once (the page cache is shared and
 // locked; each query has its own QueryStats). ClearCache must not run concurrently with queries if the
-// caller wants per-query cold counts.
+// caller wants per-query cold counts (RunBatchStreamed with BatchOptions::cold gives them on any number of
+// threads).
 #pragma once
 
 #include <cstdint>
