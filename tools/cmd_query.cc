@@ -224,7 +224,8 @@ void RegisterQuery(CLI::App& app, CommandRun* run) {
     if (any->count() && (limit->count() || count->count() || args->summary))
       throw CLI::ValidationError("--any", "excludes --limit, --count and --summary");
     if (count->count() && args->summary) throw CLI::ValidationError("--count", "excludes --summary");
-    if (args->threads == 0) throw CLI::ValidationError("--threads", "must be at least 1");
+    if (args->threads == 0 || args->threads > 1024)
+      throw CLI::ValidationError("--threads", "must be from 1 to 1024");
     args->has_limit = limit->count() > 0;
     args->has_point = p->count() > 0;
     args->has_box = b->count() > 0;

@@ -174,7 +174,9 @@ TEST_P(StreamingTest, TheWindowBoundsTheResultsHeld) {
       ASSERT_TRUE((*db)->RunBatchStreamed(source, o, deliver).ok());
       EXPECT_EQ(delivered, qs.size());
       EXPECT_LE(most, bound);
-      if (threads > 1) EXPECT_EQ(most, bound);  // the window is used: queries run ahead of delivery
+      if (threads > 1) {
+        EXPECT_EQ(most, bound);  // the window is used: queries run ahead of delivery
+      }
     }
   }
 }
