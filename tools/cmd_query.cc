@@ -1,10 +1,15 @@
-// mktree query STORE (--point | --box | --queries FILE) [--exact] [--cache-pages N] [--cold]:
-// one JSON object per query per line, with the sorted hits and every per-query statistic.
+// mktree query STORE (--point | --box | --queries FILE) [--exact] [--cache-pages N] [--cold] [--threads N]
+// [--limit N | --any] [--count | --summary]: one JSON object per query per line, with the sorted hits and
+// every per-query statistic, written as each answer is complete (Database::RunBatchStreamed).
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <deque>
 #include <map>
+#include <memory>
+#include <optional>
 #include <string>
+#include <utility>
 
 #include "mktree/database.h"
 #include "tools/cli_numbers.h"
@@ -25,11 +30,18 @@ struct QueryArgs {
   bool no_verify = false;
   bool direct_io = false;
   bool summary = false;
+  bool count = false;
+  bool any = false;
+  bool has_limit = false;
+  uint64_t limit = 0;
+  uint64_t threads = 1;
 };
 
-// Per query kind ("point", "box 2" for boxes of largest side 2): disk accesses and answers.
+// Per query kind ("point", "box 2" for boxes of largest side 2): disk accesses and answers. Pages read
+// are kept as a histogram (value -> queries), so that memory does not grow with the number of queries.
 struct KindSummary {
-  std::vector<double> pages_read;
+  std::map<uint64_t, uint64_t> pages_read;
+  uint64_t queries = 0;
   double hits = 0, floor = 0, leaves = 0, touched = 0;
 };
 
@@ -48,67 +60,140 @@ void PrintSummary(const std::map<std::string, KindSummary>& kinds, double per_pa
   std::printf("%-12s %8s %10s %10s %8s %8s %10s %10s\n", "kind", "queries", "mean hits", "pages read", "p50",
               "p99", "floor", "leaves");
   for (const auto& [name, k] : kinds) {
-    std::vector<double> v = k.pages_read;
-    std::sort(v.begin(), v.end());
-    const double n = static_cast<double>(v.size());
+    const double n = static_cast<double>(k.queries);
     double sum = 0;
-    for (double x : v) sum += x;
-    auto pct = [&](double q) { return v[std::min(v.size() - 1, static_cast<size_t>(q * (n - 1) + 0.5))]; };
-    std::printf("%-12s %8zu %10.2f %10.3f %8.0f %8.0f %10.3f %10.3f\n", name.c_str(), v.size(), k.hits / n,
-                sum / n, pct(0.5), pct(0.99), k.floor / n, k.leaves / n);
+    for (const auto& [pages, count] : k.pages_read)
+      sum += static_cast<double>(pages) * static_cast<double>(count);
+    // The value at rank round(q * (n - 1)) of the sorted pages read.
+    auto pct = [&](double q) {
+      const uint64_t rank = std::min<uint64_t>(k.queries - 1, static_cast<uint64_t>(q * (n - 1) + 0.5));
+      uint64_t below = 0;
+      for (const auto& [pages, count] : k.pages_read) {
+        below += count;
+        if (rank < below) return static_cast<double>(pages);
+      }
+      return 0.0;
+    };
+    std::printf("%-12s %8llu %10.2f %10.3f %8.0f %8.0f %10.3f %10.3f\n", name.c_str(),
+                static_cast<unsigned long long>(k.queries), k.hits / n, sum / n, pct(0.5), pct(0.99),
+                k.floor / n, k.leaves / n);
   }
 }
 
+// The queries of the command line, in order: --point, --box, then the lines of --queries.
+class CommandQueries {
+ public:
+  explicit CommandQueries(const QueryArgs& a) : a_(a) {}
+
+  // Parses the arguments and reads the whole file once, keeping nothing, so that a bad line is refused
+  // before the store is opened or anything is printed.
+  Status Check() {
+    if (a_.has_point) {
+      MKTREE_ASSIGN_OR_RETURN(point_, ParsePointArg(a_.point));
+    }
+    if (a_.has_box) {
+      MKTREE_ASSIGN_OR_RETURN(box_, ParseBoxArg(a_.box));
+    }
+    if (!a_.has_file) return Status::Ok();
+    if (a_.file.empty()) return Status::InvalidArgument("--queries: empty file name");
+    MKTREE_ASSIGN_OR_RETURN(std::unique_ptr<QueryFileReader> r, QueryFileReader::Open(a_.file));
+    Query q;
+    while (true) {
+      MKTREE_ASSIGN_OR_RETURN(const bool more, r->Next(&q));
+      if (!more) return Status::Ok();
+    }
+  }
+
+  Result<bool> Next(Query* q) {
+    MKTREE_ASSIGN_OR_RETURN(const bool more, NextGiven(q));
+    if (more) {
+      q->mode = a_.exact ? QueryMode::kExact : QueryMode::kAabb;
+      if (a_.any) {
+        q->limit = 0;  // no id, but truncated says whether there is one
+      } else if (a_.has_limit) {
+        q->limit = a_.limit;
+      }
+    }
+    return more;
+  }
+
+ private:
+  Result<bool> NextGiven(Query* q) {
+    if (point_) {
+      *q = *std::exchange(point_, std::nullopt);
+      return true;
+    }
+    if (box_) {
+      *q = *std::exchange(box_, std::nullopt);
+      return true;
+    }
+    if (!a_.has_file) return false;
+    if (!file_) {
+      MKTREE_ASSIGN_OR_RETURN(file_, QueryFileReader::Open(a_.file));
+    }
+    return file_->Next(q);
+  }
+
+  const QueryArgs& a_;
+  std::optional<Query> point_, box_;
+  std::unique_ptr<QueryFileReader> file_;
+};
+
 int RunQuery(const QueryArgs& a) {
-  std::vector<Query> queries;
-  if (a.has_point) {
-    auto q = ParsePointArg(a.point);
-    if (!q.ok()) return Fail(q.status().message());
-    queries.push_back(*q);
-  }
-  if (a.has_box) {
-    auto q = ParseBoxArg(a.box);
-    if (!q.ok()) return Fail(q.status().message());
-    queries.push_back(*q);
-  }
-  if (a.has_file) {
-    if (a.file.empty()) return Fail("--queries: empty file name");
-    auto qs = ReadQueryFile(a.file);
-    if (!qs.ok()) return Fail(qs.status().message());
-    queries.insert(queries.end(), qs->begin(), qs->end());
-  }
+  CommandQueries queries(a);
+  if (Status st = queries.Check(); !st.ok()) return Fail(st.message());
   OpenOptions oo;
   oo.cache_pages = a.cache_pages;
   oo.verify_checksums = !a.no_verify;
   oo.direct_io = a.direct_io;
   auto db = Database::Open(a.store, oo);
   if (!db.ok()) return Fail(db.status().message());
-  for (Query& q : queries) q.mode = a.exact ? QueryMode::kExact : QueryMode::kAabb;
-  QueryResult r;
+  BatchOptions bo;
+  bo.threads = static_cast<unsigned>(a.threads);
+  bo.cold = a.cold;
+  bo.ids = !(a.summary || a.count || a.any);  // counted answers are streamed, never collected
   std::string line;
   std::map<std::string, KindSummary> kinds;
   const double per_page = (*db)->objects_per_page();
-  for (size_t i = 0; i < queries.size(); ++i) {
-    if (a.cold) (*db)->ClearCache();
-    Status st = (*db)->Run(queries[i], &r);
-    if (!st.ok()) return Fail("query " + std::to_string(i) + ": " + st.message());
+  // The kind of each query, as RunBatchStreamed's results carry no query: delivery is in query order, so
+  // a FIFO of the kinds of the queries read but not yet delivered (at most the window).
+  std::deque<std::pair<bool, std::string>> pending;  // (is a point, summary kind)
+  auto source = [&](Query* q) -> Result<bool> {
+    MKTREE_ASSIGN_OR_RETURN(const bool more, queries.Next(q));
+    if (more) pending.emplace_back(q->kind == Query::Kind::kPoint, a.summary ? KindOf(*q) : std::string());
+    return more;
+  };
+  auto deliver = [&](uint64_t i, const QueryResult& r) -> Status {
+    const auto [point, kind] = std::move(pending.front());
+    pending.pop_front();
     if (a.summary) {
-      KindSummary& k = kinds[KindOf(queries[i])];
-      k.pages_read.push_back(static_cast<double>(r.stats.pages_read));
-      k.hits += static_cast<double>(r.hits.size());
-      k.floor += per_page > 0 ? std::ceil(static_cast<double>(r.hits.size()) / per_page) : 0;
+      KindSummary& k = kinds[kind];
+      ++k.pages_read[r.stats.pages_read];
+      ++k.queries;
+      k.hits += static_cast<double>(r.stats.hits);
+      k.floor += per_page > 0 ? std::ceil(static_cast<double>(r.stats.hits) / per_page) : 0;
       k.leaves += static_cast<double>(r.stats.leaves_visited);
-      continue;
+      return Status::Ok();
     }
-    line = "{\"query\": " + std::to_string(i) + ", \"kind\": \"" +
-           (queries[i].kind == Query::Kind::kPoint ? "point" : "box") + "\", \"hits\": [";
-    for (size_t k = 0; k < r.hits.size(); ++k) {
-      if (k) line += ", ";
-      line += std::to_string(r.hits[k]);
+    line = "{\"query\": " + std::to_string(i) + ", \"kind\": \"" + (point ? "point" : "box") + "\", ";
+    if (a.any) {
+      line += std::string("\"any\": ") + (r.truncated ? "true" : "false") + ", ";
+    } else if (!a.count) {
+      line += "\"hits\": [";
+      for (size_t k = 0; k < r.hits.size(); ++k) {
+        if (k) line += ", ";
+        line += std::to_string(r.hits[k]);
+      }
+      line += "], ";
     }
-    line += "], " + r.stats.ToJsonMembers() + "}\n";
-    std::fwrite(line.data(), 1, line.size(), stdout);
-  }
+    line += r.stats.ToJsonMembers();
+    if (a.has_limit) line += std::string(", \"truncated\": ") + (r.truncated ? "true" : "false");
+    line += "}\n";
+    if (std::fwrite(line.data(), 1, line.size(), stdout) != line.size())
+      return Status::IOError("cannot write to standard output");
+    return Status::Ok();
+  };
+  if (Status st = (*db)->RunBatchStreamed(source, bo, deliver); !st.ok()) return Fail(st.message());
   if (a.summary) PrintSummary(kinds, per_page, a.cold);
   return std::fflush(stdout) == 0 ? 0 : Fail("cannot write to standard output");
 }
@@ -129,9 +214,19 @@ void RegisterQuery(CLI::App& app, CommandRun* run) {
   cmd->add_flag("--no-verify", args->no_verify, "Skip page checksum verification");
   cmd->add_flag("--summary", args->summary, "Instead of JSON lines, a table of disk accesses per query kind");
   cmd->add_flag("--direct-io", args->direct_io, "Bypass the OS page cache (paged-file backend)");
-  cmd->callback([run, args, p, b, f] {
+  auto* count = cmd->add_flag("--count", args->count, "Print each answer's statistics without its ids");
+  auto* any = cmd->add_flag("--any", args->any, "Print whether anything answers; stops at the first hit");
+  auto* limit = AddNumberOption(cmd, "--limit", &args->limit, "At most N ids per answer (the first read)");
+  AddNumberOption(cmd, "--threads", &args->threads, "Threads running the queries (answers stay in order)");
+  cmd->callback([run, args, p, b, f, count, any, limit] {
     if (p->count() + b->count() + f->count() == 0)
       throw CLI::RequiredError("one of --point, --box or --queries");
+    if (any->count() && (limit->count() || count->count() || args->summary))
+      throw CLI::ValidationError("--any", "excludes --limit, --count and --summary");
+    if (count->count() && args->summary) throw CLI::ValidationError("--count", "excludes --summary");
+    if (args->threads == 0 || args->threads > 1024)
+      throw CLI::ValidationError("--threads", "must be from 1 to 1024");
+    args->has_limit = limit->count() > 0;
     args->has_point = p->count() > 0;
     args->has_box = b->count() > 0;
     args->has_file = f->count() > 0;

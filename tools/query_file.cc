@@ -54,32 +54,45 @@ Result<Query> MakeQuery(const std::string& kind, const std::vector<double>& v, c
 
 }  // namespace
 
-Result<std::vector<Query>> ReadQueryFile(const std::string& path) {
+Result<std::unique_ptr<QueryFileReader>> QueryFileReader::Open(const std::string& path) {
   MKTREE_RETURN_IF_ERROR(CheckInputFile(path));  // a FIFO would block the read
-  std::ifstream in(path);
-  if (!in) return Status::NotFound(path + ": cannot open query file");
-  std::vector<Query> queries;
-  std::string line;
-  std::vector<double> numbers;
-  for (uint64_t line_no = 1; std::getline(in, line); ++line_no) {
-    const std::string where = path + ":" + std::to_string(line_no);
+  std::unique_ptr<QueryFileReader> r(new QueryFileReader(path));
+  if (!r->in_) return Status::NotFound(path + ": cannot open query file");
+  return r;
+}
+
+Result<bool> QueryFileReader::Next(Query* q) {
+  while (std::getline(in_, line_)) {
+    ++line_no_;
+    std::string& line = line_;
     if (auto hash = line.find('#'); hash != std::string::npos) line.resize(hash);
     size_t s = line.find_first_not_of(" \t\r");
     if (s == std::string::npos) continue;
+    const std::string where = path_ + ":" + std::to_string(line_no_);
     size_t e = line.find_first_of(" \t", s);
     const std::string kind = line.substr(s, e == std::string::npos ? std::string::npos : e - s);
     if (kind != "point" && kind != "box")
       return Status::InvalidArgument(where + ": unknown query '" + kind + "' (expected point or box)");
     std::string bad;
     if (!ParseNumbers(e == std::string::npos ? std::string_view() : std::string_view(line).substr(e),
-                      &numbers, &bad))
+                      &numbers_, &bad))
       return Status::InvalidArgument(where + ": '" + bad + "' is not a finite number");
-    auto q = MakeQuery(kind, numbers, where);
-    if (!q.ok()) return q.status();
-    queries.push_back(*q);
+    MKTREE_ASSIGN_OR_RETURN(*q, MakeQuery(kind, numbers_, where));
+    return true;
   }
-  if (in.bad()) return Status::IOError(path + ": read failed");
-  return queries;
+  if (in_.bad()) return Status::IOError(path_ + ": read failed");
+  return false;
+}
+
+Result<std::vector<Query>> ReadQueryFile(const std::string& path) {
+  MKTREE_ASSIGN_OR_RETURN(std::unique_ptr<QueryFileReader> reader, QueryFileReader::Open(path));
+  std::vector<Query> queries;
+  Query q;
+  while (true) {
+    MKTREE_ASSIGN_OR_RETURN(const bool more, reader->Next(&q));
+    if (!more) return queries;
+    queries.push_back(q);
+  }
 }
 
 namespace {

@@ -3,8 +3,10 @@
 #include "mktree/database.h"
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
+#include <condition_variable>
+#include <memory>
+#include <mutex>
 #include <thread>
 #include <type_traits>
 #include <utility>
@@ -109,29 +111,12 @@ class StoreDatabase final : public Database {
   StoreDatabase(std::unique_ptr<StoreReader> reader, const OpenOptions& options)
       : reader_(std::move(reader)), options_(options), cache_(&reader_->pages(), options.cache_pages) {}
 
-  Status Visit(const Query& q, const ObjectVisitor& visit, QueryStats* stats) const override {
-    QueryStats local;
-    QueryStats& s = stats ? *stats : local;
-    s.Reset();
-    MKTREE_RETURN_IF_ERROR(CheckQuery(q));
-    const MKTree& tree = reader_->tree();
-    return Guarded(path(), [&] {
-      if (q.kind == Query::Kind::kPoint) {
-        const Vec3d p = ToStoreFrame(q.point);
-        return Answer([&](std::vector<uint32_t>* leaves) { tree.RoutePoint(p, leaves, &s); }, q.mode,
-                      [&](const ObjectEntryView& e) { return e.box.Contains(p); },
-                      [&](const SolidClassifier& solid) { return solid.Contains(p); }, visit, &s);
-      }
-      Box3d box;
-      for (int i = 0; i < 3; ++i) {
-        box.min[i] = q.box.min[i] - tree.origin[i];
-        box.max[i] = q.box.max[i] - tree.origin[i];
-      }
-      return Answer([&](std::vector<uint32_t>* leaves) { tree.RouteBox(box, leaves, &s); }, q.mode,
-                    [&](const ObjectEntryView& e) { return e.box.Intersects(box); },
-                    [&](const SolidClassifier& solid) { return solid.MeetsBox(box); }, visit, &s);
-    });
+  Result<bool> VisitUntil(const Query& q, const StoppableVisitor& visit, QueryStats* stats) const override {
+    return RunOne(cache_, q, visit, stats);
   }
+
+  Status RunBatchStreamed(const QuerySource& source, const BatchOptions& options,
+                          const ResultVisitor& deliver) const override;
 
   Status SelfClash(const ClashOptions& options, const ClashVisitor& visit, ClashStats* stats) const override {
     return Guarded(path(), [&] { return RunSelfClash(ClashStoreView(), options, visit, stats); });
@@ -178,11 +163,12 @@ class StoreDatabase final : public Database {
     return ClashStore{*reader_, cache_, options_.verify_checksums, options_.cache_pages};
   }
 
-  // Pins the leaf's pages, verifies and parses them, and appends to `found` the objects that answer;
-  // `test` says whether an object answers: a bool, or a Result<bool> where the test can fail (exact
-  // geometry).
+  // Pins the leaf's pages, verifies and parses them, and appends to `found` the objects that answer, up to
+  // `cap` of them (the rest of the leaf is not tested); `test` says whether an object answers: a bool, or
+  // a Result<bool> where the test can fail (exact geometry).
   template <typename Test>
-  Status ScanLeaf(uint32_t leaf, QueryStats* s, Test&& test, std::vector<ObjectId>* found) const {
+  Status ScanLeaf(PageCache& cache, uint32_t leaf, QueryStats* s, Test&& test, uint64_t cap,
+                  std::vector<ObjectId>* found) const {
     const MKTree& tree = reader_->tree();
     // One PinnedLeaf per thread, reused leaf after leaf so that a scan allocates nothing; it holds pins
     // only during the scan.
@@ -191,10 +177,11 @@ class StoreDatabase final : public Database {
       PinnedLeaf& leaf;
       ~Unpin() { leaf.Release(); }
     } unpin{pinned};
-    MKTREE_RETURN_IF_ERROR(ReadLeaf(cache_, reader_->pages().name(), leaf, tree.leaves[leaf],
+    MKTREE_RETURN_IF_ERROR(ReadLeaf(cache, reader_->pages().name(), leaf, tree.leaves[leaf],
                                     reader_->objects().leaf, tree.params.mem_page(),
                                     options_.verify_checksums, s, &pinned));
     for (const ObjectEntryView& e : pinned.view.entries()) {
+      if (found->size() >= cap) break;
       ++s->candidates_tested;
       if constexpr (std::is_same_v<std::invoke_result_t<Test&, const ObjectEntryView&>, bool>) {
         if (test(e)) found->push_back(e.id);
@@ -206,12 +193,42 @@ class StoreDatabase final : public Database {
     return Status::Ok();
   }
 
+  // One query through `cache`; the ids go to `visit` (returns false to stop). Returns whether the whole
+  // answer was visited.
+  Result<bool> RunOne(PageCache& cache, const Query& q, const StoppableVisitor& visit,
+                      QueryStats* stats) const {
+    QueryStats local;
+    QueryStats& s = stats ? *stats : local;
+    s.Reset();
+    MKTREE_RETURN_IF_ERROR(CheckQuery(q));
+    const MKTree& tree = reader_->tree();
+    return Guarded(path(), [&]() -> Result<bool> {
+      if (q.kind == Query::Kind::kPoint) {
+        const Vec3d p = ToStoreFrame(q.point);
+        return Answer(
+            cache, [&](std::vector<uint32_t>* leaves) { tree.RoutePoint(p, leaves, &s); }, q,
+            [&](const ObjectEntryView& e) { return e.box.Contains(p); },
+            [&](const SolidClassifier& solid) { return solid.Contains(p); }, visit, &s);
+      }
+      Box3d box;
+      for (int i = 0; i < 3; ++i) {
+        box.min[i] = q.box.min[i] - tree.origin[i];
+        box.max[i] = q.box.max[i] - tree.origin[i];
+      }
+      return Answer(
+          cache, [&](std::vector<uint32_t>* leaves) { tree.RouteBox(box, leaves, &s); }, q,
+          [&](const ObjectEntryView& e) { return e.box.Intersects(box); },
+          [&](const SolidClassifier& solid) { return solid.MeetsBox(box); }, visit, &s);
+    });
+  }
+
   // One query: `route` lists the leaves to read; `meets_aabb` tests an entry's box (AABB mode, and the
   // first test of exact mode); `meets_solid` tests the object's solid (exact mode). Each leaf's answers
-  // go to `visit` once the leaf is released.
+  // go to `visit` once the leaf is released. Under a limit, leaves are scanned for one id more than the
+  // limit leaves room for, which tells whether the answer goes on without reading further.
   template <typename Route, typename MeetsAabb, typename MeetsSolid>
-  Status Answer(Route&& route, QueryMode mode, MeetsAabb&& meets_aabb, MeetsSolid&& meets_solid,
-                const ObjectVisitor& visit, QueryStats* s) const {
+  Result<bool> Answer(PageCache& cache, Route&& route, const Query& q, MeetsAabb&& meets_aabb,
+                      MeetsSolid&& meets_solid, const StoppableVisitor& visit, QueryStats* s) const {
     std::vector<uint32_t> leaves;
     route(&leaves);
     auto exact = [&](const ObjectEntryView& e) -> Result<bool> {
@@ -221,16 +238,33 @@ class StoreDatabase final : public Database {
       return meets_solid(Classifier(e, mesh));
     };
     std::vector<ObjectId> found = std::exchange(t_spare_ids, {});
+    struct Restore {  // the buffer goes back on every path, errors included
+      std::vector<ObjectId>& found;
+      ~Restore() { t_spare_ids = std::move(found); }
+    } restore{found};
+    // The routing counted every leaf it let through as visited; a query that stops early reads fewer.
+    struct Unvisited {
+      QueryStats* s;
+      size_t unread;
+      ~Unvisited() { s->leaves_visited -= std::min<uint64_t>(s->leaves_visited, unread); }
+    } unvisited{s, leaves.size()};
+    uint64_t room = q.limit;  // ids the limit still allows
     for (uint32_t leaf : leaves) {
+      --unvisited.unread;
       found.clear();
-      MKTREE_RETURN_IF_ERROR(mode == QueryMode::kAabb ? ScanLeaf(leaf, s, meets_aabb, &found)
-                                                      : ScanLeaf(leaf, s, exact, &found));
-      s->hits += found.size();
-      s->leaves_with_hits += !found.empty();
-      for (ObjectId id : found) visit(id);
+      const uint64_t cap = room == Query::kNoLimit ? room : room + 1;
+      MKTREE_RETURN_IF_ERROR(q.mode == QueryMode::kAabb ? ScanLeaf(cache, leaf, s, meets_aabb, cap, &found)
+                                                        : ScanLeaf(cache, leaf, s, exact, cap, &found));
+      const size_t take = static_cast<size_t>(std::min<uint64_t>(found.size(), room));
+      s->leaves_with_hits += take > 0;
+      for (size_t k = 0; k < take; ++k) {
+        ++s->hits;
+        if (!visit(found[k])) return false;
+      }
+      if (found.size() > take) return false;  // an id past the limit: the answer goes on
+      if (room != Query::kNoLimit) room -= take;
     }
-    t_spare_ids = std::move(found);
-    return Status::Ok();
+    return true;
   }
 
   std::unique_ptr<StoreReader> reader_;
@@ -238,67 +272,207 @@ class StoreDatabase final : public Database {
   mutable PageCache cache_;
 };
 
+Status StoreDatabase::RunBatchStreamed(const QuerySource& source, const BatchOptions& options,
+                                       const ResultVisitor& deliver) const {
+  return Guarded(path(), [&]() -> Status {
+    const unsigned threads =
+        options.threads ? options.threads : std::max(1u, std::thread::hardware_concurrency());
+    const uint64_t window = options.window ? options.window : 4 * uint64_t{threads};
+    // One query into `r`; cold queries through `own`, a private cache emptied first.
+    auto run = [&](const Query& q, PageCache* own, QueryResult* r) -> Status {
+      if (own) own->Clear();
+      PageCache& cache = own ? *own : cache_;
+      r->hits.clear();
+      Result<bool> complete = options.ids ? RunOne(
+                                                cache, q,
+                                                [r](ObjectId id) {
+                                                  r->hits.push_back(id);
+                                                  return true;
+                                                },
+                                                &r->stats)
+                                          : RunOne(
+                                                cache, q, [](ObjectId) { return true; }, &r->stats);
+      if (!complete.ok()) return complete.status();
+      r->truncated = !*complete;
+      SortIds(&r->hits);
+      return Status::Ok();
+    };
+    auto own_cache = [&] {
+      return options.cold ? std::make_unique<PageCache>(&reader_->pages(), options_.cache_pages) : nullptr;
+    };
+    auto failed = [](uint64_t i, const Status& st) {
+      return Prefixed(st, "query " + std::to_string(i) + ": ");
+    };
+
+    // The calling thread reads the source into a ring of `window` slots and delivers them in order;
+    // workers run the slots in order. Slot i % window is refilled only after result i is delivered.
+    struct Slot {
+      Query query;
+      QueryResult result;
+      Status status;
+      bool done = false;
+    };
+    std::vector<Slot> slots(threads > 1 ? window : 0);
+    std::mutex mu;
+    std::condition_variable ready, done;
+    uint64_t filled = 0, started = 0;  // under mu
+    bool stop = false;                 // under mu
+    auto work = [&]() noexcept {
+      std::unique_ptr<PageCache> own;
+      std::unique_lock<std::mutex> lock(mu);
+      while (true) {
+        ready.wait(lock, [&] { return stop || started < filled; });
+        if (stop) return;
+        Slot& slot = slots[started++ % window];
+        lock.unlock();
+        Status st;
+        try {
+          if (options.cold && !own) own = own_cache();
+          st = run(slot.query, own.get(), &slot.result);
+        } catch (...) {
+          st = StatusOfCurrentException(path());
+        }
+        lock.lock();
+        slot.status = std::move(st);
+        slot.done = true;
+        done.notify_all();
+      }
+    };
+    std::vector<std::thread> pool;
+    struct Join {  // on every way out: stop the workers (a running query finishes first) and join them
+      std::mutex& mu;
+      bool& stop;
+      std::condition_variable& ready;
+      std::vector<std::thread>& pool;
+      ~Join() {
+        {
+          std::lock_guard<std::mutex> lock(mu);
+          stop = true;
+        }
+        ready.notify_all();
+        for (auto& t : pool) t.join();
+      }
+    } join{mu, stop, ready, pool};
+    if (threads > 1) {
+      try {
+        pool.reserve(threads);
+        for (unsigned t = 0; t < threads; ++t) pool.emplace_back(work);
+      } catch (...) {
+        // A thread that cannot start leaves its share to the others.
+      }
+    }
+
+    if (pool.empty()) {  // one thread: each query on the calling thread, delivered at once
+      std::unique_ptr<PageCache> own = own_cache();
+      QueryResult r;
+      Query q;
+      for (uint64_t i = 0;; ++i) {
+        MKTREE_ASSIGN_OR_RETURN(const bool more, source(&q));
+        if (!more) return Status::Ok();
+        Status st = run(q, own.get(), &r);
+        if (!st.ok()) return failed(i, st);
+        MKTREE_RETURN_IF_ERROR(deliver(i, r));
+      }
+    }
+
+    Status source_status;
+    bool source_done = false;
+    for (uint64_t delivered = 0;; ++delivered) {
+      while (!source_done && filled < delivered + window) {
+        Query q;
+        Result<bool> more = source(&q);
+        if (!more.ok() || !*more) {
+          source_status = more.status();
+          source_done = true;
+          break;
+        }
+        {
+          std::lock_guard<std::mutex> lock(mu);
+          Slot& slot = slots[filled % window];
+          slot.query = q;
+          slot.done = false;
+          ++filled;
+        }
+        ready.notify_one();
+      }
+      if (delivered == filled) return source_status;  // every query before the source's end or error
+      Slot& slot = slots[delivered % window];
+      {
+        std::unique_lock<std::mutex> lock(mu);
+        done.wait(lock, [&] { return slot.done; });
+      }
+      if (!slot.status.ok()) return failed(delivered, slot.status);
+      MKTREE_RETURN_IF_ERROR(deliver(delivered, slot.result));
+    }
+  });
+}
+
 }  // namespace
 
 std::unique_ptr<Database> OpenStoreDatabase(std::unique_ptr<StoreReader> reader, const OpenOptions& options) {
   return std::make_unique<StoreDatabase>(std::move(reader), options);
 }
 
+Status Database::Visit(const Query& query, const ObjectVisitor& visit, QueryStats* stats) const {
+  return VisitUntil(
+             query,
+             [&visit](ObjectId id) {
+               visit(id);
+               return true;
+             },
+             stats)
+      .status();
+}
+
+Result<bool> Database::Any(const Query& query, QueryStats* stats) const {
+  Query q = query;
+  q.limit = 0;  // leaves are scanned up to their first answer, which only tells that the answer goes on
+  MKTREE_ASSIGN_OR_RETURN(const bool complete, VisitUntil(
+                                                   q, [](ObjectId) { return true; }, stats));
+  return !complete;
+}
+
 Status Database::Run(const Query& query, QueryResult* result) const {
   std::vector<ObjectId>& hits = result->hits;
   hits.clear();
-  auto collect = [&hits](ObjectId id) { hits.push_back(id); };
-  MKTREE_RETURN_IF_ERROR(Visit(query, collect, &result->stats));
+  result->truncated = false;
+  auto collect = [&hits](ObjectId id) {
+    hits.push_back(id);
+    return true;
+  };
+  MKTREE_ASSIGN_OR_RETURN(const bool complete, VisitUntil(query, collect, &result->stats));
+  result->truncated = !complete;
   return Guarded(path(), [&] {
     SortIds(&hits);
     return Status::Ok();
   });
 }
 
+Status Database::RunBatchStreamed(const std::vector<Query>& queries, const BatchOptions& options,
+                                  const ResultVisitor& deliver) const {
+  BatchOptions o = options;
+  if (o.threads == 0) o.threads = std::max(1u, std::thread::hardware_concurrency());
+  o.threads = static_cast<unsigned>(std::min<size_t>(o.threads, std::max<size_t>(1, queries.size())));
+  size_t next = 0;
+  auto source = [&](Query* q) -> Result<bool> {
+    if (next == queries.size()) return false;
+    *q = queries[next++];
+    return true;
+  };
+  return RunBatchStreamed(source, o, deliver);
+}
+
 Status Database::RunBatch(const std::vector<Query>& queries, unsigned threads,
                           std::vector<QueryResult>* results) const {
-  return Guarded(path(), [&]() -> Status {
+  MKTREE_RETURN_IF_ERROR(Guarded(path(), [&] {
     results->assign(queries.size(), QueryResult{});
-    if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
-    threads = static_cast<unsigned>(std::min<size_t>(threads, std::max<size_t>(1, queries.size())));
-    // Each worker keeps its first failure. Workers claim queries in order and stop claiming once one has
-    // failed, so every query before a failed one has run: the failure of the lowest index is the batch's
-    // first failing query, whatever the threads' timing.
-    struct Failure {
-      size_t query = SIZE_MAX;
-      Status status;
-    };
-    std::vector<Failure> failures(threads);
-    std::atomic<size_t> next{0};
-    std::atomic<bool> failed{false};
-    auto work = [&](unsigned t) noexcept {  // Run returns every error as a Status, it never throws
-      for (size_t i; !failed && (i = next.fetch_add(1)) < queries.size();) {
-        Status st = Run(queries[i], &(*results)[i]);
-        if (!st.ok()) {
-          failures[t] = {i, std::move(st)};
-          failed = true;
-          return;
-        }
-      }
-    };
-    std::vector<std::thread> pool;
-    try {
-      pool.reserve(threads - 1);
-      for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work, t);
-    } catch (...) {
-      // A thread that cannot start (or its slot) leaves its share to the others.
-    }
-    work(0);
-    for (auto& th : pool) th.join();
-    Failure* first = nullptr;
-    for (Failure& f : failures)
-      if (f.query != SIZE_MAX && (!first || f.query < first->query)) first = &f;
-    if (!first) return Status::Ok();
-    try {
-      return Prefixed(first->status, "query " + std::to_string(first->query) + ": ");
-    } catch (...) {
-      return std::move(first->status);  // no memory to name the query: its own Status as it is
-    }
+    return Status::Ok();
+  }));
+  BatchOptions o;
+  o.threads = threads;
+  return RunBatchStreamed(queries, o, [results](uint64_t i, const QueryResult& r) {
+    (*results)[i] = r;
+    return Status::Ok();
   });
 }
 

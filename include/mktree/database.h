@@ -1,11 +1,23 @@
 // mktree's public query API: open a store, ask it point and box queries, and read what each query cost.
 //
-// One query shape: a Query is a point or a box, and a mode. Visit is the one way a query runs; Run and
-// RunBatch are thin layers over it, so all three give the same ids and the same statistics:
-//   Visit(query, visit, &stats)           streams each answering id to `visit`, leaf by leaf, holding one
-//                                         leaf's ids at a time however large the answer
+// One query shape: a Query is a point or a box, a mode and an optional limit. VisitUntil is the one way a
+// query runs; the others are thin layers over it, so all give the same ids and the same statistics:
+//   VisitUntil(query, visit, &stats)      streams each answering id to `visit`, leaf by leaf, holding one
+//                                         leaf's ids at a time however large the answer; `visit` returns
+//                                         false to stop (no further page is read)
+//   Visit(query, visit, &stats)           the same with a visitor that never stops
+//   Any(query, &stats)                    whether anything answers; reads pages up to the first hit only
 //   Run(query, &result)                   the answer sorted, with its statistics
-//   RunBatch(queries, threads, &results)  Run on many queries from many threads
+//   RunBatchStreamed(source, options, deliver)
+//                                         many queries on many threads; each result goes to `deliver` on
+//                                         the calling thread in query order, at most a window of results
+//                                         held at once, however many queries
+//   RunBatch(queries, threads, &results)  RunBatchStreamed into a vector
+//
+// Query::limit caps an answer at its first `limit` ids in visiting order (leaf by leaf, as VisitUntil
+// delivers them): a limited query stops reading pages as soon as it knows the answer has more (the id
+// after the limit), and says so (QueryResult::truncated, VisitUntil's result). Run sorts those ids; it
+// does not find the `limit` smallest ids of the whole answer, which would need the whole answer read.
 //
 //   auto db = mktree::Database::Open("ship.mkt", {.cache_pages = 4096});
 //   if (!db.ok()) { ... db.status().ToString() ... }
@@ -13,10 +25,16 @@
 //   mktree::Status st = (*db)->Run(mktree::Query::Box(box), &r);  // r.hits, r.stats
 //   st = (*db)->Visit(mktree::Query::Box(box, mktree::QueryMode::kExact), [&](mktree::ObjectId id) { ... },
 //                     /*stats=*/nullptr);
+//   mktree::Result<bool> any = (*db)->Any(mktree::Query::Box(box), nullptr);  // reads up to the first hit
+//   st = (*db)->RunBatchStreamed(queries, {.threads = 4}, [&](uint64_t i, const mktree::QueryResult& r) {
+//     ...;  // r answers queries[i]; results come in order of i
+//     return mktree::Status::Ok();
+//   });
 //
 // Thread safety: a Database is safe to query from many threads at once (the page cache is shared and
 // locked; each query has its own QueryStats). ClearCache must not run concurrently with queries if the
-// caller wants per-query cold counts.
+// caller wants per-query cold counts (RunBatchStreamed with BatchOptions::cold gives them on any number of
+// threads).
 #pragma once
 
 #include <cstdint>
@@ -58,6 +76,11 @@ struct Query {
   Vec3d point;  // kPoint
   Box3d box;    // kBox
   QueryMode mode = QueryMode::kAabb;
+  // At most this many ids (the first in visiting order). 0 answers no id but still says, by truncated,
+  // whether anything answers.
+  uint64_t limit = kNoLimit;
+
+  static constexpr uint64_t kNoLimit = UINT64_MAX;
 
   static Query Point(const Vec3d& p, QueryMode mode = QueryMode::kAabb) {
     return {Kind::kPoint, p, {}, mode};
@@ -66,12 +89,38 @@ struct Query {
 };
 
 struct QueryResult {
-  std::vector<ObjectId> hits;  // sorted ids
-  QueryStats stats;
+  std::vector<ObjectId> hits;  // sorted ids (empty when the batch was asked for counts only)
+  QueryStats stats;            // stats.hits: the number of ids of the answer (as limited)
+  bool truncated = false;      // the query's limit cut the answer: it has more ids than `hits`
 };
 
 // Receives the ids of a streamed answer (Database::Visit).
 using ObjectVisitor = std::function<void(ObjectId)>;
+// The same, for VisitUntil: returns false to stop the query.
+using StoppableVisitor = std::function<bool(ObjectId)>;
+
+// The queries of a streamed batch, one a call: fills `*next` and returns true, or returns false at the
+// end. An error stops the batch and is returned as it is (name the file and line in it).
+using QuerySource = std::function<Result<bool>(Query* next)>;
+// Receives one result of a streamed batch: its query's index (from 0, in the source's order) and the
+// result, valid only during the call. A non-OK Status stops the batch and is returned as it is.
+using ResultVisitor = std::function<Status(uint64_t index, const QueryResult& result)>;
+
+struct BatchOptions {
+  // Threads running queries (0: hardware concurrency). 1 runs them on the calling thread.
+  unsigned threads = 0;
+  // Results held at most (finished but not yet delivered, plus running); 0: 4 per thread, so that the
+  // other threads keep working while one query takes up to about four times as long as the rest. Memory
+  // is this many answers, whatever the number of queries.
+  uint64_t window = 0;
+  // Each query runs on an empty private cache of OpenOptions::cache_pages pages, as after ClearCache: the
+  // same per-query counts on any number of threads. Otherwise queries share the Database's cache, and
+  // with several threads the cache-dependent counts (pages_read, cache_hits, bytes_read) depend on timing.
+  bool cold = false;
+  // Whether results carry their ids; without, only the statistics (stats.hits counts) and truncated: an
+  // answer of millions of ids is counted, never held.
+  bool ids = true;
+};
 
 class Database {
  public:
@@ -82,18 +131,39 @@ class Database {
   static Result<std::unique_ptr<Database>> Open(const std::string& path, const OpenOptions& options = {});
 
   // Runs `query`, calling `visit` once for each object of the answer: ids in the order their leaves are
-  // read, not sorted, each once. `stats` (may be null) is reset and filled. `visit` runs on the calling
-  // thread after its leaf's pages are released, so it may query this Database too. An exception thrown
-  // by `visit` ends the query with an Internal error. On an error the ids visited so far are an incomplete
-  // answer.
-  virtual Status Visit(const Query& query, const ObjectVisitor& visit, QueryStats* stats) const = 0;
+  // read, not sorted, each once, at most query.limit of them. Returns true when the whole answer was
+  // visited; false when `visit` returned false (no later leaf is read) or the limit cut an answer that has
+  // more ids. `stats` (may be null) is reset and filled with what was done: hits counts the ids visited.
+  // `visit` runs on the calling thread after its leaf's pages are released, so it may query this Database
+  // too. An exception thrown by `visit` ends the query with an Internal error. On an error the ids
+  // visited so far are an incomplete answer.
+  virtual Result<bool> VisitUntil(const Query& query, const StoppableVisitor& visit,
+                                  QueryStats* stats) const = 0;
+  // VisitUntil with a visitor that never stops.
+  Status Visit(const Query& query, const ObjectVisitor& visit, QueryStats* stats) const;
+  // Whether any object answers `query` (its limit is ignored): the query with limit 0, which reads the
+  // leaves up to the first one holding an answer and tests its objects up to that answer. No id is
+  // visited, so stats->hits is 0.
+  Result<bool> Any(const Query& query, QueryStats* stats) const;
 
-  // Runs `query`: `result->hits` is replaced by the sorted answer, `result->stats` by its statistics.
+  // Runs `query`: `result->hits` is replaced by the sorted answer, `result->stats` by its statistics,
+  // `result->truncated` says whether query.limit cut the answer.
   Status Run(const Query& query, QueryResult* result) const;
 
+  // Runs the queries of `source` on options.threads threads and hands each result to `deliver` on the
+  // calling thread, in query order, as soon as it and every earlier one are complete; at most
+  // options.window results are held at once. `source` is called on the calling thread too. A failed
+  // query stops the batch: the error returned is the first failing query's in query order, with its own
+  // code and message, the message prefixed by "query <i>: "; every result before it has been delivered
+  // and stays valid, none after it is.
+  virtual Status RunBatchStreamed(const QuerySource& source, const BatchOptions& options,
+                                  const ResultVisitor& deliver) const = 0;
+  // The same over a vector of queries.
+  Status RunBatchStreamed(const std::vector<Query>& queries, const BatchOptions& options,
+                          const ResultVisitor& deliver) const;
+
   // Runs `queries` on `threads` threads (0: hardware concurrency); `(*results)[i]` answers `queries[i]`.
-  // A failed query stops the batch: the error returned is the first failing query's in query order, with
-  // its own code and message, the message prefixed by "query <i>: ". The results are then incomplete.
+  // Errors as RunBatchStreamed's; the results are then incomplete.
   Status RunBatch(const std::vector<Query>& queries, unsigned threads,
                   std::vector<QueryResult>* results) const;
 

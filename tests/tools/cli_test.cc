@@ -4,6 +4,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -75,6 +76,71 @@ TEST_F(CliTest, BuildInfoQueryOnASmallScene) {
     EXPECT_NE(qf.out.find("{\"query\": 0, \"kind\": \"point\", \"hits\": [1]"), std::string::npos) << qf.out;
     EXPECT_NE(qf.out.find("{\"query\": 1, \"kind\": \"box\", \"hits\": []"), std::string::npos) << qf.out;
   }
+}
+
+// The lines of `text`.
+std::vector<std::string> Lines(const std::string& text) {
+  std::vector<std::string> out;
+  std::istringstream in(text);
+  for (std::string line; std::getline(in, line);) out.push_back(line);
+  return out;
+}
+
+// The ids of a query line's "hits" array.
+size_t HitCount(const std::string& line) {
+  const std::string key = "\"hits\": [";
+  const size_t open = line.find(key);
+  const size_t close = line.find(']', open);
+  if (open == std::string::npos || close == std::string::npos) return SIZE_MAX;
+  const std::string ids = line.substr(open + key.size(), close - open - key.size());
+  return ids.empty() ? 0 : static_cast<size_t>(std::count(ids.begin(), ids.end(), ',')) + 1;
+}
+
+// Issue 21/22: answers streamed in query order on any number of threads (the same bytes), and the
+// counted, limited and any-hit forms agree with the full answers.
+TEST_F(CliTest, QueryThreadsLimitAnyAndCountAgreeWithTheFullAnswers) {
+  ASSERT_EQ(Mktree("build tanker:3000:1 -o " + P("t.mkt") + " --backend pagefile -q").code, 0);
+  ASSERT_EQ(Mktree("generate queries " + P("t.mkt") + " --count 40 --seed 3 -o " + P("q.txt")).code, 0);
+  const std::string base = "query " + P("t.mkt") + " --queries " + P("q.txt") + " --cold";
+  const RunResult full = Mktree(base);
+  ASSERT_EQ(full.code, 0) << full.err;
+  const std::vector<std::string> lines = Lines(full.out);
+  ASSERT_EQ(lines.size(), 160u);
+  for (const char* threads : {" --threads 2", " --threads 5"}) {
+    EXPECT_EQ(Mktree(base + threads).out, full.out) << threads;
+    EXPECT_EQ(Mktree(base + " --summary" + threads).out, Mktree(base + " --summary").out) << threads;
+  }
+  const std::vector<std::string> count = Lines(Mktree(base + " --count --threads 2").out);
+  const std::vector<std::string> limit = Lines(Mktree(base + " --limit 3").out);
+  const std::vector<std::string> any = Lines(Mktree(base + " --any --threads 3").out);
+  ASSERT_EQ(count.size(), lines.size());
+  ASSERT_EQ(limit.size(), lines.size());
+  ASSERT_EQ(any.size(), lines.size());
+  size_t truncated = 0, empty = 0;
+  for (size_t i = 0; i < lines.size(); ++i) {
+    const size_t n = HitCount(lines[i]);
+    ASSERT_NE(n, SIZE_MAX) << lines[i];
+    EXPECT_EQ(count[i].find("\"hits\""), std::string::npos) << count[i];
+    EXPECT_NE(count[i].find("\"hit_count\": " + std::to_string(n) + ","), std::string::npos) << count[i];
+    EXPECT_EQ(HitCount(limit[i]), std::min<size_t>(n, 3)) << limit[i];
+    const bool cut = limit[i].find("\"truncated\": true}") != std::string::npos;
+    EXPECT_EQ(cut, n > 3) << limit[i];
+    EXPECT_NE(any[i].find(n ? "\"any\": true" : "\"any\": false"), std::string::npos) << any[i];
+    truncated += cut;
+    empty += n == 0;
+  }
+  EXPECT_GT(truncated, 20u);
+  EXPECT_GT(empty, 5u);
+
+  RunResult both = Mktree(base + " --any --limit 2");
+  EXPECT_NE(both.code, 0);
+  EXPECT_NE(both.err.find("--any"), std::string::npos) << both.err;
+  // A bad line is refused before any answer is printed.
+  std::ofstream(P("q.txt"), std::ios::app) << "box 1 2 3\n";
+  RunResult bad = Mktree(base + " --threads 2");
+  EXPECT_NE(bad.code, 0);
+  EXPECT_EQ(bad.out, "");
+  EXPECT_NE(bad.err.find("q.txt:162:"), std::string::npos) << bad.err;
 }
 
 // Issue 18, item 1: a 0.2 m cube at UTM-like coordinates is found at its centre through the tool, and the
