@@ -56,16 +56,24 @@ void WorkPool::Work() {
 
 void WorkPool::For(size_t n, const std::function<void(size_t)>& f) { For(n, f, nullptr); }
 
+namespace {
+
+// Runs side (if any), keeping what it throws for after the loop.
+std::exception_ptr RunSide(const std::function<void()>& side) {
+  if (!side) return nullptr;
+  try {
+    side();
+  } catch (...) {
+    return std::current_exception();
+  }
+  return nullptr;
+}
+
+}  // namespace
+
 void WorkPool::For(size_t n, const std::function<void(size_t)>& f, const std::function<void()>& side) {
   if (workers_.empty() || n <= 1) {
-    std::exception_ptr side_error;
-    if (side) {
-      try {
-        side();
-      } catch (...) {
-        side_error = std::current_exception();
-      }
-    }
+    const std::exception_ptr side_error = RunSide(side);
     for (size_t i = 0; i < n; ++i) f(i);
     if (side_error) std::rethrow_exception(side_error);
     return;
@@ -78,14 +86,7 @@ void WorkPool::For(size_t n, const std::function<void(size_t)>& f, const std::fu
   ++generation_;
   start_.notify_all();
   lock.unlock();
-  std::exception_ptr side_error;
-  if (side) {
-    try {
-      side();
-    } catch (...) {
-      side_error = std::current_exception();
-    }
-  }
+  const std::exception_ptr side_error = RunSide(side);
   lock.lock();
   lock.release();
   RunShare();
