@@ -2,6 +2,11 @@
 # public headers of include/mktree/ and the generated version.h, the mktree command line, the CMake package
 # (mktreeConfig.cmake, its version file, the exported targets), mktree.pc and the LICENSE.
 include(CMakePackageConfigHelpers)
+foreach(dir CMAKE_INSTALL_LIBDIR CMAKE_INSTALL_INCLUDEDIR)
+  if(IS_ABSOLUTE "${${dir}}")
+    message(FATAL_ERROR "${dir}=${${dir}}: the mktree package is relocatable and needs a path relative to the prefix")
+  endif()
+endforeach()
 set(MKTREE_INSTALL_CMAKEDIR ${CMAKE_INSTALL_LIBDIR}/cmake/mktree)
 
 install(TARGETS ${MKTREE_PACKAGE_TARGETS} EXPORT mktreeTargets

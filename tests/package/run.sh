@@ -48,13 +48,14 @@ case "$mode" in
     step "cmake --install $build --prefix $prefix"
     "$cmake" --install "$build" --prefix "$prefix" >/dev/null
     # Only the public headers, the libraries, the package files, the tool and the licence.
-    unexpected=$(cd "$prefix" && find . \( -type f -o -type l \) | sed 's|^\./||' | grep -vE \
-      '^include/mktree/[a-z_]+\.h$|^lib[^/]*/(libmktree\.(a|so(\.[0-9.]+)?)|cmake/mktree/mktree(Config|ConfigVersion|Targets(-[a-z]+)?)\.cmake|pkgconfig/mktree\.pc)$|^bin/mktree$|^share/doc/mktree/LICENSE$' || true)
+    unexpected=$(find "$prefix" \( -type f -o -type l \) | sed "s|^$prefix/||" | grep -vE \
+      '^include/mktree/[a-z_]+\.h$|^lib(64|/[a-z0-9_-]+)?/(libmktree\.(a|so(\.[0-9.]+)?)|cmake/mktree/mktree(Config|ConfigVersion|Targets(-[a-z]+)?)\.cmake|pkgconfig/mktree\.pc)$|^bin/mktree$|^share/doc/mktree/LICENSE$' || true)
     [[ -z $unexpected ]] || fail "installed beyond the package: $unexpected"
     for h in "$src"/include/mktree/*.h version.h; do
       [[ -f $prefix/include/mktree/$(basename "$h") ]] || fail "not installed: include/mktree/$(basename "$h")"
     done
-    [[ $(ls "$prefix/include/mktree" | wc -l) -eq $(($(ls "$src/include/mktree" | wc -l) + 1)) ]] ||
+    count() { find "$1" -maxdepth 1 -type f | wc -l; }
+    [[ $(count "$prefix/include/mktree") -eq $(($(count "$src/include/mktree") + 1)) ]] ||
       fail "include/mktree holds other headers than the source tree's and version.h"
     pc=$(find "$prefix" -name mktree.pc)
     [[ -n $pc ]] || fail "no mktree.pc"
@@ -73,7 +74,8 @@ case "$mode" in
     run_consumer "$tmp/fp/consumer_shared"
 
     step "pkg-config mktree"
-    export PKG_CONFIG_PATH=$(dirname "$pc")
+    PKG_CONFIG_PATH=$(dirname "$pc")
+    export PKG_CONFIG_PATH
     [[ $(pkg-config --modversion mktree) == "$version" ]] || fail "pkg-config --modversion mktree"
     libdir=$(pkg-config --variable=libdir mktree)
     # shellcheck disable=SC2046  # pkg-config prints one flag per word
