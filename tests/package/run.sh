@@ -3,8 +3,9 @@
 # consumer project (consumer/) out of tree, in a temporary directory removed afterwards, and runs it on a
 # grid scene whose answers it checks by brute force.
 #   installed     cmake --install of BUILD into a temporary prefix; checks what is installed and
-#                 `mktree --version`; the consumer through find_package (static and shared) and through
-#                 pkg-config (shared and static). Reuses BUILD's libraries: compiles only main.cc.
+#                 `mktree --version`; the consumer through find_package (static and shared; from a C++
+#                 project and from one that enables C too) and through pkg-config (shared and static).
+#                 Reuses BUILD's libraries: compiles only main.cc.
 #   subdirectory  the consumer through add_subdirectory of SOURCE (as FetchContent does): compiles the
 #                 library (only its targets) from the source tree.
 # Usage: run.sh installed|subdirectory CMAKE SOURCE BUILD CXX [LAUNCHER]
@@ -72,6 +73,11 @@ case "$mode" in
       fail "consumer_shared does not load the installed libmktree.so"
     [[ $(ldd "$tmp/fp/consumer") != *libmktree* ]] || fail "consumer (mktree::mktree) is not linked statically"
     run_consumer "$tmp/fp/consumer_shared"
+    step "find_package(mktree) from a project that enables C (HDF5 through FindHDF5)"
+    "${configure[@]}" -S "$src/tests/package/consumer" -B "$tmp/fpc" -DCMAKE_PREFIX_PATH="$prefix" \
+      -DMKTREE_CONSUMER_ENABLE_C=ON >/dev/null
+    "$cmake" --build "$tmp/fpc" --target consumer >/dev/null
+    run_consumer "$tmp/fpc/consumer"
 
     step "pkg-config mktree"
     PKG_CONFIG_PATH=$(dirname "$pc")
