@@ -1,6 +1,7 @@
 #include <iostream>
 
 #include "engine/core/guarded.h"
+#include "mktree/version.h"
 #include "tools/command.h"
 
 namespace mktree::tools {
@@ -15,6 +16,7 @@ int Fail(const std::string& message) {
 int main(int argc, char** argv) {
   using namespace mktree::tools;
   CLI::App app{"mktree: an out-of-core 3D spatial database built on Multiresolution Kd-trees"};
+  app.set_version_flag("--version", std::string("mktree ") + MKTREE_VERSION_STRING);
   app.require_subcommand(1);
   CommandRun run;
   RegisterGenerate(app, &run);

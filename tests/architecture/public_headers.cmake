@@ -2,8 +2,10 @@
 # the include path (as an installed copy would be used): one generated source per header, including it
 # twice (its include guard), in an object library that the ctest test PublicHeadersStandalone builds.
 # A header that leans on an include it does not make, or on anything outside include/, fails that build.
+# The generated mktree/version.h (build tree) is one of them.
 file(GLOB mktree_public_headers CONFIGURE_DEPENDS RELATIVE ${PROJECT_SOURCE_DIR}/include
   ${PROJECT_SOURCE_DIR}/include/mktree/*.h)
+list(APPEND mktree_public_headers mktree/version.h)
 set(mktree_public_header_sources "")
 foreach(header IN LISTS mktree_public_headers)
   string(MAKE_C_IDENTIFIER "${header}" name)
@@ -15,6 +17,6 @@ foreach(header IN LISTS mktree_public_headers)
   list(APPEND mktree_public_header_sources ${source})
 endforeach()
 add_library(mktree_public_headers OBJECT EXCLUDE_FROM_ALL ${mktree_public_header_sources})
-target_include_directories(mktree_public_headers PRIVATE ${PROJECT_SOURCE_DIR}/include)
+target_include_directories(mktree_public_headers PRIVATE ${PROJECT_SOURCE_DIR}/include ${PROJECT_BINARY_DIR}/include)
 add_test(NAME PublicHeadersStandalone
-  COMMAND ${CMAKE_COMMAND} --build ${CMAKE_BINARY_DIR} --target mktree_public_headers)
+  COMMAND ${CMAKE_COMMAND} --build ${PROJECT_BINARY_DIR} --target mktree_public_headers)
