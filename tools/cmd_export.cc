@@ -62,10 +62,9 @@ int RunExport(const ExportArgs& a) {
         "exported %s: clashes of %s %s, %llu objects (hard %llu, touch %llu, clearance %llu, no clash %llu), "
         "%llu vertices, %llu triangles, %s in %.2f s, peak RSS %s\n",
         a.output.c_str(), a.clashes.c_str(), a.boxes ? "boxes" : "geometry", u(r.total_objects()),
-        u(r.objects[int(ClashClass::kHard)]), u(r.objects[int(ClashClass::kTouch)]),
-        u(r.objects[int(ClashClass::kClearance)]), u(r.objects[int(ClashClass::kNone)]),
-        u(r.total_vertices()), u(r.total_triangles()), HumanBytes(r.bytes).c_str(), secs,
-        HumanBytes(PeakRssBytes()).c_str());
+        u(r.objects[int(ClashMark::kHard)]), u(r.objects[int(ClashMark::kTouch)]),
+        u(r.objects[int(ClashMark::kClearance)]), u(r.objects[int(ClashMark::kNone)]), u(r.total_vertices()),
+        u(r.total_triangles()), HumanBytes(r.bytes).c_str(), secs, HumanBytes(PeakRssBytes()).c_str());
   } else if (!a.quiet) {
     const ExportReport& r = *report;
     std::printf(

@@ -61,16 +61,16 @@ int RunClashRender(const RenderArgs& a, const StoreReader& store, RenderView vie
         secs, HumanBytes(PeakRssBytes()).c_str());
     std::printf("clashes %s: %llu pairs (%llu other lines)\n", a.clashes.c_str(), u(m.pair_count()),
                 u(m.other_lines));
-    for (ClashClass c : {ClashClass::kHard, ClashClass::kTouch, ClashClass::kClearance}) {
+    for (ClashMark c : {ClashMark::kHard, ClashMark::kTouch, ClashMark::kClearance}) {
       const int i = static_cast<int>(c);
-      std::printf("  %-9s %12llu pairs %12llu objects\n", ClashClassName(c), u(m.pairs[i]), u(r.objects[i]));
+      std::printf("  %-9s %12llu pairs %12llu objects\n", ClashMarkName(c), u(m.pairs[i]), u(r.objects[i]));
     }
     std::printf("  %-9s %12s       %12llu objects\n", "no clash", "", u(r.objects[0]));
     if (m.focus) {
       const Box3f& b = r.framed;
       std::printf(
           "focus: pair %llu (line %llu): objects %llu and %llu, %s; framed [%g, %g, %g] to [%g, %g, %g]\n",
-          u(a.focus), u(m.focus->line), u(m.focus->a), u(m.focus->b), ClashClassName(m.focus->cls), b.min[0],
+          u(a.focus), u(m.focus->line), u(m.focus->a), u(m.focus->b), ClashMarkName(m.focus->cls), b.min[0],
           b.min[1], b.min[2], b.max[0], b.max[1], b.max[2]);
     }
   }

@@ -10,15 +10,15 @@
 
 namespace mktree {
 
-const char* ClashClassName(ClashClass c) {
+const char* ClashMarkName(ClashMark c) {
   switch (c) {
-    case ClashClass::kNone:
+    case ClashMark::kNone:
       return "none";
-    case ClashClass::kClearance:
+    case ClashMark::kClearance:
       return "clearance";
-    case ClashClass::kTouch:
+    case ClashMark::kTouch:
       return "touch";
-    case ClashClass::kHard:
+    case ClashMark::kHard:
       return "hard";
   }
   return "?";
@@ -220,7 +220,7 @@ Result<ClashMarks> ReadClashPairs(const std::string& path, uint64_t object_count
   std::unique_ptr<std::FILE, FileCloser> file(std::fopen(path.c_str(), "rb"));
   if (!file) return Status::IOError(path + ": cannot open the pairs file: " + std::strerror(errno));
   ClashMarks marks;
-  marks.worst.assign(object_count, static_cast<uint8_t>(ClashClass::kNone));
+  marks.worst.assign(object_count, static_cast<uint8_t>(ClashMark::kNone));
   uint64_t pair_lines = 0;
 
   auto line_error = [&](uint64_t line_no, const std::string& why) {
@@ -252,18 +252,18 @@ Result<ClashMarks> ReadClashPairs(const std::string& path, uint64_t object_count
     if (id[0] >= id[1])
       return line_error(line_no, "a = " + std::to_string(id[0]) + " and b = " + std::to_string(id[1]) +
                                      ": a pair has a < b");
-    ClashClass cls = ClashClass::kNone;
+    ClashMark cls = ClashMark::kNone;
     if (f.cls_is_string) {
-      if (f.cls == "hard") cls = ClashClass::kHard;
-      if (f.cls == "touch") cls = ClashClass::kTouch;
-      if (f.cls == "clearance") cls = ClashClass::kClearance;
+      if (f.cls == "hard") cls = ClashMark::kHard;
+      if (f.cls == "touch") cls = ClashMark::kTouch;
+      if (f.cls == "clearance") cls = ClashMark::kClearance;
     }
-    if (cls == ClashClass::kNone)
+    if (cls == ClashMark::kNone)
       return line_error(line_no,
                         "class " + std::string(f.cls) + " is not \"hard\", \"touch\" or \"clearance\"");
     ++marks.pairs[static_cast<int>(cls)];
     for (uint64_t i : id) marks.worst[i] = std::max(marks.worst[i], static_cast<uint8_t>(cls));
-    if (++pair_lines == focus) marks.focus = ClashPair{id[0], id[1], cls, line_no};
+    if (++pair_lines == focus) marks.focus = MarkedPair{id[0], id[1], cls, line_no};
     return Status::Ok();
   };
 

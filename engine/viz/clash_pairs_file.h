@@ -23,26 +23,28 @@
 
 namespace mktree {
 
-// In order of severity: a larger value is a worse class.
-enum class ClashClass : uint8_t { kNone = 0, kClearance = 1, kTouch = 2, kHard = 3 };
-inline constexpr int kClashClasses = 4;  // ClashClass values, usable as array indices
+// A pair's class as the file gives it, in order of severity (a larger value is a worse class), and
+// kNone for objects in no pair. Not mktree::ClashClass (include/mktree/clash.h): that one has no kNone,
+// and one name for two types in one program would break the one-definition rule.
+enum class ClashMark : uint8_t { kNone = 0, kClearance = 1, kTouch = 2, kHard = 3 };
+inline constexpr int kClashMarks = 4;  // ClashMark values, usable as array indices
 // "none", "clearance", "touch", "hard".
-const char* ClashClassName(ClashClass c);
+const char* ClashMarkName(ClashMark c);
 
-struct ClashPair {
+struct MarkedPair {
   uint64_t a = 0, b = 0;
-  ClashClass cls = ClashClass::kNone;
+  ClashMark cls = ClashMark::kNone;
   uint64_t line = 0;  // its line in the file (from 1)
 };
 
 struct ClashMarks {
-  std::vector<uint8_t> worst;                     // per object id: its worst ClashClass over its pairs
-  std::array<uint64_t, kClashClasses> pairs{};    // pair lines per class (index kNone: 0)
-  std::array<uint64_t, kClashClasses> objects{};  // objects per worst class (kNone: objects in no pair)
-  uint64_t other_lines = 0;                       // JSON objects without a pair (the summary line)
-  std::optional<ClashPair> focus;                 // the pair ReadClashPairs' `focus` asked for
+  std::vector<uint8_t> worst;                   // per object id: its worst ClashMark over its pairs
+  std::array<uint64_t, kClashMarks> pairs{};    // pair lines per class (index kNone: 0)
+  std::array<uint64_t, kClashMarks> objects{};  // objects per worst class (kNone: objects in no pair)
+  uint64_t other_lines = 0;                     // JSON objects without a pair (the summary line)
+  std::optional<MarkedPair> focus;              // the pair ReadClashPairs' `focus` asked for
 
-  ClashClass Of(uint64_t id) const { return static_cast<ClashClass>(worst[id]); }
+  ClashMark Of(uint64_t id) const { return static_cast<ClashMark>(worst[id]); }
   uint64_t pair_count() const { return pairs[1] + pairs[2] + pairs[3]; }
 };
 

@@ -10,15 +10,15 @@
 
 namespace mktree {
 
-Rgb ClashColour(ClashClass c) {
+Rgb ClashColour(ClashMark c) {
   switch (c) {
-    case ClashClass::kHard:
+    case ClashMark::kHard:
       return {225, 25, 25};
-    case ClashClass::kTouch:
+    case ClashMark::kTouch:
       return {250, 130, 0};
-    case ClashClass::kClearance:
+    case ClashMark::kClearance:
       return {235, 200, 0};
-    case ClashClass::kNone:
+    case ClashMark::kNone:
       break;
   }
   return {175, 175, 175};
@@ -42,13 +42,13 @@ Result<Box3f> StoredObjectBox(const StoreReader& store, uint64_t id) {
 namespace {
 
 // Layers of the rasterizer: the neutral scene, then the classes by severity, then the focus pair.
-constexpr uint8_t kFocusLayer = kClashClasses;
+constexpr uint8_t kFocusLayer = kClashMarks;
 // How far the neutral scene is blended toward white.
 constexpr double kNeutralFade = 0.45;
 
 // The union of the focus pair's boxes (*pair), and that grown by 15 % of its largest side (1 unit if it is
 // a point).
-Result<Box3f> FocusBox(const StoreReader& store, const ClashPair& p, Box3f* pair) {
+Result<Box3f> FocusBox(const StoreReader& store, const MarkedPair& p, Box3f* pair) {
   auto a = StoredObjectBox(store, p.a);
   if (!a.ok()) return a.status();
   auto b = StoredObjectBox(store, p.b);
@@ -96,22 +96,22 @@ Result<ClashRenderReport> RenderClashes(const StoreReader& store, const ClashMar
   // Legend: reserve its lines with the widest counts it could show, so it never overlaps the scene.
   const int s = o.width >= 900 && o.height >= 300 ? 2 : 1;
   const int margin = std::max(6, static_cast<int>(std::min(o.width, o.height) / 40));
-  auto legend_items = [&](const std::array<uint64_t, kClashClasses>& objects, bool widest, int bar_px,
+  auto legend_items = [&](const std::array<uint64_t, kClashMarks>& objects, bool widest, int bar_px,
                           double bar_len) {
     auto num = [&](uint64_t v) { return widest ? std::string(12, '0') : std::to_string(v); };
     std::vector<viz::LegendItem> items;
     std::string title = "CLASHES";
     if (o.focus)
       title = "PAIR " + std::to_string(marks.focus->a) + ", " + std::to_string(marks.focus->b) + " (" +
-              ClashClassName(marks.focus->cls) + ", LINE " + std::to_string(marks.focus->line) + ")";
+              ClashMarkName(marks.focus->cls) + ", LINE " + std::to_string(marks.focus->line) + ")";
     items.push_back({viz::LegendItem::kTitle, {}, title + ", " + RenderViewName(o.view) + " VIEW:"});
-    for (ClashClass c : {ClashClass::kHard, ClashClass::kTouch, ClashClass::kClearance}) {
+    for (ClashMark c : {ClashMark::kHard, ClashMark::kTouch, ClashMark::kClearance}) {
       const int i = static_cast<int>(c);
       items.push_back({viz::LegendItem::kSwatch, ClashColour(c),
-                       std::string(ClashClassName(c)) + " " + num(marks.pairs[i]) + " PAIRS, " +
+                       std::string(ClashMarkName(c)) + " " + num(marks.pairs[i]) + " PAIRS, " +
                            num(objects[i]) + " OBJECTS"});
     }
-    items.push_back({viz::LegendItem::kSwatch, ClashColour(ClashClass::kNone),
+    items.push_back({viz::LegendItem::kSwatch, ClashColour(ClashMark::kNone),
                      "NO CLASH " + num(objects[0]) + " OBJECTS"});
     char len[32];
     std::snprintf(len, sizeof len, "%g", bar_len);
@@ -134,10 +134,10 @@ Result<ClashRenderReport> RenderClashes(const StoreReader& store, const ClashMar
   Status st = ForEachObjectAtLevel(
       store, 0,
       [&](uint32_t, const ObjectEntryView& e, LevelGroup) -> Status {
-        ClashClass c = marks.Of(e.id);
+        ClashMark c = marks.Of(e.id);
         ++report.objects[static_cast<int>(c)];
         uint8_t layer = static_cast<uint8_t>(c);
-        double fade = c == ClashClass::kNone ? kNeutralFade : 0.0;
+        double fade = c == ClashMark::kNone ? kNeutralFade : 0.0;
         if (o.focus) {
           if (e.id == marks.focus->a || e.id == marks.focus->b) {
             c = marks.focus->cls;

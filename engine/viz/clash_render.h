@@ -33,7 +33,7 @@
 namespace mktree {
 
 // Red hard, orange touch, yellow clearance, light grey none.
-Rgb ClashColour(ClashClass c);
+Rgb ClashColour(ClashMark c);
 
 struct ClashRenderOptions {
   RenderView view = RenderView::kTop;
@@ -45,8 +45,8 @@ struct ClashRenderOptions {
 };
 
 struct ClashRenderReport {
-  std::array<uint64_t, kClashClasses> objects{};  // objects drawn per colour (ClashClass)
-  uint64_t triangles = 0;                         // triangles rasterized
+  std::array<uint64_t, kClashMarks> objects{};  // objects drawn per colour (ClashMark)
+  uint64_t triangles = 0;                       // triangles rasterized
   uint32_t samples_per_pixel = 1;
   double pixels_per_metre = 0;
   Box3f framed;      // the box fitted to the picture (store frame)

@@ -48,7 +48,7 @@ std::string Num(double v) {
   return std::string(b, std::to_chars(b, b + sizeof b, v).ptr);
 }
 
-// What the groups are called and coloured: the level-k groups (GroupIndex) or the clash classes (ClashClass).
+// What the groups are called and coloured: the level-k groups (GroupIndex) or the clash classes (ClashMark).
 struct Palette {
   std::array<Rgb, kLevelGroups> colour;
   std::array<std::string, kLevelGroups> name;
@@ -70,11 +70,11 @@ Palette LevelPalette(int level) {
 }
 
 Palette ClashPalette() {
-  static_assert(kClashClasses == kLevelGroups);
+  static_assert(kClashMarks == kLevelGroups);
   Palette p;
-  for (int c = 0; c < kClashClasses; ++c) {
-    p.colour[c] = ClashColour(static_cast<ClashClass>(c));
-    p.name[c] = c == 0 ? "no_clash" : ClashClassName(static_cast<ClashClass>(c));
+  for (int c = 0; c < kClashMarks; ++c) {
+    p.colour[c] = ClashColour(static_cast<ClashMark>(c));
+    p.name[c] = c == 0 ? "no_clash" : ClashMarkName(static_cast<ClashMark>(c));
   }
   p.comment =
       "clashes: red hard, orange touch, yellow clearance (worst class of each object), grey in no pair";

@@ -40,14 +40,14 @@ struct ExportOptions {
   bool boxes = false;  // AABBs instead of object geometry
   // Optional: colour by clash class instead of the level-k group (`level` is then unused): each object in
   // the colour of its worst class (clash_render.h's ClashColour), one glTF mesh per class ("hard",
-  // "touch", "clearance", "no_clash"), and the report's counts indexed by ClashClass. Not owned.
+  // "touch", "clearance", "no_clash"), and the report's counts indexed by ClashMark. Not owned.
   const ClashMarks* clashes = nullptr;
   // Optional: (leaves done, leaves total).
   std::function<void(uint64_t, uint64_t)> progress;
 };
 
 struct ExportReport {
-  GroupCounts objects{};  // per group (GroupIndex), or per ClashClass with `clashes`
+  GroupCounts objects{};  // per group (GroupIndex), or per ClashMark with `clashes`
   GroupCounts vertices{};
   GroupCounts triangles{};
   uint64_t bytes = 0;  // size of the written file

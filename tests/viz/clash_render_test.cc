@@ -147,16 +147,16 @@ TEST_P(ClashRenderTest, PairsFileCountsWorstClasses) {
   auto marks = ReadClashPairs(pairs_, kObjects);
   ASSERT_TRUE(marks.ok()) << marks.status().ToString();
   EXPECT_EQ(marks->pair_count(), 2u);
-  EXPECT_EQ(marks->pairs[int(ClashClass::kHard)], 1u);
-  EXPECT_EQ(marks->pairs[int(ClashClass::kTouch)], 1u);
-  EXPECT_EQ(marks->pairs[int(ClashClass::kClearance)], 0u);
+  EXPECT_EQ(marks->pairs[int(ClashMark::kHard)], 1u);
+  EXPECT_EQ(marks->pairs[int(ClashMark::kTouch)], 1u);
+  EXPECT_EQ(marks->pairs[int(ClashMark::kClearance)], 0u);
   EXPECT_EQ(marks->other_lines, 1u);
-  EXPECT_EQ(marks->objects[int(ClashClass::kHard)], 2u);
-  EXPECT_EQ(marks->objects[int(ClashClass::kTouch)], 2u);
-  EXPECT_EQ(marks->objects[int(ClashClass::kNone)], kObjects - 4);
-  EXPECT_EQ(marks->Of(0), ClashClass::kHard);
-  EXPECT_EQ(marks->Of(3), ClashClass::kTouch);
-  EXPECT_EQ(marks->Of(4), ClashClass::kNone);
+  EXPECT_EQ(marks->objects[int(ClashMark::kHard)], 2u);
+  EXPECT_EQ(marks->objects[int(ClashMark::kTouch)], 2u);
+  EXPECT_EQ(marks->objects[int(ClashMark::kNone)], kObjects - 4);
+  EXPECT_EQ(marks->Of(0), ClashMark::kHard);
+  EXPECT_EQ(marks->Of(3), ClashMark::kTouch);
+  EXPECT_EQ(marks->Of(4), ClashMark::kNone);
   EXPECT_FALSE(marks->focus);
 
   // An object in several pairs keeps its worst class, whatever the order.
@@ -166,10 +166,10 @@ TEST_P(ClashRenderTest, PairsFileCountsWorstClasses) {
             "{\"a\": 4, \"b\": 5, \"class\": \"touch\"}\n{\"a\": 0, \"b\": 9, \"class\": \"touch\"}\n");
   marks = ReadClashPairs(p, kObjects, 3);
   ASSERT_TRUE(marks.ok()) << marks.status().ToString();
-  EXPECT_EQ(marks->Of(0), ClashClass::kTouch);
-  EXPECT_EQ(marks->Of(4), ClashClass::kHard);
-  EXPECT_EQ(marks->Of(9), ClashClass::kHard);
-  EXPECT_EQ(marks->Of(5), ClashClass::kTouch);
+  EXPECT_EQ(marks->Of(0), ClashMark::kTouch);
+  EXPECT_EQ(marks->Of(4), ClashMark::kHard);
+  EXPECT_EQ(marks->Of(9), ClashMark::kHard);
+  EXPECT_EQ(marks->Of(5), ClashMark::kTouch);
   ASSERT_TRUE(marks->focus);
   EXPECT_EQ(marks->focus->a, 4u);
   EXPECT_EQ(marks->focus->b, 5u);
@@ -189,10 +189,10 @@ TEST_P(ClashRenderTest, HighlightsThePairsThroughTheScene) {
   o.height = 600;
   auto r = RenderClashes(*reader_, *marks, png, o);
   ASSERT_TRUE(r.ok()) << r.status().ToString();
-  EXPECT_EQ(r->objects[int(ClashClass::kHard)], 2u);
-  EXPECT_EQ(r->objects[int(ClashClass::kTouch)], 2u);
-  EXPECT_EQ(r->objects[int(ClashClass::kClearance)], 0u);
-  EXPECT_EQ(r->objects[int(ClashClass::kNone)], kObjects - 4);
+  EXPECT_EQ(r->objects[int(ClashMark::kHard)], 2u);
+  EXPECT_EQ(r->objects[int(ClashMark::kTouch)], 2u);
+  EXPECT_EQ(r->objects[int(ClashMark::kClearance)], 0u);
+  EXPECT_EQ(r->objects[int(ClashMark::kNone)], kObjects - 4);
   EXPECT_EQ(r->triangles, kObjects * 12);
   const Image img = ReadPng(png);
   ASSERT_EQ(img.width, 800u);
@@ -372,10 +372,10 @@ TEST_P(ClashRenderTest, ExportColoursVerticesByClass) {
   o.clashes = &*marks;
   auto r = ExportLevel(*reader_, ply, o);
   ASSERT_TRUE(r.ok()) << r.status().ToString();
-  EXPECT_EQ(r->objects[int(ClashClass::kHard)], 2u);
-  EXPECT_EQ(r->objects[int(ClashClass::kTouch)], 2u);
-  EXPECT_EQ(r->objects[int(ClashClass::kClearance)], 0u);
-  EXPECT_EQ(r->objects[int(ClashClass::kNone)], kObjects - 4);
+  EXPECT_EQ(r->objects[int(ClashMark::kHard)], 2u);
+  EXPECT_EQ(r->objects[int(ClashMark::kTouch)], 2u);
+  EXPECT_EQ(r->objects[int(ClashMark::kClearance)], 0u);
+  EXPECT_EQ(r->objects[int(ClashMark::kNone)], kObjects - 4);
   const std::string text = testing::Slurp(ply);
   const std::string end = "end_header\n";
   const size_t body = text.find(end);
@@ -383,15 +383,15 @@ TEST_P(ClashRenderTest, ExportColoursVerticesByClass) {
   EXPECT_NE(text.find("comment mktree export: clashes"), std::string::npos);
   const uint64_t nv = r->total_vertices();
   ASSERT_GE(text.size(), body + end.size() + 15 * nv);
-  std::array<uint64_t, kClashClasses> seen{};
+  std::array<uint64_t, kClashMarks> seen{};
   for (uint64_t i = 0; i < nv; ++i) {
     const char* v = text.data() + body + end.size() + 15 * i;
     float xyz[3];
     std::memcpy(xyz, v, 12);
     const Rgb c{static_cast<uint8_t>(v[12]), static_cast<uint8_t>(v[13]), static_cast<uint8_t>(v[14])};
     int cls = -1;
-    for (int k = 0; k < kClashClasses; ++k)
-      if (c == ClashColour(static_cast<ClashClass>(k))) cls = k;
+    for (int k = 0; k < kClashMarks; ++k)
+      if (c == ClashColour(static_cast<ClashMark>(k))) cls = k;
     ASSERT_GE(cls, 0) << "vertex " << i << " has a colour of no class";
     ++seen[cls];
     auto inside = [&](const Box3d& b) {
@@ -399,21 +399,21 @@ TEST_P(ClashRenderTest, ExportColoursVerticesByClass) {
         if (xyz[k] < b.min[k] - 1e-4 || xyz[k] > b.max[k] + 1e-4) return false;
       return true;
     };
-    if (cls == int(ClashClass::kHard)) {
+    if (cls == int(ClashMark::kHard)) {
       EXPECT_TRUE(inside(kA) || inside(kB)) << xyz[0] << " " << xyz[1];
     }
-    if (cls == int(ClashClass::kTouch)) {
+    if (cls == int(ClashMark::kTouch)) {
       EXPECT_TRUE(inside(kC) || inside(kD)) << xyz[0] << " " << xyz[1];
     }
   }
-  for (int k = 0; k < kClashClasses; ++k) EXPECT_EQ(seen[k], r->vertices[k]) << k;
-  EXPECT_GT(seen[int(ClashClass::kHard)], 0u);
+  for (int k = 0; k < kClashMarks; ++k) EXPECT_EQ(seen[k], r->vertices[k]) << k;
+  EXPECT_GT(seen[int(ClashMark::kHard)], 0u);
 
   o.boxes = true;
   o.format = ExportFormat::kGlb;
   r = ExportLevel(*reader_, glb, o);
   ASSERT_TRUE(r.ok()) << r.status().ToString();
-  EXPECT_EQ(r->vertices[int(ClashClass::kHard)], 16u);
+  EXPECT_EQ(r->vertices[int(ClashMark::kHard)], 16u);
   const std::string g = testing::Slurp(glb);
   EXPECT_NE(g.find("\"name\":\"hard\""), std::string::npos);
   EXPECT_NE(g.find("\"name\":\"touch\""), std::string::npos);
