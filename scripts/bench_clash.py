@@ -89,7 +89,10 @@ def read_pairs(path, collide=False):
             else:
                 key = (j["a"], j["b"])
             small = (j.get("meeting"), j.get("class"))
-            pairs[key] = kept.setdefault(small, {k: v for k, v in zip(("meeting", "class"), small) if v is not None})
+            summary = kept.get(small)
+            if summary is None:
+                summary = kept[small] = {k: v for k, v in zip(("meeting", "class"), small) if v is not None}
+            pairs[key] = summary
     return pairs
 
 

@@ -47,7 +47,7 @@ std::optional<EdgeCheck> StoredEdges(const ObjectEntryView& e) {
 struct LoadedObject {
   ObjectId id = 0;
   Box3d box;
-  double resolution = 0;  // CoordinateResolution of its entry
+  double resolution = 0;  // CoordinateResolution of its entry (with the shape: only candidates need it)
   std::unique_ptr<Mesh> mesh;
   std::unique_ptr<ClashShape> shape;
 };
@@ -224,7 +224,6 @@ Status RunSelfClash(const ClashStore& st, const ClashOptions& o, const ClashVisi
       for (uint32_t pos = 0; pos < entries.size(); ++pos) {
         l->objects[pos].id = entries[pos].id;
         l->objects[pos].box = clash::ToBox3d(entries[pos].box);
-        l->objects[pos].resolution = CoordinateResolution(entries[pos].box);
         if (needed(tree, leaf, pos)) tasks.push_back({i, pos});
       }
       loaded.push_back(std::move(l));
@@ -234,6 +233,7 @@ Status RunSelfClash(const ClashStore& st, const ClashOptions& o, const ClashVisi
       const DecodeTask& task = tasks[k];
       const ObjectEntryView& e = pinned[task.load].view.entry(task.pos);
       LoadedObject& obj = loaded[task.load]->objects[task.pos];
+      obj.resolution = CoordinateResolution(e.box);
       obj.mesh = std::make_unique<Mesh>();
       errors[k] = DecodeStoredMesh(reader.path(), e, obj.mesh.get());
       if (errors[k].ok()) obj.shape = std::make_unique<ClashShape>(*obj.mesh, StoredEdges(e));
