@@ -31,9 +31,20 @@ struct Mesh {
   uint64_t RawGeometryBytes() const { return 8 + 4 * vertices.size() + 4 * triangles.size(); }
 };
 
+// What the input says about an object besides its geometry: an OBJ group, a glTF or assimp node's
+// metadata, an IFC entity's GlobalId or type. Keys and values are any bytes; a key may repeat.
+struct ObjectAttribute {
+  std::string key;
+  std::string value;
+  bool operator==(const ObjectAttribute&) const = default;
+};
+
 struct SceneObject {
   ObjectId id = 0;
   std::string name;
+  // The input file the object came from, as the reader was given it (empty for generated objects).
+  std::string source;
+  std::vector<ObjectAttribute> attributes;
   Mesh mesh;
   // Bounds() rounded outward to float32, in world coordinates (a store keeps boxes in its own frame).
   Box3f Aabb() const { return RoundOutward(mesh.Bounds()); }
