@@ -169,7 +169,11 @@ constexpr double kPlateGap = 0.001;  // between neighbouring tiles, so plates do
 class TankerSource final : public SceneSource {
  public:
   TankerSource(uint64_t objects, uint64_t seed, ObjectId first_id)
-      : objects_(objects), seed_(seed), first_id_(first_id), grid_(GridFor(objects)) {
+      : objects_(objects),
+        seed_(seed),
+        first_id_(first_id),
+        grid_(GridFor(objects)),
+        source_("tanker:" + std::to_string(objects) + ":" + std::to_string(seed)) {
     Begin(0);
   }
 
@@ -182,6 +186,8 @@ class TankerSource final : public SceneSource {
     out->mesh.vertices.clear();
     out->mesh.triangles.clear();
     out->id = static_cast<ObjectId>(first_id_ + emitted_);
+    if (out->source != source_) out->source = source_;
+    out->attributes.clear();
     const uint64_t i = local_;
     if (i < cell_.plates) {
       Plate(i, &out->mesh);
@@ -405,6 +411,7 @@ class TankerSource final : public SceneSource {
   const uint64_t seed_;
   const ObjectId first_id_;
   const Grid grid_;
+  const std::string source_;  // "tanker:N:SEED", the spec mktree build reads it from
   Compartment cell_;
   uint64_t local_ = 0;    // next object within cell_
   uint64_t emitted_ = 0;  // objects produced so far

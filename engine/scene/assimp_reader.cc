@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <array>
 #include <assimp/Importer.hpp>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <exception>
@@ -19,6 +20,7 @@
 #include <vector>
 
 #include "engine/scene/assimp_input_checks.h"
+#include "engine/scene/assimp_metadata.h"
 
 namespace mktree {
 namespace {
@@ -67,7 +69,11 @@ class AssimpReader final : public SceneSource {
  public:
   AssimpReader(std::string path, std::unique_ptr<Assimp::Importer> importer, const aiScene* scene,
                ObjectId first_id)
-      : path_(std::move(path)), importer_(std::move(importer)), scene_(scene), next_id_(first_id) {
+      : path_(std::move(path)),
+        ifc_(IsIfcPath(path_)),
+        importer_(std::move(importer)),
+        scene_(scene),
+        next_id_(first_id) {
     if (scene_->mRootNode != nullptr)
       stack_.push_back({scene_->mRootNode, Transform::FromAssimp(scene_->mRootNode->mTransformation)});
   }
@@ -89,6 +95,19 @@ class AssimpReader final : public SceneSource {
       out->id = static_cast<ObjectId>(next_id_++);
       out->name =
           node->mName.length > 0 ? std::string(node->mName.C_Str()) : "object_" + std::to_string(out->id);
+      out->source = path_;
+      out->attributes.clear();
+      if (ifc_) {
+        // A product's mapped representation (an IfcMappedItem node: doors, windows, furniture) belongs to
+        // the nearest ancestor that names an IFC product, whose type, GlobalId and properties it takes.
+        for (const aiNode* n = node; n != nullptr; n = n->mParent) {
+          if (!AppendIfcNameAttributes(std::string_view(n->mName.C_Str(), n->mName.length), &out->attributes))
+            continue;
+          if (n != node && n->mMetaData != nullptr) AppendMetadataAttributes(*n->mMetaData, &out->attributes);
+          break;
+        }
+      }
+      if (node->mMetaData != nullptr) AppendMetadataAttributes(*node->mMetaData, &out->attributes);
       out->mesh = std::move(mesh);
       coarse_.Check(*out);
       return true;
@@ -197,7 +216,14 @@ class AssimpReader final : public SceneSource {
 
   static constexpr uint32_t kUnused = std::numeric_limits<uint32_t>::max();
 
+  static bool IsIfcPath(const std::string& path) {
+    std::string ext = std::filesystem::path(path).extension().string();
+    for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    return ext == ".ifc";
+  }
+
   const std::string path_;
+  const bool ifc_;                              // node names carry the IFC entity's type, name and GlobalId
   std::unique_ptr<Assimp::Importer> importer_;  // owns scene_
   const aiScene* scene_;
   uint64_t next_id_;

@@ -156,6 +156,8 @@ class MkSceneSource final : public SceneSource {
 
     const uint8_t* p = record_.data() + 8;
     out->name.assign(reinterpret_cast<const char*>(p), name_bytes);
+    if (out->source != path_) out->source = path_;
+    out->attributes.clear();  // .mks keeps no attributes
     p += name_bytes + 8;
     if (coordinate_bytes_ == 4) {
       LoadArray(p, 3 * nv, &floats_);

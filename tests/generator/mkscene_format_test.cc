@@ -71,6 +71,7 @@ TEST_F(MkSceneFormatTest, RoundTripIsExact) {
   for (size_t i = 0; i < read.size(); ++i) {
     EXPECT_EQ(read[i].id, 1000 + i);
     EXPECT_EQ(read[i].name, written[i].name);
+    EXPECT_EQ(read[i].source, path);  // the file read, not the generator that wrote it
     EXPECT_EQ(read[i].mesh.vertices, written[i].mesh.vertices);
     EXPECT_EQ(read[i].mesh.triangles, written[i].mesh.triangles);
   }

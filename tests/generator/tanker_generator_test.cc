@@ -28,7 +28,11 @@ TEST(TankerGeneratorTest, YieldsExactlyNObjectsWithConsecutiveIds) {
   for (uint64_t n : {1, 2, 7, 59, 100, 1001}) {
     const auto objects = Tanker(n, 5, 17);
     ASSERT_EQ(objects.size(), n);
-    for (size_t i = 0; i < objects.size(); ++i) EXPECT_EQ(objects[i].id, 17 + i);
+    for (size_t i = 0; i < objects.size(); ++i) {
+      EXPECT_EQ(objects[i].id, 17 + i);
+      EXPECT_EQ(objects[i].source, "tanker:" + std::to_string(n) + ":5");  // the spec that rebuilds it
+      EXPECT_TRUE(objects[i].attributes.empty());
+    }
   }
   auto source = MakeTankerSource(3, 5);
   SceneObject o;
