@@ -19,6 +19,9 @@ PACKAGES=(
   libcgal-dev        # bench/ clash peer, tests/ exact oracle
   libfcl-dev         # bench/ clash peer
   time               # /usr/bin/time: peak RSS of the engines scripts/bench_clash.py runs
+  # The Python module (python/, docs/python.md), for Debian's /usr/bin/python3: pybind11's headers and
+  # CMake package, Python's headers, numpy (its arrays in and out), pytest (python/run_tests.sh).
+  pybind11-dev python3-dev python3-numpy python3-pytest
 )
 missing=()
 for p in "${PACKAGES[@]}"; do

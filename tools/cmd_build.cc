@@ -1,12 +1,12 @@
 // mktree build SCENE... -o STORE: ingest scenes and write a store (docs/cli.md).
 #include <zstd.h>
 
+#include <algorithm>
 #include <cstdio>
-#include <optional>
-#include <string_view>
+#include <string>
+#include <vector>
 
-#include "engine/generator/tanker_generator.h"
-#include "engine/ingest/store_builder.h"
+#include "mktree/build.h"
 #include "tools/cli_numbers.h"
 #include "tools/command.h"
 #include "tools/path_checks.h"
@@ -21,7 +21,7 @@ struct BuildArgs {
   std::string output;
   std::string backend = "hdf5";
   std::string codec = "zstd";
-  int zstd_level = CodecOptions{}.zstd_level;
+  int zstd_level = BuildOptions{}.zstd_level;
   uint32_t block_size = 4096;
   uint32_t blocks_per_page = 3;
   double r = 0.3;
@@ -30,93 +30,67 @@ struct BuildArgs {
   bool quiet = false;
 };
 
-bool IsGenerator(const std::string& input) { return input.rfind("tanker:", 0) == 0; }
-
-// "tanker:N[:SEED]" builds straight from the generator, without a scene file.
-Result<SceneOpener> OpenerFor(const std::string& input) {
-  if (IsGenerator(input)) {
-    const std::string_view spec = std::string_view(input).substr(7);
-    const size_t colon = spec.find(':');
-    const std::optional<uint64_t> n = ParseUnsigned<uint64_t>(spec.substr(0, colon));
-    const std::optional<uint64_t> seed = colon == std::string_view::npos
-                                             ? std::optional<uint64_t>(1)
-                                             : ParseUnsigned<uint64_t>(spec.substr(colon + 1));
-    if (!n || !seed || *n == 0 || *n > (uint64_t{1} << 32))
-      return Status::InvalidArgument(input +
-                                     ": expected tanker:N or tanker:N:SEED in decimal, 1 <= N <= 2^32");
-    return SceneOpener([n = *n, seed = *seed](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
-      return MakeTankerSource(n, seed, first);
-    });
-  }
-  MKTREE_RETURN_IF_ERROR(CheckInputFile(input));
-  return SceneOpener([input](ObjectId first) { return OpenSceneFile(input, first); });
-}
-
 int RunBuild(const BuildArgs& a) {
-  IngestOptions opts;
+  // The options are checked here first so that errors name the flags; BuildFromFiles checks them again.
+  BuildOptions opts;
   if (a.backend == "hdf5")
-    opts.store.backend = Backend::kHdf5;
+    opts.backend = BuildOptions::Backend::kHdf5;
   else if (a.backend == "pagefile")
-    opts.store.backend = Backend::kPagedFile;
+    opts.backend = BuildOptions::Backend::kPagedFile;
   else
     return Fail("--backend must be hdf5 or pagefile, not '" + a.backend + "'");
   if (a.codec == "zstd")
-    opts.store.codec.codec = Codec::kZstd;
+    opts.codec = BuildOptions::Codec::kZstd;
   else if (a.codec == "none")
-    opts.store.codec.codec = Codec::kNone;
+    opts.codec = BuildOptions::Codec::kNone;
   else
     return Fail("--codec must be zstd or none, not '" + a.codec + "'");
   if (a.zstd_level < ZSTD_minCLevel() || a.zstd_level > ZSTD_maxCLevel())
     return Fail("--zstd-level must be from " + std::to_string(ZSTD_minCLevel()) + " to " +
                 std::to_string(ZSTD_maxCLevel()) + ", not " + std::to_string(a.zstd_level));
-  opts.store.codec.zstd_level = a.zstd_level;
-  opts.store.params.block_size = a.block_size;
-  opts.store.params.blocks_per_page = a.blocks_per_page;
-  opts.store.params.balance_r = a.r;
-  opts.store.params.split_tree_node_budget = a.split_budget;
+  opts.zstd_level = a.zstd_level;
+  opts.block_size = a.block_size;
+  opts.blocks_per_page = a.blocks_per_page;
+  opts.balance_r = a.r;
+  opts.split_budget = a.split_budget;
   if (!(a.r >= 0 && a.r < 0.5)) return Fail("--r must be in [0, 0.5)");
-  if (a.split_policy == "compact") {
-    opts.tuning.split_policy = SplitPolicy::kCompact;
-  } else if (a.split_policy == "soa") {  // docs/design.md §3.5: the reference SOA exactly
-    opts.tuning.split_policy = SplitPolicy::kSoa;
-    opts.tuning.fill_aware = false;
-  } else if (a.split_policy == "soa-fill") {
-    opts.tuning.split_policy = SplitPolicy::kSoa;
-  } else {
+  if (a.split_policy == "compact")
+    opts.split_policy = BuildOptions::SplitPolicy::kCompact;
+  else if (a.split_policy == "soa")
+    opts.split_policy = BuildOptions::SplitPolicy::kSoa;
+  else if (a.split_policy == "soa-fill")
+    opts.split_policy = BuildOptions::SplitPolicy::kSoaFill;
+  else
     return Fail("--split-policy must be compact, soa or soa-fill, not '" + a.split_policy + "'");
-  }
   if (a.block_size < 512 || a.blocks_per_page == 0 ||
       uint64_t{a.block_size} * a.blocks_per_page > (uint64_t{1} << 30))
     return Fail(
         "--block-size must be at least 512, --blocks-per-page at least 1, and the page (block size x "
         "blocks per page) at most 1 GiB");
 
-  std::vector<SceneOpener> openers;
+  // Files are checked here too, for the command line's wording of what a path is (a FIFO, a directory).
   std::vector<std::string> files;
   for (const std::string& in : a.inputs) {
-    auto opener = OpenerFor(in);
-    if (!opener.ok()) return Fail(opener.status().message());
-    openers.push_back(std::move(*opener));
-    if (!IsGenerator(in)) files.push_back(in);
+    if (in.rfind("tanker:", 0) == 0) continue;  // the generator: BuildFromFiles checks its spec
+    if (Status st = CheckInputFile(in); !st.ok()) return Fail(st.message());
+    files.push_back(in);
   }
   if (Status st = CheckOutputFile(a.output, files); !st.ok()) return Fail(st.message());
   Progress progress(a.quiet);
-  opts.progress = [&](IngestStage s, uint64_t done, uint64_t total) {
-    progress.Update(IngestStageName(s), done, total);
+  opts.progress = [&](BuildStage s, uint64_t done, uint64_t total) {
+    progress.Update(BuildStageName(s), done, total);
   };
-  for (const std::string& in : a.inputs) opts.input_name += (opts.input_name.empty() ? "" : ", ") + in;
-  auto report = BuildStore(openers, a.output, opts);
+  auto report = BuildFromFiles(a.inputs, a.output, opts);
   progress.Done();
   if (!report.ok()) return Fail(report.status().message());
-  const IngestReport& r = *report;
+  const BuildStats& r = *report;
   for (const std::string& w : r.warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
   if (!a.quiet) {
     std::printf("built %s: %llu objects, %llu triangles, %llu leaves, %llu pages of %llu B, height %u\n",
                 a.output.c_str(), static_cast<unsigned long long>(r.objects),
-                static_cast<unsigned long long>(r.triangles),
-                static_cast<unsigned long long>(r.tree_stats.leaves),
-                static_cast<unsigned long long>(r.pages),
-                static_cast<unsigned long long>(opts.store.params.mem_page()), r.tree_stats.height);
+                static_cast<unsigned long long>(r.triangles), static_cast<unsigned long long>(r.leaves),
+                static_cast<unsigned long long>(r.pages), static_cast<unsigned long long>(r.page_bytes),
+                r.height);
     if (r.origin.x != 0 || r.origin.y != 0 || r.origin.z != 0)
       std::printf("store frame: origin (%.17g, %.17g, %.17g); boxes are kept relative to it\n", r.origin.x,
                   r.origin.y, r.origin.z);
@@ -125,7 +99,7 @@ int RunBuild(const BuildArgs& a) {
         HumanBytes(r.store_bytes).c_str(), HumanBytes(r.raw_geometry_bytes).c_str(),
         HumanBytes(r.encoded_bytes).c_str(),
         r.store_bytes ? static_cast<double>(r.raw_geometry_bytes) / static_cast<double>(r.store_bytes) : 0.0,
-        100.0 * r.tree_stats.mean_page_fill);
+        100.0 * r.mean_page_fill);
     std::printf("time %.2fs (read %.2fs, tree %.2fs, write %.2fs), %.0f objects/s, peak RSS %s\n",
                 r.total_seconds, r.read_seconds, r.build_seconds, r.write_seconds,
                 static_cast<double>(r.objects) / std::max(r.total_seconds, 1e-9),

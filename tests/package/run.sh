@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The ctest tests Package_installed and Package_subdirectory (label package, docs/package.md): builds the
 # consumer project (consumer/) out of tree, in a temporary directory removed afterwards, and runs it on a
-# grid scene whose answers it checks by brute force.
+# grid scene whose answers it checks by brute force; the consumer also builds the grid through the build
+# API (mktree/build.h) and checks that store the same way.
 #   installed     cmake --install of BUILD into a temporary prefix; checks what is installed and
 #                 `mktree --version`; the consumer through find_package (static and shared; from a C++
 #                 project and from one that enables C too) and through pkg-config (shared and static).

@@ -1,0 +1,223 @@
+// The public build API (include/mktree/build.h) over BuildStore: options checked and translated, inputs
+// opened as `mktree build` opens them, and the caller's objects checked as the readers check a file's.
+#include <zstd.h>
+
+#include <charconv>
+#include <cmath>
+#include <filesystem>
+#include <optional>
+#include <string_view>
+#include <system_error>
+
+#include "engine/generator/tanker_generator.h"
+#include "engine/ingest/store_builder.h"
+#include "mktree/build.h"
+
+namespace mktree {
+
+namespace {
+
+static_assert(static_cast<int>(BuildStage::kWriteTable) == static_cast<int>(IngestStage::kWriteTable));
+
+Result<IngestOptions> ToIngestOptions(const BuildOptions& b) {
+  IngestOptions o;
+  o.store.backend = b.backend == BuildOptions::Backend::kPagedFile ? Backend::kPagedFile : Backend::kHdf5;
+  o.store.codec.codec = b.codec == BuildOptions::Codec::kNone ? Codec::kNone : Codec::kZstd;
+  if (b.zstd_level < ZSTD_minCLevel() || b.zstd_level > ZSTD_maxCLevel())
+    return Status::InvalidArgument("zstd_level must be from " + std::to_string(ZSTD_minCLevel()) + " to " +
+                                   std::to_string(ZSTD_maxCLevel()) + ", not " +
+                                   std::to_string(b.zstd_level));
+  o.store.codec.zstd_level = b.zstd_level;
+  if (!(b.balance_r >= 0 && b.balance_r < 0.5))
+    return Status::InvalidArgument("balance_r must be in [0, 0.5), not " + std::to_string(b.balance_r));
+  if (b.block_size < 512 || b.blocks_per_page == 0 ||
+      uint64_t{b.block_size} * b.blocks_per_page > (uint64_t{1} << 30))
+    return Status::InvalidArgument(
+        "block_size must be at least 512, blocks_per_page at least 1, and the page (block_size x "
+        "blocks_per_page) at most 1 GiB");
+  o.store.params.block_size = b.block_size;
+  o.store.params.blocks_per_page = b.blocks_per_page;
+  o.store.params.balance_r = b.balance_r;
+  o.store.params.split_tree_node_budget = b.split_budget;
+  switch (b.split_policy) {
+    case BuildOptions::SplitPolicy::kCompact:
+      o.tuning.split_policy = SplitPolicy::kCompact;
+      break;
+    case BuildOptions::SplitPolicy::kSoa:  // docs/design.md §3.5: the reference SOA exactly
+      o.tuning.split_policy = SplitPolicy::kSoa;
+      o.tuning.fill_aware = false;
+      break;
+    case BuildOptions::SplitPolicy::kSoaFill:
+      o.tuning.split_policy = SplitPolicy::kSoa;
+      break;
+  }
+  if (b.threads > (1u << 16)) return Status::InvalidArgument("threads must be at most 65536");
+  o.threads = b.threads;
+  o.tuning.threads = static_cast<int>(b.threads);
+  o.spill_dir = b.spill_dir;
+  if (b.progress) {
+    o.progress = [progress = b.progress](IngestStage s, uint64_t done, uint64_t total) {
+      progress(static_cast<BuildStage>(s), done, total);
+    };
+  }
+  return o;
+}
+
+BuildStats ToStats(const IngestReport& r, const IngestOptions& o) {
+  BuildStats s;
+  s.objects = r.objects;
+  s.triangles = r.triangles;
+  s.leaves = r.tree_stats.leaves;
+  s.pages = r.pages;
+  s.page_bytes = o.store.params.mem_page();
+  s.height = r.tree_stats.height;
+  s.mean_page_fill = r.tree_stats.mean_page_fill;
+  s.origin = r.origin;
+  s.raw_geometry_bytes = r.raw_geometry_bytes;
+  s.encoded_bytes = r.encoded_bytes;
+  s.store_bytes = r.store_bytes;
+  s.read_seconds = r.read_seconds;
+  s.build_seconds = r.build_seconds;
+  s.write_seconds = r.write_seconds;
+  s.total_seconds = r.total_seconds;
+  s.warnings = r.warnings;
+  return s;
+}
+
+std::optional<uint64_t> Decimal(std::string_view text) {
+  uint64_t v = 0;
+  if (text.empty() || text[0] < '0' || text[0] > '9') return std::nullopt;
+  auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
+  if (ec != std::errc() || end != text.data() + text.size()) return std::nullopt;
+  return v;
+}
+
+bool IsGenerator(const std::string& input) { return input.rfind("tanker:", 0) == 0; }
+
+// "tanker:N[:SEED]" builds straight from the generator, without a scene file.
+Result<SceneOpener> OpenerFor(const std::string& input) {
+  if (IsGenerator(input)) {
+    const std::string_view spec = std::string_view(input).substr(7);
+    const size_t colon = spec.find(':');
+    const std::optional<uint64_t> n = Decimal(spec.substr(0, colon));
+    const std::optional<uint64_t> seed =
+        colon == std::string_view::npos ? std::optional<uint64_t>(1) : Decimal(spec.substr(colon + 1));
+    if (!n || !seed || *n == 0 || *n > (uint64_t{1} << 32))
+      return Status::InvalidArgument(input +
+                                     ": expected tanker:N or tanker:N:SEED in decimal, 1 <= N <= 2^32");
+    return SceneOpener([n = *n, seed = *seed](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
+      return MakeTankerSource(n, seed, first);
+    });
+  }
+  // Refused before anything is read (the scene reader would say the same, but only once it got there).
+  if (input.empty()) return Status::InvalidArgument("an input file name is empty");
+  std::error_code ec;
+  const auto st = std::filesystem::status(input, ec);
+  if (st.type() == std::filesystem::file_type::not_found) return Status::NotFound(input + ": no such file");
+  if (ec) return Status::IOError(input + ": " + ec.message());
+  if (st.type() != std::filesystem::file_type::regular)
+    return Status::InvalidArgument(input + ": not a regular file");
+  return SceneOpener([input](ObjectId first) { return OpenSceneFile(input, first); });
+}
+
+// An output that is one of the inputs would replace it with the store.
+Status CheckOutput(const std::string& store_path, const std::vector<std::string>& inputs) {
+  if (store_path.empty()) return Status::InvalidArgument("the store path is empty");
+  for (const std::string& in : inputs) {
+    std::error_code ec;
+    if (!IsGenerator(in) && std::filesystem::equivalent(in, store_path, ec))
+      return Status::InvalidArgument(store_path + ": the store is the input " + in +
+                                     ": refusing to overwrite it");
+  }
+  return Status::Ok();
+}
+
+// The caller's objects as a scene stream: numbered in order, checked as a reader checks a file.
+class CallerSource final : public SceneSource {
+ public:
+  CallerSource(const ObjectSource& source, ObjectId first_id) : source_(source), next_id_(first_id) {}
+
+  Result<bool> Next(SceneObject* out) override {
+    MKTREE_ASSIGN_OR_RETURN(const bool more, source_(out));
+    if (!more) return false;
+    MKTREE_RETURN_IF_ERROR(Check(*out));
+    out->id = next_id_++;
+    return true;
+  }
+
+ private:
+  Status Check(const SceneObject& obj) const {
+    const std::string what = "object " + std::to_string(next_id_) + " '" + obj.name + "'";
+    const Mesh& m = obj.mesh;
+    if (m.vertices.size() % 3 != 0)
+      return Status::InvalidArgument(what + ": " + std::to_string(m.vertices.size()) +
+                                     " vertex coordinates, not a multiple of 3");
+    if (m.triangles.size() % 3 != 0)
+      return Status::InvalidArgument(what + ": " + std::to_string(m.triangles.size()) +
+                                     " triangle indices, not a multiple of 3");
+    if (m.triangles.empty()) return Status::InvalidArgument(what + ": no triangle");
+    for (size_t i = 0; i < m.vertices.size(); ++i) {
+      const double c = m.vertices[i];
+      if (!std::isfinite(c) || std::fabs(c) > kMaxCoordinate)
+        return Status::InvalidArgument(what + ": vertex " + std::to_string(i / 3) + " has coordinate " +
+                                       std::to_string(c) + ": not finite or beyond kMaxCoordinate");
+    }
+    const size_t vertex_count = m.vertex_count();
+    for (size_t i = 0; i < m.triangles.size(); ++i) {
+      if (m.triangles[i] >= vertex_count)
+        return Status::InvalidArgument(what + ": triangle " + std::to_string(i / 3) + " refers to vertex " +
+                                       std::to_string(m.triangles[i]) + " of " +
+                                       std::to_string(vertex_count));
+    }
+    return Status::Ok();
+  }
+
+  const ObjectSource& source_;
+  ObjectId next_id_;
+};
+
+}  // namespace
+
+const char* BuildStageName(BuildStage stage) { return IngestStageName(static_cast<IngestStage>(stage)); }
+
+Result<BuildStats> BuildFromFiles(const std::vector<std::string>& inputs, const std::string& store_path,
+                                  const BuildOptions& options) {
+  MKTREE_ASSIGN_OR_RETURN(IngestOptions opts, ToIngestOptions(options));
+  if (inputs.empty()) return Status::InvalidArgument(store_path + ": not built: no input");
+  std::vector<SceneOpener> openers;
+  for (const std::string& in : inputs) {
+    MKTREE_ASSIGN_OR_RETURN(SceneOpener opener, OpenerFor(in));
+    openers.push_back(std::move(opener));
+  }
+  MKTREE_RETURN_IF_ERROR(CheckOutput(store_path, inputs));
+  for (const std::string& in : inputs) opts.input_name += (opts.input_name.empty() ? "" : ", ") + in;
+  MKTREE_ASSIGN_OR_RETURN(const IngestReport report, BuildStore(openers, store_path, opts));
+  return ToStats(report, opts);
+}
+
+Result<BuildStats> BuildFromObjects(const ObjectSource& source, const std::string& store_path,
+                                    const BuildOptions& options) {
+  MKTREE_ASSIGN_OR_RETURN(IngestOptions opts, ToIngestOptions(options));
+  if (store_path.empty()) return Status::InvalidArgument("the store path is empty");
+  if (!source) return Status::InvalidArgument(store_path + ": not built: no object source");
+  opts.input_name = "the objects given";
+  const SceneOpener opener = [&source](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
+    return std::unique_ptr<SceneSource>(std::make_unique<CallerSource>(source, first));
+  };
+  MKTREE_ASSIGN_OR_RETURN(const IngestReport report, BuildStore({opener}, store_path, opts));
+  return ToStats(report, opts);
+}
+
+Result<BuildStats> BuildFromObjects(const std::vector<SceneObject>& objects, const std::string& store_path,
+                                    const BuildOptions& options) {
+  size_t next = 0;
+  return BuildFromObjects(
+      [&](SceneObject* out) -> Result<bool> {
+        if (next == objects.size()) return false;
+        *out = objects[next++];
+        return true;
+      },
+      store_path, options);
+}
+
+}  // namespace mktree

@@ -1,0 +1,461 @@
+// The Python module `mktree` (docs/python.md): the public API of include/mktree/ (database.h, build.h)
+// with numpy arrays in and out. Queries and builds run with the GIL released; the callbacks into Python
+// (the objects of a build, its progress) take it back. A non-ok Status raises mktree.Error with
+// Status::ToString() as its message; a Python exception raised in a callback ends the build and is
+// raised again as it was.
+#include <mktree/build.h>
+#include <mktree/database.h>
+#include <mktree/version.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <cstring>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace py = pybind11;
+
+namespace mktree {
+namespace {
+
+struct Error : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+[[noreturn]] void Raise(const Status& st) { throw Error(st.ToString()); }
+
+template <typename T>
+T Take(Result<T> r) {
+  if (!r.ok()) Raise(r.status());
+  return std::move(r).value();
+}
+
+// Names and attributes are any bytes: decoded as UTF-8, undecodable bytes kept as surrogates (as the os
+// module does for file names), so that nothing is lost.
+py::str Text(const std::string& s) {
+  return py::reinterpret_steal<py::str>(PyUnicode_DecodeUTF8(s.data(), s.size(), "surrogateescape"));
+}
+
+std::string Bytes(py::handle h) {
+  if (py::isinstance<py::bytes>(h)) return h.cast<std::string>();
+  py::object s = py::str(h);
+  PyObject* b = PyUnicode_AsEncodedString(s.ptr(), "utf-8", "surrogateescape");
+  if (b == nullptr) throw py::error_already_set();
+  return py::reinterpret_steal<py::bytes>(b).cast<std::string>();
+}
+
+std::string PathText(py::handle path) { return Bytes(py::module_::import("os").attr("fspath")(path)); }
+
+py::array_t<uint32_t> IdArray(const uint32_t* ids, size_t n) {
+  py::array_t<uint32_t> a(static_cast<py::ssize_t>(n));
+  if (n != 0) std::memcpy(a.mutable_data(), ids, n * sizeof(uint32_t));
+  return a;
+}
+
+py::dict StatsDict(const QueryStats& s, bool truncated) {
+  py::dict d;
+  d["hits"] = s.hits;
+  d["truncated"] = truncated;
+  d["pages_read"] = s.pages_read;
+  d["pages_touched"] = s.pages_touched;
+  d["cache_hits"] = s.cache_hits;
+  d["bytes_read"] = s.bytes_read;
+  d["leaves_visited"] = s.leaves_visited;
+  d["leaves_filtered"] = s.leaves_filtered;
+  d["leaves_with_hits"] = s.leaves_with_hits;
+  d["internal_nodes_visited"] = s.internal_nodes_visited;
+  d["split_nodes_visited"] = s.split_nodes_visited;
+  d["candidates_tested"] = s.candidates_tested;
+  return d;
+}
+
+QueryMode Mode(bool exact) { return exact ? QueryMode::kExact : QueryMode::kAabb; }
+
+Vec3d ToVec(const std::array<double, 3>& a) { return {a[0], a[1], a[2]}; }
+
+// A point query when `max` is None, else a box query.
+Query MakeQuery(const std::array<double, 3>& min, const std::optional<std::array<double, 3>>& max,
+                bool exact) {
+  if (!max) return Query::Point(ToVec(min), Mode(exact));
+  Box3d box;
+  box.min = min;
+  box.max = *max;
+  return Query::Box(box, Mode(exact));
+}
+
+py::object RunOne(const Database& db, Query q, std::optional<uint64_t> limit, bool stats) {
+  if (limit) q.limit = *limit;
+  QueryResult r;
+  Status st;
+  {
+    py::gil_scoped_release nogil;
+    st = db.Run(q, &r);
+  }
+  if (!st.ok()) Raise(st);
+  py::array_t<uint32_t> ids = IdArray(r.hits.data(), r.hits.size());
+  if (!stats) return ids;
+  return py::make_tuple(ids, StatsDict(r.stats, r.truncated));
+}
+
+// Many queries, one a row of `rows` ([n, 3] points or [n, 6] boxes: min x, y, z, max x, y, z), on
+// `threads` threads. Returns a list of sorted uint32 arrays, or with csr the pair (offsets int64 [n + 1],
+// ids uint32): the answer of row i is ids[offsets[i]:offsets[i + 1]].
+py::object RunMany(const Database& db, const py::handle& rows_in, int width, bool exact, unsigned threads,
+                   bool csr, std::optional<uint64_t> limit) {
+  auto rows = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(rows_in);
+  if (!rows || rows.ndim() != 2 || rows.shape(1) != width)
+    throw py::value_error("expected an array of shape (n, " + std::to_string(width) + ")");
+  const size_t n = static_cast<size_t>(rows.shape(0));
+  std::vector<Query> queries(n);
+  const double* p = rows.data();
+  for (size_t i = 0; i < n; ++i, p += width) {
+    if (width == 3) {
+      queries[i] = Query::Point({p[0], p[1], p[2]}, Mode(exact));
+    } else {
+      Box3d box;
+      box.min = {p[0], p[1], p[2]};
+      box.max = {p[3], p[4], p[5]};
+      queries[i] = Query::Box(box, Mode(exact));
+    }
+    if (limit) queries[i].limit = *limit;
+  }
+  std::vector<int64_t> offsets{0};
+  offsets.reserve(n + 1);
+  std::vector<uint32_t> ids;
+  Status st;
+  {
+    py::gil_scoped_release nogil;
+    BatchOptions options;
+    options.threads = threads;
+    st = db.RunBatchStreamed(queries, options, [&](uint64_t, const QueryResult& r) {
+      ids.insert(ids.end(), r.hits.begin(), r.hits.end());
+      offsets.push_back(static_cast<int64_t>(ids.size()));
+      return Status::Ok();
+    });
+  }
+  if (!st.ok()) Raise(st);
+  if (csr) {
+    py::array_t<int64_t> off(static_cast<py::ssize_t>(offsets.size()));
+    std::memcpy(off.mutable_data(), offsets.data(), offsets.size() * sizeof(int64_t));
+    return py::make_tuple(off, IdArray(ids.data(), ids.size()));
+  }
+  py::list out(n);
+  for (size_t i = 0; i < n; ++i)
+    out[i] = IdArray(ids.data() + offsets[i], static_cast<size_t>(offsets[i + 1] - offsets[i]));
+  return out;
+}
+
+py::array_t<double> BoundsArray(const Box3d& b) {
+  py::array_t<double> a({2, 3});
+  auto m = a.mutable_unchecked<2>();
+  for (int i = 0; i < 3; ++i) {
+    m(0, i) = b.min[i];
+    m(1, i) = b.max[i];
+  }
+  return a;
+}
+
+// --- building ---
+
+BuildOptions::Backend ParseBackend(const std::string& s) {
+  if (s == "hdf5") return BuildOptions::Backend::kHdf5;
+  if (s == "pagefile") return BuildOptions::Backend::kPagedFile;
+  throw py::value_error("backend must be 'hdf5' or 'pagefile', not '" + s + "'");
+}
+BuildOptions::Codec ParseCodec(const std::string& s) {
+  if (s == "zstd") return BuildOptions::Codec::kZstd;
+  if (s == "none") return BuildOptions::Codec::kNone;
+  throw py::value_error("codec must be 'zstd' or 'none', not '" + s + "'");
+}
+BuildOptions::SplitPolicy ParsePolicy(const std::string& s) {
+  if (s == "compact") return BuildOptions::SplitPolicy::kCompact;
+  if (s == "soa") return BuildOptions::SplitPolicy::kSoa;
+  if (s == "soa-fill") return BuildOptions::SplitPolicy::kSoaFill;
+  throw py::value_error("split_policy must be 'compact', 'soa' or 'soa-fill', not '" + s + "'");
+}
+
+// A field of a dict-like object, or an attribute of any other; None when absent.
+py::object Field(py::handle obj, const char* name) {
+  if (py::isinstance<py::dict>(obj)) {
+    py::dict d = py::reinterpret_borrow<py::dict>(obj);
+    return d.contains(name) ? py::reinterpret_borrow<py::object>(d[name]) : py::none();
+  }
+  return py::getattr(obj, name, py::none());
+}
+
+std::string Shape(const py::array& a) {
+  std::string s = "(";
+  for (py::ssize_t i = 0; i < a.ndim(); ++i) s += (i ? ", " : "") + std::to_string(a.shape(i));
+  return s + (a.ndim() == 1 ? ",)" : ")");
+}
+
+// One object of `objects` (a dict or an object with vertices [n, 3] float, faces [m, 3] integer, and
+// optionally name and attributes; trimesh's Trimesh has its name in metadata["name"]) into `out`.
+// InvalidArgument names the object's index; Python errors (a failing __getattr__) propagate.
+Status ToSceneObject(py::handle item, uint64_t index, SceneObject* out) {
+  const std::string what = "objects[" + std::to_string(index) + "]";
+  py::object v = Field(item, "vertices"), f = Field(item, "faces");
+  if (v.is_none() || f.is_none())
+    return Status::InvalidArgument(what + ": no 'vertices' and 'faces' (a dict or an object with both)");
+  auto verts = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(v);
+  if (!verts || verts.ndim() != 2 || verts.shape(1) != 3)
+    return Status::InvalidArgument(what + ": vertices must be a float array of shape (n, 3), not " +
+                                   (verts ? Shape(verts) : std::string("convertible")));
+  py::array faces_any = py::array::ensure(f);
+  if (!faces_any) return Status::InvalidArgument(what + ": faces must be an integer array");
+  const char kind = faces_any.dtype().kind();
+  if (faces_any.size() != 0 && kind != 'i' && kind != 'u')  // float indices would be truncated
+    return Status::InvalidArgument(what + ": faces must be an integer array, not of dtype " +
+                                   py::str(faces_any.dtype()).cast<std::string>());
+  auto faces = py::array_t<int64_t, py::array::c_style | py::array::forcecast>::ensure(faces_any);
+  if (!faces || faces.ndim() != 2 || faces.shape(1) != 3)
+    return Status::InvalidArgument(what + ": faces must be an integer array of shape (m, 3), not " +
+                                   Shape(faces_any));
+  out->mesh.vertices.assign(verts.data(), verts.data() + verts.size());
+  out->mesh.triangles.resize(static_cast<size_t>(faces.size()));
+  const int64_t* fp = faces.data();
+  for (py::ssize_t i = 0; i < faces.size(); ++i) {
+    if (fp[i] < 0 || fp[i] > int64_t{UINT32_MAX})
+      return Status::InvalidArgument(what + ": face " + std::to_string(i / 3) + " has vertex index " +
+                                     std::to_string(fp[i]));
+    out->mesh.triangles[static_cast<size_t>(i)] = static_cast<uint32_t>(fp[i]);
+  }
+  py::object name = Field(item, "name");
+  if (name.is_none()) {
+    py::object meta = Field(item, "metadata");
+    if (py::isinstance<py::dict>(meta)) name = Field(meta, "name");
+  }
+  out->name = name.is_none() ? std::string() : Bytes(name);
+  out->source.clear();
+  out->attributes.clear();
+  py::object attrs = Field(item, "attributes");
+  if (!attrs.is_none()) {
+    py::object pairs = py::isinstance<py::dict>(attrs) ? attrs.attr("items")() : attrs;
+    for (py::handle kv : pairs) {
+      py::tuple t = py::reinterpret_borrow<py::object>(kv).cast<py::tuple>();
+      if (t.size() != 2) return Status::InvalidArgument(what + ": attributes must be (key, value) pairs");
+      out->attributes.push_back({Bytes(t[0]), Bytes(t[1])});
+    }
+  }
+  return Status::Ok();
+}
+
+// Thrown through the engine (which turns it into a Status) to stop a build whose Python callback raised.
+struct PythonRaised {};
+
+py::dict BuildStatsDict(const BuildStats& s) {
+  py::dict d;
+  d["objects"] = s.objects;
+  d["triangles"] = s.triangles;
+  d["leaves"] = s.leaves;
+  d["pages"] = s.pages;
+  d["page_bytes"] = s.page_bytes;
+  d["height"] = s.height;
+  d["mean_page_fill"] = s.mean_page_fill;
+  d["origin"] = py::make_tuple(s.origin.x, s.origin.y, s.origin.z);
+  d["raw_geometry_bytes"] = s.raw_geometry_bytes;
+  d["encoded_bytes"] = s.encoded_bytes;
+  d["store_bytes"] = s.store_bytes;
+  d["read_seconds"] = s.read_seconds;
+  d["build_seconds"] = s.build_seconds;
+  d["write_seconds"] = s.write_seconds;
+  d["total_seconds"] = s.total_seconds;
+  py::list warnings;
+  for (const std::string& w : s.warnings) warnings.append(Text(w));
+  d["warnings"] = warnings;
+  return d;
+}
+
+py::dict Build(const py::object& path, const py::object& objects, const py::object& files,
+               const std::string& backend, const std::string& codec, int zstd_level, uint32_t block_size,
+               uint32_t blocks_per_page, double balance_r, uint32_t split_budget,
+               const std::string& split_policy, unsigned threads, const py::object& spill_dir,
+               const py::object& progress) {
+  if (objects.is_none() == files.is_none()) throw py::value_error("give either objects or files");
+  BuildOptions opts;
+  opts.backend = ParseBackend(backend);
+  opts.codec = ParseCodec(codec);
+  opts.zstd_level = zstd_level;
+  opts.block_size = block_size;
+  opts.blocks_per_page = blocks_per_page;
+  opts.balance_r = balance_r;
+  opts.split_budget = split_budget;
+  opts.split_policy = ParsePolicy(split_policy);
+  opts.threads = threads;
+  if (!spill_dir.is_none()) opts.spill_dir = PathText(spill_dir);
+  const std::string store = PathText(path);
+
+  std::optional<py::error_already_set> raised;  // a callback's exception, raised again after the build
+  if (!progress.is_none()) {
+    opts.progress = [&](BuildStage stage, uint64_t done, uint64_t total) {
+      py::gil_scoped_acquire gil;
+      try {
+        progress(BuildStageName(stage), done, total);
+        if (PyErr_CheckSignals() != 0) throw py::error_already_set();  // Ctrl-C stops the build
+      } catch (py::error_already_set& e) {
+        raised = std::move(e);
+        throw PythonRaised{};
+      }
+    };
+  }
+
+  Result<BuildStats> stats = Status::Internal("not run");
+  if (!files.is_none()) {
+    std::vector<std::string> inputs;
+    if (py::isinstance<py::str>(files) || py::isinstance<py::bytes>(files) ||
+        py::hasattr(files, "__fspath__")) {
+      inputs.push_back(PathText(files));
+    } else {
+      for (py::handle f : files) inputs.push_back(PathText(f));
+    }
+    py::gil_scoped_release nogil;
+    stats = BuildFromFiles(inputs, store, opts);
+  } else {
+    py::iterator it = py::iter(objects);
+    uint64_t index = 0;
+    const ObjectSource source = [&](SceneObject* out) -> Result<bool> {
+      py::gil_scoped_acquire gil;
+      try {
+        if (PyErr_CheckSignals() != 0) throw py::error_already_set();
+        if (index != 0) ++it;
+        if (it == py::iterator::sentinel()) return false;
+        MKTREE_RETURN_IF_ERROR(ToSceneObject(*it, index, out));
+        ++index;
+        return true;
+      } catch (py::error_already_set& e) {
+        raised = std::move(e);
+        return Status::Internal("objects[" + std::to_string(index) + "]: a Python exception");
+      }
+    };
+    py::gil_scoped_release nogil;
+    stats = BuildFromObjects(source, store, opts);
+  }
+  if (raised) throw std::move(*raised);
+  return BuildStatsDict(Take(std::move(stats)));
+}
+
+}  // namespace
+}  // namespace mktree
+
+PYBIND11_MODULE(mktree, m) {
+  using namespace mktree;
+  namespace py = pybind11;
+  m.doc() = "mktree: an out-of-core 3D spatial database (docs/python.md)";
+  m.attr("__version__") = MKTREE_VERSION_STRING;
+  py::register_exception<Error>(m, "Error", PyExc_RuntimeError);
+
+  py::class_<Database>(m, "Database", "An open store; safe to query from many threads at once")
+      .def_property_readonly("path", [](const Database& db) { return Text(db.path()); })
+      .def_property_readonly("object_count", &Database::object_count)
+      .def_property_readonly(
+          "bounds", [](const Database& db) { return BoundsArray(db.bounds()); },
+          "Scene bounds, [[min x, y, z], [max x, y, z]] (float64, rounded outward to float32)")
+      .def(
+          "point",
+          [](const Database& db, double x, double y, double z, bool exact, std::optional<uint64_t> limit,
+             bool stats) {
+            return RunOne(db, Query::Point({x, y, z}, Mode(exact)), limit, stats);
+          },
+          py::arg("x"), py::arg("y"), py::arg("z"), py::arg("exact") = false, py::arg("limit") = py::none(),
+          py::arg("stats") = false,
+          "Ids (sorted uint32 array) of the objects containing the point; with stats=True, (ids, dict)")
+      .def(
+          "box",
+          [](const Database& db, std::array<double, 3> min, std::array<double, 3> max, bool exact,
+             std::optional<uint64_t> limit,
+             bool stats) { return RunOne(db, MakeQuery(min, max, exact), limit, stats); },
+          py::arg("min"), py::arg("max"), py::arg("exact") = false, py::arg("limit") = py::none(),
+          py::arg("stats") = false, "Ids (sorted uint32 array) of the objects meeting the closed box")
+      .def(
+          "points",
+          [](const Database& db, const py::handle& rows, bool exact, unsigned threads, bool csr,
+             std::optional<uint64_t> limit) { return RunMany(db, rows, 3, exact, threads, csr, limit); },
+          py::arg("points"), py::arg("exact") = false, py::arg("threads") = 0, py::arg("csr") = false,
+          py::arg("limit") = py::none(),
+          "Point queries of an (n, 3) array on `threads` threads (0: one per core): a list of n uint32 "
+          "arrays, or with csr=True (offsets, ids)")
+      .def(
+          "boxes",
+          [](const Database& db, const py::handle& rows, bool exact, unsigned threads, bool csr,
+             std::optional<uint64_t> limit) { return RunMany(db, rows, 6, exact, threads, csr, limit); },
+          py::arg("boxes"), py::arg("exact") = false, py::arg("threads") = 0, py::arg("csr") = false,
+          py::arg("limit") = py::none(), "Box queries of an (n, 6) array (min x, y, z, max x, y, z)")
+      .def(
+          "any",
+          [](const Database& db, std::array<double, 3> min, std::optional<std::array<double, 3>> max,
+             bool exact) {
+            const Query q = MakeQuery(min, max, exact);
+            return Take([&] {
+              py::gil_scoped_release nogil;
+              return db.Any(q, nullptr);
+            }());
+          },
+          py::arg("min"), py::arg("max") = py::none(), py::arg("exact") = false,
+          "Whether anything answers the point `min` (max None) or the box; reads pages up to the first hit")
+      .def(
+          "count",
+          [](const Database& db, std::array<double, 3> min, std::optional<std::array<double, 3>> max,
+             bool exact) {
+            const Query q = MakeQuery(min, max, exact);
+            uint64_t n = 0;
+            Status st;
+            {
+              py::gil_scoped_release nogil;
+              st = db.Visit(
+                  q, [&n](ObjectId) { ++n; }, nullptr);
+            }
+            if (!st.ok()) Raise(st);
+            return n;
+          },
+          py::arg("min"), py::arg("max") = py::none(), py::arg("exact") = false,
+          "How many objects answer the point `min` (max None) or the box, without holding their ids")
+      .def(
+          "object_name", [](const Database& db, uint32_t id) { return Text(Take(db.ObjectName(id))); },
+          py::arg("id"))
+      .def(
+          "stats",
+          [](const Database& db) {
+            py::dict d;
+            d["path"] = Text(db.path());
+            d["object_count"] = db.object_count();
+            d["objects_per_page"] = db.objects_per_page();
+            d["bounds"] = BoundsArray(db.bounds());
+            d["tree"] = db.stats_json().empty() ? py::object(py::none())
+                                                : py::module_::import("json").attr("loads")(db.stats_json());
+            return d;
+          },
+          "The store's statistics: the builder's tree statistics (mktree info --json's \"tree\") and more")
+      .def(
+          "clear_cache", [](Database& db) { db.ClearCache(); }, "Empties the page cache")
+      .def("__repr__", [](const Database& db) {
+        return "<mktree.Database '" + db.path() + "', " + std::to_string(db.object_count()) + " objects>";
+      });
+
+  m.def(
+      "open",
+      [](const py::object& path, uint64_t cache_pages, bool verify_checksums, bool direct_io) {
+        OpenOptions o;
+        o.cache_pages = cache_pages;
+        o.verify_checksums = verify_checksums;
+        o.direct_io = direct_io;
+        const std::string p = PathText(path);
+        return Take([&] {
+          py::gil_scoped_release nogil;
+          return Database::Open(p, o);
+        }());
+      },
+      py::arg("path"), py::arg("cache_pages") = 4096, py::arg("verify_checksums") = true,
+      py::arg("direct_io") = false, "Opens a store (HDF5 or paged file) for queries");
+
+  m.def("build", &Build, py::arg("path"), py::arg("objects") = py::none(), py::arg("files") = py::none(),
+        py::kw_only(), py::arg("backend") = "hdf5", py::arg("codec") = "zstd", py::arg("zstd_level") = 3,
+        py::arg("block_size") = 4096, py::arg("blocks_per_page") = 3, py::arg("balance_r") = 0.3,
+        py::arg("split_budget") = 64, py::arg("split_policy") = "compact", py::arg("threads") = 0,
+        py::arg("spill_dir") = py::none(), py::arg("progress") = py::none(),
+        "Builds the store at `path` from `objects` (an iterable of dicts or objects with vertices (n, 3), "
+        "faces (m, 3), optional name and attributes) or `files` (a path or a list: any format mktree "
+        "build reads, or 'tanker:N:SEED'). Returns the build statistics as a dict.");
+}
