@@ -99,8 +99,9 @@ struct ClashStats {
   uint64_t leaf_reads = 0;      // leaves read and decoded, re-reads included
   uint64_t leaf_rereads = 0;    // reads of a leaf that had left the window while it still had partners
   // The most memory the window of decoded leaves (meshes and narrow-phase shapes) held at once, about,
-  // and the budget it was planned for (ClashOptions::window_bytes). The peak exceeds the budget only when
-  // one batch's own leaves need more (self-clash only).
+  // and the budget it was planned for (ClashOptions::window_bytes). The plan counts each leaf at its
+  // estimated decoded size: the peak may exceed the budget by the estimate's error, or hold one leaf
+  // pair that alone needs more (self-clash only).
   uint64_t window_peak_bytes = 0;
   uint64_t window_budget_bytes = 0;
   // Broad phase.
