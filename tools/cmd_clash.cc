@@ -25,6 +25,7 @@ struct ClashArgs {
   double clearance = 0;
   double touch_tolerance = 0.002;
   uint64_t cache_pages = 4096;
+  uint64_t window_mib = 0;  // clash: 0 is kDefaultClashWindowBytes
   unsigned threads = 0;
   uint64_t max_pairs = std::numeric_limits<uint64_t>::max();
   std::string exclude_group;
@@ -124,12 +125,12 @@ std::string SummaryLine(const ClashStats& s) {
       u("unreported_touches", s.unreported_touches) + ", " + u("pages_touched", s.pages_touched) + ", " +
       u("distinct_pages", s.distinct_pages) + ", " + u("leaf_reads", s.leaf_reads) + ", " +
       u("leaf_rereads", s.leaf_rereads) + ", " + u("window_peak_bytes", s.window_peak_bytes) + ", " +
-      u("leaf_pairs_tree", s.leaf_pairs_tree) + ", " + u("leaf_pairs_visited", s.leaf_pairs_visited) + ", " +
-      u("candidate_pairs", s.candidate_pairs) + ", " + u("excluded_pairs", s.excluded_pairs) + ", " +
-      u("bound_rejects", s.bound_rejects) + ", " + u("triangle_tests", s.triangle_tests) + ", " +
-      u("containment_tests", s.containment_tests) + ", " + d("broad_seconds", s.broad_seconds) + ", " +
-      d("read_seconds", s.read_seconds) + ", " + d("narrow_seconds", s.narrow_seconds) + ", " +
-      u("peak_rss_bytes", PeakRssBytes()) + "}\n";
+      u("window_budget_bytes", s.window_budget_bytes) + ", " + u("leaf_pairs_tree", s.leaf_pairs_tree) +
+      ", " + u("leaf_pairs_visited", s.leaf_pairs_visited) + ", " + u("candidate_pairs", s.candidate_pairs) +
+      ", " + u("excluded_pairs", s.excluded_pairs) + ", " + u("bound_rejects", s.bound_rejects) + ", " +
+      u("triangle_tests", s.triangle_tests) + ", " + u("containment_tests", s.containment_tests) + ", " +
+      d("broad_seconds", s.broad_seconds) + ", " + d("read_seconds", s.read_seconds) + ", " +
+      d("narrow_seconds", s.narrow_seconds) + ", " + u("peak_rss_bytes", PeakRssBytes()) + "}\n";
   return line;
 }
 
@@ -173,6 +174,8 @@ int Run(const ClashArgs& a, bool collide) {
   o.max_pairs = a.max_pairs;
   o.threads = a.threads;
   o.exclude_group_separator = a.exclude_group;
+  if (a.window_mib > (uint64_t{1} << 40)) return Fail("--window-mib: at most 2^40");
+  o.window_bytes = a.window_mib << 20;
   std::optional<RigidTransform> transform;
   Mesh object;
   if (collide) {
@@ -222,8 +225,7 @@ void AddCommon(CLI::App* cmd, ClashArgs* a) {
   AddNumberOption(cmd, "--clearance", &a->clearance, "Clearance C: pairs closer than C are reported");
   AddNumberOption(cmd, "--touch-tolerance", &a->touch_tolerance,
                   "Touch tolerance T: meeting pairs with depth <= T are touches");
-  AddNumberOption(cmd, "--cache-pages", &a->cache_pages,
-                  "Page cache (and window of decoded leaves), in pages");
+  AddNumberOption(cmd, "--cache-pages", &a->cache_pages, "Page cache, in pages");
   AddNumberOption(cmd, "--threads", &a->threads, "Worker threads (0: one per core); output is the same");
   AddNumberOption(cmd, "--max-pairs", &a->max_pairs, "Report at most N pairs (the rest are counted)");
   cmd->add_flag("--no-touch", a->no_touch, "Count touch pairs without printing them");
@@ -239,6 +241,8 @@ void RegisterClash(CLI::App& app, CommandRun* run) {
   AddCommon(cmd, args.get());
   cmd->add_option("--exclude-group", args->exclude_group,
                   "Skip pairs whose names agree up to this separator (e.g. /)");
+  AddNumberOption(cmd, "--window-mib", &args->window_mib,
+                  "Memory for decoded leaves kept between their pairs, in MiB (0: the default, 32)");
   cmd->callback([run, args] { *run = [args] { return Run(*args, false); }; });
 }
 

@@ -16,8 +16,6 @@ struct ClashStore {
   const StoreReader& reader;
   PageCache& cache;
   bool verify_checksums = true;
-  // The window of decoded leaves, in pages (the self-clash's working set); at least one batch's leaves.
-  uint64_t window_pages = 0;
 };
 
 // Every pair of the store's objects that clashes under `options`, to `visit` in the plan's order.

@@ -5,8 +5,8 @@
 
 namespace mktree::clash {
 
-SweepPlan PlanSweep(const MKTree& tree, std::vector<LeafPair> pairs, uint64_t window_pages,
-                    size_t batch_pairs) {
+SweepPlan PlanSweep(const MKTree& tree, std::vector<LeafPair> pairs, const std::vector<uint64_t>& leaf_bytes,
+                    uint64_t window_bytes, size_t batch_pairs) {
   SweepPlan plan;
   if (pairs.empty()) return plan;
   const Box3f& root = tree.nodes[0].box;
@@ -53,52 +53,47 @@ SweepPlan PlanSweep(const MKTree& tree, std::vector<LeafPair> pairs, uint64_t wi
     while (at < use_begin[r + 1] && uses[at] < k) ++at;
     return at < use_begin[r + 1] ? uses[at] : std::numeric_limits<uint64_t>::max();
   };
-  auto pages = [&](uint32_t leaf) -> uint64_t { return tree.leaves[leaf].page_count; };
+  auto bytes = [&](uint32_t leaf) -> uint64_t { return leaf_bytes[leaf]; };
 
   std::vector<uint8_t> in_window(order.size(), 0), ever_read(order.size(), 0), in_batch(order.size(), 0);
   std::vector<uint32_t> window;  // ranks
   uint64_t window_used = 0;
   size_t k = 0;
   while (k < pairs.size()) {
-    // Grow the batch step by step while the leaves it needs fit the window (always at least one step).
+    // Grow the batch pair by pair while the leaves it needs fit the window (always at least one pair, so
+    // that a window smaller than a sweep step still holds just two leaves).
     SweepBatch b;
     b.pair_begin = k;
     std::vector<uint32_t> need;  // ranks
-    uint64_t need_pages = 0;
+    uint64_t need_bytes = 0;
     size_t end = k;
-    while (end < pairs.size()) {
-      const uint32_t s = step(pairs[end]);
-      size_t step_end = end;
-      std::vector<uint32_t> added;
-      uint64_t added_pages = 0;
-      while (step_end < pairs.size() && step(pairs[step_end]) == s) {
-        for (uint32_t leaf : {pairs[step_end].p, pairs[step_end].q}) {
-          const uint32_t r = rank[leaf];
-          if (in_batch[r]) continue;
-          in_batch[r] = 1;
-          added.push_back(r);
-          added_pages += pages(leaf);
-        }
-        ++step_end;
+    while (end < pairs.size() && end - k < batch_pairs) {
+      uint32_t added[2];
+      int n_added = 0;
+      uint64_t added_bytes = 0;
+      for (uint32_t leaf : {pairs[end].p, pairs[end].q}) {
+        const uint32_t r = rank[leaf];
+        if (in_batch[r] || (n_added == 1 && added[0] == r)) continue;
+        added[n_added++] = r;
+        added_bytes += bytes(leaf);
       }
-      const bool first = end == k;
-      if (!first && (need_pages + added_pages > window_pages || step_end - k > batch_pairs)) {
-        for (uint32_t r : added) in_batch[r] = 0;
-        break;
+      if (end > k && need_bytes + added_bytes > window_bytes) break;
+      for (int i = 0; i < n_added; ++i) {
+        in_batch[added[i]] = 1;
+        need.push_back(added[i]);
       }
-      need.insert(need.end(), added.begin(), added.end());
-      need_pages += added_pages;
-      end = step_end;
+      need_bytes += added_bytes;
+      ++end;
     }
     b.pair_end = end;
     // Reads, after evicting what must go to make room (never a leaf this batch needs).
-    uint64_t load_pages = 0;
+    uint64_t load_bytes = 0;
     for (uint32_t r : need) {
       if (in_window[r]) continue;
       b.load.push_back(order[r]);
-      load_pages += pages(order[r]);
+      load_bytes += bytes(order[r]);
     }
-    while (window_used + load_pages > window_pages) {
+    while (window_used + load_bytes > window_bytes) {
       size_t victim = window.size();
       uint64_t farthest = 0;
       for (size_t i = 0; i < window.size(); ++i) {
@@ -110,7 +105,7 @@ SweepPlan PlanSweep(const MKTree& tree, std::vector<LeafPair> pairs, uint64_t wi
       const uint32_t r = window[victim];
       b.evict.push_back(order[r]);
       in_window[r] = 0;
-      window_used -= pages(order[r]);
+      window_used -= bytes(order[r]);
       window[victim] = window.back();
       window.pop_back();
     }
@@ -122,16 +117,16 @@ SweepPlan PlanSweep(const MKTree& tree, std::vector<LeafPair> pairs, uint64_t wi
       ever_read[r] = 1;
       in_window[r] = 1;
       window.push_back(r);
-      window_used += pages(leaf);
+      window_used += bytes(leaf);
     }
-    plan.peak_window_pages = std::max(plan.peak_window_pages, window_used);
+    plan.peak_window_bytes = std::max(plan.peak_window_bytes, window_used);
     // Leaves with no partner left leave the window at once.
     for (size_t i = 0; i < window.size();) {
       const uint32_t r = window[i];
       if (next_after(r, end) == std::numeric_limits<uint64_t>::max()) {
         b.drop.push_back(order[r]);
         in_window[r] = 0;
-        window_used -= pages(order[r]);
+        window_used -= bytes(order[r]);
         window[i] = window.back();
         window.pop_back();
       } else {

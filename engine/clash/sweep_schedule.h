@@ -1,7 +1,8 @@
 // The order of the self-clash's work, planned before any page is read: a sweep of the leaves along the
 // scene's longest axis, each leaf read when it is first needed and kept in a window of decoded leaves
-// while it still has partners to come. When the window is full, the leaf needed again last is evicted
-// (Belady's rule: the future is known) and read again when it is needed; the plan counts those reads.
+// (budgeted in bytes) while it still has partners to come. When the window is full, the leaf needed again
+// last is evicted (Belady's rule: the future is known) and read again when it is needed; the plan counts
+// those reads.
 #pragma once
 
 #include <cstdint>
@@ -25,12 +26,13 @@ struct SweepPlan {
   std::vector<LeafPair> pairs;  // the work in its order: by the later leaf's sweep rank, then the other's
   std::vector<SweepBatch> batches;
   uint64_t leaf_reads = 0, leaf_rereads = 0;
-  uint64_t peak_window_pages = 0;
+  uint64_t peak_window_bytes = 0;  // by the leaves' estimates
 };
 
-// Plans the sweep of `pairs` with a window of `window_pages` pages of decoded leaves (a batch always holds
-// the leaves its own pairs need, even beyond the budget) and batches of at most `batch_pairs` pairs.
-SweepPlan PlanSweep(const MKTree& tree, std::vector<LeafPair> pairs, uint64_t window_pages,
-                    size_t batch_pairs);
+// Plans the sweep of `pairs` with a window of `window_bytes` bytes of decoded leaves, leaf i counted as
+// leaf_bytes[i] (a batch always holds the leaves its own pairs need, even beyond the budget), and batches
+// of at most `batch_pairs` pairs.
+SweepPlan PlanSweep(const MKTree& tree, std::vector<LeafPair> pairs, const std::vector<uint64_t>& leaf_bytes,
+                    uint64_t window_bytes, size_t batch_pairs);
 
 }  // namespace mktree::clash

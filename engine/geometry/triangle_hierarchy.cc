@@ -44,36 +44,34 @@ double BoxDistanceSquared(const Box3d& a, const Box3d& b) {
   return d2;
 }
 
-TriangleHierarchy::TriangleHierarchy(const Mesh& mesh) {
+TriangleHierarchy::TriangleHierarchy(const Mesh& mesh) : vertices_(mesh.vertices.data()) {
   const size_t n = mesh.triangle_count();
   if (n == 0) return;
-  triangles_.resize(n);
   mesh_index_.resize(n);
   std::vector<Vec3d> centroids(n);
   for (size_t t = 0; t < n; ++t) {
-    for (int c = 0; c < 3; ++c) {
-      const double* v = &mesh.vertices[3 * size_t{mesh.triangles[3 * t + c]}];
-      triangles_[t][c] = {v[0], v[1], v[2]};
+    Vec3d c{0, 0, 0};
+    for (int k = 0; k < 3; ++k) {
+      const double* v = &mesh.vertices[3 * size_t{mesh.triangles[3 * t + k]}];
+      c = {c.x + v[0], c.y + v[1], c.z + v[2]};
     }
-    const Triangle& tr = triangles_[t];
-    centroids[t] = {(tr[0].x + tr[1].x + tr[2].x) / 3, (tr[0].y + tr[1].y + tr[2].y) / 3,
-                    (tr[0].z + tr[1].z + tr[2].z) / 3};
+    centroids[t] = {c.x / 3, c.y / 3, c.z / 3};
     mesh_index_[t] = static_cast<uint32_t>(t);
   }
   nodes_.reserve(2 * (n / kLeafTriangles) + 1);
   nodes_.emplace_back();
   Build(0, 0, static_cast<uint32_t>(n), centroids);
-  // Leaf order: permute the corners once, after the build has settled the order of mesh_index_.
-  std::vector<Triangle> ordered(n);
-  for (size_t i = 0; i < n; ++i) ordered[i] = triangles_[mesh_index_[i]];
-  triangles_ = std::move(ordered);
+  // Leaf order: the corners' vertex indices, after the build has settled the order of mesh_index_.
+  corners_.resize(n);
+  for (size_t i = 0; i < n; ++i)
+    for (int k = 0; k < 3; ++k) corners_[i][k] = mesh.triangles[3 * size_t{mesh_index_[i]} + k];
   // Boxes, bottom-up (children always follow their parent in the array).
   for (size_t i = nodes_.size(); i-- > 0;) {
     Node& node = nodes_[i];
     node.box = Box3d{};
     if (node.leaf()) {
       for (uint32_t t = node.first; t < node.first + node.count; ++t)
-        for (const Vec3d& v : triangles_[t]) node.box.Extend(v.x, v.y, v.z);
+        for (const Vec3d& v : triangle(t)) node.box.Extend(v.x, v.y, v.z);
     } else {
       for (uint32_t c = node.first; c < node.first + 2; ++c) {
         node.box.Extend(nodes_[c].box.min[0], nodes_[c].box.min[1], nodes_[c].box.min[2]);
@@ -111,7 +109,7 @@ void TriangleHierarchy::Build(uint32_t self, uint32_t first, uint32_t count, std
 }
 
 size_t TriangleHierarchy::MemoryBytes() const {
-  return nodes_.capacity() * sizeof(Node) + triangles_.capacity() * sizeof(Triangle) +
+  return nodes_.capacity() * sizeof(Node) + corners_.capacity() * sizeof(corners_[0]) +
          mesh_index_.capacity() * sizeof(uint32_t);
 }
 
@@ -146,12 +144,14 @@ bool TriangleHierarchy::FindMeeting(const TriangleHierarchy& a, const TriangleHi
     if (!BoxesMeet(na.box, nb.box)) continue;
     if (na.leaf() && nb.leaf()) {
       for (uint32_t i = na.first; i < na.first + na.count && !met; ++i) {
-        const Box3d bi = TriangleBox(a.triangles_[i]);
+        const Triangle ti = a.triangle(i);
+        const Box3d bi = TriangleBox(ti);
         if (!BoxesMeet(bi, nb.box)) continue;
         for (uint32_t j = nb.first; j < nb.first + nb.count; ++j) {
-          if (!BoxesMeet(bi, TriangleBox(b.triangles_[j]))) continue;
+          const Triangle tj = b.triangle(j);
+          if (!BoxesMeet(bi, TriangleBox(tj))) continue;
           ++n_tests;
-          if (TrianglesMeet(a.triangles_[i].data(), b.triangles_[j].data())) {
+          if (TrianglesMeet(ti.data(), tj.data())) {
             *found = {i, j};
             met = true;
             break;
@@ -191,12 +191,14 @@ bool TriangleHierarchy::ClosestBelow(const TriangleHierarchy& a, const TriangleH
     const Node& nb = b.nodes_[p.b];
     if (na.leaf() && nb.leaf()) {
       for (uint32_t i = na.first; i < na.first + na.count; ++i) {
-        const Box3d bi = TriangleBox(a.triangles_[i]);
+        const Triangle ti = a.triangle(i);
+        const Box3d bi = TriangleBox(ti);
         if (BoxDistanceSquared(bi, nb.box) >= best2) continue;
         for (uint32_t j = nb.first; j < nb.first + nb.count; ++j) {
-          if (BoxDistanceSquared(bi, TriangleBox(b.triangles_[j])) >= best2) continue;
+          const Triangle tj = b.triangle(j);
+          if (BoxDistanceSquared(bi, TriangleBox(tj)) >= best2) continue;
           ++n_tests;
-          const ClosestPoints c = TriangleFeatureClosest(a.triangles_[i].data(), b.triangles_[j].data());
+          const ClosestPoints c = TriangleFeatureClosest(ti.data(), tj.data());
           if (c.distance_squared < best2) {
             best2 = c.distance_squared;
             *closest = c;
@@ -239,7 +241,7 @@ double TriangleHierarchy::PointDistanceSquared(const Vec3d& p, double enough) co
     const Node& n = nodes_[it.node];
     if (n.leaf()) {
       for (uint32_t t = n.first; t < n.first + n.count; ++t) {
-        const Triangle& tr = triangles_[t];
+        const Triangle tr = triangle(t);
         best2 = std::min(best2, PointTriangleClosest(p, tr[0], tr[1], tr[2]).distance_squared);
       }
       if (best2 <= enough) return best2;
@@ -273,7 +275,7 @@ void TriangleHierarchy::SegmentCrossings(const Vec3d& p, const Vec3d& q, std::ve
     }
     for (uint32_t t = n.first; t < n.first + n.count; ++t) {
       // Moller-Trumbore on the segment.
-      const Triangle& tr = triangles_[t];
+      const Triangle tr = triangle(t);
       const Vec3d e1{tr[1].x - tr[0].x, tr[1].y - tr[0].y, tr[1].z - tr[0].z};
       const Vec3d e2{tr[2].x - tr[0].x, tr[2].y - tr[0].y, tr[2].z - tr[0].z};
       const Vec3d h{d.y * e2.z - d.z * e2.y, d.z * e2.x - d.x * e2.z, d.x * e2.y - d.y * e2.x};

@@ -1,7 +1,7 @@
 // A bounding-volume hierarchy over one mesh's triangles: a binary tree of axis-aligned boxes in a flat
 // array, built top-down by median splits of the triangle centroids on the longest axis (O(T log T)),
-// leaves of at most kLeafTriangles triangles. The triangles' corners are copied in leaf order, so a leaf
-// is read from one contiguous block.
+// leaves of at most kLeafTriangles triangles. The corners' vertex indices are kept in leaf order and the
+// coordinates read from the mesh (a copy of the corners would take 72 bytes a triangle).
 //
 // Queries between two hierarchies walk pairs of nodes (a dual traversal), descending the larger box:
 //   - FindMeeting: the first triangle pair that meets (exact TrianglesMeet), pruning node pairs whose
@@ -28,7 +28,8 @@ class TriangleHierarchy {
  public:
   static constexpr uint32_t kLeafTriangles = 4;
 
-  // REQUIRES: every triangle index < mesh.vertex_count(). The hierarchy copies what it needs.
+  // REQUIRES: every triangle index < mesh.vertex_count(); the mesh's vertices outlive the hierarchy
+  // unchanged (it reads them).
   explicit TriangleHierarchy(const Mesh& mesh);
 
   using Triangle = std::array<Vec3d, 3>;
@@ -39,10 +40,13 @@ class TriangleHierarchy {
     bool leaf() const { return count != 0; }
   };
 
-  size_t triangle_count() const { return triangles_.size(); }
+  size_t triangle_count() const { return corners_.size(); }
   const std::vector<Node>& nodes() const { return nodes_; }
-  const Triangle& triangle(uint32_t i) const { return triangles_[i]; }  // leaf order
-  uint32_t mesh_triangle(uint32_t i) const { return mesh_index_[i]; }   // its index in the mesh
+  Triangle triangle(uint32_t i) const {  // leaf order
+    const auto& c = corners_[i];
+    return {At(c[0]), At(c[1]), At(c[2])};
+  }
+  uint32_t mesh_triangle(uint32_t i) const { return mesh_index_[i]; }  // its index in the mesh
   Box3d bounds() const { return nodes_.empty() ? Box3d{} : nodes_[0].box; }
   size_t MemoryBytes() const;
 
@@ -70,7 +74,12 @@ class TriangleHierarchy {
   void Build(uint32_t self, uint32_t first, uint32_t count, std::vector<Vec3d>& centroids);
 
   std::vector<Node> nodes_;
-  std::vector<Triangle> triangles_;
+  Vec3d At(uint32_t v) const {
+    const double* p = vertices_ + 3 * size_t{v};
+    return {p[0], p[1], p[2]};
+  }
+  const double* vertices_;
+  std::vector<std::array<uint32_t, 3>> corners_;  // leaf order
   std::vector<uint32_t> mesh_index_;
 };
 

@@ -159,9 +159,7 @@ class StoreDatabase final : public Database {
     return {p.x - o.x, p.y - o.y, p.z - o.z};
   }
 
-  ClashStore ClashStoreView() const {
-    return ClashStore{*reader_, cache_, options_.verify_checksums, options_.cache_pages};
-  }
+  ClashStore ClashStoreView() const { return ClashStore{*reader_, cache_, options_.verify_checksums}; }
 
   // Pins the leaf's pages, verifies and parses them, and appends to `found` the objects that answer, up to
   // `cap` of them (the rest of the leaf is not tested); `test` says whether an object answers: a bool, or

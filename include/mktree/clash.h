@@ -66,6 +66,9 @@ struct ClashPair {
 // deterministic.
 using ClashExclude = std::function<bool(ObjectId a, ObjectId b)>;
 
+// The self-clash's default window of decoded leaves (docs/clash.md section 3 says why this size).
+inline constexpr uint64_t kDefaultClashWindowBytes = uint64_t{32} << 20;
+
 struct ClashOptions {
   double clearance = 0;            // C >= 0: pairs with 0 < s < C are clearance pairs
   double touch_tolerance = 0.002;  // T >= 0 (store units; 2 mm for metres)
@@ -78,6 +81,11 @@ struct ClashOptions {
   uint64_t max_pairs = std::numeric_limits<uint64_t>::max();
   // Worker threads (0: one per core). The pairs and their order are the same for any count.
   unsigned threads = 1;
+  // Self-clash: the memory for decoded leaves (meshes and narrow-phase shapes) kept between the leaf pairs
+  // that need them, in bytes; 0 is kDefaultClashWindowBytes. Planned from each leaf's estimated decoded
+  // size; a smaller window re-reads leaves (through the page cache), a larger one costs RAM. The answer
+  // is the same for any size.
+  uint64_t window_bytes = 0;
   // Optional, on the calling thread: work done of total (leaf steps), for progress displays.
   std::function<void(uint64_t done, uint64_t total)> progress;
 };
@@ -90,9 +98,12 @@ struct ClashStats {
   uint64_t store_pages = 0;     // leaf pages in the store
   uint64_t leaf_reads = 0;      // leaves read and decoded, re-reads included
   uint64_t leaf_rereads = 0;    // reads of a leaf that had left the window while it still had partners
-  // The most memory the window of decoded leaves (meshes and narrow-phase shapes) held at once, about;
-  // the window holds as many leaves as the cache has pages (self-clash only).
+  // The most memory the window of decoded leaves (meshes and narrow-phase shapes) held at once, about,
+  // and the budget it was planned for (ClashOptions::window_bytes). The plan counts each leaf at its
+  // estimated decoded size: the peak may exceed the budget by the estimate's error, or hold one leaf
+  // pair that alone needs more (self-clash only).
   uint64_t window_peak_bytes = 0;
+  uint64_t window_budget_bytes = 0;
   // Broad phase.
   uint64_t leaf_pairs_tree = 0;     // leaf pairs (a leaf with itself included) whose boxes grown by C meet
   uint64_t leaf_pairs_visited = 0;  // of those, the pairs the leaf filter let through: read and tested

@@ -172,7 +172,7 @@ class Database {
   // `transform` (none: as it is); its pairs have b = kCollideObject. Pairs go to `visit` on the calling
   // thread, in an order that does not depend on options.threads; `stats` (may be null) is reset and
   // filled. Pages are read through this Database's cache; the self-clash keeps decoded leaves in a window
-  // of OpenOptions::cache_pages pages. On an error the pairs visited so far are an incomplete answer.
+  // of ClashOptions::window_bytes. On an error the pairs visited so far are an incomplete answer.
   virtual Status SelfClash(const ClashOptions& options, const ClashVisitor& visit,
                            ClashStats* stats) const = 0;
   virtual Status Collide(const Mesh& mesh, const std::optional<RigidTransform>& transform,

@@ -275,6 +275,48 @@ TEST(Clash, SameOutputInTheSameOrderForAnyThreadCount) {
   }
 }
 
+// The window of decoded leaves changes what is re-read, never the answer or its order: one pair's leaves
+// (1 byte), the default and the whole store, on one and two threads.
+TEST(Clash, SameOutputForEveryWindowSize) {
+  const auto scene = PlantedScene(900, 13);
+  const std::string path = TempPath("window");
+  ASSERT_TRUE(Build(scene, path, Backend::kPagedFile).ok());
+  const auto want = Oracle(scene).All(0.05, 0.002);
+  auto db = Database::Open(path, {.cache_pages = 0});  // every page lookup is a read
+  ASSERT_TRUE(db.ok());
+  ClashOptions o;
+  o.clearance = 0.05;
+  std::vector<ClashPair> first;
+  ClashStats whole;
+  for (uint64_t window : {uint64_t{1} << 40, uint64_t{0}, uint64_t{1}}) {
+    for (unsigned t : {1u, 2u}) {
+      SCOPED_TRACE("window " + std::to_string(window) + " threads " + std::to_string(t));
+      o.window_bytes = window;
+      o.threads = t;
+      ClashStats s;
+      const auto got = SelfClash(**db, o, &s);
+      if (first.empty()) {
+        first = got;
+        whole = s;
+        ExpectSame(Sorted(got), want);
+      } else {
+        ExpectSame(got, first);
+      }
+      EXPECT_EQ(s.window_budget_bytes, window ? window : kDefaultClashWindowBytes);
+      EXPECT_EQ(s.pages_read, s.pages_touched);
+      EXPECT_LE(s.window_peak_bytes, whole.window_peak_bytes);
+      if (window != 1) {
+        EXPECT_LE(s.window_peak_bytes, s.window_budget_bytes);
+        EXPECT_EQ(s.leaf_rereads, 0u);  // the store fits the default window
+        EXPECT_EQ(s.pages_read, s.distinct_pages);
+      } else {
+        EXPECT_GT(s.leaf_rereads, 0u);
+        EXPECT_GT(s.pages_read, s.distinct_pages);
+      }
+    }
+  }
+}
+
 TEST(Clash, ExclusionsAndTheCapCountWhatTheyLeaveOut) {
   const auto scene = PlantedScene(300, 5);
   const std::string path = TempPath("exclusions");
@@ -519,6 +561,13 @@ void RealScene(const std::string& file, double c, size_t max_objects = SIZE_MAX)
   opt.threads = 2;
   ClashStats s;
   ExpectSame(Sorted(SelfClash(**db, opt, &s)), want);
+  EXPECT_LE(s.window_peak_bytes, s.window_budget_bytes);
+  // A window of one leaf pair re-reads leaves, and finds the same pairs in the same order.
+  ClashOptions tiny = opt;
+  tiny.window_bytes = 1;
+  ClashStats ts;
+  ExpectSame(SelfClash(**db, tiny, &ts), SelfClash(**db, opt, nullptr));
+  EXPECT_LE(ts.window_peak_bytes, s.window_peak_bytes);
   std::printf("%s: %zu objects, %zu pairs (hard %llu touch %llu clearance %llu), pages read %llu of %llu\n",
               file.c_str(), scene.size(), want.size(), (unsigned long long)s.hard,
               (unsigned long long)s.touch, (unsigned long long)s.clearance, (unsigned long long)s.pages_read,
