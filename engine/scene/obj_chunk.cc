@@ -127,15 +127,31 @@ void ChunkParser::ParseVertex(std::string_view rest) {
   double xyz[3];
   int n = 0;
   std::string why;
-  for (std::string_view tok = NextToken(&rest); !tok.empty(); tok = NextToken(&rest), ++n) {
-    double v;
-    // Values past z (w, or r g b [a] colours) are checked as numbers but not kept.
-    if (!ParseObjCoordinate(tok.data(), tok.data() + tok.size(), &v, &why)) return Fail("vertex: " + why);
+  const char* p = rest.data();
+  const char* const e = rest.data() + rest.size();
+  while (true) {
+    while (p != e && IsBlank(*p)) ++p;
+    if (p == e) break;
+    // Fast path: a plain nonzero finite number ending at a blank; anything else is decided by
+    // ParseObjCoordinate on the whole token.
+    double v = 0;
+    const char* b = p + (*p == '+');
+    auto [q, ec] = fast_float::from_chars(b, e, v);
+    if (ec != std::errc() || (q != e && !IsBlank(*q)) || v == 0 || !(std::fabs(v) <= kMaxCoordinate)) {
+      q = p;
+      while (q != e && !IsBlank(*q)) ++q;
+      // Values past z (w, or r g b [a] colours) are checked as numbers but not kept.
+      if (!ParseObjCoordinate(p, q, &v, &why)) return Fail("vertex: " + why);
+    }
     if (n < 3) xyz[n] = v;
+    ++n;
+    p = q;
   }
   if (n < 3) return Fail("vertex: too few coordinates (" + std::to_string(n) + ", need x y z)");
   if (n > 7) return Fail("vertex: too many values (" + std::to_string(n) + ", at most 7)");
-  c_.vertices.insert(c_.vertices.end(), xyz, xyz + 3);
+  c_.vertices.push_back(xyz[0]);
+  c_.vertices.push_back(xyz[1]);
+  c_.vertices.push_back(xyz[2]);
   if (!c_.ops.empty()) {
     ObjOp& last = c_.ops.back();
     // A run keeps line = first line + position, which the vertex-count check needs.
@@ -168,13 +184,52 @@ bool ChunkParser::ParseIndex(std::string_view token, std::string_view digits, co
 }
 
 void ChunkParser::ParseFace(std::string_view rest) {
+  // Plain faces (every token a v index) keep one reference per vertex; the first token with a slash turns
+  // the face into v, vt, vn triples.
   const size_t first = c_.refs.size();
   uint32_t n = 0;
-  auto fail_at = [&](size_t part) {
+  uint8_t stride = 1;
+  auto add_op = [&](uint64_t stop) {
     AddOp(ObjOpKind::kFace, n, first);
-    c_.ops.back().stop = part;
+    c_.ops.back().stride = stride;
+    c_.ops.back().stop = stop;
   };
-  for (std::string_view tok = NextToken(&rest); !tok.empty(); tok = NextToken(&rest)) {
+  auto widen = [&] {
+    if (stride == 3) return;
+    stride = 3;
+    c_.refs.resize(first + 3 * size_t{n});
+    for (size_t i = n; i-- > 0;) {
+      const int64_t v = c_.refs[first + i];
+      c_.refs[first + 3 * i] = v;
+      c_.refs[first + 3 * i + 1] = 0;
+      c_.refs[first + 3 * i + 2] = 0;
+    }
+  };
+  const char* const e = rest.data() + rest.size();
+  while (true) {
+    const char* p = rest.data();
+    while (p != e && IsBlank(*p)) ++p;
+    // Fast path: a plain index ([+-]digits, at most 18) ending at a blank.
+    const char* q = p;
+    const bool negative = q != e && *q == '-';
+    q += q != e && (*q == '-' || *q == '+');
+    const char* digits = q;
+    int64_t value = 0;
+    while (q != e && static_cast<unsigned char>(*q - '0') < 10 && q - digits < 18)
+      value = 10 * value + (*q++ - '0');
+    if (q != digits && value != 0 && (q == e || IsBlank(*q))) {
+      c_.refs.push_back(negative ? -value : value);
+      if (stride == 3) {
+        c_.refs.push_back(0);
+        c_.refs.push_back(0);
+      }
+      ++n;
+      rest = std::string_view(q, e - q);
+      continue;
+    }
+    std::string_view tok = NextToken(&rest);
+    if (tok.empty()) break;
+    widen();
     // v, v/vt, v//vn or v/vt/vn
     std::string_view parts[3];
     int nparts = 0;
@@ -193,26 +248,29 @@ void ChunkParser::ParseFace(std::string_view rest) {
     // Empty parts are allowed only for an absent vt (v//vn); "1/" or "1/2/" are malformed.
     if (bad || parts[0].empty() || (nparts == 2 && parts[1].empty()) || (nparts == 3 && parts[2].empty())) {
       Fail("face: bad vertex reference " + Quote(tok));
-      return fail_at(3 * size_t{n});
+      return add_op(3 * uint64_t{n});
     }
     int64_t idx[3] = {0, 0, 0};
-    if (!ParseIndex(tok, parts[0], "vertex", &idx[0])) return fail_at(3 * size_t{n});
-    if (nparts >= 2 && !parts[1].empty() && !ParseIndex(tok, parts[1], "texture coordinate", &idx[1])) {
-      c_.refs.insert(c_.refs.end(), idx, idx + 3);
-      return fail_at(3 * size_t{n} + 1);
+    int failed = -1;  // the part that failed to parse
+    if (!ParseIndex(tok, parts[0], "vertex", &idx[0])) {
+      failed = 0;
+    } else if (nparts >= 2 && !parts[1].empty() &&
+               !ParseIndex(tok, parts[1], "texture coordinate", &idx[1])) {
+      failed = 1;
+    } else if (nparts == 3 && !ParseIndex(tok, parts[2], "normal", &idx[2])) {
+      failed = 2;
     }
-    if (nparts == 3 && !ParseIndex(tok, parts[2], "normal", &idx[2])) {
-      c_.refs.insert(c_.refs.end(), idx, idx + 3);
-      return fail_at(3 * size_t{n} + 2);
-    }
-    c_.refs.insert(c_.refs.end(), idx, idx + 3);
+    c_.refs.push_back(idx[0]);
+    c_.refs.push_back(idx[1]);
+    c_.refs.push_back(idx[2]);
+    if (failed >= 0) return add_op(3 * uint64_t{n} + failed);
     ++n;
   }
   if (n < 3) {
     Fail("face: " + std::to_string(n) + " vertices (a face needs at least 3)");
-    return fail_at(3 * size_t{n});
+    return add_op(stride * uint64_t{n});
   }
-  AddOp(ObjOpKind::kFace, n, first);
+  add_op(ObjOp::kNoStop);
 }
 
 void ChunkParser::Run() {

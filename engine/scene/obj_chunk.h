@@ -17,7 +17,7 @@ enum class ObjOpKind : uint8_t {
   kVertices,   // `count` vertices from consecutive lines `line`, `line` + 1, ... (xyz in ObjChunk::vertices)
   kTexcoords,  // `count` vt lines
   kNormals,    // `count` vn lines
-  kFace,       // `count` index triples in ObjChunk::refs; `stop` is set on the face that failed
+  kFace,       // `count` vertices in ObjChunk::refs from arg: v (stride 1) or v, vt, vn (stride 3)
   kObject,     // `o`: name = names[arg, arg + count)
   kGroup,      // `g`: the rest of the line, names[arg, arg + count)
   kMaterial,   // `usemtl`: names[arg, arg + count)
@@ -26,11 +26,12 @@ enum class ObjOpKind : uint8_t {
 
 struct ObjOp {
   ObjOpKind kind;
+  uint8_t stride = 1;  // kFace: references per vertex
   uint32_t count = 0;
   uint64_t line = 0;  // 1-based within the chunk: the record's first line
   uint64_t arg = 0;
-  // kFace only: with an error, the references are resolved up to the part stop (0..3*count, the index
-  // into the triples), then the chunk's error is reported.
+  // kFace only: with an error, the references are resolved up to refs[arg + stop] (excluded), then the
+  // chunk's error is reported.
   uint64_t stop = kNoStop;
   static constexpr uint64_t kNoStop = ~uint64_t{0};
 };
@@ -43,7 +44,7 @@ struct ObjChunk {
   // Output of ParseObjChunk.
   uint64_t lines = 0;            // lines the chunk holds (when it has no error)
   std::vector<double> vertices;  // x, y, z of each `v`
-  std::vector<int64_t> refs;     // OBJ indices of each face vertex: v, vt, vn (0 = absent)
+  std::vector<int64_t> refs;     // OBJ indices of the face vertices (see kFace; 0 = absent)
   std::vector<ObjOp> ops;
   std::string names;
   // The first error: parsing stops there. A face's error waits for the range checks before it.

@@ -214,7 +214,7 @@ ObjReader::ObjReader(std::string path, std::unique_ptr<Mapping> map, ObjectId fi
   if (threads < 0) threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   const size_t chunks = map_->size / chunk_bytes_ + 1;
   threads = static_cast<int>(std::min<size_t>(threads, chunks > 1 ? chunks : 0));
-  ring_.resize(threads == 0 ? 1 : 2 * threads + 2);
+  ring_.resize(threads == 0 ? 1 : threads + 2);
   for (auto& c : ring_) c = std::make_unique<ObjChunk>();
   ready_.assign(ring_.size(), 0);
   for (int i = 0; i < threads; ++i) threads_.emplace_back([this] { Work(); });
@@ -268,8 +268,8 @@ void ObjReader::Work() {
 ObjChunk* ObjReader::TakeChunk() {
   const size_t slot = consumed_ % ring_.size();
   if (threads_.empty()) {
-    if (next_begin_ >= map_->size) return nullptr;
     Dispatch();
+    if (consumed_ == dispatched_) return nullptr;
     ParseObjChunk(map_->data, ring_[slot].get());
     return ring_[slot].get();
   }
@@ -320,13 +320,13 @@ Status ObjReader::AddVertices(const ObjChunk& c, const ObjOp& op) {
 Status ObjReader::ResolveFace(const ObjChunk& c, const ObjOp& op) {
   static const char* const kWhat[3] = {"vertex", "texture coordinate", "normal"};
   const uint64_t counts[3] = {positions_.size(), texcoord_count_, normal_count_};
-  const uint64_t parts = op.stop == ObjOp::kNoStop ? 3 * uint64_t{op.count} : op.stop;
+  const uint64_t parts = op.stop == ObjOp::kNoStop ? op.stride * uint64_t{op.count} : op.stop;
   const int64_t* refs = &c.refs[op.arg];
   face_.clear();
   for (uint64_t k = 0; k < parts; ++k) {
     const int64_t i = refs[k];
     if (i == 0) continue;  // an absent vt or vn
-    const int part = static_cast<int>(k % 3);
+    const int part = op.stride == 1 ? 0 : static_cast<int>(k % 3);
     const int64_t resolved = i > 0 ? i - 1 : static_cast<int64_t>(counts[part]) + i;
     if (resolved < 0 || static_cast<uint64_t>(resolved) >= counts[part]) {
       return ErrorAt(base_line_ + op.line, std::string("face: ") + kWhat[part] + " index " +
@@ -339,13 +339,17 @@ Status ObjReader::ResolveFace(const ObjChunk& c, const ObjOp& op) {
     uint32_t local = local_of_global_.FindOrInsert(v, static_cast<uint32_t>(mesh_.vertex_count()), &inserted);
     if (inserted) {
       const double* p = positions_.At(v);
-      mesh_.vertices.insert(mesh_.vertices.end(), p, p + 3);
+      mesh_.vertices.push_back(p[0]);
+      mesh_.vertices.push_back(p[1]);
+      mesh_.vertices.push_back(p[2]);
     }
     face_.push_back(local);
   }
   if (op.stop != ObjOp::kNoStop) return ChunkError(c);
   for (size_t i = 1; i + 1 < face_.size(); ++i) {
-    mesh_.triangles.insert(mesh_.triangles.end(), {face_[0], face_[i], face_[i + 1]});
+    mesh_.triangles.push_back(face_[0]);
+    mesh_.triangles.push_back(face_[i]);
+    mesh_.triangles.push_back(face_[i + 1]);
   }
   if (object_version_ != attributes_version_) {
     object_version_ = attributes_version_;
