@@ -1,15 +1,17 @@
 // scene_read_bench: reads scene files through OpenSceneFile (the path `mktree build` takes) and reports
 // objects, triangles, objects/s, MB/s and peak RSS. Workload: whatever files are named; the README and
 // issue notes use the tanker (`mktree generate tanker --objects N --seed 1 -o t.obj|t.mks`).
-// Workload obj_parse (--obj-threads): each .obj file is read again through OpenObjFile with 0 (the caller's
-// thread only), 1 and 2 parsing threads, to show what the parallel OBJ reader gains.
-// Usage: scene_read_bench [--obj-threads] [--chunk-bytes N] FILE...
+// Workload obj_parse (--obj-threads 0,1,2): each .obj file is read through OpenObjFile with each number of
+// parsing threads listed (0: the caller's thread only), to show what the parallel OBJ reader gains. Peak RSS
+// is the process's: give one number per run to compare it.
+// Usage: scene_read_bench [--obj-threads N[,N...]] [--chunk-bytes N] FILE...
 #include <sys/resource.h>
 #include <sys/stat.h>
 
 #include <chrono>
 #include <cstdio>
 #include <cstring>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -75,11 +77,14 @@ int main(int argc, char** argv) {
   std::printf("WARNING: built without optimisation; timings are meaningless\n");
 #endif
   bool obj_threads = false;
+  std::vector<int> thread_counts;
   size_t chunk_bytes = mktree::ObjReadOptions().chunk_bytes;
   std::vector<const char*> files;
   for (int i = 1; i < argc; ++i) {
-    if (std::strcmp(argv[i], "--obj-threads") == 0) {
+    if (std::strcmp(argv[i], "--obj-threads") == 0 && i + 1 < argc) {
       obj_threads = true;
+      std::stringstream list(argv[++i]);
+      for (std::string n; std::getline(list, n, ',');) thread_counts.push_back(std::stoi(n));
     } else if (std::strcmp(argv[i], "--chunk-bytes") == 0 && i + 1 < argc) {
       chunk_bytes = std::stoull(argv[++i]);
     } else {
@@ -87,12 +92,12 @@ int main(int argc, char** argv) {
     }
   }
   if (files.empty()) {
-    std::fprintf(stderr, "usage: scene_read_bench [--obj-threads] [--chunk-bytes N] FILE...\n");
+    std::fprintf(stderr, "usage: scene_read_bench [--obj-threads N[,N...]] [--chunk-bytes N] FILE...\n");
     return 2;
   }
   std::printf(
       "# scene_read_bench: streaming read, one file after another%s; peak RSS is the process's so far\n",
-      obj_threads ? " (obj_parse: OpenObjFile on 0, 1, 2 parsing threads)" : " through OpenSceneFile");
+      obj_threads ? " (obj_parse: OpenObjFile, t = parsing threads)" : " through OpenSceneFile");
   std::printf("%-32s %-10s %10s %12s %8s %8s %11s %8s %12s\n", "file", "reader", "objects", "triangles",
               "seconds", "cpu s", "objects/s", "MB/s", "peak RSS MiB");
   for (const char* f : files) {
@@ -100,7 +105,7 @@ int main(int argc, char** argv) {
     const bool obj = n > 4 && strcasecmp(f + n - 4, ".obj") == 0;
     std::vector<Run> runs;
     if (obj_threads && obj) {
-      for (int t : {0, 1, 2}) {
+      for (int t : thread_counts) {
         mktree::ObjReadOptions o;
         o.threads = t;
         o.chunk_bytes = chunk_bytes;

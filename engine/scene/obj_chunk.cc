@@ -55,16 +55,16 @@ class ChunkParser {
     c_.error_line = record_line_;
     c_.error_what = what;
   }
-  void AddOp(ObjOpKind kind, uint32_t count, uint64_t arg = 0) {
+  void AddOp(ObjOpKind kind, uint32_t count) {
     ObjOp op;
     op.kind = kind;
     op.count = count;
     op.line = record_line_;
-    op.arg = arg;
     c_.ops.push_back(op);
   }
   void AddName(ObjOpKind kind, std::string_view name) {
-    AddOp(kind, static_cast<uint32_t>(name.size()), c_.names.size());
+    if (name.size() > UINT32_MAX) name = name.substr(0, UINT32_MAX);
+    AddOp(kind, static_cast<uint32_t>(name.size()));
     c_.names.append(name);
   }
   void ParseVertex(std::string_view rest);
@@ -189,10 +189,11 @@ void ChunkParser::ParseFace(std::string_view rest) {
   const size_t first = c_.refs.size();
   uint32_t n = 0;
   uint8_t stride = 1;
-  auto add_op = [&](uint64_t stop) {
-    AddOp(ObjOpKind::kFace, n, first);
+  auto fail_at = [&](uint64_t stop) {
+    AddOp(ObjOpKind::kFaceError, 1);
     c_.ops.back().stride = stride;
-    c_.ops.back().stop = stop;
+    c_.ops.back().corners = n;
+    c_.error_stop = stop;
   };
   auto widen = [&] {
     if (stride == 3) return;
@@ -248,7 +249,7 @@ void ChunkParser::ParseFace(std::string_view rest) {
     // Empty parts are allowed only for an absent vt (v//vn); "1/" or "1/2/" are malformed.
     if (bad || parts[0].empty() || (nparts == 2 && parts[1].empty()) || (nparts == 3 && parts[2].empty())) {
       Fail("face: bad vertex reference " + Quote(tok));
-      return add_op(3 * uint64_t{n});
+      return fail_at(3 * uint64_t{n});
     }
     int64_t idx[3] = {0, 0, 0};
     int failed = -1;  // the part that failed to parse
@@ -263,14 +264,24 @@ void ChunkParser::ParseFace(std::string_view rest) {
     c_.refs.push_back(idx[0]);
     c_.refs.push_back(idx[1]);
     c_.refs.push_back(idx[2]);
-    if (failed >= 0) return add_op(3 * uint64_t{n} + failed);
+    if (failed >= 0) return fail_at(3 * uint64_t{n} + failed);
     ++n;
   }
   if (n < 3) {
     Fail("face: " + std::to_string(n) + " vertices (a face needs at least 3)");
-    return add_op(stride * uint64_t{n});
+    return fail_at(stride * uint64_t{n});
   }
-  add_op(ObjOp::kNoStop);
+  if (!c_.ops.empty()) {
+    ObjOp& last = c_.ops.back();
+    if (last.kind == ObjOpKind::kFaces && last.stride == stride && last.corners == n &&
+        last.line + last.count == record_line_ && last.count < UINT32_MAX) {
+      ++last.count;
+      return;
+    }
+  }
+  AddOp(ObjOpKind::kFaces, 1);
+  c_.ops.back().stride = stride;
+  c_.ops.back().corners = n;
 }
 
 void ChunkParser::Run() {
@@ -310,7 +321,8 @@ void ChunkParser::Run() {
       Fail("unknown directive " + Quote(key));
     }
   }
-  if (c_.has_error && (c_.ops.empty() || c_.ops.back().stop == ObjOp::kNoStop)) AddOp(ObjOpKind::kError, 0);
+  if (c_.has_error && (c_.ops.empty() || c_.ops.back().kind != ObjOpKind::kFaceError))
+    AddOp(ObjOpKind::kError, 0);
 }
 
 }  // namespace
@@ -325,7 +337,7 @@ void ObjChunk::Reset(size_t b, size_t e, bool eof) {
   ops.clear();
   names.clear();
   has_error = error_unsupported = error_unterminated = false;
-  error_line = 0;
+  error_line = error_stop = 0;
   error_what.clear();
 }
 

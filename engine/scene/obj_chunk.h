@@ -14,26 +14,25 @@
 namespace mktree {
 
 enum class ObjOpKind : uint8_t {
-  kVertices,   // `count` vertices from consecutive lines `line`, `line` + 1, ... (xyz in ObjChunk::vertices)
+  kVertices,   // `count` vertices on lines `line`, `line` + 1, ... (xyz in ObjChunk::vertices)
   kTexcoords,  // `count` vt lines
   kNormals,    // `count` vn lines
-  kFace,       // `count` vertices in ObjChunk::refs from arg: v (stride 1) or v, vt, vn (stride 3)
-  kObject,     // `o`: name = names[arg, arg + count)
-  kGroup,      // `g`: the rest of the line, names[arg, arg + count)
-  kMaterial,   // `usemtl`: names[arg, arg + count)
+  kFaces,      // `count` faces on lines `line`, `line` + 1, ..., each of `corners` vertices
+  kFaceError,  // one face: its references up to ObjChunk::error_stop are checked, then the chunk's error
+  kObject,     // `o`: the name is the next `count` bytes of ObjChunk::names
+  kGroup,      // `g`: the rest of the line, the next `count` bytes of names
+  kMaterial,   // `usemtl`: the next `count` bytes of names
   kError,      // the chunk's error (ObjChunk::error_*), at `line`
 };
 
+// Operations are applied in order; each takes its vertices, references and name bytes from where the
+// previous one left off.
 struct ObjOp {
   ObjOpKind kind;
-  uint8_t stride = 1;  // kFace: references per vertex
+  uint8_t stride = 1;  // faces: references per vertex, v (1) or v, vt, vn (3)
   uint32_t count = 0;
-  uint64_t line = 0;  // 1-based within the chunk: the record's first line
-  uint64_t arg = 0;
-  // kFace only: with an error, the references are resolved up to refs[arg + stop] (excluded), then the
-  // chunk's error is reported.
-  uint64_t stop = kNoStop;
-  static constexpr uint64_t kNoStop = ~uint64_t{0};
+  uint32_t corners = 0;  // faces: vertices per face
+  uint64_t line = 0;     // 1-based within the chunk: the (first) record's first line
 };
 
 struct ObjChunk {
@@ -44,7 +43,7 @@ struct ObjChunk {
   // Output of ParseObjChunk.
   uint64_t lines = 0;            // lines the chunk holds (when it has no error)
   std::vector<double> vertices;  // x, y, z of each `v`
-  std::vector<int64_t> refs;     // OBJ indices of the face vertices (see kFace; 0 = absent)
+  std::vector<int64_t> refs;     // OBJ indices of the face vertices (see ObjOp::stride; 0 = absent)
   std::vector<ObjOp> ops;
   std::string names;
   // The first error: parsing stops there. A face's error waits for the range checks before it.
@@ -52,6 +51,7 @@ struct ObjChunk {
   bool error_unsupported = false;   // free-form geometry (else malformed input)
   bool error_unterminated = false;  // in the last line, which has no newline
   uint64_t error_line = 0;
+  uint64_t error_stop = 0;  // kFaceError: the references checked before the error
   std::string error_what;
 
   void Reset(size_t b, size_t e, bool eof);

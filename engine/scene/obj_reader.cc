@@ -155,7 +155,9 @@ class ObjReader final : public SceneSource {
 
   Status ErrorAt(uint64_t line, const std::string& what, bool unterminated = false) const;
   Status ChunkError(const ObjChunk& c) const;
-  Status ResolveFace(const ObjChunk& c, const ObjOp& op);
+  // Resolves refs[0, parts) into face_, adding new vertices to the mesh; EndFace adds the triangles.
+  Status AddFace(const int64_t* refs, uint64_t parts, int stride, uint64_t line);
+  void EndFace();
   Status AddVertices(const ObjChunk& c, const ObjOp& op);
   void SetGroups(std::string_view names);
   Result<bool> FileHasObjectLines();
@@ -181,7 +183,7 @@ class ObjReader final : public SceneSource {
 
   // Applying the current chunk.
   ObjChunk* chunk_ = nullptr;
-  size_t op_ = 0, vertex_at_ = 0;
+  size_t op_ = 0, vertex_at_ = 0, ref_at_ = 0, name_at_ = 0;
   uint64_t base_line_ = 0;  // lines before the current chunk
   uint64_t last_line_ = 0;  // line of the last operation applied
 
@@ -317,21 +319,19 @@ Status ObjReader::AddVertices(const ObjChunk& c, const ObjOp& op) {
   return Status::Ok();
 }
 
-Status ObjReader::ResolveFace(const ObjChunk& c, const ObjOp& op) {
+Status ObjReader::AddFace(const int64_t* refs, uint64_t parts, int stride, uint64_t line) {
   static const char* const kWhat[3] = {"vertex", "texture coordinate", "normal"};
   const uint64_t counts[3] = {positions_.size(), texcoord_count_, normal_count_};
-  const uint64_t parts = op.stop == ObjOp::kNoStop ? op.stride * uint64_t{op.count} : op.stop;
-  const int64_t* refs = &c.refs[op.arg];
   face_.clear();
   for (uint64_t k = 0; k < parts; ++k) {
     const int64_t i = refs[k];
     if (i == 0) continue;  // an absent vt or vn
-    const int part = op.stride == 1 ? 0 : static_cast<int>(k % 3);
+    const int part = stride == 1 ? 0 : static_cast<int>(k % 3);
     const int64_t resolved = i > 0 ? i - 1 : static_cast<int64_t>(counts[part]) + i;
     if (resolved < 0 || static_cast<uint64_t>(resolved) >= counts[part]) {
-      return ErrorAt(base_line_ + op.line, std::string("face: ") + kWhat[part] + " index " +
-                                               std::to_string(i) + " out of range (" +
-                                               std::to_string(counts[part]) + " defined so far)");
+      return ErrorAt(base_line_ + line, std::string("face: ") + kWhat[part] + " index " + std::to_string(i) +
+                                            " out of range (" + std::to_string(counts[part]) +
+                                            " defined so far)");
     }
     if (part != 0) continue;
     const uint32_t v = static_cast<uint32_t>(resolved);
@@ -345,7 +345,10 @@ Status ObjReader::ResolveFace(const ObjChunk& c, const ObjOp& op) {
     }
     face_.push_back(local);
   }
-  if (op.stop != ObjOp::kNoStop) return ChunkError(c);
+  return Status::Ok();
+}
+
+void ObjReader::EndFace() {
   for (size_t i = 1; i + 1 < face_.size(); ++i) {
     mesh_.triangles.push_back(face_[0]);
     mesh_.triangles.push_back(face_[i]);
@@ -362,7 +365,6 @@ Status ObjReader::ResolveFace(const ObjChunk& c, const ObjOp& op) {
     for (const std::string& g : groups_) add("group", g);
     if (!material_.empty()) add("material", material_);
   }
-  return Status::Ok();
 }
 
 void ObjReader::SetGroups(std::string_view names) {
@@ -454,7 +456,7 @@ Result<bool> ObjReader::Next(SceneObject* out) {
     if (chunk_ == nullptr) {
       chunk_ = TakeChunk();
       op_ = 0;
-      vertex_at_ = 0;
+      vertex_at_ = ref_at_ = name_at_ = 0;
       if (chunk_ == nullptr) {
         done_ = true;
         if (mesh_.triangle_count() == 0) return false;
@@ -478,16 +480,28 @@ Result<bool> ObjReader::Next(SceneObject* out) {
         case ObjOpKind::kNormals:
           normal_count_ += op.count;
           break;
-        case ObjOpKind::kFace:
-          st = ResolveFace(c, op);
+        case ObjOpKind::kFaces: {
+          const uint64_t parts = uint64_t{op.stride} * op.corners;
+          for (uint32_t f = 0; f < op.count && st.ok(); ++f) {
+            st = AddFace(&c.refs[ref_at_], parts, op.stride, op.line + f);
+            ref_at_ += parts;
+            if (st.ok()) EndFace();
+          }
+          break;
+        }
+        case ObjOpKind::kFaceError:
+          st = AddFace(c.refs.data() + ref_at_, c.error_stop, op.stride, op.line);
+          if (st.ok()) st = ChunkError(c);
           break;
         case ObjOpKind::kMaterial:
-          material_.assign(c.names, op.arg, op.count);
+          material_.assign(c.names, name_at_, op.count);
+          name_at_ += op.count;
           ++attributes_version_;
           break;
         case ObjOpKind::kObject:
         case ObjOpKind::kGroup: {
-          const std::string_view name(c.names.data() + op.arg, op.count);
+          const std::string_view name(c.names.data() + name_at_, op.count);
+          name_at_ += op.count;
           if (op.kind == ObjOpKind::kObject) {
             group_rule_ = GroupRule::kGroupsIgnored;
           } else {

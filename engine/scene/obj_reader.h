@@ -62,7 +62,7 @@ struct ObjReadOptions {
   // Parsing threads besides the caller's; 0 parses on the caller's thread. -1: one per hardware thread.
   int threads = -1;
   // Bytes per chunk (cut at the next line end); at most threads + 2 chunks are in flight.
-  size_t chunk_bytes = size_t{1} << 20;
+  size_t chunk_bytes = size_t{1} << 18;
 };
 Result<std::unique_ptr<SceneSource>> OpenObjFile(const std::string& path, ObjectId first_id,
                                                  const ObjReadOptions& options);
