@@ -46,6 +46,16 @@ class VertexIndexMap {
  public:
   // Returns the local index of `global`, inserting `next_local` when absent (then *inserted = true).
   uint32_t FindOrInsert(uint32_t global, uint32_t next_local, bool* inserted) {
+    const uint32_t off = global - window_base_;
+    if (off < kWindow) {
+      if (window_.empty()) window_.assign(kWindow, 0);
+      uint32_t& w = window_[off];
+      *inserted = w == 0;
+      if (w != 0) return w - 1;
+      w = next_local + 1;
+      window_used_.push_back(off);
+      return next_local;
+    }
     if ((size_ + 1) * 2 > slots_.size()) Grow();
     const uint32_t key = global + 1;  // 0 marks an empty slot
     size_t mask = slots_.size() - 1;
@@ -67,7 +77,13 @@ class VertexIndexMap {
     }
   }
 
+  // Globals in [base, base + kWindow) go to a direct table rather than the hash table: the vertices an
+  // object defines after its `o` line fall there. Only while the map is empty.
+  void SetWindow(uint32_t base) { window_base_ = base; }
+
   void Clear() {
+    for (uint32_t off : window_used_) window_[off] = 0;
+    window_used_.clear();
     // Drop a table that a huge object left behind rather than clearing it for every small object.
     if (slots_.size() > 4096) {
       slots_.assign(4096, Slot{});
@@ -99,9 +115,14 @@ class VertexIndexMap {
     }
   }
 
+  static constexpr uint32_t kWindow = 1 << 14;
+
   std::vector<Slot> slots_;
   std::vector<uint32_t> used_;  // the filled slots, so that clearing a small object costs its size
   size_t size_ = 0;
+  uint32_t window_base_ = 0;
+  std::vector<uint32_t> window_;  // local index + 1 of global window_base_ + i; 0 = absent
+  std::vector<uint32_t> window_used_;
 };
 
 // The global vertex table, in fixed-size blocks: growth never copies the table or needs twice its size,
@@ -442,6 +463,7 @@ Result<bool> ObjReader::StartObject(std::string_view name, SceneObject* out) {
     emitted = true;
   }
   name_.assign(name);
+  local_of_global_.SetWindow(static_cast<uint32_t>(positions_.size()));
   return emitted;
 }
 

@@ -67,7 +67,8 @@ void ExpectSame(const Outcome& want, const Outcome& got, const std::string& what
 }
 
 // Every configuration of the parallel reader gives what the reference gives on `path`.
-void ExpectMatchesReference(const std::string& path, ObjectId first_id = 0, bool expect_ok = true) {
+void ExpectMatchesReference(const std::string& path, ObjectId first_id = 0, bool expect_ok = true,
+                            std::vector<size_t> chunks = {1, 7, 64, 4096, size_t{1} << 20}) {
   const Outcome want = ReadEverything(reference::OpenObjFile(path, first_id));
   if (expect_ok) {
     ASSERT_TRUE(want.status.ok()) << want.status.ToString();
@@ -75,7 +76,7 @@ void ExpectMatchesReference(const std::string& path, ObjectId first_id = 0, bool
     ASSERT_FALSE(want.status.ok()) << path;
   }
   for (int threads : {0, 1, 2, 4}) {
-    for (size_t chunk : {size_t{1}, size_t{7}, size_t{64}, size_t{4096}, size_t{1} << 20}) {
+    for (size_t chunk : chunks) {
       ObjReadOptions options;
       options.threads = threads;
       options.chunk_bytes = chunk;
@@ -199,7 +200,30 @@ TEST(ObjParallelTest, GeneratedFilesMatchTheReference) {
 }
 
 TEST(ObjParallelTest, LargerFileMatchesTheReference) {
-  ExpectMatchesReference(Write(RandomObj(42, 3000, true), "large.obj"));
+  ExpectMatchesReference(Write(RandomObj(42, 3000, true), "large.obj"), 0, true, {97, 4096, size_t{1} << 18});
+}
+
+// Objects past the reader's direct re-indexing window (16384 vertices after the `o` line) and faces that
+// reach back into earlier objects.
+TEST(ObjParallelTest, BigObjectsMatchTheReference) {
+  std::string s;
+  std::mt19937_64 rng(11);
+  int total = 0;
+  for (int o = 0; o < 3; ++o) {
+    const int n = o == 1 ? 20000 : 100;
+    s += "o big" + std::to_string(o) + "\n";
+    for (int i = 0; i < n; ++i) s += "v " + std::to_string(i) + " " + std::to_string(o) + " 0.5\n";
+    total += n;
+    for (int f = 0; f < n / 2; ++f) {
+      s += "f";
+      for (int c = 0; c < 3; ++c) {
+        const int back = 1 + static_cast<int>(rng() % (f % 7 == 0 ? total : n));
+        s += rng() % 2 ? " -" + std::to_string(back) : " " + std::to_string(total - back + 1);
+      }
+      s += "\n";
+    }
+  }
+  ExpectMatchesReference(Write(s, "big.obj"), 0, true, {4096, size_t{1} << 18});
 }
 
 TEST(ObjParallelTest, EmptyAndTinyFiles) {
