@@ -91,6 +91,7 @@ bool ChunkParser::NextRecord(std::string_view* line) {
     if (p_ == end_) {
       if (!continued) return false;
       unterminated_ = true;  // a continuation at the end of the file
+      c_.unterminated_line = record_line_;
       *line = joined_;
       return true;
     }
@@ -105,6 +106,7 @@ bool ChunkParser::NextRecord(std::string_view* line) {
     }
     ++c_.lines;
     if (!continued) record_line_ = c_.lines;
+    if (unterminated_) c_.unterminated_line = record_line_;
     if (!raw.empty() && raw.back() == '\r') raw.remove_suffix(1);
     if (!raw.empty() && raw.back() == '\\') {
       raw.remove_suffix(1);
@@ -331,7 +333,7 @@ void ObjChunk::Reset(size_t b, size_t e, bool eof) {
   begin = b;
   end = e;
   at_eof = eof;
-  lines = 0;
+  lines = unterminated_line = 0;
   vertices.clear();
   refs.clear();
   ops.clear();

@@ -41,9 +41,10 @@ struct ObjChunk {
   bool at_eof = false;
 
   // Output of ParseObjChunk.
-  uint64_t lines = 0;            // lines the chunk holds (when it has no error)
-  std::vector<double> vertices;  // x, y, z of each `v`
-  std::vector<int64_t> refs;     // OBJ indices of the face vertices (see ObjOp::stride; 0 = absent)
+  uint64_t lines = 0;              // lines the chunk holds (when it has no error)
+  uint64_t unterminated_line = 0;  // the record the file ends in without a newline, or 0
+  std::vector<double> vertices;    // x, y, z of each `v`
+  std::vector<int64_t> refs;       // OBJ indices of the face vertices (see ObjOp::stride; 0 = absent)
   std::vector<ObjOp> ops;
   std::string names;
   // The first error: parsing stops there. A face's error waits for the range checks before it.

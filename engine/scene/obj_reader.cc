@@ -333,7 +333,8 @@ Status ObjReader::AddVertices(const ObjChunk& c, const ObjOp& op) {
   if (positions_.size() + op.count > kMaxVertices) {
     // The first vertex past the limit, on line op.line + k of the run.
     const uint64_t k = kMaxVertices - positions_.size();
-    return ErrorAt(base_line_ + op.line + k, "more than 2^32 - 2 vertices");
+    return ErrorAt(base_line_ + op.line + k, "more than 2^32 - 2 vertices",
+                   c.unterminated_line == op.line + k);
   }
   for (uint32_t i = 0; i < op.count; ++i) positions_.Push(&c.vertices[vertex_at_ + 3 * size_t{i}]);
   vertex_at_ += 3 * size_t{op.count};
@@ -350,9 +351,10 @@ Status ObjReader::AddFace(const int64_t* refs, uint64_t parts, int stride, uint6
     const int part = stride == 1 ? 0 : static_cast<int>(k % 3);
     const int64_t resolved = i > 0 ? i - 1 : static_cast<int64_t>(counts[part]) + i;
     if (resolved < 0 || static_cast<uint64_t>(resolved) >= counts[part]) {
-      return ErrorAt(base_line_ + line, std::string("face: ") + kWhat[part] + " index " + std::to_string(i) +
-                                            " out of range (" + std::to_string(counts[part]) +
-                                            " defined so far)");
+      return ErrorAt(base_line_ + line,
+                     std::string("face: ") + kWhat[part] + " index " + std::to_string(i) + " out of range (" +
+                         std::to_string(counts[part]) + " defined so far)",
+                     chunk_->unterminated_line == line);
     }
     if (part != 0) continue;
     const uint32_t v = static_cast<uint32_t>(resolved);
