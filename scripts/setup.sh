@@ -10,6 +10,7 @@ PACKAGES=(
   libboost-dev       # Boost.Interprocess (paged-file locks), Boost.Geometry (bench peer)
   libzstd-dev        # page codec
   libxxhash-dev      # page checksums (XXH3)
+  libfast-float-dev  # OBJ reader: correctly rounded, fast number parsing
   libgtest-dev       # tests
   libassimp-dev      # glTF/PLY/STL/OFF/AC3D/... scene input
   libcli11-dev       # command line

@@ -1,18 +1,24 @@
 #include "engine/scene/obj_reader.h"
 
 #include <fcntl.h>
+#include <sys/mman.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
-#include <charconv>
-#include <cmath>
+#include <condition_variable>
 #include <cstdint>
 #include <cstring>
+#include <deque>
 #include <limits>
 #include <memory>
+#include <mutex>
 #include <string_view>
+#include <thread>
 #include <vector>
+
+#include "engine/scene/obj_chunk.h"
 
 namespace mktree {
 namespace {
@@ -20,12 +26,6 @@ namespace {
 constexpr size_t kReadBufferBytes = size_t{1} << 20;
 
 bool IsBlank(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\f' || c == '\v'; }
-
-std::string_view Trim(std::string_view s) {
-  while (!s.empty() && IsBlank(s.front())) s.remove_prefix(1);
-  while (!s.empty() && IsBlank(s.back())) s.remove_suffix(1);
-  return s;
-}
 
 // Splits off the next whitespace-separated token of `*s` (empty when none is left).
 std::string_view NextToken(std::string_view* s) {
@@ -38,16 +38,6 @@ std::string_view NextToken(std::string_view* s) {
   return tok;
 }
 
-// Quoted token for messages, shortened so a garbage line cannot flood an error message.
-std::string Quote(std::string_view s) {
-  constexpr size_t kMax = 40;
-  std::string q(1, '\'');
-  q.append(s.substr(0, kMax));
-  if (s.size() > kMax) q.append("...");
-  q.push_back('\'');
-  return q;
-}
-
 std::string Errno(const std::string& path) { return path + ": " + std::strerror(errno); }
 
 // Open-addressing map from global vertex index to local (per-object) index. Its size follows the current
@@ -56,6 +46,16 @@ class VertexIndexMap {
  public:
   // Returns the local index of `global`, inserting `next_local` when absent (then *inserted = true).
   uint32_t FindOrInsert(uint32_t global, uint32_t next_local, bool* inserted) {
+    const uint32_t off = global - window_base_;
+    if (off < kWindow) {
+      if (window_.empty()) window_.assign(kWindow, 0);
+      uint32_t& w = window_[off];
+      *inserted = w == 0;
+      if (w != 0) return w - 1;
+      w = next_local + 1;
+      window_used_.push_back(off);
+      return next_local;
+    }
     if ((size_ + 1) * 2 > slots_.size()) Grow();
     const uint32_t key = global + 1;  // 0 marks an empty slot
     size_t mask = slots_.size() - 1;
@@ -68,6 +68,7 @@ class VertexIndexMap {
       }
       if (s.key == 0) {
         s = Slot{key, next_local};
+        used_.push_back(static_cast<uint32_t>(i));
         ++size_;
         *inserted = true;
         return next_local;
@@ -76,13 +77,20 @@ class VertexIndexMap {
     }
   }
 
+  // Globals in [base, base + kWindow) go to a direct table rather than the hash table: the vertices an
+  // object defines after its `o` line fall there. Only while the map is empty.
+  void SetWindow(uint32_t base) { window_base_ = base; }
+
   void Clear() {
+    for (uint32_t off : window_used_) window_[off] = 0;
+    window_used_.clear();
     // Drop a table that a huge object left behind rather than clearing it for every small object.
-    if (slots_.size() > 4096 && size_ * 8 < slots_.size()) {
+    if (slots_.size() > 4096) {
       slots_.assign(4096, Slot{});
     } else {
-      std::fill(slots_.begin(), slots_.end(), Slot{});
+      for (uint32_t i : used_) slots_[i] = Slot{};
     }
+    used_.clear();
     size_ = 0;
   }
 
@@ -97,16 +105,24 @@ class VertexIndexMap {
     std::vector<Slot> old = std::move(slots_);
     slots_.assign(old.empty() ? 1024 : old.size() * 2, Slot{});
     size_t mask = slots_.size() - 1;
+    used_.clear();
     for (const Slot& s : old) {
       if (s.key == 0) continue;
       size_t i = Hash(s.key) & mask;
       while (slots_[i].key != 0) i = (i + 1) & mask;
       slots_[i] = s;
+      used_.push_back(static_cast<uint32_t>(i));
     }
   }
 
+  static constexpr uint32_t kWindow = 1 << 14;
+
   std::vector<Slot> slots_;
+  std::vector<uint32_t> used_;  // the filled slots, so that clearing a small object costs its size
   size_t size_ = 0;
+  uint32_t window_base_ = 0;
+  std::vector<uint32_t> window_;  // local index + 1 of global window_base_ + i; 0 = absent
+  std::vector<uint32_t> window_used_;
 };
 
 // The global vertex table, in fixed-size blocks: growth never copies the table or needs twice its size,
@@ -133,44 +149,64 @@ class VertexTable {
 
 enum class GroupRule { kUnknown, kGroupsStartObjects, kGroupsIgnored };
 
+// The file's bytes, mapped read-only; empty files map nothing.
+struct Mapping {
+  const char* data = nullptr;
+  size_t size = 0;
+  ~Mapping() {
+    if (size > 0) ::munmap(const_cast<char*>(data), size);
+  }
+};
+
 class ObjReader final : public SceneSource {
  public:
-  ObjReader(std::string path, int fd, ObjectId first_id)
-      : path_(std::move(path)), fd_(fd), next_id_(first_id), buf_(new char[kReadBufferBytes]) {}
-  ~ObjReader() override { ::close(fd_); }
+  ObjReader(std::string path, std::unique_ptr<Mapping> map, ObjectId first_id, const ObjReadOptions& options);
+  ~ObjReader() override;
   ObjReader(const ObjReader&) = delete;
   ObjReader& operator=(const ObjReader&) = delete;
 
   Result<bool> Next(SceneObject* out) override;
 
  private:
-  // Sets *line to the next record (CR stripped, continuations joined) and record_line_ to its first line
-  // number. Returns false at the end of the file.
-  Result<bool> NextRecord(std::string_view* line);
-  Status Fill();
-  Status ParseVertex(std::string_view rest);
-  Status ParseFace(std::string_view rest);
-  Result<bool> ResolveIndex(std::string_view token, std::string_view digits, uint64_t count, const char* what,
-                            uint32_t* index);
+  // The next chunk in file order, parsed (nullptr after the last).
+  ObjChunk* TakeChunk();
+  void ReleaseChunk();
+  void Dispatch();  // fills the ring with chunks to parse (under mu_)
+  void Work();      // a parsing thread
+
+  Status ErrorAt(uint64_t line, const std::string& what, bool unterminated = false) const;
+  Status ChunkError(const ObjChunk& c) const;
+  // Resolves refs[0, parts) into face_, adding new vertices to the mesh; EndFace adds the triangles.
+  Status AddFace(const int64_t* refs, uint64_t parts, int stride, uint64_t line);
+  void EndFace();
+  Status AddVertices(const ObjChunk& c, const ObjOp& op);
+  void SetGroups(std::string_view names);
   Result<bool> FileHasObjectLines();
   // Ends the current object (emitting it into *out when it has faces) and starts one named `name`.
   Result<bool> StartObject(std::string_view name, SceneObject* out);
   Result<bool> Emit(SceneObject* out);
-  Status Error(const std::string& what) const;
 
   const std::string path_;
-  const int fd_;
+  const std::unique_ptr<Mapping> map_;
+  const size_t chunk_bytes_;
   uint64_t next_id_;
 
-  // Read buffer (uninitialised; grows only to hold the longest line): bytes [begin_, end_) are unread.
-  std::unique_ptr<char[]> buf_;
-  size_t capacity_ = kReadBufferBytes;
-  size_t begin_ = 0, end_ = 0;
-  bool eof_ = false;
-  uint64_t line_no_ = 0;              // lines consumed so far
-  uint64_t record_line_ = 0;          // line number of the record being parsed
-  bool record_unterminated_ = false;  // the record is the last line and has no newline
-  std::string joined_;                // a record spread over lines joined by a trailing backslash
+  // Chunks: ring_[seq % ring_.size()] holds chunk number seq; [consumed_, dispatched_) are in flight.
+  std::mutex mu_;
+  std::condition_variable work_cv_, done_cv_;
+  std::vector<std::unique_ptr<ObjChunk>> ring_;
+  std::vector<char> ready_;      // per ring slot, under mu_
+  std::deque<ObjChunk*> queue_;  // dispatched, not yet taken by a parsing thread
+  uint64_t dispatched_ = 0, consumed_ = 0;
+  size_t next_begin_ = 0;  // where the next chunk to dispatch starts
+  bool stop_ = false;
+  std::vector<std::thread> threads_;
+
+  // Applying the current chunk.
+  ObjChunk* chunk_ = nullptr;
+  size_t op_ = 0, vertex_at_ = 0, ref_at_ = 0, name_at_ = 0;
+  uint64_t base_line_ = 0;  // lines before the current chunk
+  uint64_t last_line_ = 0;  // line of the last operation applied
 
   VertexTable positions_;
   uint64_t texcoord_count_ = 0, normal_count_ = 0;
@@ -181,204 +217,187 @@ class ObjReader final : public SceneSource {
   VertexIndexMap local_of_global_;
   std::vector<uint32_t> face_;  // scratch: the current face's local indices
 
+  // Attributes: the groups and material in force, and the current object's.
+  std::vector<std::string> groups_;
+  std::string material_;
+  uint64_t attributes_version_ = 0, object_version_ = ~uint64_t{0};
+  std::vector<ObjectAttribute> object_attributes_;
+
   Status error_;  // sticky: once failed, every later call fails the same way
   bool done_ = false;
 };
 
-Status ObjReader::Error(const std::string& what) const {
-  std::string msg = path_ + ":" + std::to_string(record_line_) + ": " + what;
-  if (record_unterminated_) msg += " (the file ends inside this line: truncated?)";
+ObjReader::ObjReader(std::string path, std::unique_ptr<Mapping> map, ObjectId first_id,
+                     const ObjReadOptions& options)
+    : path_(std::move(path)),
+      map_(std::move(map)),
+      chunk_bytes_(std::max<size_t>(options.chunk_bytes, 1)),
+      next_id_(first_id) {
+  int threads = options.threads;
+  if (threads < 0) threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  const size_t chunks = map_->size / chunk_bytes_ + 1;
+  threads = static_cast<int>(std::min<size_t>(threads, chunks > 1 ? chunks : 0));
+  ring_.resize(threads == 0 ? 1 : threads + 2);
+  for (auto& c : ring_) c = std::make_unique<ObjChunk>();
+  ready_.assign(ring_.size(), 0);
+  for (int i = 0; i < threads; ++i) threads_.emplace_back([this] { Work(); });
+  if (threads > 0) {
+    std::lock_guard<std::mutex> lock(mu_);
+    Dispatch();
+  }
+}
+
+ObjReader::~ObjReader() {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    stop_ = true;
+  }
+  work_cv_.notify_all();
+  for (auto& t : threads_) t.join();
+}
+
+void ObjReader::Dispatch() {
+  while (dispatched_ - consumed_ < ring_.size() && next_begin_ < map_->size) {
+    const size_t slot = dispatched_ % ring_.size();
+    const size_t end = ObjChunkEnd(map_->data, map_->size, next_begin_, chunk_bytes_);
+    ring_[slot]->Reset(next_begin_, end, end == map_->size);
+    ready_[slot] = 0;
+    next_begin_ = end;
+    ++dispatched_;
+    if (!threads_.empty()) {
+      queue_.push_back(ring_[slot].get());
+      work_cv_.notify_one();
+    }
+  }
+}
+
+void ObjReader::Work() {
+  std::unique_lock<std::mutex> lock(mu_);
+  while (true) {
+    work_cv_.wait(lock, [this] { return stop_ || !queue_.empty(); });
+    if (stop_) return;
+    ObjChunk* c = queue_.front();
+    queue_.pop_front();
+    lock.unlock();
+    ParseObjChunk(map_->data, c);
+    lock.lock();
+    for (size_t i = 0; i < ring_.size(); ++i) {
+      if (ring_[i].get() == c) ready_[i] = 1;
+    }
+    done_cv_.notify_all();
+  }
+}
+
+ObjChunk* ObjReader::TakeChunk() {
+  const size_t slot = consumed_ % ring_.size();
+  if (threads_.empty()) {
+    Dispatch();
+    if (consumed_ == dispatched_) return nullptr;
+    ParseObjChunk(map_->data, ring_[slot].get());
+    return ring_[slot].get();
+  }
+  std::unique_lock<std::mutex> lock(mu_);
+  if (consumed_ == dispatched_) return nullptr;
+  done_cv_.wait(lock, [&] { return ready_[slot] != 0; });
+  return ring_[slot].get();
+}
+
+void ObjReader::ReleaseChunk() {
+  // The chunk's pages leave this process's RSS (they stay in the page cache); a page shared with the next
+  // chunk is kept.
+  static const size_t kPage = static_cast<size_t>(::sysconf(_SC_PAGESIZE));
+  const size_t from = chunk_->begin / kPage * kPage, to = chunk_->end / kPage * kPage;
+  if (to > from) ::madvise(const_cast<char*>(map_->data) + from, to - from, MADV_DONTNEED);
+  base_line_ += chunk_->lines;
+  chunk_ = nullptr;
+  std::lock_guard<std::mutex> lock(mu_);
+  ++consumed_;
+  if (!threads_.empty()) Dispatch();
+}
+
+Status ObjReader::ErrorAt(uint64_t line, const std::string& what, bool unterminated) const {
+  std::string msg = path_ + ":" + std::to_string(line) + ": " + what;
+  if (unterminated) msg += " (the file ends inside this line: truncated?)";
   return Status::Corruption(std::move(msg));
 }
 
-Status ObjReader::Fill() {
-  if (begin_ > 0) {
-    std::memmove(buf_.get(), buf_.get() + begin_, end_ - begin_);
-    end_ -= begin_;
-    begin_ = 0;
-  }
-  if (end_ == capacity_) {  // a line longer than the buffer
-    std::unique_ptr<char[]> bigger(new char[2 * capacity_]);
-    std::memcpy(bigger.get(), buf_.get(), end_);
-    buf_ = std::move(bigger);
-    capacity_ *= 2;
-  }
-  while (true) {
-    ssize_t n = ::read(fd_, buf_.get() + end_, capacity_ - end_);
-    if (n < 0 && errno == EINTR) continue;
-    if (n < 0) return Status::IOError(Errno(path_));
-    if (n == 0) eof_ = true;
-    end_ += static_cast<size_t>(n);
-    return Status::Ok();
-  }
+Status ObjReader::ChunkError(const ObjChunk& c) const {
+  const uint64_t line = base_line_ + c.error_line;
+  if (c.error_unsupported)
+    return Status::Unsupported(path_ + ":" + std::to_string(line) + ": " + c.error_what);
+  return ErrorAt(line, c.error_what, c.error_unterminated);
 }
 
-Result<bool> ObjReader::NextRecord(std::string_view* line) {
-  joined_.clear();
-  bool continued = false;
-  record_unterminated_ = false;
-  while (true) {
-    std::string_view raw;
-    const char* nl = nullptr;
-    while (true) {
-      nl = static_cast<const char*>(std::memchr(buf_.get() + begin_, '\n', end_ - begin_));
-      if (nl != nullptr || eof_) break;
-      MKTREE_RETURN_IF_ERROR(Fill());
-    }
-    if (nl != nullptr) {
-      raw = std::string_view(buf_.get() + begin_, nl - (buf_.get() + begin_));
-      begin_ = nl - buf_.get() + 1;
-    } else if (begin_ < end_) {
-      raw = std::string_view(buf_.get() + begin_, end_ - begin_);
-      begin_ = end_;
-      record_unterminated_ = true;
-    } else if (continued) {
-      record_unterminated_ = true;
-      *line = joined_;
-      return true;
-    } else {
-      return false;
-    }
-    ++line_no_;
-    if (!continued) record_line_ = line_no_;
-    if (!raw.empty() && raw.back() == '\r') raw.remove_suffix(1);
-    if (!raw.empty() && raw.back() == '\\') {
-      raw.remove_suffix(1);
-      joined_.append(raw);
-      joined_.push_back(' ');
-      continued = true;
-      continue;
-    }
-    if (!continued) {
-      *line = raw;
-    } else {
-      joined_.append(raw);
-      *line = joined_;
-    }
-    return true;
+Status ObjReader::AddVertices(const ObjChunk& c, const ObjOp& op) {
+  constexpr uint64_t kMaxVertices = std::numeric_limits<uint32_t>::max() - 1;
+  if (positions_.size() + op.count > kMaxVertices) {
+    // The first vertex past the limit, on line op.line + k of the run.
+    const uint64_t k = kMaxVertices - positions_.size();
+    return ErrorAt(base_line_ + op.line + k, "more than 2^32 - 2 vertices",
+                   c.unterminated_line == op.line + k);
   }
-}
-
-// Parses one coordinate token as a double. Overflow is an error; underflow reads as the nearest double (0
-// or a subnormal) like any other rounding.
-bool ParseCoordinate(std::string_view tok, double* out, std::string* why) {
-  const char* b = tok.data();
-  const char* e = tok.data() + tok.size();
-  if (b != e && *b == '+') ++b;  // from_chars rejects a leading '+'; OBJ writers sometimes emit it
-  double v = 0;
-  auto [p, ec] = std::from_chars(b, e, v);
-  if (ec == std::errc::result_out_of_range && p == e) {
-    const size_t exp = tok.find_first_of("eE");
-    const bool underflow = exp != std::string_view::npos && exp + 1 < tok.size() && tok[exp + 1] == '-';
-    if (!underflow) {
-      *why = "coordinate out of range " + Quote(tok);
-      return false;
-    }
-    v = tok.front() == '-' ? -0.0 : 0.0;
-  } else if (ec != std::errc() || p != e) {
-    *why = "bad number " + Quote(tok);
-    return false;
-  }
-  if (!std::isfinite(v)) {
-    *why = "non-finite coordinate " + Quote(tok);
-    return false;
-  }
-  if (std::fabs(v) > kMaxCoordinate) {
-    *why = "coordinate out of range " + Quote(tok) + " (at most 2^124 in magnitude)";
-    return false;
-  }
-  *out = v;
-  return true;
-}
-
-Status ObjReader::ParseVertex(std::string_view rest) {
-  double xyz[3];
-  int n = 0;
-  std::string why;
-  for (std::string_view tok = NextToken(&rest); !tok.empty(); tok = NextToken(&rest), ++n) {
-    double v;
-    // Values past z (w, or r g b [a] colours) are checked as numbers but not kept.
-    if (!ParseCoordinate(tok, &v, &why)) return Error("vertex: " + why);
-    if (n < 3) xyz[n] = v;
-  }
-  if (n < 3) return Error("vertex: too few coordinates (" + std::to_string(n) + ", need x y z)");
-  if (n > 7) return Error("vertex: too many values (" + std::to_string(n) + ", at most 7)");
-  if (positions_.size() >= std::numeric_limits<uint32_t>::max() - 1)
-    return Error("more than 2^32 - 2 vertices");
-  positions_.Push(xyz);
+  for (uint32_t i = 0; i < op.count; ++i) positions_.Push(&c.vertices[vertex_at_ + 3 * size_t{i}]);
+  vertex_at_ += 3 * size_t{op.count};
   return Status::Ok();
 }
 
-// Resolves an OBJ index (1-based, or negative = relative to the last `count` entries) to 0-based.
-// Returns false (with *index untouched) when `digits` is empty and the part is optional.
-Result<bool> ObjReader::ResolveIndex(std::string_view token, std::string_view digits, uint64_t count,
-                                     const char* what, uint32_t* index) {
-  int64_t i = 0;
-  const char* b = digits.data();
-  const char* e = digits.data() + digits.size();
-  if (b != e && *b == '+') ++b;
-  auto [p, ec] = std::from_chars(b, e, i);
-  if (ec != std::errc() || p != e) return Error("face: bad vertex reference " + Quote(token));
-  if (i == 0)
-    return Error(std::string("face: ") + what + " index 0 in " + Quote(token) + " (indices start at 1)");
-  int64_t resolved = i > 0 ? i - 1 : static_cast<int64_t>(count) + i;
-  if (resolved < 0 || static_cast<uint64_t>(resolved) >= count) {
-    return Error(std::string("face: ") + what + " index " + std::to_string(i) + " out of range (" +
-                 std::to_string(count) + " defined so far)");
-  }
-  *index = static_cast<uint32_t>(resolved);
-  return true;
-}
-
-Status ObjReader::ParseFace(std::string_view rest) {
+Status ObjReader::AddFace(const int64_t* refs, uint64_t parts, int stride, uint64_t line) {
+  static const char* const kWhat[3] = {"vertex", "texture coordinate", "normal"};
+  const uint64_t counts[3] = {positions_.size(), texcoord_count_, normal_count_};
   face_.clear();
-  const uint64_t vertex_count = positions_.size();
-  for (std::string_view tok = NextToken(&rest); !tok.empty(); tok = NextToken(&rest)) {
-    // v, v/vt, v//vn or v/vt/vn
-    std::string_view parts[3];
-    int nparts = 0;
-    size_t start = 0;
-    while (true) {
-      size_t slash = tok.find('/', start);
-      if (nparts == 3) return Error("face: bad vertex reference " + Quote(tok));
-      parts[nparts++] = tok.substr(start, slash == std::string_view::npos ? slash : slash - start);
-      if (slash == std::string_view::npos) break;
-      start = slash + 1;
+  for (uint64_t k = 0; k < parts; ++k) {
+    const int64_t i = refs[k];
+    if (i == 0) continue;  // an absent vt or vn
+    const int part = stride == 1 ? 0 : static_cast<int>(k % 3);
+    const int64_t resolved = i > 0 ? i - 1 : static_cast<int64_t>(counts[part]) + i;
+    if (resolved < 0 || static_cast<uint64_t>(resolved) >= counts[part]) {
+      return ErrorAt(base_line_ + line,
+                     std::string("face: ") + kWhat[part] + " index " + std::to_string(i) + " out of range (" +
+                         std::to_string(counts[part]) + " defined so far)",
+                     chunk_->unterminated_line == line);
     }
-    // Empty parts are allowed only for an absent vt (v//vn); "1/" or "1/2/" are malformed.
-    if (parts[0].empty() || (nparts == 2 && parts[1].empty()) || (nparts == 3 && parts[2].empty())) {
-      return Error("face: bad vertex reference " + Quote(tok));
-    }
-    uint32_t v = 0, unused = 0;
-    auto r = ResolveIndex(tok, parts[0], vertex_count, "vertex", &v);
-    if (!r.ok()) return r.status();
-    if (nparts >= 2 && !parts[1].empty()) {
-      r = ResolveIndex(tok, parts[1], texcoord_count_, "texture coordinate", &unused);
-      if (!r.ok()) return r.status();
-    }
-    if (nparts == 3) {
-      r = ResolveIndex(tok, parts[2], normal_count_, "normal", &unused);
-      if (!r.ok()) return r.status();
-    }
+    if (part != 0) continue;
+    const uint32_t v = static_cast<uint32_t>(resolved);
     bool inserted = false;
     uint32_t local = local_of_global_.FindOrInsert(v, static_cast<uint32_t>(mesh_.vertex_count()), &inserted);
     if (inserted) {
       const double* p = positions_.At(v);
-      mesh_.vertices.insert(mesh_.vertices.end(), p, p + 3);
+      mesh_.vertices.push_back(p[0]);
+      mesh_.vertices.push_back(p[1]);
+      mesh_.vertices.push_back(p[2]);
     }
     face_.push_back(local);
-  }
-  if (face_.size() < 3) {
-    return Error("face: " + std::to_string(face_.size()) + " vertices (a face needs at least 3)");
-  }
-  for (size_t i = 1; i + 1 < face_.size(); ++i) {
-    mesh_.triangles.insert(mesh_.triangles.end(), {face_[0], face_[i], face_[i + 1]});
   }
   return Status::Ok();
 }
 
+void ObjReader::EndFace() {
+  for (size_t i = 1; i + 1 < face_.size(); ++i) {
+    mesh_.triangles.push_back(face_[0]);
+    mesh_.triangles.push_back(face_[i]);
+    mesh_.triangles.push_back(face_[i + 1]);
+  }
+  if (object_version_ != attributes_version_) {
+    object_version_ = attributes_version_;
+    auto add = [this](const char* key, const std::string& value) {
+      for (const ObjectAttribute& a : object_attributes_) {
+        if (a.key == key && a.value == value) return;
+      }
+      object_attributes_.push_back(ObjectAttribute{key, value});
+    };
+    for (const std::string& g : groups_) add("group", g);
+    if (!material_.empty()) add("material", material_);
+  }
+}
+
+void ObjReader::SetGroups(std::string_view names) {
+  groups_.clear();
+  for (std::string_view n = NextToken(&names); !n.empty(); n = NextToken(&names)) groups_.emplace_back(n);
+  ++attributes_version_;
+}
+
 // True when some line of the file starts with the `o` directive. Reads the file through its own
-// descriptor so the main read position is untouched; stops at the first hit.
+// descriptor so that the mapping's pages are not all brought in; stops at the first hit.
 Result<bool> ObjReader::FileHasObjectLines() {
   int fd = ::open(path_.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) return Status::IOError(Errno(path_));
@@ -422,9 +441,15 @@ Result<bool> ObjReader::FileHasObjectLines() {
 }
 
 Result<bool> ObjReader::Emit(SceneObject* out) {
-  if (next_id_ > std::numeric_limits<ObjectId>::max()) return Error("more than 2^32 objects");
+  if (next_id_ > std::numeric_limits<ObjectId>::max()) {
+    return ErrorAt(last_line_, "more than 2^32 objects");
+  }
   out->id = static_cast<ObjectId>(next_id_++);
   out->name = name_.empty() ? "object_" + std::to_string(out->id) : name_;
+  out->source = path_;
+  out->attributes = std::move(object_attributes_);
+  object_attributes_.clear();
+  object_version_ = ~uint64_t{0};
   out->mesh = std::move(mesh_);
   mesh_ = Mesh();
   local_of_global_.Clear();
@@ -439,7 +464,8 @@ Result<bool> ObjReader::StartObject(std::string_view name, SceneObject* out) {
     if (!r.ok()) return r;
     emitted = true;
   }
-  name_.assign(Trim(name));
+  name_.assign(name);
+  local_of_global_.SetWindow(static_cast<uint32_t>(positions_.size()));
   return emitted;
 }
 
@@ -450,65 +476,113 @@ Result<bool> ObjReader::Next(SceneObject* out) {
     error_ = std::move(st);
     return error_;
   };
-  std::string_view line;
   while (true) {
-    auto more = NextRecord(&line);
-    if (!more.ok()) return fail(more.status());
-    if (!*more) {
-      done_ = true;
-      if (mesh_.triangle_count() == 0) return false;
-      auto r = Emit(out);
-      if (!r.ok()) return fail(r.status());
-      return true;
-    }
-    std::string_view rest = line;
-    std::string_view key = NextToken(&rest);
-    if (key.empty() || key.front() == '#') continue;
-    Status st;
-    if (key == "v") {
-      st = ParseVertex(rest);
-    } else if (key == "f") {
-      st = ParseFace(rest);
-    } else if (key == "o" || key == "g") {
-      if (key == "o") {
-        group_rule_ = GroupRule::kGroupsIgnored;
-      } else if (group_rule_ == GroupRule::kUnknown) {
-        auto has_o = FileHasObjectLines();
-        if (!has_o.ok()) return fail(has_o.status());
-        group_rule_ = *has_o ? GroupRule::kGroupsIgnored : GroupRule::kGroupsStartObjects;
-      }
-      if (key == "o" || group_rule_ == GroupRule::kGroupsStartObjects) {
-        auto r = StartObject(rest, out);
+    if (chunk_ == nullptr) {
+      chunk_ = TakeChunk();
+      op_ = 0;
+      vertex_at_ = ref_at_ = name_at_ = 0;
+      if (chunk_ == nullptr) {
+        done_ = true;
+        if (mesh_.triangle_count() == 0) return false;
+        auto r = Emit(out);
         if (!r.ok()) return fail(r.status());
-        if (*r) return true;
+        return true;
       }
-    } else if (key == "vt") {
-      ++texcoord_count_;
-    } else if (key == "vn") {
-      ++normal_count_;
-    } else if (key == "vp" || key == "l" || key == "p" || key == "s" || key == "usemtl" || key == "mtllib" ||
-               key == "lod" || key == "bevel" || key == "c_interp" || key == "d_interp" || key == "usemap" ||
-               key == "maplib" || key == "shadow_obj" || key == "trace_obj" || key == "mg") {
-      // Carries no triangle geometry.
-    } else if (key == "cstype" || key == "deg" || key == "bmat" || key == "step" || key == "curv" ||
-               key == "curv2" || key == "surf" || key == "parm" || key == "trim" || key == "hole" ||
-               key == "scrv" || key == "sp" || key == "end" || key == "con") {
-      st = Status::Unsupported(path_ + ":" + std::to_string(record_line_) + ": free-form geometry (" +
-                               Quote(key) + ") is not supported");
-    } else {
-      st = Error("unknown directive " + Quote(key));
     }
-    if (!st.ok()) return fail(std::move(st));
+    const ObjChunk& c = *chunk_;
+    while (op_ < c.ops.size()) {
+      const ObjOp& op = c.ops[op_++];
+      last_line_ = base_line_ + op.line;
+      Status st;
+      switch (op.kind) {
+        case ObjOpKind::kVertices:
+          st = AddVertices(c, op);
+          break;
+        case ObjOpKind::kTexcoords:
+          texcoord_count_ += op.count;
+          break;
+        case ObjOpKind::kNormals:
+          normal_count_ += op.count;
+          break;
+        case ObjOpKind::kFaces: {
+          const uint64_t parts = uint64_t{op.stride} * op.corners;
+          for (uint32_t f = 0; f < op.count && st.ok(); ++f) {
+            st = AddFace(&c.refs[ref_at_], parts, op.stride, op.line + f);
+            ref_at_ += parts;
+            if (st.ok()) EndFace();
+          }
+          break;
+        }
+        case ObjOpKind::kFaceError:
+          st = AddFace(c.refs.data() + ref_at_, c.error_stop, op.stride, op.line);
+          if (st.ok()) st = ChunkError(c);
+          break;
+        case ObjOpKind::kMaterial:
+          material_.assign(c.names, name_at_, op.count);
+          name_at_ += op.count;
+          ++attributes_version_;
+          break;
+        case ObjOpKind::kObject:
+        case ObjOpKind::kGroup: {
+          const std::string_view name(c.names.data() + name_at_, op.count);
+          name_at_ += op.count;
+          if (op.kind == ObjOpKind::kObject) {
+            group_rule_ = GroupRule::kGroupsIgnored;
+          } else {
+            SetGroups(name);
+            if (group_rule_ == GroupRule::kUnknown) {
+              auto has_o = FileHasObjectLines();
+              if (!has_o.ok()) return fail(has_o.status());
+              group_rule_ = *has_o ? GroupRule::kGroupsIgnored : GroupRule::kGroupsStartObjects;
+            }
+          }
+          if (op.kind == ObjOpKind::kObject || group_rule_ == GroupRule::kGroupsStartObjects) {
+            auto r = StartObject(name, out);
+            if (!r.ok()) return fail(r.status());
+            if (*r) return true;
+          }
+          break;
+        }
+        case ObjOpKind::kError:
+          st = ChunkError(c);
+          break;
+      }
+      if (!st.ok()) return fail(std::move(st));
+    }
+    ReleaseChunk();
   }
 }
 
 }  // namespace
 
 Result<std::unique_ptr<SceneSource>> OpenObjFile(const std::string& path, ObjectId first_id) {
+  return OpenObjFile(path, first_id, ObjReadOptions());
+}
+
+Result<std::unique_ptr<SceneSource>> OpenObjFile(const std::string& path, ObjectId first_id,
+                                                 const ObjReadOptions& options) {
   auto fd = OpenSceneInput(path);
   if (!fd.ok()) return fd.status();
-  ::posix_fadvise(*fd, 0, 0, POSIX_FADV_SEQUENTIAL);
-  return std::unique_ptr<SceneSource>(new ObjReader(path, *fd, first_id));
+  struct stat st;
+  if (::fstat(*fd, &st) != 0) {
+    Status s = Status::IOError(Errno(path));
+    ::close(*fd);
+    return s;
+  }
+  auto map = std::make_unique<Mapping>();
+  if (st.st_size > 0) {
+    void* p = ::mmap(nullptr, static_cast<size_t>(st.st_size), PROT_READ, MAP_PRIVATE, *fd, 0);
+    if (p == MAP_FAILED) {
+      Status s = Status::IOError(path + ": cannot map the file: " + std::strerror(errno));
+      ::close(*fd);
+      return s;
+    }
+    ::madvise(p, static_cast<size_t>(st.st_size), MADV_SEQUENTIAL);
+    map->data = static_cast<const char*>(p);
+    map->size = static_cast<size_t>(st.st_size);
+  }
+  ::close(*fd);  // the mapping keeps the file
+  return std::unique_ptr<SceneSource>(new ObjReader(path, std::move(map), first_id, options));
 }
 
 }  // namespace mktree

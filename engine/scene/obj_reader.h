@@ -25,16 +25,27 @@
 //
 // Memory: OBJ vertex indices are global to the file, so the reader keeps the global vertex table
 // (double x, y, z: 24 bytes per `v` line) plus the current object's mesh and its re-indexing map. Nothing
-// else grows with the file: the read buffer is fixed (it grows only to hold the longest line).
+// else grows with the file: the file is memory-mapped and parsed in chunks (ObjReadOptions), a fixed number
+// of them in flight, each released (madvise) once its objects are handed out.
 //
 // `g` versus `o` is decided lazily: if an `o` line comes before any `g` line, nothing more is needed. Only
 // when a `g` line comes first does the reader scan ahead in the file (a separate read, stopping at the
 // first line that starts with "o") to learn whether the file has `o` lines. Files with only `g` lines are
 // therefore read twice; files written with `o` lines (the common case) are read once.
 //
+// Parallelism: worker threads parse chunks (numbers with fast_float, faces into OBJ indices, directives into
+// operations: engine/scene/obj_chunk.h); the thread calling Next() applies them in file order (vertex
+// counts, index checks, line numbers, objects), so objects, ids, errors and their lines are those of a
+// sequential read whatever the thread count or chunk size.
+//
+// Each object's `source` is the path as given; its attributes are the groups (key "group", one per name
+// of a `g` line) and materials (key "material", the `usemtl` name) in force for any of its faces, each
+// once, in the order first met.
+//
 // Thread-safety: a source is used by one thread at a time; distinct sources are independent.
 #pragma once
 
+#include <cstddef>
 #include <memory>
 #include <string>
 
@@ -46,5 +57,14 @@ namespace mktree {
 // first_id + 1, and so on. Fails with NotFound or IOError, naming the file, when it cannot be opened.
 // Parse errors come from Next(): Corruption for malformed input, Unsupported for free-form geometry.
 Result<std::unique_ptr<SceneSource>> OpenObjFile(const std::string& path, ObjectId first_id = 0);
+
+struct ObjReadOptions {
+  // Parsing threads besides the caller's; 0 parses on the caller's thread. -1: one per hardware thread.
+  int threads = -1;
+  // Bytes per chunk (cut at the next line end); at most threads + 2 chunks are in flight.
+  size_t chunk_bytes = size_t{1} << 18;
+};
+Result<std::unique_ptr<SceneSource>> OpenObjFile(const std::string& path, ObjectId first_id,
+                                                 const ObjReadOptions& options);
 
 }  // namespace mktree
