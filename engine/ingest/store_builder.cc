@@ -151,7 +151,7 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
 
   // 1. Stream the objects: encoded on worker threads (object_encoder.h), spilled here in id order;
   //    only the record stays.
-  std::vector<ObjectRecord> records;
+  std::vector<BuildObject> records;
   ObjectId next_id = 0;
   size_t input = 0;
   std::unique_ptr<SceneSource> source;
@@ -180,7 +180,7 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
   CoarseBoxes coarse;
   auto spill = [&](const SceneObject& obj, const EncodedObject& encoded) -> Status {
     coarse.Check(obj, encoded.box);
-    ObjectRecord rec;
+    BuildObject rec;
     rec.id = obj.id;
     rec.box = encoded.box;
     rec.encoded_bytes = static_cast<uint32_t>(encoded.entry.size());
@@ -230,7 +230,7 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
   // tree build (8 bytes per object at its memory peak): entries were spilled back to back in id order,
   // so they are the prefix sums of the sizes, recomputed below.
   std::vector<uint32_t> entry_bytes(records.size());
-  for (const ObjectRecord& r : records) entry_bytes[r.id] = r.encoded_bytes;
+  for (const BuildObject& r : records) entry_bytes[r.id] = r.encoded_bytes;
 
   // 2. The tree, from the records alone.
   const auto build_start = Clock::now();

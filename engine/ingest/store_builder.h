@@ -2,7 +2,7 @@
 //
 // Each object's edge check (closed? even edge use?) is computed here once and stored in its entry, so
 // that exact queries do not repeat it.
-// Only per-object records (ObjectRecord: id, AABB, entry size; 32 bytes) and the tree stay
+// Only per-object records (BuildObject: id, AABB, entry size; 32 bytes) and the tree stay
 // in RAM. Each object is encoded once, alone (so leaf sizes are exact), and appended to a spill file;
 // names go to a second spill file. Once the tree is known, leaf pages are assembled from the spill in
 // leaf order, the object table is streamed from the name spill, and the store is committed atomically
