@@ -1,8 +1,8 @@
 // The paged-file backend's store layout (docs/store_format.md), on a paged file (storage/paged_file_store.h):
 //   [0, P)                       header page (P = MemPage bytes; fixed fields in the first 512 bytes)
-//   [P * (1 + i), P * (2 + i))   leaf page i
-//   then the sections, back to back: nodes, split nodes, leaves, object leaves, object name ends,
-//   object names, stats JSON, leaf filter.
+//   [P * (1 + i), P * (2 + i))   page i: the leaf pages, then the object record pages
+//   then the sections, back to back: nodes, split nodes, leaves, object leaves, record directory,
+//   sources, stats JSON, leaf filter.
 // The header is written last, at Commit, so an unfinished file has a zero header and is refused.
 #include <fcntl.h>
 #include <unistd.h>
@@ -12,6 +12,7 @@
 #include <cstring>
 #include <memory>
 
+#include "engine/store/record_codec.h"
 #include "engine/store/store_backend.h"
 #include "storage/byte_io.h"
 #include "storage/file_util.h"
@@ -28,8 +29,9 @@ using storage_internal::PwriteFull;
 namespace {
 
 // 2: the leaf filter holds 10-bit levels in 8 bytes an object; 3: the store frame (an origin in the header,
-// boxes relative to it, vertices in each object's local frame).
-constexpr uint32_t kPagedFileVersion = 3;
+// boxes relative to it, vertices in each object's local frame); 4: object records in pages after the leaf
+// pages (record directory and sources sections instead of name ends and names).
+constexpr uint32_t kPagedFileVersion = 4;
 constexpr uint32_t kFixedHeaderBytes = 512;  // the smallest page the builder accepts
 constexpr uint32_t kParamsOffset = 16;
 constexpr uint32_t kSectionCount = 8;
@@ -40,7 +42,7 @@ static_assert(kOriginOffset + 24 <= kFixedHeaderBytes);
 static_assert(kParamsOffset + kParamsRecordBytes <= 48);
 
 const char* const kSectionNames[kSectionCount] = {"nodes",         "split nodes",      "leaves",
-                                                  "object leaves", "object name ends", "object names",
+                                                  "object leaves", "record directory", "sources",
                                                   "stats JSON",    "leaf filter"};
 
 uint64_t HeaderChecksum(const uint8_t* header_page, uint64_t mem_page) {
@@ -72,9 +74,9 @@ class PagedFileWriter : public StoreWriter::Impl {
         case 3:
           return EncodeObjectLeaves(c.objects);
         case 4:
-          return EncodeObjectNameEnds(c.objects);
+          return EncodeRecordDirectory(c.objects.record_directory);
         case 5:
-          return std::vector<uint8_t>(c.objects.names.begin(), c.objects.names.end());
+          return EncodeSources(c.objects.sources);
         case 6:
           return std::vector<uint8_t>(c.stats_json.begin(), c.stats_json.end());
         default:
