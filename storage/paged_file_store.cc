@@ -148,18 +148,17 @@ Result<uint64_t> WriteSections(int fd, uint64_t offset, uint32_t count,
 
 Result<uint64_t> ReadSections(int fd, const uint8_t* table, std::span<const char* const> names,
                               uint64_t offset, uint64_t file_bytes, const std::string& path,
-                              std::vector<std::vector<uint8_t>>* out) {
-  out->resize(names.size());
+                              const std::function<Status(size_t i, std::vector<uint8_t>&& bytes)>& take) {
   for (size_t i = 0; i < names.size(); ++i) {
     const uint8_t* e = table + kSectionEntryBytes * i;
     const uint64_t off = Get<uint64_t>(e), bytes = Get<uint64_t>(e + 8), sum = Get<uint64_t>(e + 16);
     if (off != offset || bytes > file_bytes - off)
       return Status::Corruption(path + ": " + names[i] + " section out of place");
-    std::vector<uint8_t>& s = (*out)[i];
-    s.resize(bytes);
+    std::vector<uint8_t> s(bytes);
     MKTREE_RETURN_IF_ERROR(PreadFull(fd, s.data(), bytes, off, path));
     if (XXH3_64bits(s.data(), s.size()) != sum)
       return Status::Corruption(path + ": " + names[i] + " section checksum mismatch");
+    MKTREE_RETURN_IF_ERROR(take(i, std::move(s)));
     offset = off + bytes;
   }
   return offset;

@@ -66,11 +66,13 @@ inline constexpr size_t kSectionEntryBytes = 24;
 Result<uint64_t> WriteSections(int fd, uint64_t offset, uint32_t count,
                                const std::function<std::vector<uint8_t>(uint32_t)>& encode, uint8_t* table,
                                const std::string& path, FileOps& ops);
-// Reads the sections of `table` (one entry per name): each must start where the previous one ends (the
-// first at `offset`), fit in `file_bytes` and match its checksum; Corruption "<path>: <name> section out of
-// place" or "... section checksum mismatch" otherwise. Returns the offset past the last one.
+// Reads the sections of `table` (one entry per name) in order, handing each to `take` as soon as it is
+// read and checked, so that the caller can decode and free it before the next one is read: each must
+// start where the previous one ends (the first at `offset`), fit in `file_bytes` and match its checksum;
+// Corruption "<path>: <name> section out of place" or "... section checksum mismatch" otherwise. An error
+// from `take` stops the reading. Returns the offset past the last one.
 Result<uint64_t> ReadSections(int fd, const uint8_t* table, std::span<const char* const> names,
                               uint64_t offset, uint64_t file_bytes, const std::string& path,
-                              std::vector<std::vector<uint8_t>>* out);
+                              const std::function<Status(size_t i, std::vector<uint8_t>&& bytes)>& take);
 
 }  // namespace mktree

@@ -178,25 +178,50 @@ Result<OpenedStore> OpenPagedFile(const std::string& path, const ReadOptions& op
                std::to_string(file_bytes) + (size < file_bytes ? " (truncated)" : " (trailing bytes)"));
   if (page_count > file_bytes / mem_page) return bad("page count larger than the file");
 
-  std::vector<std::vector<uint8_t>> sections;
-  auto end = ReadSections(fd, h + kSectionTableOffset, kSectionNames, (1 + page_count) * mem_page, file_bytes,
-                          path, &sections);
-  if (!end.ok()) return end.status();
-  if (*end != file_bytes) return bad("sections do not end at the end of the file");
-
   StoreContents& c = out.contents;
   c.tree.params = c.params;
   for (int i = 0; i < 3; ++i) {
     c.tree.origin[i] = Get<double>(h + kOriginOffset + 8 * i);
     if (!std::isfinite(c.tree.origin[i])) return bad("header: origin is not finite");
   }
-  if (!(st = DecodeNodes(sections[0], &c.tree.nodes)).ok() ||
-      !(st = DecodeSplitNodes(sections[1], &c.tree.split_nodes)).ok() ||
-      !(st = DecodeLeaves(sections[2], &c.tree.leaves)).ok() ||
-      !(st = DecodeObjectTable(sections[3], sections[4], sections[5], &c.objects)).ok())
-    return bad(st.message());
-  c.stats_json.assign(sections[6].begin(), sections[6].end());
-  c.tree.leaf_filter = std::move(sections[7]);
+  // Each section is decoded as soon as it is read and then freed: open's peak is the structure plus one
+  // section, not plus all of them. (The object table's three sections are decoded together.)
+  std::vector<uint8_t> object_leaves, directory;
+  auto take = [&](size_t i, std::vector<uint8_t>&& s) -> Status {
+    Status d;
+    switch (i) {
+      case 0:
+        d = DecodeNodes(s, &c.tree.nodes);
+        break;
+      case 1:
+        d = DecodeSplitNodes(s, &c.tree.split_nodes);
+        break;
+      case 2:
+        d = DecodeLeaves(s, &c.tree.leaves);
+        break;
+      case 3:
+        object_leaves = std::move(s);
+        break;
+      case 4:
+        directory = std::move(s);
+        break;
+      case 5:
+        d = DecodeObjectTable(object_leaves, directory, s, &c.objects);
+        object_leaves = {};
+        directory = {};
+        break;
+      case 6:
+        c.stats_json.assign(s.begin(), s.end());
+        break;
+      default:
+        c.tree.leaf_filter = std::move(s);
+    }
+    return d.ok() ? d : bad(d.message());
+  };
+  auto end = ReadSections(fd, h + kSectionTableOffset, kSectionNames, (1 + page_count) * mem_page, file_bytes,
+                          path, take);
+  if (!end.ok()) return end.status();
+  if (*end != file_bytes) return bad("sections do not end at the end of the file");
   if (c.objects.size() != object_count) return bad("object table size does not match the header");
   MKTREE_RETURN_IF_ERROR(ValidateStructure(c.tree, c.objects, page_count, path));
 
