@@ -59,8 +59,8 @@ double PeakRssBytes() {
   return double(ru.ru_maxrss) * 1024.0;  // Linux: kilobytes
 }
 
-std::vector<ObjectRecord> TankerRecords(uint64_t n, uint64_t seed) {
-  std::vector<ObjectRecord> recs;
+std::vector<BuildObject> TankerRecords(uint64_t n, uint64_t seed) {
+  std::vector<BuildObject> recs;
   recs.reserve(n);
   auto src = MakeTankerSource(n, seed);
   SceneObject obj;
@@ -71,7 +71,7 @@ std::vector<ObjectRecord> TankerRecords(uint64_t n, uint64_t seed) {
       std::exit(1);
     }
     if (!*more) break;
-    ObjectRecord r;
+    BuildObject r;
     r.id = obj.id;
     r.box = obj.Aabb();
     r.encoded_bytes = static_cast<uint32_t>(64 + obj.mesh.RawGeometryBytes() / 2);
@@ -82,13 +82,13 @@ std::vector<ObjectRecord> TankerRecords(uint64_t n, uint64_t seed) {
 
 // Realistic sizes without the generator: a 300 x 50 x 30 m box of pipes (long, thin, axis-aligned),
 // plates (thin) and equipment (chunky), encoded 400-3000 bytes.
-std::vector<ObjectRecord> SyntheticRecords(uint64_t n, uint64_t seed) {
+std::vector<BuildObject> SyntheticRecords(uint64_t n, uint64_t seed) {
   std::mt19937_64 rng(seed);
   auto uni = [&](double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(rng); };
   const double ext[3] = {300, 50, 30};
-  std::vector<ObjectRecord> recs(n);
+  std::vector<BuildObject> recs(n);
   for (uint64_t i = 0; i < n; ++i) {
-    ObjectRecord& r = recs[i];
+    BuildObject& r = recs[i];
     r.id = static_cast<ObjectId>(i);
     const int cls = static_cast<int>(rng() % 10), along = static_cast<int>(rng() % 3);
     double size[3];
@@ -123,7 +123,7 @@ struct Quality {
   double filtered_multi_share = 0;
 };
 
-Quality RoutingQuality(const BuildResult& r, const std::vector<ObjectRecord>& recs, int points,
+Quality RoutingQuality(const BuildResult& r, const std::vector<BuildObject>& recs, int points,
                        uint64_t seed) {
   Quality q;
   if (r.tree.empty()) return q;
@@ -187,7 +187,7 @@ struct BoxQuality {
 
 // leaf_of[k]: the leaf (page group) of record k, of `leaves`; B = records / pages.
 BoxQuality BoxLeaves(const std::vector<uint32_t>& leaf_of, size_t leaves, double per_page, const Box3f& scene,
-                     const std::vector<ObjectRecord>& recs, double side, int count, uint64_t seed) {
+                     const std::vector<BuildObject>& recs, double side, int count, uint64_t seed) {
   BoxQuality q;
   std::mt19937_64 rng(seed);
   std::vector<uint32_t> seen(leaves, 0);
@@ -221,7 +221,7 @@ std::vector<uint32_t> LeafOf(const BuildResult& r, size_t objects) {
   return leaf_of;
 }
 
-BoxQuality BoxLeaves(const BuildResult& r, const std::vector<ObjectRecord>& recs, double side, int count,
+BoxQuality BoxLeaves(const BuildResult& r, const std::vector<BuildObject>& recs, double side, int count,
                      uint64_t seed) {
   if (r.tree.empty()) return BoxQuality{};
   return BoxLeaves(LeafOf(r, recs.size()), r.tree.leaves.size(), double(recs.size()) / double(r.stats.pages),
@@ -230,7 +230,7 @@ BoxQuality BoxLeaves(const BuildResult& r, const std::vector<ObjectRecord>& recs
 
 // Packing baselines: the records cut into one-page leaves in a given order, greedily by encoded bytes
 // (the page budget the MKtree uses). Returns leaf_of and sets *leaves.
-std::vector<uint32_t> PackInOrder(const std::vector<ObjectRecord>& recs, const std::vector<uint32_t>& order,
+std::vector<uint32_t> PackInOrder(const std::vector<BuildObject>& recs, const std::vector<uint32_t>& order,
                                   uint64_t mem_page, size_t* leaves) {
   std::vector<uint32_t> leaf_of(recs.size());
   uint64_t bytes = 0;
@@ -250,10 +250,10 @@ std::vector<uint32_t> PackInOrder(const std::vector<ObjectRecord>& recs, const s
   return leaf_of;
 }
 
-float Centre(const ObjectRecord& r, int a) { return 0.5f * (r.box.min[a] + r.box.max[a]); }
+float Centre(const BuildObject& r, int a) { return 0.5f * (r.box.min[a] + r.box.max[a]); }
 
 // Z-order (Morton) of the box centres, 21 bits per axis.
-std::vector<uint32_t> MortonOrder(const std::vector<ObjectRecord>& recs, const Box3f& scene) {
+std::vector<uint32_t> MortonOrder(const std::vector<BuildObject>& recs, const Box3f& scene) {
   auto spread = [](uint64_t v) {
     v &= 0x1fffff;
     v = (v | v << 32) & 0x1f00000000ffffull;
@@ -281,9 +281,9 @@ std::vector<uint32_t> MortonOrder(const std::vector<ObjectRecord>& recs, const B
 
 // Sort-Tile-Recursive on the box centres (what R-tree bulk loaders such as libspatialindex's use): S slabs
 // along x, S strips along y in each, then z order, S = cbrt(expected pages).
-std::vector<uint32_t> StrOrder(const std::vector<ObjectRecord>& recs, uint64_t mem_page) {
+std::vector<uint32_t> StrOrder(const std::vector<BuildObject>& recs, uint64_t mem_page) {
   uint64_t total = 0;
-  for (const ObjectRecord& r : recs) total += r.encoded_bytes;
+  for (const BuildObject& r : recs) total += r.encoded_bytes;
   const double pages = std::max(1.0, double(total) / double(PagePayloadCapacity(mem_page)));
   const size_t s = std::max<size_t>(1, static_cast<size_t>(std::ceil(std::cbrt(pages))));
   std::vector<uint32_t> order(recs.size());
@@ -346,7 +346,7 @@ struct Workload {
 };
 
 void Run(const Workload& w) {
-  std::vector<ObjectRecord> recs = w.tanker ? TankerRecords(w.objects, 1) : SyntheticRecords(w.objects, 1);
+  std::vector<BuildObject> recs = w.tanker ? TankerRecords(w.objects, 1) : SyntheticRecords(w.objects, 1);
   const double rss_records = PeakRssBytes();
   BuildTuning tune;
   tune.threads = w.threads;
@@ -356,7 +356,7 @@ void Run(const Workload& w) {
   // noisy machine; the peak RSS of the main build then includes the copy).
   if (const char* rep = std::getenv("TREE_BENCH_REPEAT")) {
     for (int i = 0, k = std::atoi(rep); i < k; ++i) {
-      std::vector<ObjectRecord> copy = recs;
+      std::vector<BuildObject> copy = recs;
       const auto r0 = std::chrono::steady_clock::now();
       auto b = BuildMKTree(std::move(copy), BuildParams(), tune);
       const double sec = std::chrono::duration<double>(std::chrono::steady_clock::now() - r0).count();
@@ -429,7 +429,7 @@ void Run(const Workload& w) {
 // The MKtree's leaves against packing baselines over the same records and page budget: how far any
 // partition of the objects into pages is from the floor ceil(hits / B) on the same queries.
 void RunPacking(uint64_t objects) {
-  std::vector<ObjectRecord> recs = TankerRecords(objects, 1);
+  std::vector<BuildObject> recs = TankerRecords(objects, 1);
   const BuildParams params;
   auto built = BuildMKTree(recs, params, BuildTuning());
   if (!built.ok()) {
@@ -483,9 +483,9 @@ void RunRandomTunings() {
   for (int t = 0; t < kBuilds; ++t) {
     const int n = 1 + static_cast<int>(rng() % 6000);
     const int kind = static_cast<int>(rng() % 4);
-    std::vector<ObjectRecord> recs(n);
+    std::vector<BuildObject> recs(n);
     for (int i = 0; i < n; ++i) {
-      ObjectRecord& r = recs[i];
+      BuildObject& r = recs[i];
       r.id = static_cast<ObjectId>(i);
       for (int u = 0; u < 3; ++u) {
         float c, e;

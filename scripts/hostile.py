@@ -56,7 +56,7 @@ PROGRESS_RE = re.compile(r"^[\w .-]+: \d+(/\d+ \(\d+%\))? [\d.]+s$")
 # docs/cli.md, `mktree info --json`.
 INFO_KEYS = {"file", "file_bytes", "backend", "codec", "objects", "nodes", "internal_nodes", "leaves", "pages",
              "height", "block_size", "blocks_per_page", "page_bytes", "balance_r", "split_nodes", "split_cells",
-             "split_both_cells", "page_fill", "ram_bytes", "leaf_filter_bytes", "origin", "tree"}
+             "split_both_cells", "page_fill", "ram_bytes", "leaf_filter_bytes", "origin", "bounds", "record_pages", "tree"}
 TREE_KEYS = {"objects", "height", "internal_nodes", "leaves", "pages", "multi_page_leaves", "min_objects_per_leaf",
              "mean_objects_per_leaf", "max_objects_per_leaf", "mem_page", "mean_page_fill", "min_page_fill",
              "split_tree_nodes", "max_split_tree_nodes", "split_tree_cells", "both_cells", "overlap_objects",
@@ -547,11 +547,14 @@ class PagedModel(Model):
         self.splits = [SPLIT.unpack_from(secs[1], o) for o in range(0, len(secs[1]), SPLIT.size)]
         self.leaves = [LEAF.unpack_from(secs[2], o) for o in range(0, len(secs[2]), LEAF.size)]
         self.obj_leaf = list(struct.unpack("<%dI" % (len(secs[3]) // 4), secs[3]))
-        ends = struct.unpack("<%dQ" % (len(secs[4]) // 8), secs[4])
-        self.names, s = [], 0
-        for e in ends:
-            self.names.append(secs[5][s:e])
-            s = e
+        if self.version >= 4:  # names live in record pages; the sections are the directory and sources
+            self.rec_dir, self.sources, self.names = secs[4], secs[5], None
+        else:
+            ends = struct.unpack("<%dQ" % (len(secs[4]) // 8), secs[4])
+            self.names, s = [], 0
+            for e in ends:
+                self.names.append(secs[5][s:e])
+                s = e
         self.stats = secs[6]
         self.leaf_filter = bytearray(secs[7])
         self.origin = struct.unpack_from("<3d", b, 280) if self.version >= 3 else (0.0, 0.0, 0.0)
@@ -566,8 +569,12 @@ class PagedModel(Model):
         P = self.P
         h = bytearray(self.header)
         struct.pack_into("<QQ", h, 48, len(self.pages), self.object_count)
-        secs = [self.enc_nodes(), self.enc_splits(), self.enc_leaves(), self.enc_obj_leaves(), self.enc_name_ends(),
-                b"".join(self.names), bytes(self.stats), bytes(self.leaf_filter)]
+        if self.names is None:
+            objs = [self.rec_dir, self.sources]
+        else:
+            objs = [self.enc_name_ends(), b"".join(self.names)]
+        secs = [self.enc_nodes(), self.enc_splits(), self.enc_leaves(), self.enc_obj_leaves()] + objs + \
+            [bytes(self.stats), bytes(self.leaf_filter)]
         off = P * (1 + len(self.pages))
         for i, s in enumerate(secs):
             struct.pack_into("<QQQ", h, 80 + 24 * i, off, len(s), xxh3(s))
@@ -623,7 +630,12 @@ class Hdf5Model(Model):
             self.leaves = [tuple(float(x) for x in tuple(r["box_min"]) + tuple(r["box_max"])) +
                            (int(r["node"]), int(r["object_count"]), int(r["payload_bytes"]), int(r["first_page"]),
                             int(r["page_count"]), 0) for r in f["tree/leaves"][()]]
-            if isinstance(f["objects"], h5py.Group):  # format 3: the canonical object table
+            if self.version >= 4:  # format 4: names in record pages
+                self.obj_leaf = [int(x) for x in f["objects/leaf"][()]]
+                self.names = None
+                self.rec_dir = f["objects/record_directory"][()].astype("<u4").tobytes()
+                self.sources = f["objects/sources"][()].tobytes()
+            elif isinstance(f["objects"], h5py.Group):  # format 3: the canonical object table
                 self.obj_leaf = [int(x) for x in f["objects/leaf"][()]]
                 ends = [int(x) for x in f["objects/name_end"][()]]
                 names = f["objects/names"][()].tobytes() if f["objects/names"].shape[0] else b""
@@ -638,7 +650,7 @@ class Hdf5Model(Model):
             self.obj_ids = list(range(len(self.obj_leaf)))
             self.stats = bytes(f["stats_json"][()]).split(b"\0")[0]
             self.leaf_filter = bytearray(f["tree/leaf_filter"][()].tobytes())
-        self.orig = (list(self.nodes), list(self.splits), list(self.leaves), list(self.obj_leaf), list(self.names),
+        self.orig = (list(self.nodes), list(self.splits), list(self.leaves), list(self.obj_leaf), list(self.names) if self.names is not None else None,
                      self.stats, bytes(self.leaf_filter), self.object_count)
         self.page_edits = {}
 
@@ -675,7 +687,13 @@ class Hdf5Model(Model):
             if self.leaves != self.orig[2]:
                 rewrite("tree/leaves", self.leaf_dtype, [(l[0:3], l[3:6], l[6], l[7], l[8], l[9], l[10])
                                                          for l in self.leaves])
-            if (self.obj_leaf != self.orig[3] or self.names != self.orig[4]) and isinstance(f["objects"], h5py.Group):
+            if self.names is None and self.obj_leaf != self.orig[3]:
+                del f["objects/leaf"]
+                f.create_dataset("objects/leaf", data=np.array(self.obj_leaf, dtype="<u4"),
+                                 chunks=(max(1, min(65536, len(self.obj_leaf))),) if self.obj_leaf else None)
+            elif self.names is None:
+                pass
+            elif (self.obj_leaf != self.orig[3] or self.names != self.orig[4]) and isinstance(f["objects"], h5py.Group):
                 def replace(name, arr):
                     del f[name]
                     f.create_dataset(name, data=arr, chunks=(max(1, min(65536, len(arr))),) if len(arr) else None)
@@ -713,7 +731,8 @@ class Hdf5Model(Model):
                 hdr += struct.pack("<3d", *self.origin)
             sums = {"checksum_header": xxh3(hdr), "checksum_nodes": xxh3(self.enc_nodes()),
                     "checksum_split_nodes": xxh3(self.enc_splits()), "checksum_leaves": xxh3(self.enc_leaves()),
-                    "checksum_objects": xxh3(self.enc_obj_leaves() + self.enc_name_ends() + b"".join(self.names)),
+                    "checksum_objects": xxh3(self.enc_obj_leaves() + (self.rec_dir + self.sources if self.names is None
+                                                                      else self.enc_name_ends() + b"".join(self.names))),
                     "checksum_stats_json": xxh3(self.stats), "checksum_leaf_filter": xxh3(self.leaf_filter)}
             for k, v in sums.items():
                 a.modify(k, np.uint64(v))
@@ -1324,7 +1343,8 @@ def mut_table_short(m, r):
     # Drop the last object from the object table (and its leaf's count): its entry stays in a page.
     k = len(m.obj_leaf) - 1
     li = m.obj_leaf.pop()
-    m.names.pop()
+    if m.names is not None:
+        m.names.pop()
     m.object_count -= 1
     l = m.leaf(li)
     l["count"] -= 1

@@ -16,8 +16,8 @@ uint64_t PageChecksum(const uint8_t* page, uint64_t mem_page) {
   return XXH3_64bits_withSeed(page + kPageHeaderBytes, mem_page - kPageHeaderBytes, head);
 }
 
-void SealPage(const PageHeader& h, uint8_t* page, uint64_t mem_page) {
-  Put<uint32_t>(page + 0, kPageMagic);
+void SealPage(const PageHeader& h, uint8_t* page, uint64_t mem_page, uint32_t magic) {
+  Put<uint32_t>(page + 0, magic);
   Put<uint16_t>(page + 4, kPageFormatVersion);
   Put<uint16_t>(page + 6, 0);
   Put<uint32_t>(page + 8, h.leaf_index);
@@ -28,11 +28,13 @@ void SealPage(const PageHeader& h, uint8_t* page, uint64_t mem_page) {
 }
 
 Result<PageHeader> CheckPage(const uint8_t* page, uint64_t mem_page, bool verify_checksum,
-                             const std::string& store_name, uint64_t page_index) {
+                             const std::string& store_name, uint64_t page_index, uint32_t magic) {
   auto fail = [&](const std::string& what) {
     return Status::Corruption(store_name + ": page " + std::to_string(page_index) + ": " + what);
   };
-  if (Get<uint32_t>(page) != kPageMagic) return fail("bad page magic (not a leaf page)");
+  if (Get<uint32_t>(page) != magic)
+    return fail(magic == kPageMagic ? "bad page magic (not a leaf page)"
+                                    : "bad page magic (not an object record page)");
   if (verify_checksum) {
     const uint64_t stored = Get<uint64_t>(page + 24);
     if (stored != PageChecksum(page, mem_page)) return fail("checksum mismatch");

@@ -23,7 +23,8 @@
 
 namespace mktree {
 
-inline constexpr uint32_t kPageMagic = 0x47504b4d;  // "MKPG" little-endian
+inline constexpr uint32_t kPageMagic = 0x47504b4d;        // "MKPG" little-endian: leaf pages
+inline constexpr uint32_t kRecordPageMagic = 0x524f4b4d;  // "MKOR": object record pages (same header)
 inline constexpr uint16_t kPageFormatVersion = 1;
 
 struct PageHeader {
@@ -37,12 +38,13 @@ struct PageHeader {
 uint64_t PageChecksum(const uint8_t* page, uint64_t mem_page);
 
 // Writes the header (magic, version, fields) and the checksum into page[0, 32). The payload must already
-// be in page[32, 32 + payload_bytes) and the rest of the page zero.
-void SealPage(const PageHeader& h, uint8_t* page, uint64_t mem_page);
+// be in page[32, 32 + payload_bytes) and the rest of the page zero. Record pages use the same header
+// with kRecordPageMagic; their "leaf index" field holds the first object id of their group.
+void SealPage(const PageHeader& h, uint8_t* page, uint64_t mem_page, uint32_t magic = kPageMagic);
 
 // Parses and verifies a page's header (and its checksum when `verify_checksum`). `store_name` and
 // `page_index` (the page's index in the store) only name the page in the error.
 Result<PageHeader> CheckPage(const uint8_t* page, uint64_t mem_page, bool verify_checksum,
-                             const std::string& store_name, uint64_t page_index);
+                             const std::string& store_name, uint64_t page_index, uint32_t magic = kPageMagic);
 
 }  // namespace mktree

@@ -5,8 +5,6 @@
 #include <unistd.h>
 #include <xxhash.h>
 
-#include <boost/interprocess/exceptions.hpp>
-#include <boost/interprocess/file_mapping.hpp>
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
@@ -77,7 +75,6 @@ std::string PagedFileStore::StartReading(bool direct_io) {
       }
     }
   }
-  if (!direct_io || !notice.empty()) MapPages();
   return notice;
 }
 
@@ -107,8 +104,6 @@ Status PagedFileStore::ReadPage(uint64_t index, uint8_t* out) const {
     }
   } else {
     st = PreadFull(fd_, out, page_bytes_, offset, name_);
-    if (st.ok() && mapped_ != nullptr)
-      read_once_[index / 64].fetch_or(uint64_t{1} << (index % 64), std::memory_order_relaxed);
   }
   if (!st.ok()) return Status::IOError(st.message() + " (page " + std::to_string(index) + ")");
   return Status::Ok();
@@ -125,29 +120,6 @@ Status PagedFileStore::WritePage(uint64_t index, const uint8_t* data) {
 Status PagedFileStore::Sync() {
   if (ops_->Fsync(fd_) != 0) return Status::IOError(name_ + ": fsync: " + ErrnoText(errno));
   return Status::Ok();
-}
-
-const uint8_t* PagedFileStore::MappedPage(uint64_t index) const {
-  if (mapped_ == nullptr || index >= count_) return nullptr;
-  if (!(read_once_[index / 64].load(std::memory_order_relaxed) & (uint64_t{1} << (index % 64))))
-    return nullptr;
-  return mapped_ + (1 + index) * page_bytes_;
-}
-
-// Maps the header and the pages read-only (buffered reads without a copy per cache miss). A file that
-// cannot be mapped is read with pread. Not with O_DIRECT, whose point is to bypass the OS cache.
-void PagedFileStore::MapPages() {
-  namespace bip = boost::interprocess;
-  try {
-    bip::file_mapping file(DescriptorPath(fd_).c_str(), bip::read_only);
-    if (!SameFile(file.get_mapping_handle().handle, fd_)) return;  // no /proc: read with pread
-    region_ = bip::mapped_region(file, bip::read_only, 0, (1 + count_) * page_bytes_);
-    region_.advise(bip::mapped_region::advice_random);  // pages are read one by one, not in file order
-    read_once_ = std::make_unique<std::atomic<uint64_t>[]>((count_ + 63) / 64);
-    mapped_ = static_cast<const uint8_t*>(region_.get_address());
-  } catch (const bip::interprocess_exception&) {
-    mapped_ = nullptr;
-  }
 }
 
 Status PagedFileStore::Close() {
@@ -176,18 +148,17 @@ Result<uint64_t> WriteSections(int fd, uint64_t offset, uint32_t count,
 
 Result<uint64_t> ReadSections(int fd, const uint8_t* table, std::span<const char* const> names,
                               uint64_t offset, uint64_t file_bytes, const std::string& path,
-                              std::vector<std::vector<uint8_t>>* out) {
-  out->resize(names.size());
+                              const std::function<Status(size_t i, std::vector<uint8_t>&& bytes)>& take) {
   for (size_t i = 0; i < names.size(); ++i) {
     const uint8_t* e = table + kSectionEntryBytes * i;
     const uint64_t off = Get<uint64_t>(e), bytes = Get<uint64_t>(e + 8), sum = Get<uint64_t>(e + 16);
     if (off != offset || bytes > file_bytes - off)
       return Status::Corruption(path + ": " + names[i] + " section out of place");
-    std::vector<uint8_t>& s = (*out)[i];
-    s.resize(bytes);
+    std::vector<uint8_t> s(bytes);
     MKTREE_RETURN_IF_ERROR(PreadFull(fd, s.data(), bytes, off, path));
     if (XXH3_64bits(s.data(), s.size()) != sum)
       return Status::Corruption(path + ": " + names[i] + " section checksum mismatch");
+    MKTREE_RETURN_IF_ERROR(take(i, std::move(s)));
     offset = off + bytes;
   }
   return offset;

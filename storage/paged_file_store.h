@@ -3,11 +3,9 @@
 // PageStore; WriteSections/ReadSections handle the sections, described by a table of 24-byte entries
 // (offset u64, bytes u64, XXH3-64 u64) that the caller keeps in its header page. What the header and the
 // sections hold is the caller's (engine/store/paged_file.cc).
-// Thread safety: as PageStore (reads with pread or from a read-only mapping, from any thread).
+// Thread safety: as PageStore (reads with pread, from any thread).
 #pragma once
 
-#include <atomic>
-#include <boost/interprocess/mapped_region.hpp>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -36,15 +34,12 @@ class PagedFileStore : public PageStore {
   Status ReadPage(uint64_t index, uint8_t* out) const override;
   Status WritePage(uint64_t index, const uint8_t* data) override;
   Status Sync() override;
-  // In place once the page has been read through the OS cache (ReadPage), which then holds it: touching an
-  // uncached mapping would read the page 4 KiB at a time (one fault each), where ReadPage reads it in one
-  // pread. (Should the OS drop it later, touching it still reads it, only in smaller steps.)
-  const uint8_t* MappedPage(uint64_t index) const override;
 
   // Sets up the reads of a store opened for reading. With `direct_io`, pages are read with O_DIRECT where the
-  // page size and the filesystem allow it; otherwise (or when they do not) through the OS cache, and the
-  // file is mapped read-only so that a page read once is served in place. Returns why direct I/O was asked
-  // for and is not used, or "".
+  // page size and the filesystem allow it; otherwise (or when they do not) with pread through the OS
+  // cache. Not mapped: every page touched through a mapping would stay in the process's RSS, which then
+  // grows with the pages a run reads instead of the cache's size. Returns why direct I/O was asked for and
+  // is not used, or "".
   std::string StartReading(bool direct_io);
 
   int fd() const { return fd_; }
@@ -56,17 +51,12 @@ class PagedFileStore : public PageStore {
   Status Close();
 
  private:
-  void MapPages();
-
   std::string name_;
   int fd_;
   int direct_fd_ = -1;
   uint64_t page_bytes_;
   uint64_t count_;
   FileOps* ops_;  // writes (the writer's; fault injection in tests)
-  boost::interprocess::mapped_region region_;
-  const uint8_t* mapped_ = nullptr;
-  std::unique_ptr<std::atomic<uint64_t>[]> read_once_;  // bit per page: read through the OS cache before
 };
 
 inline constexpr size_t kSectionEntryBytes = 24;
@@ -76,11 +66,13 @@ inline constexpr size_t kSectionEntryBytes = 24;
 Result<uint64_t> WriteSections(int fd, uint64_t offset, uint32_t count,
                                const std::function<std::vector<uint8_t>(uint32_t)>& encode, uint8_t* table,
                                const std::string& path, FileOps& ops);
-// Reads the sections of `table` (one entry per name): each must start where the previous one ends (the
-// first at `offset`), fit in `file_bytes` and match its checksum; Corruption "<path>: <name> section out of
-// place" or "... section checksum mismatch" otherwise. Returns the offset past the last one.
+// Reads the sections of `table` (one entry per name) in order, handing each to `take` as soon as it is
+// read and checked, so that the caller can decode and free it before the next one is read: each must
+// start where the previous one ends (the first at `offset`), fit in `file_bytes` and match its checksum;
+// Corruption "<path>: <name> section out of place" or "... section checksum mismatch" otherwise. An error
+// from `take` stops the reading. Returns the offset past the last one.
 Result<uint64_t> ReadSections(int fd, const uint8_t* table, std::span<const char* const> names,
                               uint64_t offset, uint64_t file_bytes, const std::string& path,
-                              std::vector<std::vector<uint8_t>>* out);
+                              const std::function<Status(size_t i, std::vector<uint8_t>&& bytes)>& take);
 
 }  // namespace mktree

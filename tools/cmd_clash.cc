@@ -13,6 +13,7 @@
 #include "mktree/database.h"
 #include "tools/cli_numbers.h"
 #include "tools/command.h"
+#include "tools/json_text.h"
 #include "tools/path_checks.h"
 #include "tools/progress.h"
 
@@ -32,6 +33,7 @@ struct ClashArgs {
   bool no_touch = false;
   bool summary = false;
   bool progress = false;
+  bool names = false;
   // collide
   std::string object, translate, rotate;
 };
@@ -84,10 +86,16 @@ const char* MeetingName(ClashMeeting m) {
   return "cross";
 }
 
-// The JSON line of one pair; in collide, b (the query object) is -1.
-std::string PairLine(const ClashPair& p) {
+// The JSON line of one pair; in collide, b (the query object) is -1. With names (--names), name_a and
+// name_b follow b (name_b is null in collide).
+std::string PairLine(const ClashPair& p, const std::string* name_a = nullptr,
+                     const std::string* name_b = nullptr) {
   std::string s = "{\"a\": " + std::to_string(p.a) + ", \"b\": ";
   s += p.b == kCollideObject ? std::string("-1") : std::to_string(p.b);
+  if (name_a) {
+    s += ", \"name_a\": \"" + JsonText(*name_a) + "\", \"name_b\": ";
+    s += name_b ? "\"" + JsonText(*name_b) + "\"" : std::string("null");
+  }
   s += ", \"class\": \"";
   s += ClassName(p.cls);
   s += "\", \"distance\": ";
@@ -202,9 +210,33 @@ int Run(const ClashArgs& a, bool collide) {
   if (!db.ok()) return Fail(db.status().message());
   Progress progress(!a.progress);
   if (a.progress) o.progress = [&](uint64_t done, uint64_t total) { progress.Update("clash", done, total); };
+  // Names come from a second handle on the store with a small cache of its own, so that reading them
+  // leaves the clash's cache and statistics as they are without --names.
+  std::unique_ptr<Database> names_db;
+  if (a.names) {
+    OpenOptions no = oo;
+    no.cache_pages = 64;
+    auto n = Database::Open(a.store, no);
+    if (!n.ok()) return Fail(n.status().message());
+    names_db = std::move(*n);
+  }
   bool write_failed = false;
+  Status name_status;
   auto visit = [&](const ClashPair& p) {
-    const std::string line = PairLine(p);
+    std::string line;
+    if (names_db) {
+      if (!name_status.ok()) return;
+      auto na = names_db->ObjectName(p.a);
+      Result<std::string> nb = std::string();
+      if (p.b != kCollideObject) nb = names_db->ObjectName(p.b);
+      if (!na.ok() || !nb.ok()) {
+        name_status = na.ok() ? nb.status() : na.status();
+        return;
+      }
+      line = PairLine(p, &*na, p.b == kCollideObject ? nullptr : &*nb);
+    } else {
+      line = PairLine(p);
+    }
     if (std::fwrite(line.data(), 1, line.size(), stdout) != line.size()) write_failed = true;
   };
   ClashStats stats;
@@ -212,6 +244,7 @@ int Run(const ClashArgs& a, bool collide) {
       collide ? (*db)->Collide(object, transform, o, visit, &stats) : (*db)->SelfClash(o, visit, &stats);
   progress.Done();
   if (!st.ok()) return Fail(st.message());
+  if (!name_status.ok()) return Fail(name_status.message());
   if (a.summary) {
     const std::string line = SummaryLine(stats);
     std::fwrite(line.data(), 1, line.size(), stdout);
@@ -231,6 +264,8 @@ void AddCommon(CLI::App* cmd, ClashArgs* a) {
   cmd->add_flag("--no-touch", a->no_touch, "Count touch pairs without printing them");
   cmd->add_flag("--summary", a->summary, "A last line with counts and statistics");
   cmd->add_flag("--progress", a->progress, "Progress on standard error");
+  cmd->add_flag("--names", a->names,
+                "Each pair's object names as name_a, name_b (null for collide's object)");
 }
 
 }  // namespace

@@ -1,12 +1,15 @@
-// mktree info STORE [--json]: what a store holds and how its tree is shaped. The JSON keys are
-// documented in docs/cli.md.
+// mktree info STORE [--json] [--object ID]: what a store holds and how its tree is shaped, or one object's
+// record. The JSON keys are documented in docs/cli.md.
 #include <sys/stat.h>
 
 #include <algorithm>
 #include <cstdio>
 
 #include "engine/store/store_file.h"
+#include "mktree/database.h"
+#include "tools/cli_numbers.h"
 #include "tools/command.h"
+#include "tools/json_text.h"
 #include "tools/progress.h"
 
 namespace mktree::tools {
@@ -16,25 +19,75 @@ namespace {
 struct InfoArgs {
   std::string store;
   bool json = false;
+  bool has_object = false;
+  uint64_t object = 0;
 };
 
-// A JSON string's contents: quotes and backslashes escaped, control characters as \u00XX.
-std::string JsonEscape(const std::string& s) {
+std::string Real(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.17g", v);
+  return buf;
+}
+
+// "[[x0, y0, z0], [x1, y1, z1]]", or null for an empty box.
+std::string JsonBox(const Box3d& b) {
+  if (b.empty()) return "null";
+  return "[[" + Real(b.min[0]) + ", " + Real(b.min[1]) + ", " + Real(b.min[2]) + "], [" + Real(b.max[0]) +
+         ", " + Real(b.max[1]) + ", " + Real(b.max[2]) + "]]";
+}
+std::string TextBox(const Box3d& b) {
+  if (b.empty()) return "empty";
+  char buf[256];
+  std::snprintf(buf, sizeof buf, "(%.10g, %.10g, %.10g) - (%.10g, %.10g, %.10g)", b.min[0], b.min[1],
+                b.min[2], b.max[0], b.max[1], b.max[2]);
+  return buf;
+}
+
+// One object's record (Database::Object): name, source, attributes, box in world coordinates.
+int RunObject(const InfoArgs& a) {
+  auto db = Database::Open(a.store, {.cache_pages = 16});
+  if (!db.ok()) return Fail(db.status().message());
+  if (a.object >= (*db)->object_count())
+    return Fail(a.store + ": --object " + std::to_string(a.object) + " out of range (" +
+                std::to_string((*db)->object_count()) + " objects)");
+  auto r = (*db)->Object(static_cast<ObjectId>(a.object));
+  if (!r.ok()) return Fail(r.status().message());
   std::string out;
-  for (char c : s) {
-    if (static_cast<unsigned char>(c) < 0x20) {
-      char buf[8];
-      std::snprintf(buf, sizeof buf, "\\u%04x", static_cast<unsigned>(c));
-      out += buf;
-      continue;
+  if (a.json) {
+    out = "{\"id\": " + std::to_string(r->id) + ", \"name\": \"" + JsonText(r->name) + "\", \"source\": \"" +
+          JsonText(r->source) + "\", \"box\": " + JsonBox(r->box) + ", \"attributes\": [";
+    for (size_t i = 0; i < r->attributes.size(); ++i) {
+      if (i) out += ", ";
+      out += "{\"key\": \"" + JsonText(r->attributes[i].key) + "\", \"value\": \"" +
+             JsonText(r->attributes[i].value) + "\"}";
     }
-    if (c == '"' || c == '\\') out += '\\';
-    out += c;
+    out += "]}\n";
+  } else {
+    out = "object       " + std::to_string(r->id) + "\nname         " + LineText(r->name) +
+          "\nsource       " + (r->source.empty() ? std::string("(none)") : LineText(r->source)) +
+          "\nbox          " + TextBox(r->box) + " (world)\nattributes   " +
+          std::to_string(r->attributes.size()) + "\n";
+    for (const ObjectAttribute& at : r->attributes)
+      out += "  " + LineText(at.key) + " = " + LineText(at.value) + "\n";
   }
-  return out;
+  if (std::fwrite(out.data(), 1, out.size(), stdout) != out.size() || std::fflush(stdout) != 0)
+    return Fail("cannot write to standard output");
+  return 0;
+}
+
+// The scene's bounds in world coordinates: the root's box (store frame) plus the origin.
+Box3d WorldBounds(const MKTree& t) {
+  Box3d b;
+  if (t.empty()) return b;
+  for (int i = 0; i < 3; ++i) {
+    b.min[i] = t.origin[i] + t.nodes[0].box.min[i];
+    b.max[i] = t.origin[i] + t.nodes[0].box.max[i];
+  }
+  return b;
 }
 
 int RunInfo(const InfoArgs& a) {
+  if (a.has_object) return RunObject(a);
   auto reader = StoreReader::Open(a.store);  // refuses statistics other than the builder's (printed below)
   if (!reader.ok()) return Fail(reader.status().message());
   const StoreReader& r = **reader;
@@ -65,15 +118,17 @@ int RunInfo(const InfoArgs& a) {
         "\"nodes\": %zu, \"internal_nodes\": %llu, \"leaves\": %zu, \"pages\": %llu, \"height\": %u, "
         "\"block_size\": %u, \"blocks_per_page\": %u, \"page_bytes\": %llu, \"balance_r\": %g, "
         "\"split_nodes\": %zu, \"split_cells\": %llu, \"split_both_cells\": %llu, \"page_fill\": %.4f, "
-        "\"ram_bytes\": %llu, \"leaf_filter_bytes\": %llu, \"origin\": [%.17g, %.17g, %.17g], \"tree\": "
-        "%s}\n",
-        JsonEscape(a.store).c_str(), static_cast<unsigned long long>(file_bytes), backend, codec,
+        "\"ram_bytes\": %llu, \"leaf_filter_bytes\": %llu, \"origin\": [%.17g, %.17g, %.17g], \"bounds\": "
+        "%s, "
+        "\"record_pages\": %llu, \"tree\": %s}\n",
+        JsonText(a.store).c_str(), static_cast<unsigned long long>(file_bytes), backend, codec,
         static_cast<unsigned long long>(r.object_count()), t.nodes.size(),
         static_cast<unsigned long long>(internal), t.leaves.size(), static_cast<unsigned long long>(pages),
         height, t.params.block_size, t.params.blocks_per_page, static_cast<unsigned long long>(mem_page),
         t.params.balance_r, t.split_nodes.size(), static_cast<unsigned long long>(split_cells),
         static_cast<unsigned long long>(both_cells), fill, static_cast<unsigned long long>(t.MemoryBytes()),
         static_cast<unsigned long long>(t.FilterMemoryBytes()), t.origin.x, t.origin.y, t.origin.z,
+        JsonBox(WorldBounds(t)).c_str(), static_cast<unsigned long long>(r.objects().record_directory.size()),
         r.stats_json().empty() ? "null" : r.stats_json().c_str());
     return 0;
   }
@@ -97,6 +152,10 @@ int RunInfo(const InfoArgs& a) {
   std::printf("balance r    %g\n", t.params.balance_r);
   std::printf("store frame  origin (%.17g, %.17g, %.17g); geometry is kept relative to it\n", t.origin.x,
               t.origin.y, t.origin.z);
+  std::printf("bounds       %s (world)\n", TextBox(WorldBounds(t)).c_str());
+  std::printf("records      %llu pages (names, sources, attributes; %zu sources)\n",
+              static_cast<unsigned long long>(r.objects().record_directory.size()),
+              r.objects().sources.size());
   if (!r.stats_json().empty()) std::printf("builder statistics: %s\n", r.stats_json().c_str());
   return 0;
 }
@@ -109,7 +168,12 @@ void RegisterInfo(CLI::App& app, CommandRun* run) {
       app.add_subcommand("info", "Describe a store: objects, nodes, leaves, pages, fill, overlap");
   cmd->add_option("store", args->store, "Store file")->required();
   cmd->add_flag("--json", args->json, "One JSON object (keys documented in docs/cli.md)");
-  cmd->callback([run, args] { *run = [args] { return RunInfo(*args); }; });
+  auto* object = AddNumberOption(cmd, "--object", &args->object,
+                                 "Print this object's record (name, source, attributes, box)");
+  cmd->callback([run, args, object] {
+    args->has_object = object->count() > 0;
+    *run = [args] { return RunInfo(*args); };
+  });
 }
 
 }  // namespace mktree::tools

@@ -1,6 +1,7 @@
 // mktree query STORE (--point | --box | --queries FILE) [--exact] [--cache-pages N] [--cold] [--threads N]
-// [--limit N | --any] [--count | --summary]: one JSON object per query per line, with the sorted hits and
-// every per-query statistic, written as each answer is complete (Database::RunBatchStreamed).
+// [--limit N | --any] [--count | --summary] [--names]: one JSON object per query per line, with the sorted
+// hits (and with --names their names, in the same order) and every per-query statistic, written as each
+// answer is complete (Database::RunBatchStreamed).
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -14,6 +15,7 @@
 #include "mktree/database.h"
 #include "tools/cli_numbers.h"
 #include "tools/command.h"
+#include "tools/json_text.h"
 #include "tools/query_file.h"
 
 namespace mktree::tools {
@@ -35,6 +37,7 @@ struct QueryArgs {
   bool has_limit = false;
   uint64_t limit = 0;
   uint64_t threads = 1;
+  bool names = false;
 };
 
 // Per query kind ("point", "box 2" for boxes of largest side 2): disk accesses and answers. Pages read
@@ -148,6 +151,16 @@ int RunQuery(const QueryArgs& a) {
   oo.direct_io = a.direct_io;
   auto db = Database::Open(a.store, oo);
   if (!db.ok()) return Fail(db.status().message());
+  // Names come from a second handle on the store with a small cache of its own, so that reading them
+  // leaves the queries' cache and statistics as they are without --names.
+  std::unique_ptr<Database> names_db;
+  if (a.names) {
+    OpenOptions no = oo;
+    no.cache_pages = 64;
+    auto n = Database::Open(a.store, no);
+    if (!n.ok()) return Fail(n.status().message());
+    names_db = std::move(*n);
+  }
   BatchOptions bo;
   bo.threads = static_cast<unsigned>(a.threads);
   bo.cold = a.cold;
@@ -185,6 +198,15 @@ int RunQuery(const QueryArgs& a) {
         line += std::to_string(r.hits[k]);
       }
       line += "], ";
+      if (names_db) {
+        line += "\"names\": [";
+        for (size_t k = 0; k < r.hits.size(); ++k) {
+          MKTREE_ASSIGN_OR_RETURN(const std::string name, names_db->ObjectName(r.hits[k]));
+          if (k) line += ", ";
+          line += "\"" + JsonText(name) + "\"";
+        }
+        line += "], ";
+      }
     }
     line += r.stats.ToJsonMembers();
     if (a.has_limit) line += std::string(", \"truncated\": ") + (r.truncated ? "true" : "false");
@@ -218,12 +240,16 @@ void RegisterQuery(CLI::App& app, CommandRun* run) {
   auto* any = cmd->add_flag("--any", args->any, "Print whether anything answers; stops at the first hit");
   auto* limit = AddNumberOption(cmd, "--limit", &args->limit, "At most N ids per answer (the first read)");
   AddNumberOption(cmd, "--threads", &args->threads, "Threads running the queries (answers stay in order)");
-  cmd->callback([run, args, p, b, f, count, any, limit] {
+  auto* names =
+      cmd->add_flag("--names", args->names, "Print each hit's name (\"names\", in the order of \"hits\")");
+  cmd->callback([run, args, p, b, f, count, any, limit, names] {
     if (p->count() + b->count() + f->count() == 0)
       throw CLI::RequiredError("one of --point, --box or --queries");
     if (any->count() && (limit->count() || count->count() || args->summary))
       throw CLI::ValidationError("--any", "excludes --limit, --count and --summary");
     if (count->count() && args->summary) throw CLI::ValidationError("--count", "excludes --summary");
+    if (names->count() && (any->count() || count->count() || args->summary))
+      throw CLI::ValidationError("--names", "needs the ids: excludes --any, --count and --summary");
     if (args->threads == 0 || args->threads > 1024)
       throw CLI::ValidationError("--threads", "must be from 1 to 1024");
     args->has_limit = limit->count() > 0;

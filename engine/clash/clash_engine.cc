@@ -192,7 +192,17 @@ Status RunSelfClash(const ClashStore& st, const ClashOptions& o, const ClashVisi
   const std::string& pages_name = reader.pages().name();
   s.store_pages = StorePages(tree);
   clash::WorkPool pool(ThreadCount(o.threads));
-  const clash::Exclusions ex(o, reader.object_count(), [&](uint64_t i) { return reader.objects().name(i); });
+  // Group names from the record pages, read in id order (each page once) straight from the store, so
+  // that the clash's own page counts stay its leaves'; a damaged record page fails the run.
+  Status names_status;
+  RecordReader names(reader.record_layout(), nullptr, st.verify_checksums);
+  const clash::Exclusions ex(o, reader.object_count(), [&](uint64_t i) -> std::string_view {
+    if (!names_status.ok()) return {};
+    auto r = names.Get(static_cast<uint32_t>(i), nullptr);
+    if (!r.ok()) names_status = r.status();
+    return r.ok() ? std::string_view((*r)->name) : std::string_view();
+  });
+  MKTREE_RETURN_IF_ERROR(names_status);
 
   // Broad phase: leaf pairs through the tree, the leaf filter, the plan.
   std::vector<clash::LeafPair> pairs = clash::TreeLeafPairs(tree, o.clearance);

@@ -6,15 +6,18 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <limits>
 #include <span>
+#include <unordered_map>
 
 #include "engine/core/guarded.h"
 #include "engine/ingest/object_encoder.h"
 #include "engine/ingest/spill_file.h"
 #include "engine/store/leaf_codec.h"
 #include "engine/store/object_codec.h"
+#include "engine/store/record_codec.h"
 #include "engine/tree/leaf_filter.h"
 #include "engine/tree/mktree_builder.h"
 
@@ -84,14 +87,15 @@ struct CoarseBoxes {
   }
 };
 
-// Removes "<dir>/.<stem>.{geometry,name}-spill.XXXXXX" (the names SpillFile::Create gives): spills that
-// were still named when their build was killed (see spill_file.h). REQUIRES: the store's writer lock.
+// Removes "<dir>/.<stem>.{geometry,record,name}-spill.XXXXXX" (the names SpillFile::Create gives; "name"
+// was the record spill's name before format 4): spills that were still named when their build was killed
+// (see spill_file.h). REQUIRES: the store's writer lock.
 void RemoveStaleSpills(const std::string& dir, const std::string& stem) {
   namespace fs = std::filesystem;
   std::error_code ec;
   for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
     const std::string name = it->path().filename().string();
-    for (const char* kind : {".geometry-spill.", ".name-spill."}) {
+    for (const char* kind : {".geometry-spill.", ".record-spill.", ".name-spill."}) {
       const std::string prefix = "." + stem + kind;
       if (name.size() == prefix.size() + 6 && name.compare(0, prefix.size(), prefix) == 0) {
         std::error_code rm;
@@ -144,14 +148,18 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
   if (options.spill_dir.empty()) RemoveStaleSpills(dir, stem);
   auto geometry_spill = SpillFile::Create(dir, "." + stem + ".geometry-spill");
   if (!geometry_spill.ok()) return geometry_spill.status();
-  auto name_spill = SpillFile::Create(dir, "." + stem + ".name-spill");
-  if (!name_spill.ok()) return name_spill.status();
+  auto record_spill = SpillFile::Create(dir, "." + stem + ".record-spill");
+  if (!record_spill.ok()) return record_spill.status();
   SpillFile& geometry = **geometry_spill;
-  SpillFile& names = **name_spill;
+  SpillFile& records_spill = **record_spill;
+  // The distinct input files, by the index the spilled records carry (a few: one per input file).
+  std::vector<std::string> sources;
+  std::unordered_map<std::string, uint32_t> source_index;
+  std::vector<uint8_t> record_bytes;
 
   // 1. Stream the objects: encoded on worker threads (object_encoder.h), spilled here in id order;
   //    only the record stays.
-  std::vector<ObjectRecord> records;
+  std::vector<BuildObject> records;
   ObjectId next_id = 0;
   size_t input = 0;
   std::unique_ptr<SceneSource> source;
@@ -180,16 +188,22 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
   CoarseBoxes coarse;
   auto spill = [&](const SceneObject& obj, const EncodedObject& encoded) -> Status {
     coarse.Check(obj, encoded.box);
-    ObjectRecord rec;
+    BuildObject rec;
     rec.id = obj.id;
     rec.box = encoded.box;
     rec.encoded_bytes = static_cast<uint32_t>(encoded.entry.size());
     // Entries go back to back in id order: their offsets are recomputed from the sizes (step 3).
     if (auto offset = geometry.Append(encoded.entry.data(), encoded.entry.size()); !offset.ok())
       return offset.status();
-    const uint32_t name_len = static_cast<uint32_t>(obj.name.size());
-    if (auto st = names.Append(&name_len, sizeof name_len); !st.ok()) return st.status();
-    if (auto st = names.Append(obj.name.data(), name_len); !st.ok()) return st.status();
+    // The object's record (box, source, name, attributes) as the store encodes it, spilled in id order.
+    auto [src, added] = source_index.try_emplace(obj.source, static_cast<uint32_t>(sources.size()));
+    if (added) sources.push_back(obj.source);
+    record_bytes.clear();
+    if (Status st = EncodeRecord(encoded.box, src->second, obj.name, obj.attributes, &record_bytes); !st.ok())
+      return Status::InvalidArgument("object " + std::to_string(obj.id) + " '" + obj.name.substr(0, 100) +
+                                     "': " + st.message());
+    if (auto st = records_spill.Append(record_bytes.data(), record_bytes.size()); !st.ok())
+      return st.status();
     records.push_back(rec);
     report.triangles += obj.mesh.triangle_count();
     report.raw_geometry_bytes += obj.mesh.RawGeometryBytes();
@@ -223,14 +237,14 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
                                         : options.input_name + ": " + store_path + " not built") +
                                    ": empty scene, no object with geometry in the input");
   MKTREE_RETURN_IF_ERROR(geometry.Flush());
-  MKTREE_RETURN_IF_ERROR(names.Flush());
+  MKTREE_RETURN_IF_ERROR(records_spill.Flush());
   report.read_seconds = Seconds(start);
 
   // The entry sizes outlive the records, which the builder consumes. Offsets are not kept through the
   // tree build (8 bytes per object at its memory peak): entries were spilled back to back in id order,
   // so they are the prefix sums of the sizes, recomputed below.
   std::vector<uint32_t> entry_bytes(records.size());
-  for (const ObjectRecord& r : records) entry_bytes[r.id] = r.encoded_bytes;
+  for (const BuildObject& r : records) entry_bytes[r.id] = r.encoded_bytes;
 
   // 2. The tree, from the records alone.
   const auto build_start = Clock::now();
@@ -316,16 +330,24 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
   spill_offset = {};
   entry_bytes = {};
 
-  // 4. The object table, in id order, names streamed from their spill (read in large blocks).
-  std::string name;
-  SpillCursor name_cursor(names);
+  // 4. The object table and record pages, in id order, records streamed from their spill (read in large
+  //    blocks), one at a time.
+  StoredRecord record;
+  SpillCursor record_cursor(records_spill);
   for (ObjectId id = 0; id < report.objects; ++id) {
     if (leaf_of[id] == kNoIndex) return Status::Internal("object " + std::to_string(id) + " is in no leaf");
     uint32_t len = 0;
-    MKTREE_RETURN_IF_ERROR(name_cursor.Read(sizeof len, &len));
-    name.resize(len);
-    MKTREE_RETURN_IF_ERROR(name_cursor.Read(len, name.data()));
-    MKTREE_RETURN_IF_ERROR(writer.AppendObject(id, leaf_of[id], name));
+    MKTREE_RETURN_IF_ERROR(record_cursor.Read(sizeof len, &len));
+    record_bytes.resize(4 + uint64_t{len});
+    std::memcpy(record_bytes.data(), &len, 4);
+    MKTREE_RETURN_IF_ERROR(record_cursor.Read(len, record_bytes.data() + 4));
+    uint64_t used = 0;
+    if (Status st = ParseRecord(record_bytes.data(), record_bytes.size(), &used, &record);
+        !st.ok() || record.source >= sources.size())
+      return Status::Internal(records_spill.path() + ": object " + std::to_string(id) +
+                              ": spilled record unreadable");
+    MKTREE_RETURN_IF_ERROR(writer.AppendObject(id, leaf_of[id], record.box, record.name,
+                                               sources[record.source], record.attributes));
     if (id % kProgressEvery == 0) progress(IngestStage::kWriteTable, id, report.objects);
   }
   progress(IngestStage::kWriteTable, report.objects, report.objects);

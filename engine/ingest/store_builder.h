@@ -2,10 +2,11 @@
 //
 // Each object's edge check (closed? even edge use?) is computed here once and stored in its entry, so
 // that exact queries do not repeat it.
-// Only per-object records (ObjectRecord: id, AABB, entry size; 32 bytes) and the tree stay
+// Only per-object records (BuildObject: id, AABB, entry size; 32 bytes) and the tree stay
 // in RAM. Each object is encoded once, alone (so leaf sizes are exact), and appended to a spill file;
-// names go to a second spill file. Once the tree is known, leaf pages are assembled from the spill in
-// leaf order, the object table is streamed from the name spill, and the store is committed atomically
+// records (box, source, name, attributes) go to a second spill file. Once the tree is known, leaf pages are
+// assembled from the spill in leaf order, the object table and record pages are streamed from the record
+// spill, and the store is committed atomically
 // (temporary name, fsync, rename). On any error the temporary store and the spill files are removed.
 // The store's writer (and with it the writer lock, docs/cli.md) is taken before anything else: a second
 // build of the same store fails at once, and the leftovers of killed builds are removed before this one

@@ -17,6 +17,7 @@
 #include "engine/query/store_database.h"
 #include "engine/store/leaf_reader.h"
 #include "engine/store/object_codec.h"
+#include "engine/store/record_codec.h"
 #include "engine/store/store_file.h"
 #include "storage/page_cache.h"
 
@@ -131,7 +132,56 @@ class StoreDatabase final : public Database {
   const std::string& path() const override { return reader_->path(); }
   uint64_t object_count() const override { return reader_->object_count(); }
   Result<std::string> ObjectName(ObjectId id) const override {
-    return Guarded(path(), [&] { return reader_->ObjectName(id); });
+    return Guarded(path(), [&]() -> Result<std::string> {
+      MKTREE_ASSIGN_OR_RETURN(StoredRecord r,
+                              reader_->ReadRecord(id, &cache_, options_.verify_checksums, nullptr));
+      return std::move(r.name);
+    });
+  }
+  Result<ObjectRecord> Object(ObjectId id, QueryStats* stats) const override {
+    return Guarded(path(), [&]() -> Result<ObjectRecord> {
+      QueryStats local;
+      QueryStats& s = stats ? *stats : local;
+      s = QueryStats();
+      MKTREE_ASSIGN_OR_RETURN(StoredRecord r,
+                              reader_->ReadRecord(id, &cache_, options_.verify_checksums, &s));
+      ObjectRecord out;
+      out.id = id;
+      MKTREE_ASSIGN_OR_RETURN(out.source, reader_->SourceName(r));
+      out.name = std::move(r.name);
+      out.attributes = std::move(r.attributes);
+      if (!r.box.empty()) {
+        const Vec3d& o = reader_->tree().origin;
+        for (int i = 0; i < 3; ++i) {
+          out.box.min[i] = o[i] + r.box.min[i];
+          out.box.max[i] = o[i] + r.box.max[i];
+        }
+      }
+      return out;
+    });
+  }
+  Result<Mesh> ObjectGeometry(ObjectId id, QueryStats* stats) const override {
+    return Guarded(path(), [&]() -> Result<Mesh> {
+      QueryStats local;
+      QueryStats& s = stats ? *stats : local;
+      s = QueryStats();
+      MKTREE_ASSIGN_OR_RETURN(const uint32_t leaf, reader_->ObjectLeaf(id));
+      const MKTree& tree = reader_->tree();
+      MKTREE_ASSIGN_OR_RETURN(
+          PinnedLeaf pinned,
+          ReadLeaf(cache_, reader_->pages().name(), leaf, tree.leaves[leaf], reader_->objects().leaf,
+                   tree.params.mem_page(), options_.verify_checksums, &s));
+      for (const ObjectEntryView& e : pinned.view.entries()) {
+        if (e.id != id) continue;
+        Mesh mesh;
+        MKTREE_RETURN_IF_ERROR(DecodeStoredMesh(reader_->pages().name(), e, &mesh));
+        const Vec3d& o = tree.origin;
+        for (size_t v = 0; v < mesh.vertices.size(); ++v) mesh.vertices[v] += o[v % 3];
+        return mesh;
+      }
+      // CheckLeafEntries proved the leaf holds exactly the objects the table puts in it.
+      return Status::Internal(path() + ": object " + std::to_string(id) + " missing from its leaf");
+    });
   }
   Box3d bounds() const override {
     const MKTree& t = reader_->tree();

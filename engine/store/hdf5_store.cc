@@ -3,7 +3,8 @@
 // (storage/hdf5_page_store.h: /pages).
 //   /tree/nodes, /tree/split_nodes, /tree/leaves   compound datasets of the record schemas (tree_codec.h)
 //   /tree/leaf_filter    uint8, 8 per object
-//   /objects/leaf, /objects/name_end, /objects/names   the object table's canonical encoding (tree_codec.h)
+//   /pages               the leaf pages, then the object record pages (record_codec.h)
+//   /objects/leaf, /objects/record_directory, /objects/sources   the object table's canonical encoding
 //   /stats_json          scalar fixed-length string
 //   attributes on /      magic "MKTREE-HDF5" (written last), format_version, build parameters, codec, counts,
 //                        and XXH3-64 checksums of the canonical encodings (tree_codec.h) of each part
@@ -16,6 +17,7 @@
 #include <cstring>
 #include <memory>
 
+#include "engine/store/record_codec.h"
 #include "engine/store/store_backend.h"
 #include "engine/tree/page_budget.h"
 #include "storage/byte_io.h"
@@ -41,12 +43,10 @@ namespace {
 constexpr const char* kHdf5Magic = "MKTREE-HDF5";
 // 2: the leaf filter holds 10-bit levels in 8 bytes an object; 3: the store frame (the origin attribute,
 // boxes relative to it, vertices in each object's local frame), and the object table as its canonical
-// encoding (leaf, name_end, names) instead of fixed-length names padded to the longest one.
-constexpr uint32_t kHdf5FormatVersion = 3;
+// encoding (leaf, name_end, names) instead of fixed-length names padded to the longest one; 4: object
+// records in pages after the leaf pages (record_directory and sources instead of name_end and names).
+constexpr uint32_t kHdf5FormatVersion = 4;
 constexpr hsize_t kObjectChunkRows = 65536;
-// Object names deflated more than this are stored unfiltered: at open, their length is bounded by this
-// many times the bytes they take in the file.
-constexpr uint64_t kMaxNamesInflation = 16;
 
 constexpr int kChecksumCount = 7;
 constexpr const char* kChecksumNames[kChecksumCount] = {
@@ -92,20 +92,13 @@ Status ReadOrigin(hid_t loc, Vec3d* origin, const std::string& path) {
   }
   return Status::Ok();
 }
-// XXH3 of the object leaves, name ends and names concatenated, streamed part by part (the same value,
-// without a copy of the whole table).
+// XXH3 of the object leaves, record directory and sources table concatenated, streamed part by part.
 uint64_t ObjectsChecksum(const ObjectTable& t) {
   std::unique_ptr<XXH3_state_t, decltype(&XXH3_freeState)> state(XXH3_createState(), XXH3_freeState);
   XXH3_64bits_reset(state.get());
-  {
-    const std::vector<uint8_t> b = EncodeObjectLeaves(t);
+  for (const std::vector<uint8_t>& b :
+       {EncodeObjectLeaves(t), EncodeRecordDirectory(t.record_directory), EncodeSources(t.sources)})
     XXH3_64bits_update(state.get(), b.data(), b.size());
-  }
-  {
-    const std::vector<uint8_t> b = EncodeObjectNameEnds(t);
-    XXH3_64bits_update(state.get(), b.data(), b.size());
-  }
-  XXH3_64bits_update(state.get(), t.names.data(), t.names.size());
   return XXH3_64bits_digest(state.get());
 }
 
@@ -192,51 +185,39 @@ class Hdf5Writer : public StoreWriter::Impl {
     return store_->IoStatus();
   }
 
-  // /objects: the object table's canonical encoding (tree_codec.h), so that any name bytes round-trip and
-  // the size follows the names' total length: leaf (uint32 per object), name_end (uint64 per object) and
-  // names (all names concatenated, uint8), chunked with deflate (and shuffle for the integers). Names that
-  // deflate more than kMaxNamesInflation times are stored unfiltered instead, so that at open the names'
-  // length is bounded by the bytes the file spends on them (see ReadObjects).
+  // /objects: the object table's canonical encoding (tree_codec.h): leaf (uint32 per object, chunked
+  // with shuffle + deflate), record_directory (uint32 per record page, likewise) and sources (the sources
+  // table's bytes, uint8, unfiltered so that its length is bounded by the file's at open).
   Status WriteObjects(hid_t f, const ObjectTable& t) {
     H5Id g(H5Gcreate2(f, "objects", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose);
     if (!g.ok()) return Status::IOError(path_ + ": creating /objects: " + ErrorText());
-    auto write = [&](const char* name, const RecordsView& records, bool shuffle) -> Result<H5Id> {
-      if (records.count == 0 || H5Zfilter_avail(H5Z_FILTER_DEFLATE) <= 0) {
-        MKTREE_RETURN_IF_ERROR(hdf5::WriteTable(g.get(), name, records, path_).status());
-        return H5Id();
-      }
-      const hdf5::TableLayout layout{.chunk_rows = kObjectChunkRows, .deflate = 4, .shuffle = shuffle};
-      return hdf5::WriteTable(g.get(), name, records, path_, layout, std::string("/objects/") + name);
+    auto write = [&](const char* name, const RecordsView& records) -> Status {
+      if (records.count == 0 || H5Zfilter_avail(H5Z_FILTER_DEFLATE) <= 0)
+        return hdf5::WriteTable(g.get(), name, records, path_).status();
+      const hdf5::TableLayout layout{.chunk_rows = kObjectChunkRows, .deflate = 4, .shuffle = true};
+      return hdf5::WriteTable(g.get(), name, records, path_, layout, std::string("/objects/") + name)
+          .status();
     };
-    MKTREE_RETURN_IF_ERROR(write("leaf", Records<kObjectLeafColumn>(t.leaf), true).status());
-    MKTREE_RETURN_IF_ERROR(write("name_end", Records<kObjectNameEndColumn>(t.name_end), true).status());
-    auto names = write("names", Records<kByteColumn>(t.names), false);
-    if (!names.ok()) return names.status();
-    // (Flushed first: chunks still in HDF5's chunk cache take no storage yet.)
-    if (names->ok() && H5Dflush(names->get()) < 0)
-      return Status::IOError(path_ + ": writing /objects/names: " + ErrorText());
-    if (names->ok() && t.names.size() > kMaxNamesInflation * H5Dget_storage_size(names->get())) {
-      names->reset();
-      if (H5Ldelete(g.get(), "names", H5P_DEFAULT) < 0)
-        return Status::IOError(path_ + ": rewriting /objects/names: " + ErrorText());
-      return hdf5::WriteTable(g.get(), "names", Records<kByteColumn>(t.names), path_).status();
-    }
-    return Status::Ok();
+    MKTREE_RETURN_IF_ERROR(write("leaf", Records<kObjectLeafColumn>(t.leaf)));
+    MKTREE_RETURN_IF_ERROR(write("record_directory", Records<kRecordDirectoryColumn>(t.record_directory)));
+    const std::vector<uint8_t> sources = EncodeSources(t.sources);
+    return hdf5::WriteTable(g.get(), "sources", Records<kByteColumn>(sources), path_).status();
   }
 
   std::string path_;
   std::unique_ptr<Hdf5PageStore> store_;
 };
 
-// Reads /objects of a store of `expected` objects. Every length is checked before its allocation: leaf and
-// name_end must have `expected` elements (bounded by the pages' size at open), names exactly the last name
-// end, which must fit in the file (`file_bytes`).
-Status ReadObjects(hid_t f, uint64_t expected, uint64_t file_bytes, ObjectTable* t, const std::string& path) {
+// Reads /objects of a store of `expected` objects and `pages` pages. Every length is checked before its
+// allocation: leaf must have `expected` elements (bounded by the pages' size at open), record_directory
+// at most `pages`, sources (unfiltered) at most the file's size.
+Status ReadObjects(hid_t f, uint64_t expected, uint64_t pages, uint64_t file_bytes, ObjectTable* t,
+                   const std::string& path) {
   auto bad = [&](const std::string& m) { return Status::Corruption(path + ": " + m); };
   if (H5Lexists(f, "objects", H5P_DEFAULT) <= 0) return bad("missing group objects");
   H5Id g(H5Gopen2(f, "objects", H5P_DEFAULT), H5Gclose);
   if (!g.ok()) return bad("objects: " + ErrorText());
-  auto open = [&](const char* name, uint64_t max_bytes, uint64_t want, H5Id* d) -> Status {
+  auto open = [&](const char* name, uint64_t max_bytes, H5Id* d) -> Result<uint64_t> {
     if (H5Lexists(g.get(), name, H5P_DEFAULT) <= 0)
       return bad(std::string("missing dataset objects/") + name);
     *d = H5Id(H5Dopen2(g.get(), name, H5P_DEFAULT), H5Dclose);
@@ -244,40 +225,31 @@ Status ReadObjects(hid_t f, uint64_t expected, uint64_t file_bytes, ObjectTable*
     const std::string full = std::string("objects/") + name;
     auto n = hdf5::TableLength(d->get(), full.c_str(), max_bytes, path);
     if (!n.ok()) return n.status();
-    if (*n != want)
-      return bad(full + " has " + std::to_string(*n) + " elements, expected " + std::to_string(want));
-    return Status::Ok();
+    return static_cast<uint64_t>(*n);
   };
-  H5Id leaf, name_end, names;
-  // leaf and name_end may be compressed: their lengths are bounded by `expected`, not by the file.
-  MKTREE_RETURN_IF_ERROR(open("leaf", UINT64_MAX, expected, &leaf));
-  MKTREE_RETURN_IF_ERROR(open("name_end", UINT64_MAX, expected, &name_end));
+  H5Id leaf, directory, sources;
+  // leaf and record_directory may be compressed: their lengths are bounded by the counts, not the file.
+  MKTREE_ASSIGN_OR_RETURN(const uint64_t n_leaf, open("leaf", UINT64_MAX, &leaf));
+  if (n_leaf != expected)
+    return bad("objects/leaf has " + std::to_string(n_leaf) + " elements, expected " +
+               std::to_string(expected));
+  MKTREE_ASSIGN_OR_RETURN(const uint64_t n_dir, open("record_directory", UINT64_MAX, &directory));
+  if (n_dir > pages)
+    return bad("objects/record_directory has " + std::to_string(n_dir) + " elements for " +
+               std::to_string(pages) + " pages");
+  MKTREE_ASSIGN_OR_RETURN(const uint64_t n_sources, open("sources", file_bytes, &sources));
   t->leaf.resize(expected);
-  t->name_end.resize(expected);
-  if (expected > 0) {
+  t->record_directory.resize(n_dir);
+  if (expected > 0)
     MKTREE_RETURN_IF_ERROR(hdf5::ReadRows<kObjectLeafColumn>(leaf.get(), &t->leaf, path, "objects"));
-    MKTREE_RETURN_IF_ERROR(
-        hdf5::ReadRows<kObjectNameEndColumn>(name_end.get(), &t->name_end, path, "objects"));
-  }
-  uint64_t prev = 0;
-  for (uint64_t i = 0; i < expected; ++i) {
-    if (t->name_end[i] < prev) return bad("objects/name_end decreases at object " + std::to_string(i));
-    prev = t->name_end[i];
-  }
-  // The names' length: at most the file's size if they are stored unfiltered, else kMaxNamesInflation
-  // times the bytes their chunks take in the file.
-  uint64_t names_bound = file_bytes;
-  if (H5Lexists(g.get(), "names", H5P_DEFAULT) > 0) {
-    H5Id d(H5Dopen2(g.get(), "names", H5P_DEFAULT), H5Dclose);
-    H5Id dcpl(d.ok() ? H5Dget_create_plist(d.get()) : -1, H5Pclose);
-    const int filters = dcpl.ok() ? H5Pget_nfilters(dcpl.get()) : -1;
-    if (filters < 0) return bad("objects/names: " + ErrorText());
-    if (filters > 0)
-      names_bound = kMaxNamesInflation * std::min<uint64_t>(H5Dget_storage_size(d.get()), file_bytes);
-  }
-  MKTREE_RETURN_IF_ERROR(open("names", names_bound, prev, &names));
-  t->names.resize(prev);
-  return prev > 0 ? hdf5::ReadRows<kByteColumn>(names.get(), &t->names, path, "objects/names") : Status::Ok();
+  if (n_dir > 0)
+    MKTREE_RETURN_IF_ERROR(hdf5::ReadRows<kRecordDirectoryColumn>(directory.get(), &t->record_directory, path,
+                                                                  "objects/record_directory"));
+  std::vector<uint8_t> bytes(n_sources);
+  if (n_sources > 0)
+    MKTREE_RETURN_IF_ERROR(hdf5::ReadRows<kByteColumn>(sources.get(), &bytes, path, "objects/sources"));
+  Status st = DecodeSources(bytes, &t->sources);
+  return st.ok() ? st : bad("objects/sources: " + st.message());
 }
 
 }  // namespace
@@ -368,7 +340,7 @@ Result<OpenedStore> OpenHdf5(const std::string& path, const ReadOptions& opts) {
   if (Checksum(EncodeSplitNodes(c.tree.split_nodes)) != sums[2]) return bad("split_nodes checksum mismatch");
   if (Checksum(EncodeLeaves(c.tree.leaves)) != sums[3]) return bad("leaves checksum mismatch");
 
-  MKTREE_RETURN_IF_ERROR(ReadObjects(f, object_count, file_bytes, &c.objects, path));
+  MKTREE_RETURN_IF_ERROR(ReadObjects(f, object_count, page_count, file_bytes, &c.objects, path));
   if (ObjectsChecksum(c.objects) != sums[4]) return bad("objects checksum mismatch");
   {
     if (H5Lexists(f, "stats_json", H5P_DEFAULT) <= 0) return bad("missing dataset stats_json");

@@ -1,5 +1,5 @@
 // One object's leaf entry: a fixed 48-byte entry header, then its geometry (raw or zstd-compressed).
-// Every object is encoded alone at ingest, so its entry size (ObjectRecord::encoded_bytes) is exact and a
+// Every object is encoded alone at ingest, so its entry size (BuildObject::encoded_bytes) is exact and a
 // leaf's size is the sum of its entries (engine/tree/page_budget.h).
 //
 // Coordinates. A store has a frame: store coordinates = world coordinates - the store's origin (a double
@@ -68,7 +68,7 @@ enum ShapeFlags : uint8_t {
 };
 
 // Appends the entry for `obj` (world coordinates) in the frame of a store whose origin is `origin` to
-// *out; returns the entry size (ObjectRecord::encoded_bytes) and sets *box to the entry's AABB (store
+// *out; returns the entry size (BuildObject::encoded_bytes) and sets *box to the entry's AABB (store
 // frame). InvalidArgument, naming the object, for an empty mesh, a non-finite coordinate, a coordinate
 // beyond float32's range in the store frame, or geometry over 4 GiB; nothing is appended then.
 Result<uint32_t> EncodeObjectEntry(const SceneObject& obj, const Vec3d& origin, const CodecOptions& opts,

@@ -1,8 +1,8 @@
 // The paged-file backend's store layout (docs/store_format.md), on a paged file (storage/paged_file_store.h):
 //   [0, P)                       header page (P = MemPage bytes; fixed fields in the first 512 bytes)
-//   [P * (1 + i), P * (2 + i))   leaf page i
-//   then the sections, back to back: nodes, split nodes, leaves, object leaves, object name ends,
-//   object names, stats JSON, leaf filter.
+//   [P * (1 + i), P * (2 + i))   page i: the leaf pages, then the object record pages
+//   then the sections, back to back: nodes, split nodes, leaves, object leaves, record directory,
+//   sources, stats JSON, leaf filter.
 // The header is written last, at Commit, so an unfinished file has a zero header and is refused.
 #include <fcntl.h>
 #include <unistd.h>
@@ -12,6 +12,7 @@
 #include <cstring>
 #include <memory>
 
+#include "engine/store/record_codec.h"
 #include "engine/store/store_backend.h"
 #include "storage/byte_io.h"
 #include "storage/file_util.h"
@@ -28,8 +29,9 @@ using storage_internal::PwriteFull;
 namespace {
 
 // 2: the leaf filter holds 10-bit levels in 8 bytes an object; 3: the store frame (an origin in the header,
-// boxes relative to it, vertices in each object's local frame).
-constexpr uint32_t kPagedFileVersion = 3;
+// boxes relative to it, vertices in each object's local frame); 4: object records in pages after the leaf
+// pages (record directory and sources sections instead of name ends and names).
+constexpr uint32_t kPagedFileVersion = 4;
 constexpr uint32_t kFixedHeaderBytes = 512;  // the smallest page the builder accepts
 constexpr uint32_t kParamsOffset = 16;
 constexpr uint32_t kSectionCount = 8;
@@ -40,7 +42,7 @@ static_assert(kOriginOffset + 24 <= kFixedHeaderBytes);
 static_assert(kParamsOffset + kParamsRecordBytes <= 48);
 
 const char* const kSectionNames[kSectionCount] = {"nodes",         "split nodes",      "leaves",
-                                                  "object leaves", "object name ends", "object names",
+                                                  "object leaves", "record directory", "sources",
                                                   "stats JSON",    "leaf filter"};
 
 uint64_t HeaderChecksum(const uint8_t* header_page, uint64_t mem_page) {
@@ -72,9 +74,9 @@ class PagedFileWriter : public StoreWriter::Impl {
         case 3:
           return EncodeObjectLeaves(c.objects);
         case 4:
-          return EncodeObjectNameEnds(c.objects);
+          return EncodeRecordDirectory(c.objects.record_directory);
         case 5:
-          return std::vector<uint8_t>(c.objects.names.begin(), c.objects.names.end());
+          return EncodeSources(c.objects.sources);
         case 6:
           return std::vector<uint8_t>(c.stats_json.begin(), c.stats_json.end());
         default:
@@ -176,25 +178,50 @@ Result<OpenedStore> OpenPagedFile(const std::string& path, const ReadOptions& op
                std::to_string(file_bytes) + (size < file_bytes ? " (truncated)" : " (trailing bytes)"));
   if (page_count > file_bytes / mem_page) return bad("page count larger than the file");
 
-  std::vector<std::vector<uint8_t>> sections;
-  auto end = ReadSections(fd, h + kSectionTableOffset, kSectionNames, (1 + page_count) * mem_page, file_bytes,
-                          path, &sections);
-  if (!end.ok()) return end.status();
-  if (*end != file_bytes) return bad("sections do not end at the end of the file");
-
   StoreContents& c = out.contents;
   c.tree.params = c.params;
   for (int i = 0; i < 3; ++i) {
     c.tree.origin[i] = Get<double>(h + kOriginOffset + 8 * i);
     if (!std::isfinite(c.tree.origin[i])) return bad("header: origin is not finite");
   }
-  if (!(st = DecodeNodes(sections[0], &c.tree.nodes)).ok() ||
-      !(st = DecodeSplitNodes(sections[1], &c.tree.split_nodes)).ok() ||
-      !(st = DecodeLeaves(sections[2], &c.tree.leaves)).ok() ||
-      !(st = DecodeObjectTable(sections[3], sections[4], sections[5], &c.objects)).ok())
-    return bad(st.message());
-  c.stats_json.assign(sections[6].begin(), sections[6].end());
-  c.tree.leaf_filter = std::move(sections[7]);
+  // Each section is decoded as soon as it is read and then freed: open's peak is the structure plus one
+  // section, not plus all of them. (The object table's three sections are decoded together.)
+  std::vector<uint8_t> object_leaves, directory;
+  auto take = [&](size_t i, std::vector<uint8_t>&& s) -> Status {
+    Status d;
+    switch (i) {
+      case 0:
+        d = DecodeNodes(s, &c.tree.nodes);
+        break;
+      case 1:
+        d = DecodeSplitNodes(s, &c.tree.split_nodes);
+        break;
+      case 2:
+        d = DecodeLeaves(s, &c.tree.leaves);
+        break;
+      case 3:
+        object_leaves = std::move(s);
+        break;
+      case 4:
+        directory = std::move(s);
+        break;
+      case 5:
+        d = DecodeObjectTable(object_leaves, directory, s, &c.objects);
+        object_leaves = {};
+        directory = {};
+        break;
+      case 6:
+        c.stats_json.assign(s.begin(), s.end());
+        break;
+      default:
+        c.tree.leaf_filter = std::move(s);
+    }
+    return d.ok() ? d : bad(d.message());
+  };
+  auto end = ReadSections(fd, h + kSectionTableOffset, kSectionNames, (1 + page_count) * mem_page, file_bytes,
+                          path, take);
+  if (!end.ok()) return end.status();
+  if (*end != file_bytes) return bad("sections do not end at the end of the file");
   if (c.objects.size() != object_count) return bad("object table size does not match the header");
   MKTREE_RETURN_IF_ERROR(ValidateStructure(c.tree, c.objects, page_count, path));
 

@@ -157,13 +157,30 @@ Result<std::unique_ptr<StoreWriter>> StoreWriter::Create(const std::string& fina
 
 PageStore& StoreWriter::pages() { return backend_->pages(); }
 
-Status StoreWriter::AppendObject(ObjectId id, uint32_t leaf, std::string_view name) {
+Status StoreWriter::AppendObject(ObjectId id, uint32_t leaf, const Box3f& box, std::string_view name,
+                                 std::string_view source, std::span<const ObjectAttribute> attributes) {
   if (done_) return Status::InvalidArgument(final_path_ + ": writer already committed");
   if (id != objects_.size())
     return Status::InvalidArgument(final_path_ + ": object " + std::to_string(id) +
                                    " appended out of order (expected " + std::to_string(objects_.size()) +
                                    ")");
-  objects_.Append(leaf, name);
+  PageStore& pages = backend_->pages();
+  if (!records_) {
+    // The record pages follow the leaf pages, which are all written by now.
+    leaf_pages_ = pages.page_count();
+    records_ = std::make_unique<RecordPager>(pages.page_bytes(), [this, &pages](const uint8_t* page) {
+      return pages.WritePage(pages.page_count(), page);
+    });
+  }
+  auto [it, added] =
+      source_index_.try_emplace(std::string(source), static_cast<uint32_t>(objects_.sources.size()));
+  if (added) objects_.sources.emplace_back(source);
+  record_.clear();
+  Status st = EncodeRecord(box, it->second, name, attributes, &record_);
+  if (!st.ok())
+    return Status::InvalidArgument(final_path_ + ": object " + std::to_string(id) + ": " + st.message());
+  MKTREE_RETURN_IF_ERROR(records_->Add(id, record_));
+  objects_.leaf.push_back(leaf);
   return Status::Ok();
 }
 
@@ -179,6 +196,12 @@ Status StoreWriter::Commit(MKTree tree, const std::string& stats_json) {
     return fail(Status::InvalidArgument(
         final_path_ + ": the tree's page size " + std::to_string(tree.params.mem_page()) +
         " differs from the store's " + std::to_string(backend_->pages().page_bytes())));
+  if (records_) {
+    if (Status st = records_->Finish(); !st.ok()) return fail(st);
+    objects_.record_directory = records_->TakeDirectory();
+    if (backend_->pages().page_count() != leaf_pages_ + objects_.record_directory.size())
+      return fail(Status::InvalidArgument(final_path_ + ": leaf pages written after the first object"));
+  }
   StoreContents c;
   c.params = tree.params;
   c.codec = opts_.codec;
@@ -247,17 +270,42 @@ Result<std::unique_ptr<StoreReader>> StoreReader::Open(const std::string& path, 
 
 StoreReader::~StoreReader() = default;
 
+RecordLayout StoreReader::record_layout() const {
+  RecordLayout l;
+  l.store = pages_.get();
+  l.store_name = pages_->name();
+  l.first_page = leaf_page_count();
+  l.directory = objects_.record_directory;
+  l.object_count = objects_.size();
+  l.mem_page = options_.params.mem_page();
+  return l;
+}
+
+Result<StoredRecord> StoreReader::ReadRecord(ObjectId id, PageCache* cache, bool verify_checksums,
+                                             QueryStats* stats) const {
+  RecordReader reader(record_layout(), cache, verify_checksums);
+  auto r = reader.Get(id, stats);
+  if (!r.ok()) return r.status();
+  return **r;
+}
+
 Result<std::string> StoreReader::ObjectName(ObjectId id) const {
-  if (id >= objects_.size())
-    return Status::NotFound(path_ + ": object " + std::to_string(id) + " out of range (" +
-                            std::to_string(objects_.size()) + " objects)");
-  return std::string(objects_.name(id));
+  auto r = ReadRecord(id, nullptr, true, nullptr);
+  if (!r.ok()) return r.status();
+  return std::move(r->name);
+}
+
+Result<std::string> StoreReader::SourceName(const StoredRecord& record) const {
+  if (record.source >= objects_.sources.size())
+    return Status::Corruption(path_ + ": an object record names source " + std::to_string(record.source) +
+                              " of " + std::to_string(objects_.sources.size()));
+  return objects_.sources[record.source];
 }
 
 Result<uint32_t> StoreReader::ObjectLeaf(ObjectId id) const {
   if (id >= objects_.size())
-    return Status::NotFound(path_ + ": object " + std::to_string(id) + " out of range (" +
-                            std::to_string(objects_.size()) + " objects)");
+    return Status::InvalidArgument(path_ + ": object " + std::to_string(id) + " out of range (" +
+                                   std::to_string(objects_.size()) + " objects)");
   return objects_.leaf[id];
 }
 

@@ -21,10 +21,14 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <span>
 #include <string>
 #include <string_view>
+#include <unordered_map>
+#include <vector>
 
 #include "engine/store/object_codec.h"
+#include "engine/store/record_codec.h"
 #include "engine/store/tree_codec.h"
 #include "engine/tree/mktree.h"
 #include "mktree/scene.h"
@@ -61,8 +65,16 @@ class StoreWriter {
 
   // Where leaf pages go: write pages 0, 1, 2, ... in increasing order (rewriting a page is allowed).
   PageStore& pages();
-  // The object table, appended in id order 0..N-1. REQUIRES: id == number of objects appended so far.
-  Status AppendObject(ObjectId id, uint32_t leaf, std::string_view name);
+  // The objects, appended in id order 0..N-1, after every leaf page is written: each object's leaf goes
+  // to the object table, its record (box in the store frame, name, source file, attributes) to the record
+  // pages, which follow the leaf pages and are written as they fill (no name is held in RAM).
+  // REQUIRES: id == number of objects appended so far.
+  Status AppendObject(ObjectId id, uint32_t leaf, const Box3f& box, std::string_view name,
+                      std::string_view source, std::span<const ObjectAttribute> attributes);
+  // A record of a name only (empty box, no source, no attribute).
+  Status AppendObject(ObjectId id, uint32_t leaf, std::string_view name) {
+    return AppendObject(id, leaf, Box3f(), name, {}, {});
+  }
   uint64_t object_count() const { return objects_.size(); }
 
   // Validates tree against the pages and objects written (ValidateStructure, tree.params page size ==
@@ -88,7 +100,11 @@ class StoreWriter {
   StoreOptions opts_;
   std::unique_ptr<Impl> backend_;
   std::unique_ptr<Lock> lock_;
-  ObjectTable objects_;
+  ObjectTable objects_;  // leaves and sources; the directory comes from records_ at Commit
+  std::unordered_map<std::string, uint32_t> source_index_;
+  std::unique_ptr<RecordPager> records_;  // made at the first AppendObject, after the leaf pages
+  uint64_t leaf_pages_ = 0;
+  std::vector<uint8_t> record_;
   bool done_ = false;
 };
 
@@ -113,8 +129,19 @@ class StoreReader {
   const StoreOptions& options() const { return options_; }
   const std::string& stats_json() const { return stats_json_; }
   uint64_t object_count() const { return objects_.size(); }
+  // One object's record, read from its record pages through `cache` (a counted lookup per page, added to
+  // *stats) or, with a null cache, straight from the store. InvalidArgument for an id past the end;
+  // Corruption naming the store and the page for a damaged record page.
+  Result<StoredRecord> ReadRecord(ObjectId id, PageCache* cache, bool verify_checksums,
+                                  QueryStats* stats) const;
+  // The record's name (ReadRecord without a cache).
   Result<std::string> ObjectName(ObjectId id) const;
   Result<uint32_t> ObjectLeaf(ObjectId id) const;
+  // Where the record pages are, for a RecordReader (valid as long as this reader).
+  RecordLayout record_layout() const;
+  // The input file of a record, or Corruption if its index is not in the sources table.
+  Result<std::string> SourceName(const StoredRecord& record) const;
+  uint64_t leaf_page_count() const { return pages_->page_count() - objects_.record_directory.size(); }
   const ObjectTable& objects() const { return objects_; }
   const std::string& path() const { return path_; }
   // Non-fatal remarks from Open (e.g. "O_DIRECT refused by the filesystem; using buffered reads").

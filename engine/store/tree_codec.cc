@@ -4,6 +4,7 @@
 
 #include <cmath>
 
+#include "engine/store/record_codec.h"
 #include "engine/tree/leaf_filter.h"
 #include "engine/tree/page_budget.h"
 
@@ -66,24 +67,11 @@ Status DecodeLeaves(std::span<const uint8_t> in, std::vector<LeafInfo>* leaves) 
 std::vector<uint8_t> EncodeObjectLeaves(const ObjectTable& t) {
   return EncodeRecords<kObjectLeafColumn>(std::span(t.leaf));
 }
-std::vector<uint8_t> EncodeObjectNameEnds(const ObjectTable& t) {
-  return EncodeRecords<kObjectNameEndColumn>(std::span(t.name_end));
-}
-
-Status DecodeObjectTable(std::span<const uint8_t> leaves, std::span<const uint8_t> name_ends,
-                         std::span<const uint8_t> names, ObjectTable* t) {
+Status DecodeObjectTable(std::span<const uint8_t> leaves, std::span<const uint8_t> directory,
+                         std::span<const uint8_t> sources, ObjectTable* t) {
   MKTREE_RETURN_IF_ERROR(DecodeRecords<kObjectLeafColumn>(leaves, &t->leaf));
-  MKTREE_RETURN_IF_ERROR(DecodeRecords<kObjectNameEndColumn>(name_ends, &t->name_end));
-  if (t->leaf.size() != t->name_end.size())
-    return Status::Corruption("object table sections disagree on the object count");
-  uint64_t prev = 0;
-  for (const uint64_t end : t->name_end) {
-    if (end < prev || end > names.size()) return Status::Corruption("object name offsets out of order");
-    prev = end;
-  }
-  if (prev != names.size()) return Status::Corruption("object names section has trailing bytes");
-  t->names.assign(reinterpret_cast<const char*>(names.data()), names.size());
-  return Status::Ok();
+  MKTREE_RETURN_IF_ERROR(DecodeRecords<kRecordDirectoryColumn>(directory, &t->record_directory));
+  return DecodeSources(sources, &t->sources);
 }
 
 uint64_t Checksum(std::span<const uint8_t> bytes) { return XXH3_64bits(bytes.data(), bytes.size()); }
@@ -196,6 +184,13 @@ Status ValidateStructure(const MKTree& tree, const ObjectTable& objects, uint64_
   if (next_leaf != nl) return bad("leaf " + Num(next_leaf) + ": not referenced by any node");
   for (size_t s = 0; s < ns; ++s)
     if (!split_seen[s]) return bad("split node " + Num(s) + ": not in any node's SplitTree");
+
+  // The record pages follow the leaf pages: the directory has one entry per record page.
+  if (objects.record_directory.size() > page_count)
+    return bad(Num(objects.record_directory.size()) + " record pages in a store of " + Num(page_count) +
+               " pages");
+  MKTREE_RETURN_IF_ERROR(ValidateRecordDirectory(objects.record_directory, n_objects, what));
+  page_count -= objects.record_directory.size();
 
   const uint64_t mem_page = tree.params.mem_page();
   uint64_t pages_end = 0;

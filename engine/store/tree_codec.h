@@ -20,22 +20,15 @@
 
 namespace mktree {
 
-// The object table: for object id i (0-based, dense), its leaf and its name.
+// The object table, what a store keeps of its objects in RAM: each object's leaf (CheckLeafEntries needs
+// it), the record directory (the first object id of each record page, engine/store/record_codec.h) and
+// the sources table (the distinct input files). Names and attributes live in the record pages.
 struct ObjectTable {
-  std::vector<uint32_t> leaf;      // leaf index per object
-  std::vector<uint64_t> name_end;  // names of object i are names[name_end[i-1], name_end[i])
-  std::string names;               // all names concatenated
+  std::vector<uint32_t> leaf;              // leaf index per object
+  std::vector<uint32_t> record_directory;  // first object id of each record page
+  std::vector<std::string> sources;        // the distinct input files, by index
 
   uint64_t size() const { return leaf.size(); }
-  void Append(uint32_t leaf_index, std::string_view name) {
-    leaf.push_back(leaf_index);
-    names.append(name);
-    name_end.push_back(names.size());
-  }
-  std::string_view name(uint64_t i) const {
-    const uint64_t b = i == 0 ? 0 : name_end[i - 1];
-    return std::string_view(names).substr(b, name_end[i] - b);
-  }
   bool operator==(const ObjectTable&) const = default;
 };
 
@@ -100,10 +93,10 @@ inline constexpr RecordSchema kParamsRecord{"parameter", sizeof(ParamsRecord), k
 inline constexpr RecordField kObjectLeafFields[] = {
     MakeRecordField("leaf", 0, sizeof(uint32_t), FieldType::kU32)};
 inline constexpr RecordSchema kObjectLeafColumn{"object leaf", sizeof(uint32_t), kObjectLeafFields, false};
-inline constexpr RecordField kObjectNameEndFields[] = {
-    MakeRecordField("name_end", 0, sizeof(uint64_t), FieldType::kU64)};
-inline constexpr RecordSchema kObjectNameEndColumn{"object name", sizeof(uint64_t), kObjectNameEndFields,
-                                                   false};
+inline constexpr RecordField kRecordDirectoryFields[] = {
+    MakeRecordField("first_object", 0, sizeof(uint32_t), FieldType::kU32)};
+inline constexpr RecordSchema kRecordDirectoryColumn{"record directory", sizeof(uint32_t),
+                                                     kRecordDirectoryFields, false};
 
 inline constexpr size_t kNodeRecordBytes = kNodeRecord.encoded_bytes();
 inline constexpr size_t kSplitNodeRecordBytes = kSplitNodeRecord.encoded_bytes();
@@ -113,7 +106,7 @@ static_assert(kNodeRecordBytes == 52 && kSplitNodeRecordBytes == 16 && kLeafReco
               kParamsRecordBytes == 28);
 static_assert(FieldsFitRecord(kNodeRecord) && FieldsFitRecord(kSplitNodeRecord) &&
               FieldsFitRecord(kLeafRecord) && FieldsFitRecord(kParamsRecord) &&
-              FieldsFitRecord(kObjectLeafColumn) && FieldsFitRecord(kObjectNameEndColumn) &&
+              FieldsFitRecord(kObjectLeafColumn) && FieldsFitRecord(kRecordDirectoryColumn) &&
               FieldsFitRecord(kByteColumn));
 
 ParamsRecord ToParamsRecord(const BuildParams& p, const CodecOptions& c);
@@ -127,10 +120,9 @@ Status DecodeSplitNodes(std::span<const uint8_t> in, std::vector<SplitNode>* nod
 std::vector<uint8_t> EncodeLeaves(const std::vector<LeafInfo>& leaves);
 Status DecodeLeaves(std::span<const uint8_t> in, std::vector<LeafInfo>* leaves);
 std::vector<uint8_t> EncodeObjectLeaves(const ObjectTable& t);
-std::vector<uint8_t> EncodeObjectNameEnds(const ObjectTable& t);
-// Rebuilds a table from its three sections; checks their sizes agree.
-Status DecodeObjectTable(std::span<const uint8_t> leaves, std::span<const uint8_t> name_ends,
-                         std::span<const uint8_t> names, ObjectTable* t);
+// Rebuilds a table from its three sections (object leaves, record directory, sources table).
+Status DecodeObjectTable(std::span<const uint8_t> leaves, std::span<const uint8_t> directory,
+                         std::span<const uint8_t> sources, ObjectTable* t);
 
 uint64_t Checksum(std::span<const uint8_t> bytes);
 inline uint64_t Checksum(std::string_view s) {
@@ -159,7 +151,9 @@ inline bool BoxWithin(const Box3f& inner, const Box3f& outer) {
 // as many as its payload needs; each SplitTree is a tree (no split node reached twice, none left over) of
 // at most kMaxSplitTreeLevels levels; every object is in an existing leaf and each leaf's object_count is
 // the number of objects the table puts in it; the leaf filter is empty or 8 bytes per object.
-// Errors are Corruption, prefixed with `what` (the file).
+// `page_count` is the store's, record pages included: the record directory has one entry per record page,
+// which follow the leaf pages, and is the writer's (ValidateRecordDirectory). Errors are Corruption, prefixed
+// with `what` (the file).
 Status ValidateStructure(const MKTree& tree, const ObjectTable& objects, uint64_t page_count,
                          const std::string& what);
 

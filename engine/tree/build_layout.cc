@@ -89,7 +89,7 @@ inline uint32_t Spread3(uint32_t v) {
 
 }  // namespace
 
-BuildRecords SpatialLayout(std::vector<ObjectRecord> records, const Box3f& all, BuildVector<ObjectId>* ids,
+BuildRecords SpatialLayout(std::vector<BuildObject> records, const Box3f& all, BuildVector<ObjectId>* ids,
                            BuildVector<uint32_t>* input_position, int threads) {
   const size_t n = records.size();
   constexpr uint32_t kCellsPerAxis = 16;

@@ -14,7 +14,7 @@
 
 namespace mktree::build {
 
-// What the builder reads of an object, 28 bytes instead of ObjectRecord's 32, in two arrays: the boxes,
+// What the builder reads of an object, 28 bytes instead of BuildObject's 32, in two arrays: the boxes,
 // and the encoded sizes (read alone when a node sums its bytes, 16 to a cache line). The ids are kept
 // apart, for the end only.
 struct BuildRecords {
@@ -28,7 +28,7 @@ struct BuildRecords {
 // Cells this coarse cost one counting pass, and keep what locality the input order has. `all`: the union
 // of the boxes. Frees `records`; *ids: the object ids in the same layout; *input_position: the input
 // position of the object at each layout position. With `threads` >= 2 the passes run on two halves.
-BuildRecords SpatialLayout(std::vector<ObjectRecord> records, const Box3f& all, BuildVector<ObjectId>* ids,
+BuildRecords SpatialLayout(std::vector<BuildObject> records, const Box3f& all, BuildVector<ObjectId>* ids,
                            BuildVector<uint32_t>* input_position, int threads);
 
 // The six key orders: (*lists)[2 * w + key] holds the object indices 0..n-1 sorted by min_w (key 0) or

@@ -11,11 +11,11 @@
 namespace mktree::build {
 namespace {
 
-std::string Describe(const ObjectRecord& r) { return "object " + std::to_string(r.id); }
+std::string Describe(const BuildObject& r) { return "object " + std::to_string(r.id); }
 
 }  // namespace
 
-Status Validate(const std::vector<ObjectRecord>& records, const BuildParams& params, int threads,
+Status Validate(const std::vector<BuildObject>& records, const BuildParams& params, int threads,
                 Box3f* bounds, ObjectId* max_id) {
   if (!(params.balance_r >= 0 && params.balance_r < 0.5))
     return Status::InvalidArgument("balance ratio r = " + std::to_string(params.balance_r) +
@@ -52,7 +52,7 @@ Status Validate(const std::vector<ObjectRecord>& records, const BuildParams& par
     half[lo == 0 ? 0 : 1] = h;
   });
   if (const size_t bad = std::min(half[0].bad, half[1].bad); bad < records.size()) {
-    const ObjectRecord& r = records[bad];
+    const BuildObject& r = records[bad];
     for (int i = 0; i < 3; ++i) {
       if (!std::isfinite(r.box.min[i]) || !std::isfinite(r.box.max[i]))
         return Status::InvalidArgument(Describe(r) + ": bounding box is not finite");

@@ -16,7 +16,7 @@ namespace mktree::build {
 
 // The checks of BuildMKTree's REQUIRES but unique ids (CheckUniqueIds), the per-record ones on two halves;
 // an error names the first bad record in input order. *bounds: the union of the boxes (the layout's).
-Status Validate(const std::vector<ObjectRecord>& records, const BuildParams& params, int threads,
+Status Validate(const std::vector<BuildObject>& records, const BuildParams& params, int threads,
                 Box3f* bounds, ObjectId* max_id);
 
 // Unique ids, checked on the laid-out ids (8 bytes an object, not the 40 of a record): a bitmap when ids

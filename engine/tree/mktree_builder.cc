@@ -64,7 +64,7 @@ void Finish(SubtreeOut out, const BuildVector<ObjectId>& ids, BuildState* state,
 
 }  // namespace
 
-Result<BuildResult> BuildMKTree(std::vector<ObjectRecord> records, const BuildParams& params,
+Result<BuildResult> BuildMKTree(std::vector<BuildObject> records, const BuildParams& params,
                                 const BuildTuning& tuning) {
   using Clock = std::chrono::steady_clock;
   Clock::time_point mark = Clock::now();

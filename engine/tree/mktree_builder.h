@@ -103,7 +103,7 @@ struct BuildTuning {
 // REQUIRES nothing of `records` beyond the checks below, which return InvalidArgument naming the object:
 // finite boxes with min <= max, unique ids; params: 0 <= balance_r < 0.5, a page larger than its headers.
 // params.split_tree_node_budget = 0 builds no SplitTrees (slab points then go to both sides).
-Result<BuildResult> BuildMKTree(std::vector<ObjectRecord> records, const BuildParams& params,
+Result<BuildResult> BuildMKTree(std::vector<BuildObject> records, const BuildParams& params,
                                 const BuildTuning& tuning = BuildTuning());
 
 }  // namespace mktree

@@ -94,6 +94,15 @@ struct QueryResult {
   bool truncated = false;      // the query's limit cut the answer: it has more ids than `hits`
 };
 
+// What a store keeps of one object besides its geometry (Database::Object).
+struct ObjectRecord {
+  ObjectId id = 0;
+  std::string name;    // any bytes, as the input gave them
+  std::string source;  // the input file it came from (empty for generated objects)
+  std::vector<ObjectAttribute> attributes;
+  Box3d box;  // world coordinates: the stored float32 box (rounded outward in the store's frame) plus origin
+};
+
 // Receives the ids of a streamed answer (Database::Visit).
 using ObjectVisitor = std::function<void(ObjectId)>;
 // The same, for VisitUntil: returns false to stop the query.
@@ -184,6 +193,15 @@ class Database {
   // The store's file, as given to Open.
   virtual const std::string& path() const = 0;
   virtual uint64_t object_count() const = 0;
+  // One object's record: name, source file, attributes and box. Records live in pages of the store, read
+  // through the page cache like leaves: `stats` (may be null) is reset and counts the pages touched and
+  // read. InvalidArgument for an id >= object_count(); Corruption naming the store and the page if its
+  // record page is damaged.
+  virtual Result<ObjectRecord> Object(ObjectId id, QueryStats* stats = nullptr) const = 0;
+  // One object's triangles in world coordinates (the stored vertices, float32 in the object's frame, plus
+  // the store's origin in double), read from its leaf through the page cache. Errors as Object's.
+  virtual Result<Mesh> ObjectGeometry(ObjectId id, QueryStats* stats = nullptr) const = 0;
+  // Object(id)'s name (one record page read).
   virtual Result<std::string> ObjectName(ObjectId id) const = 0;
   // Scene bounds in world coordinates (the root's box, which is rounded outward to float32 in the store's
   // frame); empty for an empty store.

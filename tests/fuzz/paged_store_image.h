@@ -17,16 +17,17 @@
 namespace mktree::fuzz {
 
 inline constexpr char kPagedMagic[8] = {'M', 'K', 'T', 'R', 'E', 'E', 'P', 'F'};
-inline constexpr uint32_t kPagedVersion = 3;  // the origin (offset 280) stays 0: a frame at the world's
+inline constexpr uint32_t kPagedVersion = 4;  // the origin (offset 280) stays 0: a frame at the world's
 inline constexpr uint32_t kFixedHeaderBytes = 512;
 inline constexpr uint32_t kParamsOffset = 16;
-inline constexpr uint32_t kSectionCount = 8;  // nodes, split nodes, leaves, object leaves, name ends,
-                                              // names, stats JSON, leaf filter
+inline constexpr uint32_t kSectionCount = 8;  // nodes, split nodes, leaves, object leaves, record
+                                              // directory, sources, stats JSON, leaf filter
 inline constexpr uint32_t kSectionTableOffset = 80;
 inline constexpr uint32_t kHeaderChecksumOffset = kSectionTableOffset + kSectionCount * 24;
 
 // Structured input of the store_open target, after its mode byte: the 28-byte parameter record, then
-// chunks separated by kChunkSeparator: the leaf pages (concatenated; each page's checksum is recomputed),
+// chunks separated by kChunkSeparator: the pages, leaf then record pages (concatenated; each page's
+// checksum is recomputed),
 // the eight sections in file order, and optionally query coordinates (6 doubles a query).
 inline constexpr uint8_t kChunkSeparator[8] = {0xff, 'M', 'K', 'S', 'E', 'C', 'T', 0xff};
 inline constexpr size_t kChunkCount = 1 + kSectionCount + 1;
@@ -51,9 +52,9 @@ inline uint64_t HeaderPageChecksum(const uint8_t* header, uint64_t mem_page) {
   return Checksum(copy);
 }
 
-// A paged-file store: header page, leaf pages (`pages` split into mem_page pieces, the last one padded
-// with zeros, each given a valid page checksum), then the sections. Every checksum is valid; the header's
-// object count is the object-leaves section's record count.
+// A paged-file store: header page, leaf and record pages (`pages` split into mem_page pieces, the last one
+// padded with zeros, each given a valid page checksum), then the sections. Every checksum is valid; the
+// header's object count is the object-leaves section's record count.
 inline std::vector<uint8_t> AssemblePagedFile(std::span<const uint8_t> params_record, uint64_t mem_page,
                                               std::span<const uint8_t> pages,
                                               const std::span<const uint8_t> (&sections)[kSectionCount]) {

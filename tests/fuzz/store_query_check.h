@@ -64,6 +64,10 @@ inline void OpenAndQuery(const std::vector<uint8_t>& file, const std::vector<Box
   }
   ++g_accepted;
   for (uint64_t i = 0; i < (*db)->object_count() && i < 64; ++i) (void)(*db)->ObjectName(i);
+  for (uint64_t i = 0; i < (*db)->object_count() && i < 8; ++i) {
+    (void)(*db)->Object(static_cast<ObjectId>(i));
+    (void)(*db)->ObjectGeometry(static_cast<ObjectId>(i));
+  }
   RunQueries(**db, queries);
 }
 

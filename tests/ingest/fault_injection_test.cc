@@ -315,7 +315,7 @@ TEST_P(ReadFaultTest, EveryReadFaultIsAnErrorOrTheRightAnswer) {
     faulty = f.get();
     return f;
   });
-  const uint64_t page_bytes = (*reader)->pages().page_bytes(), pages = (*reader)->pages().page_count();
+  const uint64_t page_bytes = (*reader)->pages().page_bytes(), pages = (*reader)->leaf_page_count();
   auto db = OpenStoreDatabase(std::move(*reader), {.cache_pages = 16});
   int errors = 0;
   auto run_all = [&](const std::string& what) {

@@ -66,7 +66,7 @@ TEST_P(ParallelIngestTest, ThreadCountDoesNotChangeTheStore) {
   EXPECT_EQ(one.report.raw_geometry_bytes, three.report.raw_geometry_bytes);
   EXPECT_TRUE(SameTree(one.store->tree(), three.store->tree()));
   EXPECT_TRUE(one.store->objects() == three.store->objects());
-  EXPECT_EQ(one.store->objects().name(4199), three.store->objects().name(4199));
+  EXPECT_EQ(*one.store->ObjectName(4199), *three.store->ObjectName(4199));
   // Entries are encoded alone, so the pages are byte for byte the same.
   const PageStore& a = one.store->pages();
   const PageStore& b = three.store->pages();

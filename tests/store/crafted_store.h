@@ -68,6 +68,30 @@ inline Status WriteStoreImage(const StoreImage& image, const std::string& path, 
   return RenameOverTarget(temp, path, DefaultFileOps(), path, &renamed);
 }
 
+// Replaces the image's object record pages (the pages after its leaf pages) and sources by records of
+// `objects` (box from the mesh, name, source, attributes), as StoreWriter::AppendObject writes them.
+inline Status SetObjectRecords(StoreImage* img, const std::vector<SceneObject>& objects) {
+  ObjectTable& t = img->objects();
+  img->pages.resize(img->pages.size() - t.record_directory.size());
+  t.sources.clear();
+  std::vector<uint8_t> record;
+  RecordPager pager(img->mem_page(), [&](const uint8_t* page) {
+    img->pages.emplace_back(page, page + img->mem_page());
+    return Status::Ok();
+  });
+  for (const SceneObject& o : objects) {
+    uint32_t source = 0;
+    while (source < t.sources.size() && t.sources[source] != o.source) ++source;
+    if (source == t.sources.size()) t.sources.push_back(o.source);
+    record.clear();
+    MKTREE_RETURN_IF_ERROR(EncodeRecord(o.Aabb(), source, o.name, o.attributes, &record));
+    MKTREE_RETURN_IF_ERROR(pager.Add(o.id, record));
+  }
+  MKTREE_RETURN_IF_ERROR(pager.Finish());
+  t.record_directory = pager.TakeDirectory();
+  return Status::Ok();
+}
+
 // A store of `objects` packed by BuildTestStore, with the statistics the builder would write, as an image.
 inline Result<StoreImage> MakeTestImage(const std::vector<SceneObject>& objects,
                                         const BuildParams& params = {}, Codec codec = Codec::kZstd) {
@@ -78,11 +102,12 @@ inline Result<StoreImage> MakeTestImage(const std::vector<SceneObject>& objects,
   BuiltStore built;
   MKTREE_RETURN_IF_ERROR(BuildTestStore(objects, img.contents.codec, params, &pages, &built));
   img.contents.tree = std::move(built.tree);
-  for (const SceneObject& o : objects) img.contents.objects.Append(built.object_leaf[o.id], o.name);
+  img.contents.objects.leaf = built.object_leaf;
   img.contents.stats_json = ComputeTreeStats(img.contents.tree, objects.size(), {}).ToJson();
   img.pages.resize(pages.page_count());
   for (uint64_t i = 0; i < img.pages.size(); ++i)
     img.pages[i].assign(pages.mutable_page(i), pages.mutable_page(i) + params.mem_page());
+  MKTREE_RETURN_IF_ERROR(SetObjectRecords(&img, objects));
   return img;
 }
 // The same for MakeObjects(n, seed): prisms, boxes, random meshes, and multi-page leaves.

@@ -347,7 +347,7 @@ TEST(CraftedStructureTest, EmptyTreeMustHoldNothing) {
   MKTree t;
   ObjectTable objects;
   EXPECT_TRUE(ValidateStructure(t, objects, 0, "s").ok());
-  objects.Append(0, "x");
+  objects.leaf.push_back(0);
   EXPECT_EQ(ValidateStructure(t, objects, 0, "s").code(), Status::Code::kCorruption);
 }
 

@@ -131,16 +131,17 @@ TEST(Hdf5StoreTest, ObjectTableIsItsCanonicalEncoding) {
     H5Dclose(d);
   };
   std::vector<uint32_t> leaf(objects.size());
-  std::vector<uint64_t> name_end(objects.size());
-  std::string names(t.names.size(), '\0');
+  std::vector<uint32_t> directory(t.record_directory.size());
+  const std::vector<uint8_t> sources_bytes = EncodeSources(t.sources);
+  std::vector<uint8_t> sources(sources_bytes.size());
   read("/objects/leaf", H5T_NATIVE_UINT32, leaf.data(), leaf.size());
-  read("/objects/name_end", H5T_NATIVE_UINT64, name_end.data(), name_end.size());
-  read("/objects/names", H5T_NATIVE_UINT8, names.data(), names.size());
+  read("/objects/record_directory", H5T_NATIVE_UINT32, directory.data(), directory.size());
+  read("/objects/sources", H5T_NATIVE_UINT8, sources.data(), sources.size());
   H5Fclose(f);
   EXPECT_EQ(leaf, t.leaf);
-  EXPECT_EQ(name_end, t.name_end);
-  EXPECT_EQ(names, t.names);
-  EXPECT_EQ(names.substr(name_end[6], 3), std::string("a\0b", 3));
+  EXPECT_EQ(directory, t.record_directory);
+  EXPECT_EQ(sources, sources_bytes);
+  EXPECT_EQ(*(*r)->ObjectName(7), std::string("a\0b", 3));
 }
 
 // Open HDF5 identifiers of every kind the store code creates.
@@ -257,7 +258,7 @@ class CraftedHdf5Test : public ::testing::Test {
     storage_internal::ByteWriter w(&b);
     w.Put<uint64_t>(pages);
     w.Put<uint64_t>(objects);
-    w.Put<uint32_t>(3);                              // the HDF5 format version
+    w.Put<uint32_t>(4);                              // the HDF5 format version
     for (int i = 0; i < 3; ++i) w.Put<double>(0.0);  // the store frame's origin: these scenes lie near 0
     return Checksum(b);
   }
@@ -295,7 +296,7 @@ TEST_F(CraftedHdf5Test, HugeObjectCountWithAValidHeaderSumIsRefused) {
     SetU64Attr(f, "object_count", huge);
     SetU64Attr(f, "checksum_header", HeaderSum(pages_, huge));
     ReplaceWithHugeDataset(f, "objects/leaf", H5T_STD_U32LE, huge);
-    ReplaceWithHugeDataset(f, "objects/name_end", H5T_STD_U64LE, huge);
+    ReplaceWithHugeDataset(f, "objects/record_directory", H5T_STD_U32LE, huge);
   });
   ExpectCorruption(st, "objects do not fit");
 }
@@ -309,19 +310,26 @@ TEST_F(CraftedHdf5Test, HugePageCountWithAValidHeaderSumIsRefused) {
   ExpectCorruption(st, "pages of");
 }
 
-TEST_F(CraftedHdf5Test, HugeNamesDatasetIsRefused) {
-  Status st =
-      OpenEdited([](hid_t f) { ReplaceWithHugeDataset(f, "objects/names", H5T_STD_U8LE, hsize_t{1} << 40); });
-  ExpectCorruption(st, "objects/names");
-  // Compressed: one chunk of zeros stored, the rest "fill value"; the length is bounded by the chunks stored.
+TEST_F(CraftedHdf5Test, HugeRecordDirectoryIsRefused) {
+  const Status st = OpenEdited([](hid_t f) {
+    ReplaceWithHugeDataset(f, "objects/record_directory", H5T_STD_U32LE, hsize_t{1} << 36);
+  });
+  ExpectCorruption(st, "objects/record_directory has 68719476736 elements for");
+}
+
+TEST_F(CraftedHdf5Test, HugeSourcesDatasetIsRefused) {
+  Status st = OpenEdited(
+      [](hid_t f) { ReplaceWithHugeDataset(f, "objects/sources", H5T_STD_U8LE, hsize_t{1} << 40); });
+  ExpectCorruption(st, "objects/sources");
+  // Compressed: one chunk of zeros stored, the rest "fill value"; the length is still bounded by the file.
   st = OpenEdited([](hid_t f) {
-    ASSERT_GE(H5Ldelete(f, "objects/names", H5P_DEFAULT), 0);
+    ASSERT_GE(H5Ldelete(f, "objects/sources", H5P_DEFAULT), 0);
     hsize_t dims[1] = {hsize_t{1} << 36}, chunk[1] = {1 << 16}, one[1] = {1 << 16}, start[1] = {0};
     hid_t space = H5Screate_simple(1, dims, nullptr);
     hid_t dcpl = H5Pcreate(H5P_DATASET_CREATE);
     H5Pset_chunk(dcpl, 1, chunk);
     H5Pset_deflate(dcpl, 9);
-    hid_t d = H5Dcreate2(f, "objects/names", H5T_STD_U8LE, space, H5P_DEFAULT, dcpl, H5P_DEFAULT);
+    hid_t d = H5Dcreate2(f, "objects/sources", H5T_STD_U8LE, space, H5P_DEFAULT, dcpl, H5P_DEFAULT);
     ASSERT_GE(d, 0);
     std::vector<uint8_t> zeros(one[0], 0);
     hid_t mem = H5Screate_simple(1, one, nullptr);
@@ -332,7 +340,7 @@ TEST_F(CraftedHdf5Test, HugeNamesDatasetIsRefused) {
     H5Pclose(dcpl);
     H5Sclose(space);
   });
-  ExpectCorruption(st, "dataset objects/names claims 68719476736 elements");
+  ExpectCorruption(st, "dataset objects/sources claims 68719476736 elements");
 }
 
 TEST_F(CraftedHdf5Test, HugeStatsStringIsRefused) {

@@ -1,10 +1,11 @@
-// Stores written before the record schemas drove both encodings (tests/store/data/tanker40_format3.*,
-// written by the mktree of the start of issue 19 with
+// Stores of format 4 (tests/store/data/tanker40_format4.*, written by the mktree of issue 21/22's object
+// record pages with
 //   mktree build tanker:40:1 --block-size 512 --blocks-per-page 2 --backend hdf5|pagefile -q)
 // open and answer queries the same with this build, and this build writes the same stores for the same
 // input: the paged file byte for byte; the HDF5 file (whose objects carry modification times, so not its
 // bytes) with the same datasets (HDF5 types, shapes, creation properties, contents) and attributes (types,
-// values). A change of the store formats fails here: make new files then, and say so.
+// values). A change of the store formats fails here: make new files then, and say so. The format 3 files
+// (tanker40_format3.*, from the start of issue 19) are refused by name and version.
 #include <gtest/gtest.h>
 #include <hdf5.h>
 
@@ -23,7 +24,8 @@ using testing::RunMktree;
 using testing::Slurp;
 using testing::TempDir;
 
-const std::string kOldStores = std::string(MKTREE_TESTS_DIR) + "/store/data/tanker40_format3";
+const std::string kOldStores = std::string(MKTREE_TESTS_DIR) + "/store/data/tanker40_format4";
+const std::string kFormat3Stores = std::string(MKTREE_TESTS_DIR) + "/store/data/tanker40_format3";
 const char* const kBuild = "build tanker:40:1 --block-size 512 --blocks-per-page 2 -q";
 
 std::string BuildNow(const TempDir& dir, const std::string& backend) {
@@ -78,6 +80,22 @@ TEST(OldStoreTest, OldStoresOpenAndAnswerTheSame) {
               0);
     EXPECT_EQ(Answers(old_path, queries, dir), Answers(now, queries, dir));
   }
+}
+
+TEST(OldStoreTest, Format3StoresAreRefusedByVersion) {
+  for (const std::string ext : {".h5", ".pf"}) {
+    const std::string path = kFormat3Stores + ext;
+    auto r = StoreReader::Open(path);
+    ASSERT_FALSE(r.ok()) << path;
+    EXPECT_EQ(r.status().code(), Status::Code::kUnsupported) << r.status().ToString();
+    EXPECT_EQ(r.status().message().rfind(path + ": ", 0), 0u) << r.status().message();
+    EXPECT_NE(r.status().message().find("format version 3 (this build reads version 4)"), std::string::npos)
+        << r.status().message();
+  }
+  TempDir dir;
+  const testing::ToolRun r = RunMktree("info " + kFormat3Stores + ".pf", dir.path());
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("format version 3 (this build reads version 4)"), std::string::npos) << r.err;
 }
 
 TEST(OldStoreTest, PagedFileIsWrittenByteForByte) {
@@ -189,8 +207,9 @@ TEST(OldStoreTest, Hdf5StoreIsWrittenWithTheSameObjectsTypesAndValues) {
   Hdf5Compare files(kOldStores + ".h5", BuildNow(dir, "hdf5"));
   ASSERT_TRUE(files.ok());
   const std::vector<std::string> want = {
-      "objects", "objects/leaf",     "objects/name_end", "objects/names", "pages",           "stats_json",
-      "tree",    "tree/leaf_filter", "tree/leaves",      "tree/nodes",    "tree/split_nodes"};
+      "objects",         "objects/leaf", "objects/record_directory", "objects/sources", "pages",
+      "stats_json",      "tree",         "tree/leaf_filter",         "tree/leaves",     "tree/nodes",
+      "tree/split_nodes"};
   EXPECT_EQ(Hdf5Compare::Objects(files.old_file()), want);
   EXPECT_EQ(Hdf5Compare::AttributeNames(files.old_file()).size(), 19u);
   files.ExpectSame();

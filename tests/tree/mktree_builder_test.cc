@@ -19,8 +19,8 @@ using testing::MakeScene;
 using testing::SceneKind;
 using testing::WithPolicy;
 
-ObjectRecord Rec(ObjectId id, Box3f box, uint32_t bytes = 1000) {
-  ObjectRecord r;
+BuildObject Rec(ObjectId id, Box3f box, uint32_t bytes = 1000) {
+  BuildObject r;
   r.id = id;
   r.box = box;
   r.encoded_bytes = bytes;
@@ -52,7 +52,7 @@ TEST(BuildMKTree, EmptyInputGivesEmptyTree) {
 }
 
 TEST(BuildMKTree, SingleObjectIsOneLeaf) {
-  std::vector<ObjectRecord> recs{Rec(7, B(0, 0, 0, 1, 1, 1))};
+  std::vector<BuildObject> recs{Rec(7, B(0, 0, 0, 1, 1, 1))};
   auto r = BuildMKTree(recs, BuildParams());
   ASSERT_TRUE(r.ok());
   ASSERT_EQ(r->tree.nodes.size(), 1u);
@@ -67,7 +67,7 @@ TEST(BuildMKTree, RejectsBadInputNamingTheObject) {
   const float nan = std::numeric_limits<float>::quiet_NaN();
   const float inf = std::numeric_limits<float>::infinity();
   struct Case {
-    std::vector<ObjectRecord> recs;
+    std::vector<BuildObject> recs;
     std::string needle;
   } cases[] = {
       {{Rec(0, B(0, 0, 0, 1, 1, 1)), Rec(41, B(0, nan, 0, 1, 1, 1))}, "object 41"},
@@ -89,7 +89,7 @@ TEST(BuildMKTree, RejectsBadInputNamingTheObject) {
 TEST(BuildMKTree, RejectsTheFirstBadObjectOfALargeInput) {
   const float nan = std::numeric_limits<float>::quiet_NaN();
   const uint32_t n = 200000;
-  std::vector<ObjectRecord> good;
+  std::vector<BuildObject> good;
   for (uint32_t i = 0; i < n; ++i)
     good.push_back(Rec(i, B(i % 97, i % 89, i % 83, i % 97 + 1, i % 89 + 1, i % 83 + 1)));
   BuildTuning two;
@@ -104,14 +104,14 @@ TEST(BuildMKTree, RejectsTheFirstBadObjectOfALargeInput) {
       {{{99999, B(0, 0, 0, 1, 1, nan)}, {100000, B(0, 0, 3, 1, 1, 1)}}, 99999},  // either side of the middle
   };
   for (const Case& c : cases) {
-    std::vector<ObjectRecord> recs = good;
+    std::vector<BuildObject> recs = good;
     for (const auto& [at, box] : c.bad) recs[at].box = box;
     auto r = BuildMKTree(recs, BuildParams(), two);
     ASSERT_FALSE(r.ok());
     EXPECT_NE(r.status().message().find("object " + std::to_string(c.first) + ":"), std::string::npos)
         << r.status().message();
   }
-  std::vector<ObjectRecord> dup = good;
+  std::vector<BuildObject> dup = good;
   dup[180000].id = 20000;  // the duplicate is found at the later of the two
   auto r = BuildMKTree(dup, BuildParams(), two);
   ASSERT_FALSE(r.ok());
@@ -127,7 +127,7 @@ TEST(BuildMKTree, RejectsTheFirstBadObjectOfALargeInput) {
 }
 
 TEST(BuildMKTree, RejectsBadParams) {
-  std::vector<ObjectRecord> recs{Rec(0, B(0, 0, 0, 1, 1, 1))};
+  std::vector<BuildObject> recs{Rec(0, B(0, 0, 0, 1, 1, 1))};
   for (double bad_r : {-0.1, 0.5, 0.7, std::nan("")}) {
     BuildParams p;
     p.balance_r = bad_r;
@@ -304,7 +304,7 @@ TEST(BuildMKTree, DegenerateLargeInputsBuildFast) {
       // All objects cross the plane x = 0.
       std::mt19937_64 rng(3);
       std::uniform_real_distribution<float> u(0, 100);
-      std::vector<ObjectRecord> recs(n);
+      std::vector<BuildObject> recs(n);
       for (size_t i = 0; i < n; ++i) {
         const float y = u(rng), z = u(rng);
         recs[i] =

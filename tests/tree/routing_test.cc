@@ -15,12 +15,12 @@ using testing::MakeScene;
 using testing::SceneKind;
 
 struct Fixture {
-  std::vector<ObjectRecord> recs;
+  std::vector<BuildObject> recs;
   BuildResult built;
   std::vector<uint32_t> leaf_of;  // per record
 };
 
-Fixture Build(std::vector<ObjectRecord> recs, const BuildParams& p, const BuildTuning& tune = BuildTuning()) {
+Fixture Build(std::vector<BuildObject> recs, const BuildParams& p, const BuildTuning& tune = BuildTuning()) {
   Fixture f;
   f.recs = std::move(recs);
   auto r = BuildMKTree(f.recs, p, tune);

@@ -59,16 +59,16 @@ inline BuildTuning WithPolicy(SplitPolicy p) {
   return t;
 }
 
-inline std::vector<ObjectRecord> MakeScene(SceneKind kind, size_t n, uint64_t seed,
-                                           uint64_t mem_page = 12288) {
+inline std::vector<BuildObject> MakeScene(SceneKind kind, size_t n, uint64_t seed,
+                                          uint64_t mem_page = 12288) {
   std::mt19937_64 rng(seed);
   auto uni = [&](double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(rng); };
   auto pick = [&](int n_) { return static_cast<int>(rng() % static_cast<uint64_t>(n_)); };
-  std::vector<ObjectRecord> out(n);
+  std::vector<BuildObject> out(n);
   std::vector<std::array<double, 3>> centers;
   for (int c = 0; c < 5; ++c) centers.push_back({uni(0, 100), uni(0, 100), uni(0, 100)});
   for (size_t i = 0; i < n; ++i) {
-    ObjectRecord& r = out[i];
+    BuildObject& r = out[i];
     r.id = static_cast<ObjectId>(i);
     r.encoded_bytes = static_cast<uint32_t>(400 + rng() % 2601);
     std::array<double, 3> lo{}, hi{};
@@ -195,7 +195,7 @@ inline bool LabelAllows(CellLabel l, int side) {
 
 // Every structural property of docs/design.md §2-4 and the flat layout. Returns the number of checks failed
 // (also reported through gtest).
-inline void CheckTree(const std::vector<ObjectRecord>& recs, const BuildResult& r, const BuildParams& p) {
+inline void CheckTree(const std::vector<BuildObject>& recs, const BuildResult& r, const BuildParams& p) {
   const MKTree& t = r.tree;
   ASSERT_EQ(r.leaf_offsets.size(), t.leaves.size() + 1);
   ASSERT_EQ(r.leaf_objects.size(), recs.size());
