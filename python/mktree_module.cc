@@ -193,7 +193,7 @@ std::string Shape(const py::array& a) {
 }
 
 // One object of `objects` (a dict or an object with vertices [n, 3] float, faces [m, 3] integer, and
-// optionally name and attributes; trimesh's Trimesh has its name in metadata["name"]) into `out`.
+// optionally name, source and attributes; trimesh's Trimesh has its name in metadata["name"]) into `out`.
 // InvalidArgument names the object's index; Python errors (a failing __getattr__) propagate.
 Status ToSceneObject(py::handle item, uint64_t index, SceneObject* out) {
   const std::string what = "objects[" + std::to_string(index) + "]";
@@ -229,7 +229,8 @@ Status ToSceneObject(py::handle item, uint64_t index, SceneObject* out) {
     if (py::isinstance<py::dict>(meta)) name = Field(meta, "name");
   }
   out->name = name.is_none() ? std::string() : Bytes(name);
-  out->source.clear();
+  py::object source = Field(item, "source");
+  out->source = source.is_none() ? std::string() : Bytes(source);
   out->attributes.clear();
   py::object attrs = Field(item, "attributes");
   if (!attrs.is_none()) {
@@ -415,6 +416,51 @@ PYBIND11_MODULE(mktree, m) {
       .def(
           "object_name", [](const Database& db, uint32_t id) { return Text(Take(db.ObjectName(id))); },
           py::arg("id"))
+      .def(
+          "object",
+          [](const Database& db, uint32_t id) {
+            Result<ObjectRecord> r = Status::Internal("unset");
+            {
+              py::gil_scoped_release nogil;
+              r = db.Object(id);
+            }
+            const ObjectRecord rec = Take(std::move(r));
+            py::list attributes;  // pairs, not a dict: a key may repeat (an OBJ object in two groups)
+            for (const ObjectAttribute& a : rec.attributes)
+              attributes.append(py::make_tuple(Text(a.key), Text(a.value)));
+            py::dict d;
+            d["id"] = rec.id;
+            d["name"] = Text(rec.name);
+            d["source"] = Text(rec.source);
+            d["attributes"] = attributes;
+            d["box"] = BoundsArray(rec.box);
+            return d;
+          },
+          py::arg("id"),
+          "The object's record: name, source file, attributes as (key, value) pairs and world box "
+          "[[min], [max]]; one record page read")
+      .def(
+          "geometry",
+          [](const Database& db, uint32_t id) {
+            Result<Mesh> r = Status::Internal("unset");
+            {
+              py::gil_scoped_release nogil;
+              r = db.ObjectGeometry(id);
+            }
+            const Mesh mesh = Take(std::move(r));
+            py::array_t<double> vertices({static_cast<py::ssize_t>(mesh.vertex_count()), py::ssize_t{3}});
+            py::array_t<uint32_t> faces({static_cast<py::ssize_t>(mesh.triangle_count()), py::ssize_t{3}});
+            if (!mesh.vertices.empty())
+              std::memcpy(vertices.mutable_data(), mesh.vertices.data(),
+                          mesh.vertices.size() * sizeof(double));
+            if (!mesh.triangles.empty())
+              std::memcpy(faces.mutable_data(), mesh.triangles.data(),
+                          mesh.triangles.size() * sizeof(uint32_t));
+            return py::make_tuple(vertices, faces);
+          },
+          py::arg("id"),
+          "The object's stored mesh as (vertices float64 (n, 3) in world coordinates, faces uint32 (m, 3)); "
+          "reads its leaf")
       .def(
           "stats",
           [](const Database& db) {

@@ -246,6 +246,31 @@ def test_trimesh_style_objects(tmp_path):
     assert np.array_equal(db.box(q[:3], q[3:]), brute_force(boxes, q))
 
 
+def test_object_records_and_geometry(tmp_path):
+    """Names, sources and attributes (any text, a repeated key) come back by id with the stored box and mesh."""
+    objects, boxes = random_boxes(40, 11)
+    for i, o in enumerate(objects):
+        o["source"] = f"deck_{i % 3}.obj"
+        o["attributes"] = [("tag", f"P-{i}"), ("group", "pipes"), ("group", "deck \u00e9\n")] if i % 2 else {}
+    mktree.build(tmp_path / "r.mkt", objects=objects, backend="pagefile", block_size=1024, blocks_per_page=1)
+    db = mktree.open(tmp_path / "r.mkt", cache_pages=0)
+    for i, o in enumerate(objects):
+        rec = db.object(i)
+        assert rec["id"] == i and rec["name"] == o["name"] and rec["source"] == o["source"]
+        assert rec["attributes"] == (list(o["attributes"]) if i % 2 else [])
+        assert np.array_equal(rec["box"], float32_box(o["vertices"]))
+        vertices, faces = db.geometry(i)
+        assert faces.dtype == np.uint32 and faces.shape == o["faces"].shape
+        # The stored mesh: float32 in the object's local frame, so within 2^-22 of its size of the input.
+        tri_in = np.sort(o["vertices"][o["faces"]].reshape(-1, 9), axis=0)
+        tri_out = np.sort(vertices[faces].reshape(-1, 9), axis=0)
+        assert np.allclose(tri_in, tri_out, atol=1e-5)
+    with pytest.raises(mktree.Error, match="id"):
+        db.object(len(objects))
+    with pytest.raises(mktree.Error):
+        db.geometry(len(objects))
+
+
 def assert_nothing_left(tmp_path, before):
     assert sorted(os.listdir(tmp_path)) == sorted(before)
 
