@@ -10,6 +10,7 @@
 
 #include "engine/geometry/kdop.h"
 #include "engine/geometry/solid_classifier.h"
+#include "engine/geometry/touch_certificate.h"
 #include "engine/geometry/triangle_hierarchy.h"
 #include "engine/geometry/triangle_pair.h"
 
@@ -292,7 +293,14 @@ double FaceDirectionOverlap(const Impl& x, const Impl& y) {
   return best;
 }
 
-void SetDepth(const Impl& a, const Impl& b, double gap, double enough, Separation* r, NarrowStats* st) {
+TouchObject TouchOf(const Impl& x) {
+  return {&x.mesh, &x.hierarchy, &x.kdop, x.projection_slack, x.classifier ? &*x.classifier : nullptr};
+}
+
+// `ta`, `tb`: a meeting triangle of each when the surfaces meet; null for containment (a component inside
+// the other: no certificate can hold).
+void SetDepth(const Impl& a, const Impl& b, double gap, double enough, const Vec3d* ta, const Vec3d* tb,
+              Separation* r, NarrowStats* st) {
   r->depth_upper = std::max(0.0, -gap);
   if (r->depth_upper > 0 && b.mesh.vertex_count() <= kMaxDepthDirectionVertices &&
       a.mesh.vertex_count() <= kMaxDepthDirectionVertices) {
@@ -301,14 +309,42 @@ void SetDepth(const Impl& a, const Impl& b, double gap, double enough, Separatio
     const double faces = std::min(FaceDirectionOverlap(a, b), FaceDirectionOverlap(b, a));
     r->depth_upper = std::min(r->depth_upper, std::max(0.0, faces));
   }
+  // A touch certificate proves depth 0 (engine/geometry/touch_certificate.h). A plane's depth bound is
+  // kept only when it decides the class at a finite `enough` (a touch): other pairs keep the bound they
+  // had (it depends on which meeting triangles were found, hence on the argument order).
+  auto certify = [&](TouchStage stage) {
+    if (!(r->depth_upper > 0) || !ta || !tb) return false;
+    const TouchResult touch = FindTouchCertificate(TouchOf(a), TouchOf(b), ta, tb, stage);
+    st->triangle_tests += touch.triangle_tests;
+    if (touch.separated) {
+      r->depth_upper = r->depth_lower = r->distance = 0;
+      return true;
+    }
+    if (touch.depth_upper <= enough && std::isfinite(enough))
+      r->depth_upper = std::min(r->depth_upper, touch.depth_upper);
+    return false;
+  };
   r->distance = -r->depth_upper;
-  if (!a.solid() || !b.solid()) return;  // a surface has no inside: depth_lower stays 0
-  // Vertices first (cheap), then points on edges; each stage only when the bound can still grow.
+  if (certify(TouchStage::kCheap)) return;
+  r->distance = -r->depth_upper;
+  // The costlier search only for pairs whose class it can still change (depth_upper > enough), or for
+  // every pair when the caller asks for the whole interval (enough infinite).
+  const bool undecided = std::isinf(enough) ? r->depth_upper > 0 : r->depth_upper > enough;
+  if (!a.solid() || !b.solid()) {  // a surface has no inside: depth_lower stays 0
+    if (undecided && certify(TouchStage::kSearch)) return;
+    r->distance = -r->depth_upper;
+    return;
+  }
+  // Vertices first (cheap), then points on edges; each stage only when the bound can still grow. A vertex
+  // inside the other solid rules a certificate out, so the search for one comes after the vertices.
   const double stop = std::min(r->depth_upper, enough);
   double lower = DeepestVertex(a, b, 0, stop, st);
   lower = DeepestVertex(b, a, lower, stop, st);
-  lower = DeepestEdgePoint(a, b, lower, stop, st);
-  lower = DeepestEdgePoint(b, a, lower, stop, st);
+  if (undecided && lower == 0 && certify(TouchStage::kSearch)) return;
+  r->distance = -r->depth_upper;
+  const double stop_edges = std::min(r->depth_upper, enough);
+  lower = DeepestEdgePoint(a, b, lower, stop_edges, st);
+  lower = DeepestEdgePoint(b, a, lower, stop_edges, st);
   r->depth_lower = std::min(lower, r->depth_upper);
 }
 
@@ -369,7 +405,7 @@ Separation Separate(const ClashShape& shape_a, const ClashShape& shape_b, double
     r.meeting = Meeting::kSurfacesMeet;
     const ClosestPoints c = TriangleTriangleClosest(ta, tb);
     r.point_a = r.point_b = c.on_a;
-    SetDepth(a, b, full_gap, options.depth_lower_enough, &r, &st);
+    SetDepth(a, b, full_gap, options.depth_lower_enough, ta, tb, &r, &st);
   } else {
     Vec3d p;
     if (gap <= 0 && a.solid() && b.solid()) {  // a positive bound gap already says apart
@@ -380,7 +416,7 @@ Separation Separate(const ClashShape& shape_a, const ClashShape& shape_b, double
     }
     if (r.meeting != Meeting::kApart) {
       r.point_a = r.point_b = p;
-      SetDepth(a, b, full_gap, options.depth_lower_enough, &r, &st);
+      SetDepth(a, b, full_gap, options.depth_lower_enough, nullptr, nullptr, &r, &st);
     } else if (limit > 0) {
       ClosestPoints c;
       if (TriangleHierarchy::ClosestBelow(a.hierarchy, b.hierarchy, limit, &c, &st.triangle_tests)) {
