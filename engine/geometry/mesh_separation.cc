@@ -314,7 +314,9 @@ void SetDepth(const Impl& a, const Impl& b, double gap, double enough, const Vec
   // had (it depends on which meeting triangles were found, hence on the argument order).
   auto certify = [&](TouchStage stage) {
     if (!(r->depth_upper > 0) || !ta || !tb) return false;
-    const TouchResult touch = FindTouchCertificate(TouchOf(a), TouchOf(b), ta, tb, stage);
+    TouchBudget budget;
+    if (std::isfinite(enough)) budget.useful_overlap = enough;
+    const TouchResult touch = FindTouchCertificate(TouchOf(a), TouchOf(b), ta, tb, stage, budget);
     st->triangle_tests += touch.triangle_tests;
     if (touch.separated) {
       r->depth_upper = r->depth_lower = r->distance = 0;
@@ -325,26 +327,28 @@ void SetDepth(const Impl& a, const Impl& b, double gap, double enough, const Vec
     return false;
   };
   r->distance = -r->depth_upper;
-  if (certify(TouchStage::kCheap)) return;
-  r->distance = -r->depth_upper;
-  // The costlier search only for pairs whose class it can still change (depth_upper > enough), or for
-  // every pair when the caller asks for the whole interval (enough infinite).
+  // Pairs already a touch: the cheap planes may make the depth exact and spare the search below. Pairs
+  // whose class the certificate can still change (depth_upper > enough, or any when enough is infinite):
+  // the cheap planes, then the search, only when the search below found no point of one inside the other
+  // (such a point rules a certificate out, and most hard pairs have one).
   const bool undecided = std::isinf(enough) ? r->depth_upper > 0 : r->depth_upper > enough;
+  if (!undecided && certify(TouchStage::kCheap)) return;
+  auto certify_undecided = [&] { return certify(TouchStage::kCheap) || certify(TouchStage::kSearch); };
   if (!a.solid() || !b.solid()) {  // a surface has no inside: depth_lower stays 0
-    if (undecided && certify(TouchStage::kSearch)) return;
+    // Only the cheap planes: on the real scenes the undecided surface pairs are terrain crossing
+    // buildings, where the search finds nothing and costs as much as the rest of the narrow phase.
+    if (undecided) certify(TouchStage::kCheap);
     r->distance = -r->depth_upper;
     return;
   }
-  // Vertices first (cheap), then points on edges; each stage only when the bound can still grow. A vertex
-  // inside the other solid rules a certificate out, so the search for one comes after the vertices.
+  // Vertices first (cheap), then points on edges; each stage only when the bound can still grow.
   const double stop = std::min(r->depth_upper, enough);
   double lower = DeepestVertex(a, b, 0, stop, st);
   lower = DeepestVertex(b, a, lower, stop, st);
-  if (undecided && lower == 0 && certify(TouchStage::kSearch)) return;
+  lower = DeepestEdgePoint(a, b, lower, stop, st);
+  lower = DeepestEdgePoint(b, a, lower, stop, st);
+  if (undecided && lower == 0 && certify_undecided()) return;
   r->distance = -r->depth_upper;
-  const double stop_edges = std::min(r->depth_upper, enough);
-  lower = DeepestEdgePoint(a, b, lower, stop_edges, st);
-  lower = DeepestEdgePoint(b, a, lower, stop_edges, st);
   r->depth_lower = std::min(lower, r->depth_upper);
 }
 

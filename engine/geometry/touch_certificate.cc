@@ -61,6 +61,7 @@ bool WeaklySeparates(const Mesh& a, const Mesh& b, const Side& side) {
 
 struct Interval {
   double lo = std::numeric_limits<double>::infinity(), hi = -std::numeric_limits<double>::infinity();
+  bool complete = true;
 };
 Interval Project(const Mesh& m, const Vec3d& n) {
   Interval r;
@@ -90,6 +91,22 @@ bool StraddlesPlane(const Vec3d* t, const Vec3d* u) {
   return below && above;
 }
 bool Cross(const Vec3d* t, const Vec3d* u) { return StraddlesPlane(t, u) && StraddlesPlane(u, t); }
+
+// Project, stopping (complete = false) once the interval overlaps `other` by more than `limit` both ways.
+Interval ProjectUntil(const Mesh& m, const Vec3d& n, const Interval& other, double limit) {
+  Interval r;
+  const double* v = m.vertices.data();
+  for (size_t i = 0; i < m.vertex_count(); ++i, v += 3) {
+    const double p = v[0] * n.x + v[1] * n.y + v[2] * n.z;
+    r.lo = std::min(r.lo, p);
+    r.hi = std::max(r.hi, p);
+    if ((i & 15) == 15 && other.hi - r.lo > limit && r.hi - other.lo > limit) {
+      r.complete = false;
+      return r;
+    }
+  }
+  return r;
+}
 
 bool BoxesMeet(const Box3d& x, const Box3d& y) {
   for (int k = 0; k < 3; ++k)
@@ -286,8 +303,13 @@ TouchResult FindTouchCertificate(const TouchObject& a, const TouchObject& b, con
         return false;
     planes.push_back({n, offset});
     ++r.planes_tried;
-    const Interval ia = Project(ma, n), ib = Project(mb, n);
-    const double overlap = std::min(ia.hi - ib.lo, ib.hi - ia.lo);
+    // The smaller vertex set whole, the other until its interval overlaps the first by more than is of
+    // use on both sides (then the plane neither separates nor gives a useful bound).
+    const bool a_small = ma.vertex_count() <= mb.vertex_count();
+    const Interval is = Project(a_small ? ma : mb, n);
+    const Interval il = ProjectUntil(a_small ? mb : ma, n, is, std::max(slack, budget.useful_overlap));
+    const double overlap = std::min(is.hi - il.lo, il.hi - is.lo);
+    if (!il.complete) return false;
     r.depth_upper = std::min(r.depth_upper, std::max(0.0, overlap + slack));
     if (overlap > slack) return false;
     const double p0[3] = {c[0].x, c[0].y, c[0].z}, p1[3] = {c[1].x, c[1].y, c[1].z},

@@ -52,6 +52,9 @@ struct TouchBudget {
   size_t planes = 8;             // triangle planes tried (the 26-DOP directions come on top, at most 13)
   size_t convex_triangles = 64;  // convex piece test: the smaller solid at most this many triangles
   size_t convex_checks = 4096;   // and at most this many of the other's triangles checked against it
+  // A plane's projection overlap above this is of no use (the caller's touch threshold): its pass over
+  // the larger vertex set may stop early. Infinite: every overlap is computed.
+  double useful_overlap = std::numeric_limits<double>::infinity();
 };
 
 struct TouchResult {
