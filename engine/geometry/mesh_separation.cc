@@ -25,7 +25,7 @@ struct ClashShape::Impl {
       // Containment asks one point per component; the depth bound asks one per vertex inside.
       options.expected_queries = kGridBreakEven;
       classifier.emplace(m, options);
-      component_vertices = ComponentVertices(m);
+      component_vertices = ComponentVertices(m, &distinct_vertices);
     }
     FaceDirections();
   }
@@ -60,7 +60,7 @@ struct ClashShape::Impl {
       if (!seen) directions.push_back(n);
     }
     for (const Vec3d& d : directions) {
-      const auto [lo, hi] = ProjectionInterval(mesh, d);
+      const auto [lo, hi] = ProjectionInterval(d);
       direction_lo.push_back(lo);
       direction_hi.push_back(hi);
     }
@@ -70,20 +70,27 @@ struct ClashShape::Impl {
     return {mesh.vertices[3 * size_t{i}], mesh.vertices[3 * size_t{i} + 1], mesh.vertices[3 * size_t{i} + 2]};
   }
 
-  static std::pair<double, double> ProjectionInterval(const Mesh& m, const Vec3d& d) {
+  // Over each distinct position once when they are known (solids): the same interval.
+  std::pair<double, double> ProjectionInterval(const Vec3d& d) const {
     double lo = std::numeric_limits<double>::infinity(), hi = -lo;
-    for (size_t i = 0; i < m.vertex_count(); ++i) {
-      const double* v = &m.vertices[3 * i];
+    auto add = [&](size_t i) {
+      const double* v = &mesh.vertices[3 * i];
       const double p = v[0] * d.x + v[1] * d.y + v[2] * d.z;
       lo = std::min(lo, p);
       hi = std::max(hi, p);
+    };
+    if (!distinct_vertices.empty()) {
+      for (uint32_t i : distinct_vertices) add(i);
+    } else {
+      for (size_t i = 0; i < mesh.vertex_count(); ++i) add(i);
     }
     return {lo, hi};
   }
 
   // One vertex of each connected component (vertices with equal coordinates are one point), so that a
-  // component of A inside B is found even when another component of A is not.
-  static std::vector<uint32_t> ComponentVertices(const Mesh& m) {
+  // component of A inside B is found even when another component of A is not. `distinct`: the lowest
+  // index of each distinct position, ascending (meshes with one vertex per face corner repeat positions).
+  static std::vector<uint32_t> ComponentVertices(const Mesh& m, std::vector<uint32_t>* distinct) {
     const size_t n = m.vertex_count();
     std::vector<uint32_t> order(n);
     std::iota(order.begin(), order.end(), 0u);
@@ -98,8 +105,18 @@ struct ClashShape::Impl {
       return x;
     };
     auto unite = [&](uint32_t x, uint32_t y) { parent[find(x)] = find(y); };
-    for (size_t i = 1; i < n; ++i)
-      if (std::equal(at(order[i]), at(order[i]) + 3, at(order[i - 1]))) unite(order[i], order[i - 1]);
+    distinct->clear();
+    for (size_t i = 0; i < n;) {  // runs of equal positions: the sort leaves their indices unordered
+      uint32_t lowest = order[i];
+      size_t j = i + 1;
+      for (; j < n && std::equal(at(order[j]), at(order[j]) + 3, at(order[i])); ++j) {
+        unite(order[j], order[j - 1]);
+        lowest = std::min(lowest, order[j]);
+      }
+      distinct->push_back(lowest);
+      i = j;
+    }
+    std::sort(distinct->begin(), distinct->end());
     for (size_t t = 0; t < m.triangle_count(); ++t) {
       unite(m.triangles[3 * t], m.triangles[3 * t + 1]);
       unite(m.triangles[3 * t], m.triangles[3 * t + 2]);
@@ -126,7 +143,8 @@ struct ClashShape::Impl {
   TriangleHierarchy hierarchy;
   std::optional<SolidClassifier> classifier;  // closed meshes only: open ones are surfaces
   std::vector<uint32_t> component_vertices;
-  std::vector<Vec3d> directions;  // FaceDirections
+  std::vector<uint32_t> distinct_vertices;  // solids: ComponentVertices
+  std::vector<Vec3d> directions;            // FaceDirections
   std::vector<double> direction_lo, direction_hi;
   double projection_slack = 0;
   double negligible2 = 0;
@@ -147,7 +165,8 @@ size_t ClashShape::MemoryBytes() const {
   // The classifier's grid is not exposed; count its triangle lists as one index per triangle per cell
   // row, an estimate.
   size_t bytes =
-      sizeof(Impl) + impl_->hierarchy.MemoryBytes() + impl_->component_vertices.capacity() * sizeof(uint32_t);
+      sizeof(Impl) + impl_->hierarchy.MemoryBytes() +
+      (impl_->component_vertices.capacity() + impl_->distinct_vertices.capacity()) * sizeof(uint32_t);
   if (impl_->classifier && impl_->classifier->has_grid()) bytes += 8 * impl_->mesh.triangle_count();
   return bytes;
 }
@@ -243,11 +262,12 @@ bool InsideDeeper(const Vec3d& v, const Impl& y, double* deepest2, NarrowStats* 
   return true;
 }
 
-// Stops once the depth reaches `stop` (the answer can then not change what it is used for).
+// Stops once the depth reaches `stop` (the answer can then not change what it is used for). Each position
+// once: a repeated one cannot raise the depth again, so the answer is that of every vertex in order.
 double DeepestVertex(const Impl& x, const Impl& y, double deepest, double stop, NarrowStats* st) {
   double deepest2 = deepest * deepest;
-  for (size_t i = 0; i < x.mesh.vertex_count() && deepest2 < stop * stop; ++i) {
-    const Vec3d v = VertexAt(x.mesh, i);
+  for (size_t k = 0; k < x.distinct_vertices.size() && deepest2 < stop * stop; ++k) {
+    const Vec3d v = VertexAt(x.mesh, x.distinct_vertices[k]);
     if (!y.kdop.Contains(v)) continue;
     if (!InsideDeeper(v, y, &deepest2, st)) continue;
   }
@@ -285,7 +305,7 @@ double DeepestEdgePoint(const Impl& x, const Impl& y, double deepest, double sto
 double FaceDirectionOverlap(const Impl& x, const Impl& y) {
   double best = std::numeric_limits<double>::infinity();
   for (size_t k = 0; k < x.directions.size(); ++k) {
-    const auto [lo, hi] = Impl::ProjectionInterval(y.mesh, x.directions[k]);
+    const auto [lo, hi] = y.ProjectionInterval(x.directions[k]);
     const double overlap = std::min(x.direction_hi[k] - lo, hi - x.direction_lo[k]);
     best = std::min(best, overlap + x.projection_slack + y.projection_slack);
     if (best <= 0) break;
