@@ -10,6 +10,7 @@
 
 #include "engine/geometry/kdop.h"
 #include "engine/geometry/solid_classifier.h"
+#include "engine/geometry/touch_certificate.h"
 #include "engine/geometry/triangle_hierarchy.h"
 #include "engine/geometry/triangle_pair.h"
 
@@ -24,7 +25,7 @@ struct ClashShape::Impl {
       // Containment asks one point per component; the depth bound asks one per vertex inside.
       options.expected_queries = kGridBreakEven;
       classifier.emplace(m, options);
-      component_vertices = ComponentVertices(m);
+      component_vertices = ComponentVertices(m, &distinct_vertices);
     }
     FaceDirections();
   }
@@ -59,7 +60,7 @@ struct ClashShape::Impl {
       if (!seen) directions.push_back(n);
     }
     for (const Vec3d& d : directions) {
-      const auto [lo, hi] = ProjectionInterval(mesh, d);
+      const auto [lo, hi] = ProjectionInterval(d);
       direction_lo.push_back(lo);
       direction_hi.push_back(hi);
     }
@@ -69,20 +70,27 @@ struct ClashShape::Impl {
     return {mesh.vertices[3 * size_t{i}], mesh.vertices[3 * size_t{i} + 1], mesh.vertices[3 * size_t{i} + 2]};
   }
 
-  static std::pair<double, double> ProjectionInterval(const Mesh& m, const Vec3d& d) {
+  // Over each distinct position once when they are known (solids): the same interval.
+  std::pair<double, double> ProjectionInterval(const Vec3d& d) const {
     double lo = std::numeric_limits<double>::infinity(), hi = -lo;
-    for (size_t i = 0; i < m.vertex_count(); ++i) {
-      const double* v = &m.vertices[3 * i];
+    auto add = [&](size_t i) {
+      const double* v = &mesh.vertices[3 * i];
       const double p = v[0] * d.x + v[1] * d.y + v[2] * d.z;
       lo = std::min(lo, p);
       hi = std::max(hi, p);
+    };
+    if (!distinct_vertices.empty()) {
+      for (uint32_t i : distinct_vertices) add(i);
+    } else {
+      for (size_t i = 0; i < mesh.vertex_count(); ++i) add(i);
     }
     return {lo, hi};
   }
 
   // One vertex of each connected component (vertices with equal coordinates are one point), so that a
-  // component of A inside B is found even when another component of A is not.
-  static std::vector<uint32_t> ComponentVertices(const Mesh& m) {
+  // component of A inside B is found even when another component of A is not. `distinct`: the lowest
+  // index of each distinct position, ascending (meshes with one vertex per face corner repeat positions).
+  static std::vector<uint32_t> ComponentVertices(const Mesh& m, std::vector<uint32_t>* distinct) {
     const size_t n = m.vertex_count();
     std::vector<uint32_t> order(n);
     std::iota(order.begin(), order.end(), 0u);
@@ -97,8 +105,18 @@ struct ClashShape::Impl {
       return x;
     };
     auto unite = [&](uint32_t x, uint32_t y) { parent[find(x)] = find(y); };
-    for (size_t i = 1; i < n; ++i)
-      if (std::equal(at(order[i]), at(order[i]) + 3, at(order[i - 1]))) unite(order[i], order[i - 1]);
+    distinct->clear();
+    for (size_t i = 0; i < n;) {  // runs of equal positions: the sort leaves their indices unordered
+      uint32_t lowest = order[i];
+      size_t j = i + 1;
+      for (; j < n && std::equal(at(order[j]), at(order[j]) + 3, at(order[i])); ++j) {
+        unite(order[j], order[j - 1]);
+        lowest = std::min(lowest, order[j]);
+      }
+      distinct->push_back(lowest);
+      i = j;
+    }
+    std::sort(distinct->begin(), distinct->end());
     for (size_t t = 0; t < m.triangle_count(); ++t) {
       unite(m.triangles[3 * t], m.triangles[3 * t + 1]);
       unite(m.triangles[3 * t], m.triangles[3 * t + 2]);
@@ -125,7 +143,8 @@ struct ClashShape::Impl {
   TriangleHierarchy hierarchy;
   std::optional<SolidClassifier> classifier;  // closed meshes only: open ones are surfaces
   std::vector<uint32_t> component_vertices;
-  std::vector<Vec3d> directions;  // FaceDirections
+  std::vector<uint32_t> distinct_vertices;  // solids: ComponentVertices
+  std::vector<Vec3d> directions;            // FaceDirections
   std::vector<double> direction_lo, direction_hi;
   double projection_slack = 0;
   double negligible2 = 0;
@@ -146,7 +165,8 @@ size_t ClashShape::MemoryBytes() const {
   // The classifier's grid is not exposed; count its triangle lists as one index per triangle per cell
   // row, an estimate.
   size_t bytes =
-      sizeof(Impl) + impl_->hierarchy.MemoryBytes() + impl_->component_vertices.capacity() * sizeof(uint32_t);
+      sizeof(Impl) + impl_->hierarchy.MemoryBytes() +
+      (impl_->component_vertices.capacity() + impl_->distinct_vertices.capacity()) * sizeof(uint32_t);
   if (impl_->classifier && impl_->classifier->has_grid()) bytes += 8 * impl_->mesh.triangle_count();
   return bytes;
 }
@@ -242,11 +262,12 @@ bool InsideDeeper(const Vec3d& v, const Impl& y, double* deepest2, NarrowStats* 
   return true;
 }
 
-// Stops once the depth reaches `stop` (the answer can then not change what it is used for).
+// Stops once the depth reaches `stop` (the answer can then not change what it is used for). Each position
+// once: a repeated one cannot raise the depth again, so the answer is that of every vertex in order.
 double DeepestVertex(const Impl& x, const Impl& y, double deepest, double stop, NarrowStats* st) {
   double deepest2 = deepest * deepest;
-  for (size_t i = 0; i < x.mesh.vertex_count() && deepest2 < stop * stop; ++i) {
-    const Vec3d v = VertexAt(x.mesh, i);
+  for (size_t k = 0; k < x.distinct_vertices.size() && deepest2 < stop * stop; ++k) {
+    const Vec3d v = VertexAt(x.mesh, x.distinct_vertices[k]);
     if (!y.kdop.Contains(v)) continue;
     if (!InsideDeeper(v, y, &deepest2, st)) continue;
   }
@@ -284,7 +305,7 @@ double DeepestEdgePoint(const Impl& x, const Impl& y, double deepest, double sto
 double FaceDirectionOverlap(const Impl& x, const Impl& y) {
   double best = std::numeric_limits<double>::infinity();
   for (size_t k = 0; k < x.directions.size(); ++k) {
-    const auto [lo, hi] = Impl::ProjectionInterval(y.mesh, x.directions[k]);
+    const auto [lo, hi] = y.ProjectionInterval(x.directions[k]);
     const double overlap = std::min(x.direction_hi[k] - lo, hi - x.direction_lo[k]);
     best = std::min(best, overlap + x.projection_slack + y.projection_slack);
     if (best <= 0) break;
@@ -292,7 +313,14 @@ double FaceDirectionOverlap(const Impl& x, const Impl& y) {
   return best;
 }
 
-void SetDepth(const Impl& a, const Impl& b, double gap, double enough, Separation* r, NarrowStats* st) {
+TouchObject TouchOf(const Impl& x) {
+  return {&x.mesh, &x.hierarchy, &x.kdop, x.projection_slack, x.classifier ? &*x.classifier : nullptr};
+}
+
+// `ta`, `tb`: a meeting triangle of each when the surfaces meet; null for containment (a component inside
+// the other: no certificate can hold).
+void SetDepth(const Impl& a, const Impl& b, double gap, double enough, const Vec3d* ta, const Vec3d* tb,
+              Separation* r, NarrowStats* st) {
   r->depth_upper = std::max(0.0, -gap);
   if (r->depth_upper > 0 && b.mesh.vertex_count() <= kMaxDepthDirectionVertices &&
       a.mesh.vertex_count() <= kMaxDepthDirectionVertices) {
@@ -301,14 +329,46 @@ void SetDepth(const Impl& a, const Impl& b, double gap, double enough, Separatio
     const double faces = std::min(FaceDirectionOverlap(a, b), FaceDirectionOverlap(b, a));
     r->depth_upper = std::min(r->depth_upper, std::max(0.0, faces));
   }
+  // A touch certificate proves depth 0 (engine/geometry/touch_certificate.h). A plane's depth bound is
+  // kept only when it decides the class at a finite `enough` (a touch): other pairs keep the bound they
+  // had (it depends on which meeting triangles were found, hence on the argument order).
+  auto certify = [&](TouchStage stage) {
+    if (!(r->depth_upper > 0) || !ta || !tb) return false;
+    TouchBudget budget;
+    if (std::isfinite(enough)) budget.useful_overlap = enough;
+    const TouchResult touch = FindTouchCertificate(TouchOf(a), TouchOf(b), ta, tb, stage, budget);
+    st->triangle_tests += touch.triangle_tests;
+    if (touch.separated) {
+      r->depth_upper = r->depth_lower = r->distance = 0;
+      return true;
+    }
+    if (touch.depth_upper <= enough && std::isfinite(enough))
+      r->depth_upper = std::min(r->depth_upper, touch.depth_upper);
+    return false;
+  };
   r->distance = -r->depth_upper;
-  if (!a.solid() || !b.solid()) return;  // a surface has no inside: depth_lower stays 0
+  // Pairs already a touch: the cheap planes may make the depth exact and spare the search below. Pairs
+  // whose class the certificate can still change (depth_upper > enough, or any when enough is infinite):
+  // the cheap planes, then the search, only when the search below found no point of one inside the other
+  // (such a point rules a certificate out, and most hard pairs have one).
+  const bool undecided = std::isinf(enough) ? r->depth_upper > 0 : r->depth_upper > enough;
+  if (!undecided && certify(TouchStage::kCheap)) return;
+  auto certify_undecided = [&] { return certify(TouchStage::kCheap) || certify(TouchStage::kSearch); };
+  if (!a.solid() || !b.solid()) {  // a surface has no inside: depth_lower stays 0
+    // Only the cheap planes: on the real scenes the undecided surface pairs are terrain crossing
+    // buildings, where the search finds nothing and costs as much as the rest of the narrow phase.
+    if (undecided) certify(TouchStage::kCheap);
+    r->distance = -r->depth_upper;
+    return;
+  }
   // Vertices first (cheap), then points on edges; each stage only when the bound can still grow.
   const double stop = std::min(r->depth_upper, enough);
   double lower = DeepestVertex(a, b, 0, stop, st);
   lower = DeepestVertex(b, a, lower, stop, st);
   lower = DeepestEdgePoint(a, b, lower, stop, st);
   lower = DeepestEdgePoint(b, a, lower, stop, st);
+  if (undecided && lower == 0 && certify_undecided()) return;
+  r->distance = -r->depth_upper;
   r->depth_lower = std::min(lower, r->depth_upper);
 }
 
@@ -369,7 +429,7 @@ Separation Separate(const ClashShape& shape_a, const ClashShape& shape_b, double
     r.meeting = Meeting::kSurfacesMeet;
     const ClosestPoints c = TriangleTriangleClosest(ta, tb);
     r.point_a = r.point_b = c.on_a;
-    SetDepth(a, b, full_gap, options.depth_lower_enough, &r, &st);
+    SetDepth(a, b, full_gap, options.depth_lower_enough, ta, tb, &r, &st);
   } else {
     Vec3d p;
     if (gap <= 0 && a.solid() && b.solid()) {  // a positive bound gap already says apart
@@ -380,7 +440,7 @@ Separation Separate(const ClashShape& shape_a, const ClashShape& shape_b, double
     }
     if (r.meeting != Meeting::kApart) {
       r.point_a = r.point_b = p;
-      SetDepth(a, b, full_gap, options.depth_lower_enough, &r, &st);
+      SetDepth(a, b, full_gap, options.depth_lower_enough, nullptr, nullptr, &r, &st);
     } else if (limit > 0) {
       ClosestPoints c;
       if (TriangleHierarchy::ClosestBelow(a.hierarchy, b.hierarchy, limit, &c, &st.triangle_tests)) {

@@ -17,7 +17,8 @@
 // intervals over the 13 26-DOP directions and the face normals of small meshes, depth_lower = the largest
 // distance to the other's surface of a point of one solid's surface inside the other solid (vertices, and
 // edge points between the other surface's crossings; 0 when none is inside, or when either is a surface),
-// clamped to depth_upper.
+// clamped to depth_upper. A touch certificate (engine/geometry/touch_certificate.h: a plane weakly
+// separating the vertex sets, or a convex piece the other's surface misses) makes both 0, exactly.
 //
 // Thread-safety: a ClashShape is immutable after construction and may be shared by threads; Separate is
 // a pure function of its arguments.

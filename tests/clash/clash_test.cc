@@ -20,6 +20,7 @@
 #include "engine/scene/scene_source.h"
 #include "engine/scene/vector_scene_source.h"
 #include "engine/store/object_codec.h"
+#include "geometry/touch_meshes.h"
 #include "mktree/database.h"
 #include "query/scene_fixtures.h"
 #include "store/stored_geometry.h"
@@ -520,6 +521,61 @@ TEST(Clash, ExactInputTouchesStayTouchesAfterEncoding) {
     EXPECT_EQ(s.touch, static_cast<uint64_t>(kPairs));
     EXPECT_EQ(s.hard + s.clearance, 0u);
   }
+}
+
+// Planted touches at UTM coordinates (integers: the encoding keeps them exact) become touches with depth 0,
+// exactly, through the whole engine; shallow crossings keep their class; the brute force agrees.
+TEST(Clash, PlantedTouchesAreExactTouches) {
+  using testing::Box;
+  using testing::ConvexPrism;
+  const Vec3d at{500000, 5700000, 100};
+  std::vector<SceneObject> scene;
+  auto add = [&](Mesh m) {
+    SceneObject o;
+    o.id = static_cast<ObjectId>(scene.size());
+    o.name = "o" + std::to_string(o.id);
+    o.mesh = std::move(m);
+    scene.push_back(std::move(o));
+  };
+  add(Box({0, 0, 0}, {10, 10, 10}, at));                                       // 0: base
+  add(ConvexPrism({{5, 2}, {8, 5}, {5, 8}, {2, 5}}, 10, 13, at));              // 1: rotated box on top
+  add(ConvexPrism({{10, 5}, {13, 3}, {13, 7}}, 2, 6, at));                     // 2: prism edge on a side
+  add(testing::Tetra({{{4, 4, 0}, {2, 2, -2}, {7, 3, -2}, {4, 8, -3}}}, at));  // 3: vertex under the base
+  const std::vector<testing::Pt> l = {{0, 0}, {10, 0}, {10, 1}, {1, 1}, {1, 10}, {0, 10}};
+  add(testing::Prism(l, {{0, 1, 2}, {0, 2, 3}, {0, 3, 4}, {0, 4, 5}}, 0, 20, {at.x + 100, at.y, at.z}));  // 4
+  add(Box({1, 1, 5}, {6, 6, 6}, {at.x + 100, at.y, at.z}));              // 5: plate in the angle's corner
+  add(Box({0, 0, 0}, {10, 10, 10}, {at.x + 200, at.y, at.z}));           // 6: base
+  add(Box({2, 2, 9.9990234375}, {5, 5, 12}, {at.x + 200, at.y, at.z}));  // 7: ~1 mm into 6
+  add(Box({0, 0, 0}, {10, 10, 10}, {at.x + 300, at.y, at.z}));           // 8: base
+  add(Box({2, 2, 9.9970703125}, {5, 5, 12}, {at.x + 300, at.y, at.z}));  // 9: ~3 mm into 8
+  const std::string path = TempPath("planted_touches");
+  ASSERT_TRUE(Build(scene, path, Backend::kPagedFile).ok());
+  auto db = Database::Open(path, {.cache_pages = 16});
+  ASSERT_TRUE(db.ok());
+  ClashOptions o;
+  ClashStats stats;
+  const auto got = Sorted(SelfClash(**db, o, &stats));
+  const Oracle oracle(scene);
+  ExpectSame(got, oracle.All(o.clearance, o.touch_tolerance));
+  std::map<std::pair<ObjectId, ObjectId>, ClashPair> by_pair;
+  for (const ClashPair& p : got) by_pair[{p.a, p.b}] = p;
+  for (const auto& [a, b] : std::vector<std::pair<ObjectId, ObjectId>>{{0, 1}, {0, 2}, {0, 3}, {4, 5}}) {
+    SCOPED_TRACE("pair " + std::to_string(a) + " " + std::to_string(b));
+    ASSERT_TRUE(by_pair.count({a, b}));
+    const ClashPair& p = by_pair[{a, b}];
+    EXPECT_EQ(p.cls, ClashClass::kTouch);
+    EXPECT_EQ(p.meeting, ClashMeeting::kCross);
+    EXPECT_TRUE(p.depth_exact);
+    EXPECT_EQ(p.depth_upper, 0);
+    EXPECT_EQ(p.distance, 0);
+  }
+  ASSERT_TRUE(by_pair.count({6, 7}) && by_pair.count({8, 9}));
+  const ClashPair shallow = by_pair[{6, 7}], deeper = by_pair[{8, 9}];
+  EXPECT_EQ(shallow.cls, ClashClass::kTouch);
+  EXPECT_NEAR(shallow.depth_upper, 0.0009765625, 1e-6);
+  EXPECT_EQ(deeper.cls, ClashClass::kHard);
+  EXPECT_NEAR(deeper.depth_lower, 0.0029296875, 1e-6);
+  EXPECT_EQ(got.size(), 6u);
 }
 
 // Real scenes: brute force restricted to pairs whose stored boxes grown by C meet (a pair whose boxes do
