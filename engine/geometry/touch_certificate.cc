@@ -125,7 +125,7 @@ double Volume(const Box3d& b) {
 // Meeting triangle pairs of the two hierarchies, up to the budget (a dual traversal as FindMeeting's that
 // goes on after the first).
 void MeetingTriangles(const TriangleHierarchy& a, const TriangleHierarchy& b, const TouchBudget& budget,
-                      std::vector<const TriangleHierarchy::Triangle*>* out, uint64_t* tests) {
+                      std::vector<TriangleHierarchy::Triangle>* out, uint64_t* tests) {
   struct NodePair {
     uint32_t a, b;
   };
@@ -147,9 +147,10 @@ void MeetingTriangles(const TriangleHierarchy& a, const TriangleHierarchy& b, co
         for (uint32_t j = nb.first; j < nb.first + nb.count; ++j) {
           if (!BoxesMeet(bi, TriangleBox(b.triangle(j)))) continue;
           ++*tests;
-          if (TrianglesMeet(a.triangle(i).data(), b.triangle(j).data())) {
-            out->push_back(&a.triangle(i));
-            out->push_back(&b.triangle(j));
+          const TriangleHierarchy::Triangle ti = a.triangle(i), tj = b.triangle(j);
+          if (TrianglesMeet(ti.data(), tj.data())) {
+            out->push_back(ti);
+            out->push_back(tj);
             ++found;
           }
         }
@@ -359,11 +360,11 @@ TouchResult FindTouchCertificate(const TouchObject& a, const TouchObject& b, con
 
   // The planes of more meeting triangles.
   if (ta && tb && Cross(ta, tb)) return r;
-  thread_local std::vector<const TriangleHierarchy::Triangle*> meeting;
+  thread_local std::vector<TriangleHierarchy::Triangle> meeting;
   meeting.clear();
   MeetingTriangles(*a.hierarchy, *b.hierarchy, budget, &meeting, &r.triangle_tests);
-  for (const TriangleHierarchy::Triangle* t : meeting)
-    if (try_triangle(t->data())) return found();
+  for (const TriangleHierarchy::Triangle& t : meeting)
+    if (try_triangle(t.data())) return found();
 
   // Non-convex contacts: either solid as a convex piece against the other, the smaller first.
   const bool a_smaller = ma.triangle_count() <= mb.triangle_count();
