@@ -141,8 +141,12 @@ TEST_F(DecodedCacheTest, WarmAnswersMatchBruteForceAtEveryCacheSize) {
           if (pass == 0) touched.push_back(r.stats.pages_touched);
           EXPECT_EQ(r.stats.pages_touched, touched[i]);
           EXPECT_EQ(r.stats.cache_hits + r.stats.pages_read, r.stats.pages_touched);
-          if (cache == 0) EXPECT_EQ(r.stats.pages_read, r.stats.pages_touched);
-          if (cache == 1000000u && pass > 0) EXPECT_EQ(r.stats.pages_read, 0u);
+          if (cache == 0) {
+            EXPECT_EQ(r.stats.pages_read, r.stats.pages_touched);
+          }
+          if (cache == 1000000u && pass > 0) {
+            EXPECT_EQ(r.stats.pages_read, 0u);
+          }
         }
       }
     }
