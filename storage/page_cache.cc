@@ -33,6 +33,10 @@ struct PageFrame {
   bool failed = false;
   Status load_status;
   std::atomic<bool> verified{false};
+  uint64_t load_id = 0;                              // set before the frame is handed out
+  std::atomic<PageAttachment*> attachment{nullptr};  // owned; cleared only while unpinned, under the lock
+  ~PageFrame() { delete attachment.load(std::memory_order_relaxed); }
+  void DropAttachment() { delete attachment.exchange(nullptr, std::memory_order_acq_rel); }
   PageFrame* lru_prev = nullptr;  // towards the head (more recent)
   PageFrame* lru_next = nullptr;
   bool in_lru = false;
@@ -62,6 +66,17 @@ const uint8_t* PageHandle::data() const { return frame_->bytes; }
 uint64_t PageHandle::page() const { return frame_->page; }
 bool PageHandle::verified() const { return frame_->verified.load(std::memory_order_acquire); }
 void PageHandle::MarkVerified() { frame_->verified.store(true, std::memory_order_release); }
+uint64_t PageHandle::load_id() const { return frame_->load_id; }
+const PageAttachment* PageHandle::attachment() const {
+  return frame_->attachment.load(std::memory_order_acquire);
+}
+const PageAttachment* PageHandle::Attach(std::unique_ptr<PageAttachment> a) {
+  PageAttachment* expected = nullptr;
+  if (frame_->attachment.compare_exchange_strong(expected, a.get(), std::memory_order_acq_rel,
+                                                 std::memory_order_acquire))
+    return a.release();
+  return expected;  // `a` is deleted on return
+}
 
 PageCache::PageCache(const PageStore* store, size_t capacity_pages)
     : store_(store), capacity_(capacity_pages), table_(store->page_count(), nullptr) {}
@@ -85,10 +100,13 @@ PageFrame* PageCache::NewFrameLocked(uint64_t page) {
   f->failed = false;
   f->load_status = Status::Ok();
   f->verified.store(false, std::memory_order_relaxed);
+  f->DropAttachment();
+  f->load_id = ++loads_;
   return f;
 }
 
 void PageCache::FreeFrameLocked(PageFrame* f) {
+  f->DropAttachment();
   if (spare_.size() < kMaxSpareFrames)
     spare_.push_back(f);
   else

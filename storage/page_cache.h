@@ -10,13 +10,19 @@
 //   misses on one page read it once.
 // - Each cached copy carries a `verified` flag for its reader (e.g. "checksum checked"): it is cleared
 //   whenever the page is read from the store, so a reader verifies a page once per load, not per pin.
-// - Memory: the cached pages, plus 8 bytes per page of the store (the page table: a lookup is one index).
+// - Each cached copy may carry one attachment: a reader's decoded form of the page (e.g. a leaf's entries
+//   as arrays). It is dropped with the copy (eviction, Clear, a failed load), so it lives exactly as long
+//   as the bytes it was decoded from, and a reload starts without one. Each load has a number (load_id),
+//   unique within the cache, so that a reader decoding several pages can tell that none was reloaded since.
+// - Memory: the cached pages and their attachments, plus 8 bytes per page of the store (the page table: a
+//   lookup is one index).
 // Thread safety: all methods may be called from many threads at once. Store reads run outside the cache's
 // lock, so misses on different pages proceed in parallel (as far as the store allows).
 #pragma once
 
 #include <condition_variable>
 #include <cstdint>
+#include <memory>
 #include <mutex>
 #include <vector>
 
@@ -28,6 +34,13 @@ namespace mktree {
 
 class PageCache;
 struct PageFrame;  // one cached page; private to page_cache.cc
+
+// What a reader attaches to a cached page (PageHandle::Attach). Deleted by the cache when the page's copy
+// leaves it, never while the page is pinned.
+class PageAttachment {
+ public:
+  virtual ~PageAttachment() = default;
+};
 
 // Pins one cached page while alive. Move-only; unpins in its destructor.
 class PageHandle {
@@ -49,6 +62,14 @@ class PageHandle {
   bool verified() const;
   // REQUIRES: the page's bytes passed the reader's checks.
   void MarkVerified();
+
+  // This copy's load number: differs after every read of the page from the store.
+  uint64_t load_id() const;
+  // The attachment of this copy of the page, or null. Valid while the page is pinned.
+  const PageAttachment* attachment() const;
+  // Attaches `a` to this copy unless it has one already; returns the copy's attachment (`a`, or the one
+  // another thread attached first, `a` being deleted then). Any number of threads may call it at once.
+  const PageAttachment* Attach(std::unique_ptr<PageAttachment> a);
 
  private:
   friend class PageCache;
@@ -104,6 +125,7 @@ class PageCache {
   // then allocates nothing.
   std::vector<PageFrame*> spare_;
   size_t pinned_ = 0;
+  uint64_t loads_ = 0;  // load_id of the last load
   Counters counters_;
 };
 

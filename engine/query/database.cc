@@ -5,11 +5,16 @@
 #include <algorithm>
 #include <cmath>
 #include <condition_variable>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <thread>
 #include <type_traits>
 #include <utility>
+
+#if defined(__SSE2__)
+#include <immintrin.h>
+#endif
 
 #include "engine/clash/clash_engine.h"
 #include "engine/core/guarded.h"
@@ -26,15 +31,80 @@ namespace mktree {
 namespace {
 
 // The classifier for an entry's mesh, with the edge check ingest stored (computed here for old entries).
-SolidClassifier Classifier(const ObjectEntryView& e, const Mesh& mesh) {
+SolidClassifier Classifier(uint8_t shape_flags, const Mesh& mesh) {
   SolidClassifierOptions o;
-  if (e.shape_flags & kShapeKnown) {
+  if (shape_flags & kShapeKnown) {
     EdgeCheck edges;
-    edges.even = (e.shape_flags & kShapeEvenEdges) != 0;
-    edges.closed = (e.shape_flags & kShapeClosed) != 0;
+    edges.even = (shape_flags & kShapeEvenEdges) != 0;
+    edges.closed = (shape_flags & kShapeClosed) != 0;
     o.edges = edges;
   }
   return SolidClassifier(mesh, o);
+}
+
+// The largest float <= x and the smallest float >= x, for any finite x (beyond float's range: +-FLT_MAX
+// or +-inf).
+float FloatBelow(double x) {
+  constexpr double kMax = std::numeric_limits<float>::max();
+  if (x > kMax) return std::numeric_limits<float>::max();
+  if (x < -kMax) return -std::numeric_limits<float>::infinity();
+  return RoundDownToFloat(x);
+}
+float FloatAbove(double x) {
+  constexpr double kMax = std::numeric_limits<float>::max();
+  if (x < -kMax) return std::numeric_limits<float>::lowest();
+  if (x > kMax) return std::numeric_limits<float>::infinity();
+  return RoundUpToFloat(x);
+}
+
+// A query box (store frame, double) as float bounds that give the same answers on float32 entry boxes:
+// for a float f, f > x exactly when f > FloatBelow(x), and f < x when f < FloatAbove(x). An entry meets the
+// box unless query max < entry min or query min > entry max on some axis (Box3f::Intersects, and
+// Box3f::Contains for a point box), written as negations so that a NaN coordinate compares as it did.
+struct FloatQuery {
+  float lo[3], hi[3];  // FloatAbove(min), FloatBelow(max)
+  explicit FloatQuery(const Box3d& b) {
+    for (int i = 0; i < 3; ++i) {
+      lo[i] = FloatAbove(b.min[i]);
+      hi[i] = FloatBelow(b.max[i]);
+    }
+  }
+  bool Meets(const DecodedLeaf& d, size_t i) const {
+    for (int a = 0; a < 3; ++a)
+      if (hi[a] < d.plane(a)[i] || lo[a] > d.plane(3 + a)[i]) return false;
+    return true;
+  }
+};
+
+// Writes the ids of the leaf's objects whose boxes meet `q` to out[0..], in leaf order; returns how many.
+// REQUIRES: room for d.padded_size() ids.
+size_t ScanBoxes(const DecodedLeaf& d, const FloatQuery& q, ObjectId* out) {
+  const size_t padded = d.padded_size();
+  const ObjectId* ids = d.ids();
+  size_t n = 0;
+#if defined(__SSE2__)
+  const __m128 lo0 = _mm_set1_ps(q.lo[0]), lo1 = _mm_set1_ps(q.lo[1]), lo2 = _mm_set1_ps(q.lo[2]);
+  const __m128 hi0 = _mm_set1_ps(q.hi[0]), hi1 = _mm_set1_ps(q.hi[1]), hi2 = _mm_set1_ps(q.hi[2]);
+  const float *mn0 = d.plane(0), *mn1 = d.plane(1), *mn2 = d.plane(2);
+  const float *mx0 = d.plane(3), *mx1 = d.plane(4), *mx2 = d.plane(5);
+  for (size_t i = 0; i < padded; i += 4) {
+    // cmpnlt(a, b) = !(a < b), cmpngt(a, b) = !(a > b): the scalar test's negations, NaN included.
+    __m128 m =
+        _mm_and_ps(_mm_cmpnlt_ps(hi0, _mm_loadu_ps(mn0 + i)), _mm_cmpngt_ps(lo0, _mm_loadu_ps(mx0 + i)));
+    m = _mm_and_ps(m, _mm_cmpnlt_ps(hi1, _mm_loadu_ps(mn1 + i)));
+    m = _mm_and_ps(m, _mm_cmpngt_ps(lo1, _mm_loadu_ps(mx1 + i)));
+    m = _mm_and_ps(m, _mm_cmpnlt_ps(hi2, _mm_loadu_ps(mn2 + i)));
+    m = _mm_and_ps(m, _mm_cmpngt_ps(lo2, _mm_loadu_ps(mx2 + i)));
+    for (unsigned bits = static_cast<unsigned>(_mm_movemask_ps(m)); bits != 0; bits &= bits - 1)
+      out[n++] = ids[i + static_cast<unsigned>(__builtin_ctz(bits))];
+  }
+#else
+  for (size_t i = 0; i < padded; ++i) {
+    out[n] = ids[i < d.size() ? i : 0];
+    n += q.Meets(d, i);
+  }
+#endif
+  return n;
 }
 
 // Sorts ids ascending. Large answers (an 8 m box in the tanker has ~1800) by radix, three passes of 11
@@ -211,12 +281,12 @@ class StoreDatabase final : public Database {
 
   ClashStore ClashStoreView() const { return ClashStore{*reader_, cache_, options_.verify_checksums}; }
 
-  // Pins the leaf's pages, verifies and parses them, and appends to `found` the objects that answer, up to
-  // `cap` of them (the rest of the leaf is not tested); `test` says whether an object answers: a bool, or
-  // a Result<bool> where the test can fail (exact geometry).
-  template <typename Test>
-  Status ScanLeaf(PageCache& cache, uint32_t leaf, QueryStats* s, Test&& test, uint64_t cap,
-                  std::vector<ObjectId>* found) const {
+  // Reads the leaf (its DecodedLeaf: ReadLeaf with decode) and appends to `found` the objects that
+  // answer, up to `cap` of them (the rest of the leaf is not tested). AABB mode tests the boxes only; exact
+  // mode tests the solid of each object whose box meets the query, with `meets_solid`.
+  template <typename MeetsSolid>
+  Status ScanLeaf(PageCache& cache, uint32_t leaf, QueryStats* s, const FloatQuery& fq, QueryMode mode,
+                  MeetsSolid&& meets_solid, uint64_t cap, std::vector<ObjectId>* found) const {
     const MKTree& tree = reader_->tree();
     // One PinnedLeaf per thread, reused leaf after leaf so that a scan allocates nothing; it holds pins
     // only during the scan.
@@ -227,18 +297,44 @@ class StoreDatabase final : public Database {
     } unpin{pinned};
     MKTREE_RETURN_IF_ERROR(ReadLeaf(cache, reader_->pages().name(), leaf, tree.leaves[leaf],
                                     reader_->objects().leaf, tree.params.mem_page(),
-                                    options_.verify_checksums, s, &pinned));
-    for (const ObjectEntryView& e : pinned.view.entries()) {
+                                    options_.verify_checksums, s, &pinned, /*decode=*/true));
+    const DecodedLeaf& d = *pinned.decoded;
+    const size_t n = d.size();
+    if (mode == QueryMode::kAabb && found->size() + n <= cap) {  // no cap within this leaf
+      s->candidates_tested += n;
+      const size_t at = found->size();
+      found->resize(at + d.padded_size());
+      found->resize(at + ScanBoxes(d, fq, found->data() + at));
+      return Status::Ok();
+    }
+    for (size_t i = 0; i < n; ++i) {
       if (found->size() >= cap) break;
       ++s->candidates_tested;
-      if constexpr (std::is_same_v<std::invoke_result_t<Test&, const ObjectEntryView&>, bool>) {
-        if (test(e)) found->push_back(e.id);
-      } else {
-        MKTREE_ASSIGN_OR_RETURN(const bool answers, test(e));
-        if (answers) found->push_back(e.id);
+      if (!fq.Meets(d, i)) continue;
+      if (mode == QueryMode::kExact) {
+        MKTREE_ASSIGN_OR_RETURN(const bool answers, MeetsExactly(d, i, pinned, meets_solid));
+        if (!answers) continue;
       }
+      found->push_back(d.ids()[i]);
     }
     return Status::Ok();
+  }
+
+  // Object i of the pinned leaf tested against its solid: its mesh from the DecodedLeaf, else decoded
+  // from the entry (and cached there, within its budget).
+  template <typename MeetsSolid>
+  Result<bool> MeetsExactly(const DecodedLeaf& d, size_t i, PinnedLeaf& pinned,
+                            MeetsSolid&& meets_solid) const {
+    const Mesh* mesh = d.mesh(i);
+    Mesh local;
+    if (!mesh) {
+      MKTREE_RETURN_IF_ERROR(
+          ParsePinned(reader_->pages().name(), reader_->tree().params.mem_page(), &pinned));
+      MKTREE_RETURN_IF_ERROR(DecodeStoredMesh(path(), pinned.view.entry(i), &local));
+      mesh = d.CacheMesh(i, std::move(local));
+      if (!mesh) mesh = &local;  // over the leaf's budget: CacheMesh left `local` as it was
+    }
+    return meets_solid(Classifier(d.shape_flags(i), *mesh));
   }
 
   // One query through `cache`; the ids go to `visit` (returns false to stop). Returns whether the whole
@@ -253,9 +349,10 @@ class StoreDatabase final : public Database {
     return Guarded(path(), [&]() -> Result<bool> {
       if (q.kind == Query::Kind::kPoint) {
         const Vec3d p = ToStoreFrame(q.point);
+        Box3d at;
+        at.min = at.max = {p.x, p.y, p.z};
         return Answer(
-            cache, [&](std::vector<uint32_t>* leaves) { tree.RoutePoint(p, leaves, &s); }, q,
-            [&](const ObjectEntryView& e) { return e.box.Contains(p); },
+            cache, [&](std::vector<uint32_t>* leaves) { tree.RoutePoint(p, leaves, &s); }, q, FloatQuery(at),
             [&](const SolidClassifier& solid) { return solid.Contains(p); }, visit, &s);
       }
       Box3d box;
@@ -264,27 +361,20 @@ class StoreDatabase final : public Database {
         box.max[i] = q.box.max[i] - tree.origin[i];
       }
       return Answer(
-          cache, [&](std::vector<uint32_t>* leaves) { tree.RouteBox(box, leaves, &s); }, q,
-          [&](const ObjectEntryView& e) { return e.box.Intersects(box); },
+          cache, [&](std::vector<uint32_t>* leaves) { tree.RouteBox(box, leaves, &s); }, q, FloatQuery(box),
           [&](const SolidClassifier& solid) { return solid.MeetsBox(box); }, visit, &s);
     });
   }
 
-  // One query: `route` lists the leaves to read; `meets_aabb` tests an entry's box (AABB mode, and the
-  // first test of exact mode); `meets_solid` tests the object's solid (exact mode). Each leaf's answers
-  // go to `visit` once the leaf is released. Under a limit, leaves are scanned for one id more than the
-  // limit leaves room for, which tells whether the answer goes on without reading further.
-  template <typename Route, typename MeetsAabb, typename MeetsSolid>
-  Result<bool> Answer(PageCache& cache, Route&& route, const Query& q, MeetsAabb&& meets_aabb,
+  // One query: `route` lists the leaves to read; `fq` tests an entry's box (AABB mode, and the first test
+  // of exact mode); `meets_solid` tests the object's solid (exact mode). Each leaf's answers go to `visit`
+  // once the leaf is released. Under a limit, leaves are scanned for one id more than the limit leaves
+  // room for, which tells whether the answer goes on without reading further.
+  template <typename Route, typename MeetsSolid>
+  Result<bool> Answer(PageCache& cache, Route&& route, const Query& q, const FloatQuery& fq,
                       MeetsSolid&& meets_solid, const StoppableVisitor& visit, QueryStats* s) const {
     std::vector<uint32_t> leaves;
     route(&leaves);
-    auto exact = [&](const ObjectEntryView& e) -> Result<bool> {
-      if (!meets_aabb(e)) return false;
-      Mesh mesh;
-      MKTREE_RETURN_IF_ERROR(DecodeStoredMesh(path(), e, &mesh));
-      return meets_solid(Classifier(e, mesh));
-    };
     std::vector<ObjectId> found = std::exchange(t_spare_ids, {});
     struct Restore {  // the buffer goes back on every path, errors included
       std::vector<ObjectId>& found;
@@ -301,8 +391,7 @@ class StoreDatabase final : public Database {
       --unvisited.unread;
       found.clear();
       const uint64_t cap = room == Query::kNoLimit ? room : room + 1;
-      MKTREE_RETURN_IF_ERROR(q.mode == QueryMode::kAabb ? ScanLeaf(cache, leaf, s, meets_aabb, cap, &found)
-                                                        : ScanLeaf(cache, leaf, s, exact, cap, &found));
+      MKTREE_RETURN_IF_ERROR(ScanLeaf(cache, leaf, s, fq, q.mode, meets_solid, cap, &found));
       const size_t take = static_cast<size_t>(std::min<uint64_t>(found.size(), room));
       s->leaves_with_hits += take > 0;
       for (size_t k = 0; k < take; ++k) {

@@ -1,6 +1,7 @@
 #include "engine/store/leaf_reader.h"
 
 #include <algorithm>
+#include <limits>
 
 #include "engine/store/tree_codec.h"
 #include "storage/page_codec.h"
@@ -59,11 +60,75 @@ Status CheckLeafEntries(const LeafView& view, const std::string& store_name, uin
   return problem.empty() ? Status::Ok() : fail(problem);
 }
 
+DecodedLeaf::DecodedLeaf(const LeafView& view, uint64_t mesh_budget, std::vector<uint64_t> later_page_loads)
+    : later_page_loads_(std::move(later_page_loads)), mesh_budget_(mesh_budget) {
+  const size_t n = view.size();
+  padded_ = (n + kLanes - 1) / kLanes * kLanes;
+  ids_.resize(n);
+  shape_flags_.resize(n);
+  boxes_.resize(6 * padded_);
+  const float inf = std::numeric_limits<float>::infinity();
+  for (int p = 0; p < 6; ++p) {
+    float* plane = boxes_.data() + static_cast<size_t>(p) * padded_;
+    for (size_t i = 0; i < n; ++i) {
+      const Box3f& b = view.entry(i).box;
+      plane[i] = p < 3 ? b.min[p] : b.max[p - 3];
+    }
+    // Padding meets nothing: a min of +inf is above every rounded query max (at most FLT_MAX).
+    std::fill(plane + n, plane + padded_, p < 3 ? inf : -inf);
+  }
+  for (size_t i = 0; i < n; ++i) {
+    ids_[i] = view.entry(i).id;
+    shape_flags_[i] = view.entry(i).shape_flags;
+  }
+  meshes_ = std::make_unique<std::atomic<const Mesh*>[]>(n);
+  for (size_t i = 0; i < n; ++i) meshes_[i].store(nullptr, std::memory_order_relaxed);
+}
+
+DecodedLeaf::~DecodedLeaf() {
+  for (size_t i = 0; i < ids_.size(); ++i) delete meshes_[i].load(std::memory_order_relaxed);
+}
+
+namespace {
+uint64_t MeshBytes(const Mesh& m) {
+  return sizeof(Mesh) + m.vertices.size() * sizeof(double) + m.triangles.size() * sizeof(uint32_t);
+}
+}  // namespace
+
+const Mesh* DecodedLeaf::CacheMesh(size_t i, Mesh&& mesh) const {
+  if (const Mesh* m = this->mesh(i)) return m;
+  const uint64_t bytes = MeshBytes(mesh);
+  uint64_t used = mesh_bytes_.load(std::memory_order_relaxed);
+  do {
+    if (used + bytes > mesh_budget_) return nullptr;
+  } while (!mesh_bytes_.compare_exchange_weak(used, used + bytes, std::memory_order_relaxed));
+  auto owned = std::make_unique<Mesh>(std::move(mesh));
+  const Mesh* expected = nullptr;
+  if (meshes_[i].compare_exchange_strong(expected, owned.get(), std::memory_order_acq_rel,
+                                         std::memory_order_acquire))
+    return owned.release();
+  mesh_bytes_.fetch_sub(bytes, std::memory_order_relaxed);  // another thread cached it first
+  return expected;
+}
+
+uint64_t DecodedLeaf::bytes() const {
+  return sizeof(*this) + ids_.capacity() * sizeof(ObjectId) + shape_flags_.capacity() +
+         boxes_.capacity() * sizeof(float) + later_page_loads_.capacity() * sizeof(uint64_t) +
+         ids_.size() * sizeof(std::atomic<const Mesh*>) + mesh_bytes_.load(std::memory_order_relaxed);
+}
+
+Status ParsePinned(const std::string& store_name, uint64_t mem_page, PinnedLeaf* out) {
+  if (out->view.size() != 0 || out->pages.empty()) return Status::Ok();
+  return LeafView::Parse(store_name, out->leaf, out->first_page, out->page_data, mem_page, false, &out->view);
+}
+
 Status ReadLeaf(PageCache& cache, const std::string& store_name, uint32_t leaf, const LeafInfo& info,
                 std::span<const uint32_t> object_leaf, uint64_t mem_page, bool verify_checksums,
-                QueryStats* stats, PinnedLeaf* out) {
+                QueryStats* stats, PinnedLeaf* out, bool decode) {
   out->Release();
   out->page_data.clear();
+  out->leaf = leaf;
+  out->first_page = info.first_page;
   for (uint64_t p = info.first_page; p < info.first_page + info.page_count; ++p) {
     auto h = cache.Pin(p, stats);
     if (!h.ok()) {
@@ -81,11 +146,56 @@ Status ReadLeaf(PageCache& cache, const std::string& store_name, uint32_t leaf, 
     out->page_data.push_back(h->data());
     out->pages.push_back(std::move(*h));
   }
+  if (decode && !out->pages.empty()) {
+    // Cached with the first page, and built from these very copies of the others: the entries were parsed
+    // and checked then.
+    if (const auto* d = static_cast<const DecodedLeaf*>(out->pages[0].attachment())) {
+      bool same = d->later_page_loads().size() + 1 == out->pages.size();
+      for (size_t k = 1; same && k < out->pages.size(); ++k)
+        same = d->later_page_loads()[k - 1] == out->pages[k].load_id();
+      if (same) {
+        out->decoded = d;
+        return Status::Ok();
+      }
+    }
+  }
   // Checksums are settled above; Parse still checks every header and entry.
   Status st = LeafView::Parse(store_name, leaf, info.first_page, out->page_data, mem_page, false, &out->view);
   if (st.ok()) st = CheckLeafEntries(out->view, store_name, leaf, info, object_leaf, &out->seen);
-  if (!st.ok()) out->Release();
-  return st;
+  if (!st.ok()) {
+    out->Release();
+    return st;
+  }
+  if (decode && out->pages.empty()) {  // a leaf of no pages (an empty tree's): nothing to cache
+    static const DecodedLeaf* const kEmpty = new DecodedLeaf(LeafView(), 0, {});
+    out->decoded = kEmpty;
+  } else if (decode) {
+    std::vector<uint64_t> loads;
+    for (size_t k = 1; k < out->pages.size(); ++k) loads.push_back(out->pages[k].load_id());
+    // A DecodedLeaf cached with an older copy of a later page is replaced: the first page's copy keeps one
+    // attachment, so this one is used for this read only and the next read builds again. Rare (a later
+    // page evicted before the first), and never wrong.
+    auto built = std::make_unique<DecodedLeaf>(out->view, info.page_count * mem_page, std::move(loads));
+    const DecodedLeaf* mine = built.get();
+    const auto* kept = static_cast<const DecodedLeaf*>(out->pages[0].Attach(std::move(built)));
+    out->decoded = mine;
+    if (kept != mine) {
+      // Another thread's, or a stale one: use a private copy this time.
+      bool same = kept->later_page_loads().size() + 1 == out->pages.size();
+      for (size_t k = 1; same && k < out->pages.size(); ++k)
+        same = kept->later_page_loads()[k - 1] == out->pages[k].load_id();
+      if (same) {
+        out->decoded = kept;
+      } else {
+        thread_local std::unique_ptr<DecodedLeaf> t_private;
+        std::vector<uint64_t> again;
+        for (size_t k = 1; k < out->pages.size(); ++k) again.push_back(out->pages[k].load_id());
+        t_private = std::make_unique<DecodedLeaf>(out->view, 0, std::move(again));
+        out->decoded = t_private.get();
+      }
+    }
+  }
+  return Status::Ok();
 }
 
 Result<PinnedLeaf> ReadLeaf(PageCache& cache, const std::string& store_name, uint32_t leaf,

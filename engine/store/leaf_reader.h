@@ -2,6 +2,8 @@
 // access) and parsed into a LeafView that stays valid as long as the PinnedLeaf holds them.
 #pragma once
 
+#include <atomic>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -13,15 +15,55 @@
 
 namespace mktree {
 
+// A leaf's entries decoded for scanning, kept in the page cache with its first page (PageAttachment) and
+// built only from pages that passed every check ReadLeaf makes: ids, shape flags and float32 boxes as
+// arrays (struct of arrays, each box plane padded to a multiple of kLanes with boxes that meet nothing),
+// and, for exact mode, the meshes decoded so far, up to as many bytes as the leaf's pages hold.
+// Thread safety: immutable once built, but for the mesh slots, which any number of threads may fill.
+class DecodedLeaf final : public PageAttachment {
+ public:
+  static constexpr size_t kLanes = 8;
+  DecodedLeaf(const LeafView& view, uint64_t mesh_budget, std::vector<uint64_t> later_page_loads);
+  ~DecodedLeaf() override;
+
+  size_t size() const { return ids_.size(); }
+  const ObjectId* ids() const { return ids_.data(); }
+  uint8_t shape_flags(size_t i) const { return shape_flags_[i]; }
+  // Plane p: 0-2 min x/y/z, 3-5 max x/y/z; padded_size() floats each.
+  const float* plane(int p) const { return boxes_.data() + static_cast<size_t>(p) * padded_; }
+  size_t padded_size() const { return padded_; }
+  // Load ids (PageHandle::load_id) of the leaf's pages after the first, as they were when it was built.
+  const std::vector<uint64_t>& later_page_loads() const { return later_page_loads_; }
+  // Object i's mesh if cached, else null.
+  const Mesh* mesh(size_t i) const { return meshes_[i].load(std::memory_order_acquire); }
+  // Caches `mesh` as object i's if the budget allows; returns the cached mesh, or null (over budget).
+  const Mesh* CacheMesh(size_t i, Mesh&& mesh) const;
+  uint64_t bytes() const;  // memory held, meshes included
+
+ private:
+  std::vector<ObjectId> ids_;
+  std::vector<uint8_t> shape_flags_;
+  size_t padded_ = 0;
+  std::vector<float> boxes_;
+  std::vector<uint64_t> later_page_loads_;
+  std::unique_ptr<std::atomic<const Mesh*>[]> meshes_;
+  const uint64_t mesh_budget_;
+  mutable std::atomic<uint64_t> mesh_bytes_{0};
+};
+
 struct PinnedLeaf {
-  std::vector<PageHandle> pages;  // declared first: destroyed after `view`, which points into them
-  LeafView view;
+  std::vector<PageHandle> pages;          // declared first: destroyed after `view`, which points into them
+  LeafView view;                          // empty when `decoded` came from the cache (see ParsePinned)
+  const DecodedLeaf* decoded = nullptr;   // ReadLeaf with `decode` only; valid while `pages` are pinned
   std::vector<const uint8_t*> page_data;  // the pages' bytes, as LeafView::Parse takes them
   std::vector<uint64_t> seen;             // CheckLeafEntries' bit per object id, all zero between reads
+  uint32_t leaf = 0;
+  uint64_t first_page = 0;
 
   // Unpins the pages and empties the view, keeping the buffers for the next ReadLeaf.
   void Release() {
     view.Clear();
+    decoded = nullptr;
     pages.clear();
   }
 };
@@ -45,9 +87,17 @@ Status CheckLeafEntries(const LeafView& view, const std::string& store_name, uin
 // after being loaded into the cache (PageHandle::verified), so a corrupt page is refused on every read,
 // but a cached page is not hashed again on every hit. Errors name the store and the page; on error *out
 // holds nothing.
+//
+// With `decode`, out->decoded is the leaf's DecodedLeaf: the one cached with its first page if none of its
+// pages was reloaded since it was built (then the pages are pinned, counted and checksummed as always, but
+// the entries are not parsed again and out->view stays empty), else one built now from the parsed and
+// checked entries and cached.
 Status ReadLeaf(PageCache& cache, const std::string& store_name, uint32_t leaf, const LeafInfo& info,
                 std::span<const uint32_t> object_leaf, uint64_t mem_page, bool verify_checksums,
-                QueryStats* stats, PinnedLeaf* out);
+                QueryStats* stats, PinnedLeaf* out, bool decode = false);
+// Parses out->view from the pinned pages if it is empty (after a ReadLeaf that took a cached DecodedLeaf):
+// the same bytes that were checked when the DecodedLeaf was built, so the same entries in the same order.
+Status ParsePinned(const std::string& store_name, uint64_t mem_page, PinnedLeaf* out);
 // The same, into a new PinnedLeaf.
 Result<PinnedLeaf> ReadLeaf(PageCache& cache, const std::string& store_name, uint32_t leaf,
                             const LeafInfo& info, std::span<const uint32_t> object_leaf, uint64_t mem_page,

@@ -60,7 +60,11 @@ enum class QueryMode {
 };
 
 struct OpenOptions {
-  // Capacity of the LRU page cache, in pages (0: every page lookup is a disk access).
+  // Capacity of the LRU page cache, in pages (0: every page lookup is a disk access). The budget stays in
+  // pages: each cached leaf also keeps its decoded form (ids and float32 boxes as arrays, about 37 bytes
+  // per object, fewer than its entries take in the page) for as long as its pages stay cached, so that a
+  // warm query never parses entries; exact mode adds the meshes it decoded, at most the leaf's page bytes.
+  // Memory is thus at most about twice cache_pages pages. Page counts (QueryStats) are unchanged by it.
   uint64_t cache_pages = 4096;
   // Verify each page's checksum when it is read from the store. A mismatch is an error, never an answer.
   bool verify_checksums = true;
