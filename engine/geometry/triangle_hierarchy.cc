@@ -24,6 +24,12 @@ double BoxExtent(const Box3d& b) {
   return (b.max[0] - b.min[0]) + (b.max[1] - b.min[1]) + (b.max[2] - b.min[2]);
 }
 
+// Nodes of the subtree over `count` triangles as Build splits them.
+size_t NodeCount(uint32_t count) {
+  if (count <= TriangleHierarchy::kLeafTriangles) return 1;
+  return 1 + NodeCount(count / 2) + NodeCount(count - count / 2);
+}
+
 double PointBoxDistanceSquared(const Vec3d& p, const Box3d& b) {
   double d2 = 0;
   for (int k = 0; k < 3; ++k) {
@@ -58,7 +64,8 @@ TriangleHierarchy::TriangleHierarchy(const Mesh& mesh) : vertices_(mesh.vertices
     centroids[t] = {c.x / 3, c.y / 3, c.z / 3};
     mesh_index_[t] = static_cast<uint32_t>(t);
   }
-  nodes_.reserve(2 * (n / kLeafTriangles) + 1);
+  // The exact node count: a reserve that falls short would double the array (MemoryBytes must be true).
+  nodes_.reserve(NodeCount(static_cast<uint32_t>(n)));
   nodes_.emplace_back();
   Build(0, 0, static_cast<uint32_t>(n), centroids);
   // Leaf order: the corners' vertex indices, after the build has settled the order of mesh_index_.
