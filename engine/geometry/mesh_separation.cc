@@ -387,12 +387,17 @@ void SetDepth(const Impl& a, const Impl& b, double gap, double enough, const Vec
     return false;
   };
   r->distance = -r->depth_upper;
-  // Pairs already a touch: the cheap planes may make the depth exact and spare the search below. Pairs
+  // Pairs already a touch: the cheap planes may make the depth exact; no search (below). Pairs
   // whose class the certificate can still change (depth_upper > enough, or any when enough is infinite):
   // the cheap planes, then the search, only when the search below found no point of one inside the other
   // (such a point rules a certificate out, and most hard pairs have one).
   const bool undecided = std::isinf(enough) ? r->depth_upper > 0 : r->depth_upper > enough;
-  if (!undecided && certify(TouchStage::kCheap)) return;
+  if (!undecided) {
+    // Already a touch by its bounds: the depth search could only raise depth_lower towards depth_upper,
+    // which changes no class; 0 stays a true lower bound (docs/clash.md section 2).
+    if (!certify(TouchStage::kCheap)) r->distance = -r->depth_upper;
+    return;
+  }
   auto certify_undecided = [&] { return certify(TouchStage::kCheap) || certify(TouchStage::kSearch); };
   if (!a.solid() || !b.solid()) {  // a surface has no inside: depth_lower stays 0
     // Only the cheap planes: on the real scenes the undecided surface pairs are terrain crossing
