@@ -126,6 +126,35 @@ struct NodePair {
   uint32_t a, b;
 };
 
+// True when every corner of `u` is strictly beyond t's plane on one side by clearly more than
+// sqrt(best2) (a margin above the rounding of both this test and the distance computation): the
+// triangles are then at least that far apart (the distance from u to the plane is attained at a
+// corner), and the exact distance test could not accept the pair.
+bool PlaneFarApart(const TriangleHierarchy::Triangle& t, const TriangleHierarchy::Triangle& u, double best2) {
+  const Vec3d e1{t[1].x - t[0].x, t[1].y - t[0].y, t[1].z - t[0].z};
+  const Vec3d e2{t[2].x - t[0].x, t[2].y - t[0].y, t[2].z - t[0].z};
+  const Vec3d n{e1.y * e2.z - e1.z * e2.y, e1.z * e2.x - e1.x * e2.z, e1.x * e2.y - e1.y * e2.x};
+  const double nn = n.x * n.x + n.y * n.y + n.z * n.z;
+  if (!(nn > 0)) return false;
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo, reach = 0;
+  for (const Vec3d& v : u) {
+    const Vec3d d{v.x - t[0].x, v.y - t[0].y, v.z - t[0].z};
+    const double sd = n.x * d.x + n.y * d.y + n.z * d.z;
+    lo = std::min(lo, sd);
+    hi = std::max(hi, sd);
+    reach = std::max(reach, std::fabs(d.x) + std::fabs(d.y) + std::fabs(d.z));
+  }
+  // Rounding of n and of the dot products: a few ulp of |e1|_1 |e2|_1 reach.
+  const double l1 = (std::fabs(e1.x) + std::fabs(e1.y) + std::fabs(e1.z)) *
+                    (std::fabs(e2.x) + std::fabs(e2.y) + std::fabs(e2.z));
+  const double err = 64 * std::numeric_limits<double>::epsilon() * l1 * reach;
+  const double m = lo > 0 ? lo - err : hi < 0 ? -hi - err : 0;
+  if (!(m > 0)) return false;
+  const double len = std::sqrt(nn);
+  const double need = std::sqrt(best2) * (1 + 1e-6) + 1e-12 * (len + reach);
+  return m > need * len;
+}
+
 // Which node of the pair to open: the inner one, or the larger of two inner ones.
 bool OpenA(const TriangleHierarchy::Node& na, const TriangleHierarchy::Node& nb) {
   if (na.leaf()) return false;
@@ -204,6 +233,7 @@ bool TriangleHierarchy::ClosestBelow(const TriangleHierarchy& a, const TriangleH
         for (uint32_t j = nb.first; j < nb.first + nb.count; ++j) {
           const Triangle tj = b.triangle(j);
           if (BoxDistanceSquared(bi, TriangleBox(tj)) >= best2) continue;
+          if (PlaneFarApart(ti, tj, best2) || PlaneFarApart(tj, ti, best2)) continue;
           ++n_tests;
           const ClosestPoints c = TriangleFeatureClosest(ti.data(), tj.data());
           if (c.distance_squared < best2) {
