@@ -116,12 +116,20 @@ struct ClashShape::Impl {
   // index of each distinct position, ascending (meshes with one vertex per face corner repeat positions).
   static std::vector<uint32_t> ComponentVertices(const Mesh& m, std::vector<uint32_t>* distinct) {
     const size_t n = m.vertex_count();
-    std::vector<uint32_t> order(n);
-    std::iota(order.begin(), order.end(), 0u);
     auto at = [&](uint32_t i) { return &m.vertices[3 * size_t{i}]; };
-    std::sort(order.begin(), order.end(), [&](uint32_t x, uint32_t y) {
-      return std::lexicographical_compare(at(x), at(x) + 3, at(y), at(y) + 3);
+    // Sorted by position with the coordinates beside the index (no indirection in the comparisons).
+    struct Key {
+      double x, y, z;
+      uint32_t i;
+    };
+    std::vector<Key> keys(n);
+    for (uint32_t i = 0; i < n; ++i) keys[i] = {at(i)[0], at(i)[1], at(i)[2], i};
+    std::sort(keys.begin(), keys.end(), [](const Key& p, const Key& q) {
+      return p.x < q.x || (p.x == q.x && (p.y < q.y || (p.y == q.y && p.z < q.z)));
     });
+    std::vector<uint32_t> order(n);
+    for (size_t k = 0; k < n; ++k) order[k] = keys[k].i;
+    keys = {};
     std::vector<uint32_t> parent(n);
     std::iota(parent.begin(), parent.end(), 0u);
     auto find = [&](uint32_t x) {
