@@ -1,9 +1,11 @@
 #include "engine/geometry/mesh_separation.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cfloat>
 #include <cmath>
 #include <limits>
+#include <mutex>
 #include <numeric>
 #include <string>
 #include <vector>
@@ -18,22 +20,8 @@ namespace mktree {
 
 struct ClashShape::Impl {
   Impl(const Mesh& m, const std::optional<EdgeCheck>& e)
-      : mesh(m), edges(e ? *e : CheckEdges(m)), bounds(m.Bounds()), kdop(Kdop::Of(m)), hierarchy(m) {
-    if (edges.closed && m.triangle_count() > 0) {
-      SolidClassifierOptions options;
-      options.edges = edges;
-      // Containment asks one point per component; the depth bound asks one per vertex inside.
-      options.expected_queries = kGridBreakEven;
-      classifier.emplace(m, options);
-      component_vertices = ComponentVertices(m, &distinct_vertices);
-    }
-    FaceDirections();
-  }
-
-  // The distinct unit normals of a small mesh's triangles with the vertices' projection intervals on
-  // them: more candidate directions for the depth upper bound (for convex solids meeting face to face
-  // the exact depth is attained along one of them).
-  void FaceDirections() {
+      : mesh(m), edges(e ? *e : CheckEdges(m)), bounds(m.Bounds()), kdop(Kdop::Of(m)) {
+    is_solid = edges.closed && m.triangle_count() > 0;
     double largest = 0;
     for (double c : mesh.vertices) largest = std::max(largest, std::fabs(c));
     // Rounding of a projection onto a unit vector (|d| = 1 within a few ulp): a few ulp of the largest
@@ -41,6 +29,42 @@ struct ClashShape::Impl {
     projection_slack = 16 * DBL_EPSILON * 3 * largest;
     // Depths below the classifier's surface tolerance are not depths (such points count as on the surface).
     negligible2 = SurfaceTolerance(bounds) * SurfaceTolerance(bounds);
+  }
+
+  // The parts below the 26-DOP are built on first use (most candidate pairs never need some of them);
+  // Separate may run on several threads at once, hence call_once. `st` counts what was built.
+  const TriangleHierarchy& Hierarchy(NarrowStats* st) const {
+    std::call_once(hierarchy_once, [&] {
+      hierarchy.emplace(mesh);
+      ++st->hierarchies_built;
+    });
+    return *hierarchy;
+  }
+  // Solids only.
+  const SolidClassifier& Classifier(NarrowStats* st) const {
+    BuildSolidParts(st);
+    return *classifier;
+  }
+  void BuildSolidParts(NarrowStats* st) const {
+    std::call_once(solid_once, [&] {
+      SolidClassifierOptions options;
+      options.edges = edges;
+      // Containment asks one point per component; the depth bound asks one per vertex inside.
+      options.expected_queries = kGridBreakEven;
+      classifier.emplace(mesh, options);
+      component_vertices = ComponentVertices(mesh, &distinct_vertices);
+      solid_built.store(true, std::memory_order_release);
+      ++st->classifiers_built;
+    });
+  }
+  void BuildDirections() const {
+    std::call_once(directions_once, [&] { FaceDirections(); });
+  }
+
+  // The distinct unit normals of a small mesh's triangles with the vertices' projection intervals on
+  // them: more candidate directions for the depth upper bound (for convex solids meeting face to face
+  // the exact depth is attained along one of them).
+  void FaceDirections() const {
     if (mesh.triangle_count() > kMaxDepthDirectionTriangles ||
         mesh.vertex_count() > kMaxDepthDirectionVertices)
       return;
@@ -70,7 +94,7 @@ struct ClashShape::Impl {
     return {mesh.vertices[3 * size_t{i}], mesh.vertices[3 * size_t{i} + 1], mesh.vertices[3 * size_t{i} + 2]};
   }
 
-  // Over each distinct position once when they are known (solids): the same interval.
+  // Over each distinct position once when they are known (solids, once built): the same interval.
   std::pair<double, double> ProjectionInterval(const Vec3d& d) const {
     double lo = std::numeric_limits<double>::infinity(), hi = -lo;
     auto add = [&](size_t i) {
@@ -79,7 +103,7 @@ struct ClashShape::Impl {
       lo = std::min(lo, p);
       hi = std::max(hi, p);
     };
-    if (!distinct_vertices.empty()) {
+    if (solid_built.load(std::memory_order_acquire)) {
       for (uint32_t i : distinct_vertices) add(i);
     } else {
       for (size_t i = 0; i < mesh.vertex_count(); ++i) add(i);
@@ -92,12 +116,20 @@ struct ClashShape::Impl {
   // index of each distinct position, ascending (meshes with one vertex per face corner repeat positions).
   static std::vector<uint32_t> ComponentVertices(const Mesh& m, std::vector<uint32_t>* distinct) {
     const size_t n = m.vertex_count();
-    std::vector<uint32_t> order(n);
-    std::iota(order.begin(), order.end(), 0u);
     auto at = [&](uint32_t i) { return &m.vertices[3 * size_t{i}]; };
-    std::sort(order.begin(), order.end(), [&](uint32_t x, uint32_t y) {
-      return std::lexicographical_compare(at(x), at(x) + 3, at(y), at(y) + 3);
+    // Sorted by position with the coordinates beside the index (no indirection in the comparisons).
+    struct Key {
+      double x, y, z;
+      uint32_t i;
+    };
+    std::vector<Key> keys(n);
+    for (uint32_t i = 0; i < n; ++i) keys[i] = {at(i)[0], at(i)[1], at(i)[2], i};
+    std::sort(keys.begin(), keys.end(), [](const Key& p, const Key& q) {
+      return p.x < q.x || (p.x == q.x && (p.y < q.y || (p.y == q.y && p.z < q.z)));
     });
+    std::vector<uint32_t> order(n);
+    for (size_t k = 0; k < n; ++k) order[k] = keys[k].i;
+    keys = {};
     std::vector<uint32_t> parent(n);
     std::iota(parent.begin(), parent.end(), 0u);
     auto find = [&](uint32_t x) {
@@ -134,20 +166,24 @@ struct ClashShape::Impl {
     return reps;
   }
 
-  bool solid() const { return classifier.has_value(); }
+  bool solid() const { return is_solid; }
 
   const Mesh& mesh;
   EdgeCheck edges;
   Box3d bounds;
   Kdop kdop;
-  TriangleHierarchy hierarchy;
-  std::optional<SolidClassifier> classifier;  // closed meshes only: open ones are surfaces
-  std::vector<uint32_t> component_vertices;
-  std::vector<uint32_t> distinct_vertices;  // solids: ComponentVertices
-  std::vector<Vec3d> directions;            // FaceDirections
-  std::vector<double> direction_lo, direction_hi;
+  bool is_solid = false;  // closed meshes only: open ones are surfaces
   double projection_slack = 0;
   double negligible2 = 0;
+  // Built on first use (the accessors above).
+  mutable std::once_flag hierarchy_once, solid_once, directions_once;
+  mutable std::optional<TriangleHierarchy> hierarchy;
+  mutable std::optional<SolidClassifier> classifier;
+  mutable std::atomic<bool> solid_built{false};
+  mutable std::vector<uint32_t> component_vertices;
+  mutable std::vector<uint32_t> distinct_vertices;  // solids: ComponentVertices
+  mutable std::vector<Vec3d> directions;            // FaceDirections
+  mutable std::vector<double> direction_lo, direction_hi;
 };
 
 ClashShape::ClashShape(const Mesh& mesh, const std::optional<EdgeCheck>& edges)
@@ -162,13 +198,19 @@ Box3d ClashShape::bounds() const { return impl_->bounds; }
 const Kdop& ClashShape::kdop() const { return impl_->kdop; }
 
 size_t ClashShape::MemoryBytes() const {
-  // The classifier's grid is not exposed; count its triangle lists as one index per triangle per cell
-  // row, an estimate.
-  size_t bytes =
-      sizeof(Impl) + impl_->hierarchy.MemoryBytes() +
-      (impl_->component_vertices.capacity() + impl_->distinct_vertices.capacity()) * sizeof(uint32_t);
-  if (impl_->classifier && impl_->classifier->has_grid()) bytes += 8 * impl_->mesh.triangle_count();
+  // What is built so far. Called by the thread that owns the shape while no Separate runs on it.
+  const Impl& m = *impl_;
+  size_t bytes = sizeof(Impl);
+  if (m.hierarchy) bytes += m.hierarchy->MemoryBytes();
+  if (m.classifier) bytes += m.classifier->MemoryBytes();
+  bytes += (m.component_vertices.capacity() + m.distinct_vertices.capacity()) * sizeof(uint32_t) +
+           m.directions.capacity() * sizeof(Vec3d) +
+           (m.direction_lo.capacity() + m.direction_hi.capacity()) * sizeof(double);
   return bytes;
+}
+
+ClashShape::Built ClashShape::built() const {
+  return {impl_->hierarchy.has_value(), impl_->classifier.has_value()};
 }
 
 Status ValidateClashMesh(const Mesh& mesh) {
@@ -238,13 +280,16 @@ bool BruteForceMeeting(const TriangleHierarchy& a, const TriangleHierarchy& b, V
 }
 
 bool FindMeetingTriangles(const Impl& a, const Impl& b, size_t brute_force, Vec3d* ta, Vec3d* tb,
-                          uint64_t* tests) {
-  if (a.hierarchy.triangle_count() <= brute_force && b.hierarchy.triangle_count() <= brute_force)
-    return BruteForceMeeting(a.hierarchy, b.hierarchy, ta, tb, tests);
+                          NarrowStats* st) {
+  const TriangleHierarchy& ha = a.Hierarchy(st);
+  const TriangleHierarchy& hb = b.Hierarchy(st);
+  uint64_t* tests = &st->triangle_tests;
+  if (ha.triangle_count() <= brute_force && hb.triangle_count() <= brute_force)
+    return BruteForceMeeting(ha, hb, ta, tb, tests);
   TriangleHierarchy::Pair pair;
-  if (!TriangleHierarchy::FindMeeting(a.hierarchy, b.hierarchy, &pair, tests)) return false;
-  std::copy_n(a.hierarchy.triangle(pair.a).data(), 3, ta);
-  std::copy_n(b.hierarchy.triangle(pair.b).data(), 3, tb);
+  if (!TriangleHierarchy::FindMeeting(ha, hb, &pair, tests)) return false;
+  std::copy_n(ha.triangle(pair.a).data(), 3, ta);
+  std::copy_n(hb.triangle(pair.b).data(), 3, tb);
   return true;
 }
 
@@ -254,9 +299,9 @@ bool FindMeetingTriangles(const Impl& a, const Impl& b, size_t brute_force, Vec3
 // triangle no farther than *deepest2 (vertices on the other's surface, as in touching members).
 bool InsideDeeper(const Vec3d& v, const Impl& y, double* deepest2, NarrowStats* st) {
   ++st->containment_tests;
-  if (!y.classifier->Contains(v)) return false;
+  if (!y.Classifier(st).Contains(v)) return false;
   const double floor2 = std::max(*deepest2, y.negligible2);
-  const double d2 = y.hierarchy.PointDistanceSquared(v, floor2);
+  const double d2 = y.Hierarchy(st).PointDistanceSquared(v, floor2);
   if (d2 <= floor2) return false;
   *deepest2 = d2;
   return true;
@@ -266,6 +311,7 @@ bool InsideDeeper(const Vec3d& v, const Impl& y, double* deepest2, NarrowStats* 
 // once: a repeated one cannot raise the depth again, so the answer is that of every vertex in order.
 double DeepestVertex(const Impl& x, const Impl& y, double deepest, double stop, NarrowStats* st) {
   double deepest2 = deepest * deepest;
+  x.BuildSolidParts(st);
   for (size_t k = 0; k < x.distinct_vertices.size() && deepest2 < stop * stop; ++k) {
     const Vec3d v = VertexAt(x.mesh, x.distinct_vertices[k]);
     if (!y.kdop.Contains(v)) continue;
@@ -281,13 +327,14 @@ double DeepestEdgePoint(const Impl& x, const Impl& y, double deepest, double sto
   thread_local std::vector<double> cuts;
   double deepest2 = deepest * deepest;
   const Mesh& m = x.mesh;
+  const TriangleHierarchy& hy = y.Hierarchy(st);
   for (size_t t = 0; t < m.triangle_count() && deepest2 < stop * stop; ++t)
     for (int e = 0; e < 3; ++e) {
       const uint32_t i = m.triangles[3 * t + e], j = m.triangles[3 * t + (e + 1) % 3];
       if (i > j) continue;  // each edge of a closed indexed mesh once
       const Vec3d p = VertexAt(m, i), q = VertexAt(m, j);
       cuts.clear();
-      y.hierarchy.SegmentCrossings(p, q, &cuts);
+      hy.SegmentCrossings(p, q, &cuts);
       if (cuts.empty()) continue;
       cuts.push_back(0);
       cuts.push_back(1);
@@ -303,6 +350,7 @@ double DeepestEdgePoint(const Impl& x, const Impl& y, double deepest, double sto
 
 // The smallest overlap of the two objects' projections over x's face directions, or +infinity.
 double FaceDirectionOverlap(const Impl& x, const Impl& y) {
+  x.BuildDirections();
   double best = std::numeric_limits<double>::infinity();
   for (size_t k = 0; k < x.directions.size(); ++k) {
     const auto [lo, hi] = y.ProjectionInterval(x.directions[k]);
@@ -313,8 +361,8 @@ double FaceDirectionOverlap(const Impl& x, const Impl& y) {
   return best;
 }
 
-TouchObject TouchOf(const Impl& x) {
-  return {&x.mesh, &x.hierarchy, &x.kdop, x.projection_slack, x.classifier ? &*x.classifier : nullptr};
+TouchObject TouchOf(const Impl& x, NarrowStats* st) {
+  return {&x.mesh, &x.Hierarchy(st), &x.kdop, x.projection_slack, x.solid() ? &x.Classifier(st) : nullptr};
 }
 
 // `ta`, `tb`: a meeting triangle of each when the surfaces meet; null for containment (a component inside
@@ -336,7 +384,7 @@ void SetDepth(const Impl& a, const Impl& b, double gap, double enough, const Vec
     if (!(r->depth_upper > 0) || !ta || !tb) return false;
     TouchBudget budget;
     if (std::isfinite(enough)) budget.useful_overlap = enough;
-    const TouchResult touch = FindTouchCertificate(TouchOf(a), TouchOf(b), ta, tb, stage, budget);
+    const TouchResult touch = FindTouchCertificate(TouchOf(a, st), TouchOf(b, st), ta, tb, stage, budget);
     st->triangle_tests += touch.triangle_tests;
     if (touch.separated) {
       r->depth_upper = r->depth_lower = r->distance = 0;
@@ -347,12 +395,17 @@ void SetDepth(const Impl& a, const Impl& b, double gap, double enough, const Vec
     return false;
   };
   r->distance = -r->depth_upper;
-  // Pairs already a touch: the cheap planes may make the depth exact and spare the search below. Pairs
+  // Pairs already a touch: the cheap planes may make the depth exact; no search (below). Pairs
   // whose class the certificate can still change (depth_upper > enough, or any when enough is infinite):
   // the cheap planes, then the search, only when the search below found no point of one inside the other
   // (such a point rules a certificate out, and most hard pairs have one).
   const bool undecided = std::isinf(enough) ? r->depth_upper > 0 : r->depth_upper > enough;
-  if (!undecided && certify(TouchStage::kCheap)) return;
+  if (!undecided) {
+    // Already a touch by its bounds: the depth search could only raise depth_lower towards depth_upper,
+    // which changes no class; 0 stays a true lower bound (docs/clash.md section 2).
+    if (!certify(TouchStage::kCheap)) r->distance = -r->depth_upper;
+    return;
+  }
   auto certify_undecided = [&] { return certify(TouchStage::kCheap) || certify(TouchStage::kSearch); };
   if (!a.solid() || !b.solid()) {  // a surface has no inside: depth_lower stays 0
     // Only the cheap planes: on the real scenes the undecided surface pairs are terrain crossing
@@ -376,14 +429,17 @@ void SetDepth(const Impl& a, const Impl& b, double gap, double enough, const Vec
 bool ComponentInside(const Impl& x, const Impl& y, Vec3d* point, NarrowStats* st) {
   // The classifier counts points within its tolerance of y's surface as inside; such a point decides
   // nothing here (no triangles meet, so it may lie just outside), and a vertex clear of it is used.
-  const double tol2 = 4 * y.classifier->tolerance() * y.classifier->tolerance();
+  const SolidClassifier& cy = y.Classifier(st);
+  const TriangleHierarchy& hy = y.Hierarchy(st);
+  x.BuildSolidParts(st);
+  const double tol2 = 4 * cy.tolerance() * cy.tolerance();
   bool unsure = false;
   for (uint32_t v : x.component_vertices) {
     const Vec3d p = VertexAt(x.mesh, v);
     if (!y.kdop.Contains(p)) continue;
     ++st->containment_tests;
-    if (!y.classifier->Contains(p)) continue;
-    if (y.hierarchy.PointDistanceSquared(p, tol2) > tol2) {
+    if (!cy.Contains(p)) continue;
+    if (hy.PointDistanceSquared(p, tol2) > tol2) {
       *point = p;
       return true;
     }
@@ -392,9 +448,9 @@ bool ComponentInside(const Impl& x, const Impl& y, Vec3d* point, NarrowStats* st
   if (!unsure) return false;
   for (size_t i = 0; i < x.mesh.vertex_count(); ++i) {  // rare: any vertex of x clear of y's surface
     const Vec3d p = VertexAt(x.mesh, i);
-    if (!y.kdop.Contains(p) || y.hierarchy.PointDistanceSquared(p, tol2) <= tol2) continue;
+    if (!y.kdop.Contains(p) || hy.PointDistanceSquared(p, tol2) <= tol2) continue;
     ++st->containment_tests;
-    if (y.classifier->Contains(p)) {
+    if (cy.Contains(p)) {
       *point = p;
       return true;
     }
@@ -420,12 +476,12 @@ Separation Separate(const ClashShape& shape_a, const ClashShape& shape_b, double
   const double limit = max_distance > 0 ? max_distance : 0;
   const double gap = a.kdop.Gap(b.kdop, std::clamp(options.bound_directions, 1, kKdopDirections));
   const double full_gap = options.bound_directions >= kKdopDirections ? gap : a.kdop.Gap(b.kdop);
-  if (a.hierarchy.triangle_count() == 0 || b.hierarchy.triangle_count() == 0) {
+  if (a.mesh.triangle_count() == 0 || b.mesh.triangle_count() == 0) {
     // Nothing to meet.
   } else if (limit > 0 ? gap >= limit : gap > 0) {
     ++st.bound_rejects;
-  } else if (Vec3d ta[3], tb[3]; gap <= 0 && FindMeetingTriangles(a, b, options.brute_force_triangles, ta, tb,
-                                                                  &st.triangle_tests)) {
+  } else if (Vec3d ta[3], tb[3];
+             gap <= 0 && FindMeetingTriangles(a, b, options.brute_force_triangles, ta, tb, &st)) {
     r.meeting = Meeting::kSurfacesMeet;
     const ClosestPoints c = TriangleTriangleClosest(ta, tb);
     r.point_a = r.point_b = c.on_a;
@@ -443,7 +499,8 @@ Separation Separate(const ClashShape& shape_a, const ClashShape& shape_b, double
       SetDepth(a, b, full_gap, options.depth_lower_enough, nullptr, nullptr, &r, &st);
     } else if (limit > 0) {
       ClosestPoints c;
-      if (TriangleHierarchy::ClosestBelow(a.hierarchy, b.hierarchy, limit, &c, &st.triangle_tests)) {
+      if (TriangleHierarchy::ClosestBelow(a.Hierarchy(&st), b.Hierarchy(&st), limit, &c,
+                                          &st.triangle_tests)) {
         // The triangles do not meet (exact), so the gap is positive even when it rounds to 0.
         r.distance = std::max(std::sqrt(c.distance_squared), std::numeric_limits<double>::denorm_min());
         r.point_a = c.on_a;

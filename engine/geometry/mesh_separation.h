@@ -20,8 +20,9 @@
 // clamped to depth_upper. A touch certificate (engine/geometry/touch_certificate.h: a plane weakly
 // separating the vertex sets, or a convex piece the other's surface misses) makes both 0, exactly.
 //
-// Thread-safety: a ClashShape is immutable after construction and may be shared by threads; Separate is
-// a pure function of its arguments.
+// Thread-safety: a ClashShape may be shared by threads; its lazily built parts are built once
+// (std::call_once) and the same whichever thread builds them. Separate is a pure function of its
+// arguments.
 #pragma once
 
 #include <cstddef>
@@ -42,16 +43,22 @@ struct NarrowStats {
   uint64_t bound_rejects = 0;      // pairs decided apart by the per-object bounds, before any triangle
   uint64_t triangle_tests = 0;     // triangle-triangle intersection and distance tests
   uint64_t containment_tests = 0;  // point-in-solid tests
+  // ClashShape parts built on first use by these calls (each shape builds each part once).
+  uint64_t hierarchies_built = 0;
+  uint64_t classifiers_built = 0;
   void Add(const NarrowStats& o) {
     bound_rejects += o.bound_rejects;
     triangle_tests += o.triangle_tests;
     containment_tests += o.containment_tests;
+    hierarchies_built += o.hierarchies_built;
+    classifiers_built += o.classifiers_built;
   }
 };
 
 // One object prepared for the narrow phase: its mesh, its tight bound (cheap rejection before any
-// triangle), a hierarchy over its triangles and its point-in-solid classifier, built once and used for
-// every pair the object is in. Both shapes of a pair must be in the same frame (a store's frame).
+// triangle), a hierarchy over its triangles and its point-in-solid classifier, built once, the last two
+// on the first pair that needs them, and used for every pair the object is in. Both shapes of a pair must be
+// in the same frame (a store's frame).
 class ClashShape {
  public:
   // `edges`: the mesh's edge check as stored at ingest (computed when absent). REQUIRES: `mesh` outlives
@@ -67,8 +74,16 @@ class ClashShape {
   Box3d bounds() const;
   // The 26-DOP of the vertices (the bound Separate rejects with).
   const Kdop& kdop() const;
-  // Heap bytes held (hierarchy, bound, classifier), for caches that budget their memory.
+  // Heap bytes held by what is built so far (hierarchy, classifier, vertex lists, directions), for
+  // caches that budget their memory. Not while a Separate on this shape runs on another thread.
   size_t MemoryBytes() const;
+  // Which lazily built parts exist (the constructor builds only the bound; Separate the rest on first
+  // use).
+  struct Built {
+    bool hierarchy = false;
+    bool classifier = false;
+  };
+  Built built() const;
 
   struct Impl;
   const Impl& impl() const { return *impl_; }

@@ -155,6 +155,19 @@ void SolidClassifier::BuildGrid() {
     ny_ = ey > 0 ? static_cast<int>(std::min(target, 4096.0)) : 1;
     nz_ = ez > 0 ? static_cast<int>(std::min(target, 4096.0)) : 1;
   }
+  // Cells no narrower than the triangles' mean extent on each axis: a finer grid repeats long triangles
+  // (members' faces spanning their length) in every cell they cross, for little faster queries.
+  double sy = 0, sz = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const uint32_t* c = &mesh_.triangles[3 * i];
+    const double *a = &mesh_.vertices[3 * size_t{c[0]}], *b = &mesh_.vertices[3 * size_t{c[1]}],
+                 *d = &mesh_.vertices[3 * size_t{c[2]}];
+    sy += std::max({a[1], b[1], d[1]}) - std::min({a[1], b[1], d[1]});
+    sz += std::max({a[2], b[2], d[2]}) - std::min({a[2], b[2], d[2]});
+  }
+  const double my = sy / target + 2 * tol_, mz = sz / target + 2 * tol_;
+  if (my > 0) ny_ = std::clamp(static_cast<int>(ey / my), 1, ny_);
+  if (mz > 0) nz_ = std::clamp(static_cast<int>(ez / mz), 1, nz_);
   y0_ = reach_.min[1];
   z0_ = reach_.min[2];
   inv_cy_ = ey > 0 ? ny_ / ey : 0;

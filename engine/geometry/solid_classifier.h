@@ -72,6 +72,8 @@ class SolidClassifier {
   Method method() const { return method_; }
   double tolerance() const { return tol_; }
   bool has_grid() const { return !cell_start_.empty(); }
+  // Heap bytes held (the grid).
+  size_t MemoryBytes() const { return (cell_start_.capacity() + cell_tris_.capacity()) * sizeof(uint32_t); }
 
  private:
   struct CellRange {

@@ -24,6 +24,12 @@ double BoxExtent(const Box3d& b) {
   return (b.max[0] - b.min[0]) + (b.max[1] - b.min[1]) + (b.max[2] - b.min[2]);
 }
 
+// Nodes of the subtree over `count` triangles as Build splits them.
+size_t NodeCount(uint32_t count) {
+  if (count <= TriangleHierarchy::kLeafTriangles) return 1;
+  return 1 + NodeCount(count / 2) + NodeCount(count - count / 2);
+}
+
 double PointBoxDistanceSquared(const Vec3d& p, const Box3d& b) {
   double d2 = 0;
   for (int k = 0; k < 3; ++k) {
@@ -58,7 +64,8 @@ TriangleHierarchy::TriangleHierarchy(const Mesh& mesh) : vertices_(mesh.vertices
     centroids[t] = {c.x / 3, c.y / 3, c.z / 3};
     mesh_index_[t] = static_cast<uint32_t>(t);
   }
-  nodes_.reserve(2 * (n / kLeafTriangles) + 1);
+  // The exact node count: a reserve that falls short would double the array (MemoryBytes must be true).
+  nodes_.reserve(NodeCount(static_cast<uint32_t>(n)));
   nodes_.emplace_back();
   Build(0, 0, static_cast<uint32_t>(n), centroids);
   // Leaf order: the corners' vertex indices, after the build has settled the order of mesh_index_.
@@ -118,6 +125,35 @@ namespace {
 struct NodePair {
   uint32_t a, b;
 };
+
+// True when every corner of `u` is strictly beyond t's plane on one side by clearly more than
+// sqrt(best2) (a margin above the rounding of both this test and the distance computation): the
+// triangles are then at least that far apart (the distance from u to the plane is attained at a
+// corner), and the exact distance test could not accept the pair.
+bool PlaneFarApart(const TriangleHierarchy::Triangle& t, const TriangleHierarchy::Triangle& u, double best2) {
+  const Vec3d e1{t[1].x - t[0].x, t[1].y - t[0].y, t[1].z - t[0].z};
+  const Vec3d e2{t[2].x - t[0].x, t[2].y - t[0].y, t[2].z - t[0].z};
+  const Vec3d n{e1.y * e2.z - e1.z * e2.y, e1.z * e2.x - e1.x * e2.z, e1.x * e2.y - e1.y * e2.x};
+  const double nn = n.x * n.x + n.y * n.y + n.z * n.z;
+  if (!(nn > 0)) return false;
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo, reach = 0;
+  for (const Vec3d& v : u) {
+    const Vec3d d{v.x - t[0].x, v.y - t[0].y, v.z - t[0].z};
+    const double sd = n.x * d.x + n.y * d.y + n.z * d.z;
+    lo = std::min(lo, sd);
+    hi = std::max(hi, sd);
+    reach = std::max(reach, std::fabs(d.x) + std::fabs(d.y) + std::fabs(d.z));
+  }
+  // Rounding of n and of the dot products: a few ulp of |e1|_1 |e2|_1 reach.
+  const double l1 = (std::fabs(e1.x) + std::fabs(e1.y) + std::fabs(e1.z)) *
+                    (std::fabs(e2.x) + std::fabs(e2.y) + std::fabs(e2.z));
+  const double err = 64 * std::numeric_limits<double>::epsilon() * l1 * reach;
+  const double m = lo > 0 ? lo - err : hi < 0 ? -hi - err : 0;
+  if (!(m > 0)) return false;
+  const double len = std::sqrt(nn);
+  const double need = std::sqrt(best2) * (1 + 1e-6) + 1e-12 * (len + reach);
+  return m > need * len;
+}
 
 // Which node of the pair to open: the inner one, or the larger of two inner ones.
 bool OpenA(const TriangleHierarchy::Node& na, const TriangleHierarchy::Node& nb) {
@@ -197,6 +233,7 @@ bool TriangleHierarchy::ClosestBelow(const TriangleHierarchy& a, const TriangleH
         for (uint32_t j = nb.first; j < nb.first + nb.count; ++j) {
           const Triangle tj = b.triangle(j);
           if (BoxDistanceSquared(bi, TriangleBox(tj)) >= best2) continue;
+          if (PlaneFarApart(ti, tj, best2) || PlaneFarApart(tj, ti, best2)) continue;
           ++n_tests;
           const ClosestPoints c = TriangleFeatureClosest(ti.data(), tj.data());
           if (c.distance_squared < best2) {

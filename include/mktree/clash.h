@@ -113,6 +113,11 @@ struct ClashStats {
   uint64_t bound_rejects = 0;
   uint64_t triangle_tests = 0;
   uint64_t containment_tests = 0;
+  // Narrow-phase shapes: objects prepared (26-DOP and vertex extent), and of those the triangle
+  // hierarchies and point-in-solid classifiers built on first use by a pair that needed them.
+  uint64_t shapes_prepared = 0;
+  uint64_t hierarchies_built = 0;
+  uint64_t classifiers_built = 0;
   // Pairs found, by class (capped and unreported touch pairs included), and what was not reported.
   uint64_t hard = 0, touch = 0, clearance = 0;
   uint64_t reported_pairs = 0;

@@ -628,6 +628,14 @@ void RealScene(const std::string& file, double c, size_t max_objects = SIZE_MAX)
               file.c_str(), scene.size(), want.size(), (unsigned long long)s.hard,
               (unsigned long long)s.touch, (unsigned long long)s.clearance, (unsigned long long)s.pages_read,
               (unsigned long long)s.store_pages);
+  // Each part is built at most once per shape prepared (lazily, by the first pair that needs it).
+  EXPECT_LE(s.hierarchies_built, s.shapes_prepared);
+  EXPECT_LE(s.classifiers_built, s.shapes_prepared);
+  EXPECT_GT(s.hierarchies_built, 0u);
+  std::printf("  shapes %llu, hierarchies built %llu, classifiers built %llu, window peak %llu of %llu\n",
+              (unsigned long long)s.shapes_prepared, (unsigned long long)s.hierarchies_built,
+              (unsigned long long)s.classifiers_built, (unsigned long long)s.window_peak_bytes,
+              (unsigned long long)s.window_budget_bytes);
 }
 
 // Every pair that meets in the input's own doubles (surfaces cross or touch, or containment) is reported
