@@ -315,7 +315,9 @@ TEST(ObjectRecordCliTest, NamesAndRecordsInTheTool) {
   ASSERT_EQ(clash.code, 0) << clash.err;
   auto plain = testing::RunMktree("clash " + path + " --max-pairs 5", dir.path());
   ASSERT_EQ(plain.code, 0) << plain.err;
-  if (!plain.out.empty()) EXPECT_NE(clash.out.find("\"name_a\": \""), std::string::npos) << clash.out;
+  if (!plain.out.empty()) {
+    EXPECT_NE(clash.out.find("\"name_a\": \""), std::string::npos) << clash.out;
+  }
   // The same pairs, names beside them.
   EXPECT_EQ(std::count(clash.out.begin(), clash.out.end(), '\n'),
             std::count(plain.out.begin(), plain.out.end(), '\n'));
