@@ -137,8 +137,10 @@ std::string SummaryLine(const ClashStats& s) {
       ", " + u("leaf_pairs_visited", s.leaf_pairs_visited) + ", " + u("candidate_pairs", s.candidate_pairs) +
       ", " + u("excluded_pairs", s.excluded_pairs) + ", " + u("bound_rejects", s.bound_rejects) + ", " +
       u("triangle_tests", s.triangle_tests) + ", " + u("containment_tests", s.containment_tests) + ", " +
-      d("broad_seconds", s.broad_seconds) + ", " + d("read_seconds", s.read_seconds) + ", " +
-      d("narrow_seconds", s.narrow_seconds) + ", " + u("peak_rss_bytes", PeakRssBytes()) + "}\n";
+      u("shapes_prepared", s.shapes_prepared) + ", " + u("hierarchies_built", s.hierarchies_built) + ", " +
+      u("classifiers_built", s.classifiers_built) + ", " + d("broad_seconds", s.broad_seconds) + ", " +
+      d("read_seconds", s.read_seconds) + ", " + d("narrow_seconds", s.narrow_seconds) + ", " +
+      u("peak_rss_bytes", PeakRssBytes()) + "}\n";
   return line;
 }
 
