@@ -37,14 +37,16 @@ struct Task {
 
 // What one builder produces for a subtree; indices are local to it until merged. Aligned to cache lines:
 // two threads' fragments, allocated side by side, would otherwise share one, and every node pushed
-// writes a vector's end pointer.
+// writes a vector's end pointer. On the build's allocator: as the arrays grow, the buffers they leave
+// go back to the system at once (from the heap they stayed resident, holes the lists did not fit in),
+// and the tree is copied out at its exact size once the lists are gone (BuildMKTree's Finish).
 struct alignas(64) SubtreeOut {
-  std::vector<TreeNode> nodes;
-  std::vector<SplitNode> split_nodes;
-  std::vector<LeafInfo> leaves;
-  std::vector<uint64_t> leaf_begin;   // position of the leaf's first object in the lists
-  std::vector<uint32_t> overlap;      // |Sm| per node
-  std::vector<uint32_t> split_count;  // SplitTree nodes per node (filled only by the multi-thread build)
+  BuildVector<TreeNode> nodes;
+  BuildVector<SplitNode> split_nodes;
+  BuildVector<LeafInfo> leaves;
+  BuildVector<uint64_t> leaf_begin;   // position of the leaf's first object in the lists
+  BuildVector<uint32_t> overlap;      // |Sm| per node
+  BuildVector<uint32_t> split_count;  // SplitTree nodes per node (filled only by the multi-thread build)
 
   void ShrinkToFit() {
     nodes.shrink_to_fit();

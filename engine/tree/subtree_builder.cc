@@ -17,7 +17,7 @@ constexpr uint32_t kRetainObjects = 1u << 16;
 // Appends the `count` nodes of a SplitTree whose child indices count from tree[0] (its root) to *out, the
 // indices moved to their new place; returns the new root index. One copy, then the rebase (cheaper than a
 // push_back per node: SplitNodes outnumber the tree's nodes several times).
-uint32_t AppendSplitTree(const SplitNode* tree, uint32_t count, std::vector<SplitNode>* out) {
+uint32_t AppendSplitTree(const SplitNode* tree, uint32_t count, BuildVector<SplitNode>* out) {
   const uint32_t base = static_cast<uint32_t>(out->size());
   out->insert(out->end(), tree, tree + count);
   RebaseSplitTree(out->data() + base, count, base);
