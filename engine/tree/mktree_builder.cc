@@ -103,7 +103,7 @@ Result<BuildResult> BuildMKTree(std::vector<BuildObject> records, const BuildPar
     MKTREE_RETURN_IF_ERROR(build::CheckUniqueIds(ids, input_position, max_id));
   }
   lap(&result.timings.layout);
-  build::SortKeyOrders(rec.box, threads, &state.lists);
+  build::SortKeyOrders(rec.box, &state.lists);
   build::TrimHeap();
   lap(&result.timings.sorts);
   state.side.assign(n, 0);
