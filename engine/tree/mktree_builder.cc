@@ -96,7 +96,7 @@ Result<BuildResult> BuildMKTree(std::vector<BuildObject> records, const BuildPar
 
   BuildVector<ObjectId> ids;
   BuildRecords rec;
-  BuildState state{rec.box, rec.bytes, params, tuning, {}, {}};
+  BuildState state{rec.box, rec.bytes, params, tuning, {}, {}, {}};
   {
     BuildVector<uint32_t> input_position;
     rec = build::SpatialLayout(std::move(records), bounds, &ids, &input_position, threads);
@@ -107,6 +107,7 @@ Result<BuildResult> BuildMKTree(std::vector<BuildObject> records, const BuildPar
   build::TrimHeap();
   lap(&result.timings.sorts);
   state.side.assign(n, 0);
+  state.done.Init(n, &state.lists);
   uint64_t total_bytes = 0;
   for (uint32_t b : rec.bytes) total_bytes += b;
 

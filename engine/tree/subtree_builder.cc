@@ -139,6 +139,7 @@ void SubtreeBuilder::AppendLeaf(const Task& t, TreeNode node, SubtreeOut* out) {
   leaf.page_count = static_cast<uint32_t>(PagesForLeaf(t.bytes, mem_page_));
   out->leaves.push_back(leaf);
   out->leaf_begin.push_back(t.lo);
+  s_.done.LeafDone(t.lo, t.hi);
   out->nodes.push_back(node);
   out->overlap.push_back(0);
   if (track_split_count_) out->split_count.push_back(0);
