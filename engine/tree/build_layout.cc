@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <bit>
 #include <cstddef>
-#include <thread>
 #include <utility>
 
 #include "engine/tree/build_threads.h"
@@ -148,18 +147,9 @@ BuildRecords SpatialLayout(std::vector<BuildObject> records, const Box3f& all, B
   return rec;
 }
 
-void SortKeyOrders(const BuildVector<Box3f>& box, int threads, std::array<BuildVector<uint32_t>, 6>* lists) {
-  auto sort_lists = [&](int first, int step) {
-    BuildVector<uint64_t> a, b;
-    for (int l = first; l < 6; l += step) SortByKey(box, l / 2, l % 2 == 1, &a, &b, &(*lists)[l]);
-  };
-  if (threads >= 2) {
-    std::thread other(sort_lists, 1, 2);
-    sort_lists(0, 2);
-    other.join();
-  } else {
-    sort_lists(0, 1);
-  }
+void SortKeyOrders(const BuildVector<Box3f>& box, std::array<BuildVector<uint32_t>, 6>* lists) {
+  BuildVector<uint64_t> a, b;
+  for (int l = 0; l < 6; ++l) SortByKey(box, l / 2, l % 2 == 1, &a, &b, &(*lists)[l]);
 }
 
 }  // namespace mktree::build

@@ -32,8 +32,9 @@ BuildRecords SpatialLayout(std::vector<BuildObject> records, const Box3f& all, B
                            BuildVector<uint32_t>* input_position, int threads);
 
 // The six key orders: (*lists)[2 * w + key] holds the object indices 0..n-1 sorted by min_w (key 0) or
-// max_w (key 1), stable (ties in layout order, so that the boxes are read in order, not gathered). With
-// `threads` >= 2 the sorts run on two threads, each with its own radix buffers.
-void SortKeyOrders(const BuildVector<Box3f>& box, int threads, std::array<BuildVector<uint32_t>, 6>* lists);
+// max_w (key 1), stable (ties in layout order, so that the boxes are read in order, not gathered). One
+// sort after another, on one thread: one pair of radix buffers (two sorts side by side held two pairs,
+// 16 bytes an object more at the peak, and were no faster: the sorts are bound by memory).
+void SortKeyOrders(const BuildVector<Box3f>& box, std::array<BuildVector<uint32_t>, 6>* lists);
 
 }  // namespace mktree::build

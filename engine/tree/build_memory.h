@@ -119,6 +119,15 @@ class Scratch {
     capacity_ = n;
   }
   size_t capacity() const { return capacity_; }
+  // Room for n values of U (as large as T) in this array's storage, for a phase in which its own values
+  // are dead: two scratch arrays live at different times share their pages.
+  template <typename U>
+  U* StorageAs(size_t n) {
+    static_assert(sizeof(U) == sizeof(T) && alignof(U) <= alignof(T));
+    static_assert(std::is_trivially_copyable_v<U> && std::is_trivially_destructible_v<U>);
+    Fit(n);
+    return reinterpret_cast<U*>(data_);
+  }
   T* data() { return data_; }
   const T* data() const { return data_; }
   T& operator[](size_t i) { return data_[i]; }

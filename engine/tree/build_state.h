@@ -4,7 +4,9 @@
 #pragma once
 
 #include <array>
+#include <atomic>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "engine/tree/build_memory.h"
@@ -14,6 +16,23 @@
 
 namespace mktree::build {
 
+// Gives back the pages of lists 1-5 over positions whose leaves are all built: nothing reads them again
+// (list 0 gives the leaves' objects at the end), and in DFS order the built leaves' positions fill whole
+// chunks long before the build ends, when the tree it has built adds to the peak. Thread-safe.
+class DoneRanges {
+ public:
+  static constexpr uint32_t kChunk = 1u << 14;  // positions: 64 KiB of each list
+  // Only for lists mapped on their own (BuildAllocator): n * 4 bytes of at least kMapBytes.
+  void Init(uint32_t n, std::array<BuildVector<uint32_t>, 6>* lists);
+  // The leaf over positions [lo, hi) is built.
+  void LeafDone(uint32_t lo, uint32_t hi);
+
+ private:
+  std::array<BuildVector<uint32_t>, 6>* lists_ = nullptr;
+  uint32_t n_ = 0;
+  std::unique_ptr<std::atomic<uint32_t>[]> done_;  // per chunk: positions built
+};
+
 struct BuildState {
   const BuildVector<Box3f>& box;
   const BuildVector<uint32_t>& bytes;
@@ -22,6 +41,7 @@ struct BuildState {
   // lists[2*w + key]: the objects of every node, each node's range sorted by min_w (key 0) / max_w (key 1).
   std::array<BuildVector<uint32_t>, 6> lists;
   std::vector<uint8_t> side;  // per object: 0 = Sn1, 1 = Sn2 at the node being split
+  DoneRanges done;
 };
 
 // A node to build: its objects are lists[l][lo, hi) of every list l.
@@ -37,14 +57,16 @@ struct Task {
 
 // What one builder produces for a subtree; indices are local to it until merged. Aligned to cache lines:
 // two threads' fragments, allocated side by side, would otherwise share one, and every node pushed
-// writes a vector's end pointer.
+// writes a vector's end pointer. On the build's allocator: as the arrays grow, the buffers they leave
+// go back to the system at once (from the heap they stayed resident, holes the lists did not fit in),
+// and the tree is copied out at its exact size once the lists are gone (BuildMKTree's Finish).
 struct alignas(64) SubtreeOut {
-  std::vector<TreeNode> nodes;
-  std::vector<SplitNode> split_nodes;
-  std::vector<LeafInfo> leaves;
-  std::vector<uint64_t> leaf_begin;   // position of the leaf's first object in the lists
-  std::vector<uint32_t> overlap;      // |Sm| per node
-  std::vector<uint32_t> split_count;  // SplitTree nodes per node (filled only by the multi-thread build)
+  BuildVector<TreeNode> nodes;
+  BuildVector<SplitNode> split_nodes;
+  BuildVector<LeafInfo> leaves;
+  BuildVector<uint64_t> leaf_begin;   // position of the leaf's first object in the lists
+  BuildVector<uint32_t> overlap;      // |Sm| per node
+  BuildVector<uint32_t> split_count;  // SplitTree nodes per node (filled only by the multi-thread build)
 
   void ShrinkToFit() {
     nodes.shrink_to_fit();

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <thread>
+#include <type_traits>
 #include <utility>
 
 #include "engine/tree/build_layout.h"
@@ -31,10 +32,7 @@ double BuildNodes(BuildState* state, uint32_t n, uint64_t total_bytes, int threa
     return build::BuildParallel(state, root, threads, out);
   }
   build::SubtreeBuilder(state).Run(root, out);
-  // The tree stays in RAM for the store's lifetime: no growth slack (the 2-thread stitch sizes it
-  // exactly). Copied once the lists are gone, so under the build's peak.
   build::ReleaseBuildLists(state);
-  out->ShrinkToFit();
   return 0;
 }
 
@@ -48,11 +46,19 @@ void Finish(SubtreeOut out, const BuildVector<ObjectId>& ids, BuildState* state,
     lf.first_page = page;
     page += lf.page_count;
   }
-  result->leaf_offsets = std::move(out.leaf_begin);
+  // The tree stays in RAM for the store's lifetime: copied at its exact size (no growth slack), once the
+  // lists are gone, so under the build's peak.
+  auto move_out = [](auto* from, auto* to, size_t extra = 0) {
+    to->reserve(from->size() + extra);
+    to->assign(from->begin(), from->end());
+    std::remove_reference_t<decltype(*from)>().swap(*from);
+  };
+  result->leaf_offsets.clear();
+  move_out(&out.leaf_begin, &result->leaf_offsets, 1);
   result->leaf_offsets.push_back(n);
-  result->tree.nodes = std::move(out.nodes);
-  result->tree.split_nodes = std::move(out.split_nodes);
-  result->tree.leaves = std::move(out.leaves);
+  move_out(&out.nodes, &result->tree.nodes);
+  move_out(&out.split_nodes, &result->tree.split_nodes);
+  move_out(&out.leaves, &result->tree.leaves);
   result->leaf_objects.resize(n);
   const uint32_t* leaf_order = state->lists[0].data();
   build::RunOnHalves(n, threads, [&](size_t lo, size_t hi) {
@@ -90,17 +96,18 @@ Result<BuildResult> BuildMKTree(std::vector<BuildObject> records, const BuildPar
 
   BuildVector<ObjectId> ids;
   BuildRecords rec;
-  BuildState state{rec.box, rec.bytes, params, tuning, {}, {}};
+  BuildState state{rec.box, rec.bytes, params, tuning, {}, {}, {}};
   {
     BuildVector<uint32_t> input_position;
     rec = build::SpatialLayout(std::move(records), bounds, &ids, &input_position, threads);
     MKTREE_RETURN_IF_ERROR(build::CheckUniqueIds(ids, input_position, max_id));
   }
   lap(&result.timings.layout);
-  build::SortKeyOrders(rec.box, threads, &state.lists);
+  build::SortKeyOrders(rec.box, &state.lists);
   build::TrimHeap();
   lap(&result.timings.sorts);
   state.side.assign(n, 0);
+  state.done.Init(n, &state.lists);
   uint64_t total_bytes = 0;
   for (uint32_t b : rec.bytes) total_bytes += b;
 

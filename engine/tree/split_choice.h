@@ -179,6 +179,13 @@ class SplitChooser {
 
   // Gives back the scratch beyond what a node of n objects needs.
   void ShrinkScratch(size_t n);
+  size_t ScratchObjects() const { return sorted_min_.capacity(); }
+
+  // Room for n object indices in the storage of the node's sorted keys (which = 0: min_w, 1: max_w),
+  // dead once Choose has returned: the list partitions' buffers, so that they add nothing to the peak.
+  uint32_t* PartitionBuffer(int which, size_t n) {
+    return (which == 0 ? sorted_min_ : sorted_max_).StorageAs<uint32_t>(n);
+  }
 
  private:
   uint64_t Pages(uint64_t bytes) const { return PagesForLeaf(bytes, mem_page_); }

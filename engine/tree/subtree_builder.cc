@@ -17,7 +17,7 @@ constexpr uint32_t kRetainObjects = 1u << 16;
 // Appends the `count` nodes of a SplitTree whose child indices count from tree[0] (its root) to *out, the
 // indices moved to their new place; returns the new root index. One copy, then the rebase (cheaper than a
 // push_back per node: SplitNodes outnumber the tree's nodes several times).
-uint32_t AppendSplitTree(const SplitNode* tree, uint32_t count, std::vector<SplitNode>* out) {
+uint32_t AppendSplitTree(const SplitNode* tree, uint32_t count, BuildVector<SplitNode>* out) {
   const uint32_t base = static_cast<uint32_t>(out->size());
   out->insert(out->end(), tree, tree + count);
   RebaseSplitTree(out->data() + base, count, base);
@@ -139,6 +139,7 @@ void SubtreeBuilder::AppendLeaf(const Task& t, TreeNode node, SubtreeOut* out) {
   leaf.page_count = static_cast<uint32_t>(PagesForLeaf(t.bytes, mem_page_));
   out->leaves.push_back(leaf);
   out->leaf_begin.push_back(t.lo);
+  s_.done.LeafDone(t.lo, t.hi);
   out->nodes.push_back(node);
   out->overlap.push_back(0);
   if (track_split_count_) out->split_count.push_back(0);
@@ -248,24 +249,23 @@ void SubtreeBuilder::PlaceSlabObjects(const Task& t, const Box3f& box, const Can
 // the split axis' lists (the planes) are partitioned, as a leaf takes its box from its objects.
 SubtreeBuilder::Partition SubtreeBuilder::PartitionLists(const Task& t, int w) {
   const uint32_t n = t.hi - t.lo;
-  tmp_.Fit(n);
+  uint32_t* const tmp = chooser_.PartitionBuffer(0, n);
   Partition part;
   auto lists_0_to_2 = [&] {
-    part.n1 = PartitionList<true>(t, 0, tmp_.data(), &part.left_bytes);
+    part.n1 = PartitionList<true>(t, 0, tmp, &part.left_bytes);
     part.leaf_kids = IsLeaf(part.n1, part.left_bytes) && IsLeaf(n - part.n1, t.bytes - part.left_bytes);
     for (int l = 1; l < 3; ++l)
-      if (!part.leaf_kids || l / 2 == w) PartitionList<false>(t, l, tmp_.data(), nullptr);
+      if (!part.leaf_kids || l / 2 == w) PartitionList<false>(t, l, tmp, nullptr);
   };
   if (t.cooperative) {  // lists 3-5 on the other thread (partitioned even for leaf children: harmless)
-    Scratch<uint32_t> other_tmp;
-    other_tmp.Reset(n);
+    uint32_t* const other_tmp = chooser_.PartitionBuffer(1, n);
     Together(lists_0_to_2, [&] {
-      for (int l = 3; l < 6; ++l) PartitionList<false>(t, l, other_tmp.data(), nullptr);
+      for (int l = 3; l < 6; ++l) PartitionList<false>(t, l, other_tmp, nullptr);
     });
   } else {
     lists_0_to_2();
     for (int l = 3; l < 6; ++l)
-      if (!part.leaf_kids || l / 2 == w) PartitionList<false>(t, l, tmp_.data(), nullptr);
+      if (!part.leaf_kids || l / 2 == w) PartitionList<false>(t, l, tmp, nullptr);
   }
   return part;
 }
@@ -308,10 +308,10 @@ uint32_t SubtreeBuilder::CountOverlap(uint32_t n_items, int w, float a, float b)
 }
 
 void SubtreeBuilder::ShrinkScratch(size_t n) {
-  if (tmp_.capacity() < n + n / 2 + (1u << 16)) return;
-  const size_t freed = 7 * (tmp_.capacity() - n) * sizeof(float);  // about
+  const size_t had = chooser_.ScratchObjects();
+  if (had < n + n / 2 + (1u << 16)) return;
+  const size_t freed = 6 * (had - n) * sizeof(float);  // about
   chooser_.ShrinkScratch(n);
-  tmp_.Reset(n);
   split_scratch_.Release();
   if (items_.capacity() > n) items_.Reset(n);
   if (overlap_ids_.capacity() > n) overlap_ids_.Reset(n);

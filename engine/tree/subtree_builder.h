@@ -79,7 +79,6 @@ class SubtreeBuilder {
   const uint64_t mem_page_;
   const bool track_split_count_;
   SplitChooser chooser_;
-  Scratch<uint32_t> tmp_;
   Scratch<SplitItem> items_;      // the slab's objects (SplitTree items), at overlap_ids_ in the records
   std::vector<SplitNode> split_;  // the node's SplitTree
   SplitTreeScratch split_scratch_;

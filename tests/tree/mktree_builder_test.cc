@@ -287,6 +287,27 @@ TEST(BuildMKTree, LargeInputsBuildTheSameTreeOnTwoThreads) {
   CheckTree(recs, *r2, BuildParams());
 }
 
+// From 262144 objects on, the lists are mapped on their own and the builder gives back their pages over
+// positions whose leaves are built (DoneRanges), while other nodes are still being split: the tree must
+// not change, on one thread and on several whose small tasks report leaves out of order.
+TEST(BuildMKTree, ListPagesGivenBackDuringTheBuildKeepTheTree) {
+  auto recs = MakeScene(SceneKind::kShip, 300000, 9);
+  BuildTuning one;
+  one.threads = 1;
+  auto r1 = BuildMKTree(recs, BuildParams(), one);
+  ASSERT_TRUE(r1.ok());
+  CheckTree(recs, *r1, BuildParams());
+  for (uint32_t task : {0u, 5000u}) {
+    SCOPED_TRACE("task " + std::to_string(task));
+    BuildTuning two;
+    two.threads = 2;
+    two.parallel_task_objects = task;
+    auto r2 = BuildMKTree(recs, BuildParams(), two);
+    ASSERT_TRUE(r2.ok());
+    ExpectSameTree(*r1, *r2);
+  }
+}
+
 // Degenerate inputs that would make a quadratic step explode: they must complete quickly (no timing
 // assertion: the test time limit is the guard) and still be correct.
 TEST(BuildMKTree, DegenerateLargeInputsBuildFast) {
