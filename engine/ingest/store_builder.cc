@@ -2,6 +2,10 @@
 
 #include <sys/stat.h>
 
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -229,6 +233,11 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
   encoder.origin = report.origin;
   encoder.threads = options.threads;
   MKTREE_RETURN_IF_ERROR(EncodeObjects(encoder, read_all, spill));
+#if defined(__GLIBC__)
+  // The pipeline's threads freed their batches and buffers into their own malloc arenas, which keep the
+  // pages; hand them back before the tree build, the build's memory peak.
+  malloc_trim(0);
+#endif
   if (coarse.count > 0) report.warnings.push_back(coarse.Warning(report.origin));
   report.objects = next_id;
   progress(IngestStage::kRead, next_id, next_id);
