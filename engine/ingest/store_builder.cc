@@ -188,6 +188,9 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
                               ", expected " + std::to_string(next_id));
     if (next_id == kNoIndex) return Status::InvalidArgument("too many objects: ids are 32-bit");
     ++next_id;
+    // Reported here, on the calling thread, not by the sink (a drain thread): a progress callback may
+    // need the caller's thread (Python checks Ctrl-C only on its main thread).
+    if (next_id % kProgressEvery == 0) progress(IngestStage::kRead, next_id, 0);
     return true;
   };
   CoarseBoxes coarse;
@@ -213,7 +216,6 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
     report.triangles += obj.mesh.triangle_count();
     report.raw_geometry_bytes += obj.mesh.RawGeometryBytes();
     report.encoded_bytes += rec.encoded_bytes;
-    if (records.size() % kProgressEvery == 0) progress(IngestStage::kRead, records.size(), 0);
     return Status::Ok();
   };
   // The store frame, chosen from the first object before any is encoded (entries hold boxes in it).
