@@ -9,6 +9,7 @@
 #include <thread>
 #include <vector>
 
+#include "engine/core/guarded.h"
 #include "engine/geometry/mesh_edges.h"
 
 namespace mktree {
@@ -57,82 +58,6 @@ void EncodeBatch(const EncoderOptions& options, Batch* b) {
   }
 }
 
-// Worker threads taking batches from a queue. The destructor stops and joins them (after their current
-// batch), so an early return from EncodeObjects leaves no thread behind.
-class WorkerPool {
- public:
-  WorkerPool(const EncoderOptions& options, uint32_t workers) : options_(options) {
-    for (uint32_t i = 0; i < workers; ++i) threads_.emplace_back([this] { Run(); });
-  }
-  ~WorkerPool() {
-    {
-      std::lock_guard<std::mutex> g(mu_);
-      stop_ = true;
-    }
-    work_cv_.notify_all();
-    for (std::thread& t : threads_) t.join();
-  }
-
-  void Submit(Batch* b) {
-    if (threads_.empty()) {  // single-threaded: encode right here
-      EncodeBatch(options_, b);
-      b->done = true;
-      return;
-    }
-    {
-      std::lock_guard<std::mutex> g(mu_);
-      b->done = false;
-      pending_.push_back(b);
-    }
-    work_cv_.notify_one();
-  }
-
-  // Waits until `b` is encoded. Rather than idle, the caller encodes pending batches itself meanwhile.
-  void Await(Batch* b) {
-    std::unique_lock<std::mutex> lock(mu_);
-    while (!b->done) {
-      if (!pending_.empty()) {
-        Batch* mine = pending_.front();
-        pending_.pop_front();
-        lock.unlock();
-        EncodeBatch(options_, mine);
-        lock.lock();
-        mine->done = true;
-        continue;
-      }
-      done_cv_.wait(lock);
-    }
-  }
-
-  bool Done(Batch* b) {
-    std::lock_guard<std::mutex> g(mu_);
-    return b->done;
-  }
-
- private:
-  void Run() {
-    std::unique_lock<std::mutex> lock(mu_);
-    for (;;) {
-      work_cv_.wait(lock, [this] { return stop_ || !pending_.empty(); });
-      if (stop_) return;
-      Batch* b = pending_.front();
-      pending_.pop_front();
-      lock.unlock();
-      EncodeBatch(options_, b);
-      lock.lock();
-      b->done = true;
-      done_cv_.notify_all();
-    }
-  }
-
-  const EncoderOptions options_;
-  std::mutex mu_;
-  std::condition_variable work_cv_, done_cv_;
-  std::deque<Batch*> pending_;
-  bool stop_ = false;
-  std::vector<std::thread> threads_;
-};
-
 }  // namespace
 
 uint32_t EncoderThreads(uint32_t requested) {
@@ -140,76 +65,199 @@ uint32_t EncoderThreads(uint32_t requested) {
   return std::max(1u, std::thread::hardware_concurrency());
 }
 
+namespace {
+
+// Returns the batch's objects to the sink, in order, then readies the batch for reuse.
+Status DrainBatch(Batch* b, const EncodedSink& sink) {
+  for (size_t i = 0; i < b->count; ++i) {
+    if (i == b->error_at) return b->error;
+    const size_t begin = i == 0 ? 0 : b->entry_end[i - 1];
+    const EncodedObject e{b->boxes[i],
+                          std::span<const uint8_t>(b->entries.data() + begin, b->entry_end[i] - begin)};
+    MKTREE_RETURN_IF_ERROR(sink(b->objects[i], e));
+    Mesh& m = b->objects[i].mesh;
+    if (8 * m.vertices.capacity() + 4 * m.triangles.capacity() > kKeepMeshBytes) m = Mesh{};
+  }
+  if (b->entries.capacity() > 2 * kBatchRawBytes) b->entries = {};
+  b->count = 0;
+  return Status::Ok();
+}
+
+// Fills `b` with up to a batch of objects; false once the input is done (at its end or at a read error,
+// kept in *read_error).
+bool FillBatch(const ObjectReader& read, Batch* b, Status* read_error) {
+  uint64_t raw = 0;
+  while (b->count < kBatchObjects && raw < kBatchRawBytes) {
+    if (b->objects.size() == b->count) b->objects.emplace_back();
+    auto more = read(&b->objects[b->count]);
+    if (!more.ok() || !*more) {
+      // A read error surfaces after the objects before it, as in a sequential loop.
+      if (!more.ok()) *read_error = more.status();
+      return false;
+    }
+    raw += b->objects[b->count].mesh.RawGeometryBytes();
+    ++b->count;
+  }
+  return true;
+}
+
+// The three stages on their own threads: the calling thread reads (for OBJ input it also assembles the
+// parsed chunks, serial work that must not wait for encoding), `workers` threads encode, and one drain
+// thread hands the batches to the sink in input order (spill writes: system calls and page faults).
+// Batches circulate through a fixed pool, so the reader waits when encoding or the sink fall behind.
+class Pipeline {
+ public:
+  Pipeline(const EncoderOptions& options, const EncodedSink& sink, uint32_t workers, size_t batches)
+      : options_(options), sink_(sink) {
+    for (size_t i = 0; i < batches; ++i) {
+      all_.push_back(std::make_unique<Batch>());
+      free_.push_back(all_.back().get());
+    }
+    try {
+      for (uint32_t i = 0; i < workers; ++i) threads_.emplace_back([this] { Encode(); });
+      drain_ = std::thread([this] { Drain(); });
+    } catch (...) {  // a thread that cannot start: stop those that did
+      static_cast<void>(Finish());
+      throw;
+    }
+  }
+  ~Pipeline() { static_cast<void>(Finish()); }  // on an early exit (an exception); its error is moot
+
+  // A batch to fill, or nullptr when the drain stopped at an error.
+  Batch* Take() {
+    std::unique_lock<std::mutex> lock(mu_);
+    free_cv_.wait(lock, [this] { return failed_ || !free_.empty(); });
+    if (failed_) return nullptr;
+    Batch* b = free_.back();
+    free_.pop_back();
+    return b;
+  }
+  // Queues a filled batch for encoding and, after the ones before it, for the sink.
+  void Submit(Batch* b) {
+    {
+      std::lock_guard<std::mutex> g(mu_);
+      b->done = false;
+      pending_.push_back(b);
+      ordered_.push_back(b);
+    }
+    work_cv_.notify_one();
+    done_cv_.notify_all();
+  }
+  void Return(Batch* b) {
+    std::lock_guard<std::mutex> g(mu_);
+    free_.push_back(b);
+  }
+  // Ends the input, waits until every submitted batch is drained (or the drain failed) and joins the
+  // threads. Returns the drain's error, if any.
+  Status Finish() {
+    {
+      std::lock_guard<std::mutex> g(mu_);
+      if (finished_) return drain_error_;
+      finished_ = input_done_ = true;
+    }
+    done_cv_.notify_all();
+    if (drain_.joinable()) drain_.join();
+    {
+      std::lock_guard<std::mutex> g(mu_);
+      stop_ = true;
+    }
+    work_cv_.notify_all();
+    for (std::thread& t : threads_) t.join();
+    threads_.clear();
+    return drain_error_;
+  }
+
+ private:
+  void Encode() {
+    std::unique_lock<std::mutex> lock(mu_);
+    for (;;) {
+      work_cv_.wait(lock, [this] { return stop_ || !pending_.empty(); });
+      if (stop_) return;
+      Batch* b = pending_.front();
+      pending_.pop_front();
+      lock.unlock();
+      // An exception (std::bad_alloc) becomes the batch's error, at its first object not yet encoded.
+      Status st = Guarded("encoding objects", [&] {
+        EncodeBatch(options_, b);
+        return Status::Ok();
+      });
+      if (!st.ok() && b->entry_end.size() < b->error_at) {
+        b->error_at = b->entry_end.size();
+        b->error = std::move(st);
+      }
+      lock.lock();
+      b->done = true;
+      done_cv_.notify_all();
+    }
+  }
+
+  void Drain() {
+    std::unique_lock<std::mutex> lock(mu_);
+    for (;;) {
+      done_cv_.wait(lock, [this] {
+        return (!ordered_.empty() && ordered_.front()->done) || (input_done_ && ordered_.empty());
+      });
+      if (ordered_.empty()) return;
+      Batch* b = ordered_.front();
+      ordered_.pop_front();
+      lock.unlock();
+      Status st = Guarded("writing objects", [&] { return DrainBatch(b, sink_); });
+      lock.lock();
+      if (!st.ok()) {
+        drain_error_ = std::move(st);
+        failed_ = true;
+        // Later batches are not drained; the ones still encoding finish before the workers are joined.
+        free_cv_.notify_all();
+        return;
+      }
+      free_.push_back(b);
+      free_cv_.notify_one();
+    }
+  }
+
+  const EncoderOptions options_;
+  const EncodedSink& sink_;
+  std::vector<std::unique_ptr<Batch>> all_;  // outlives the threads (joined in Finish)
+  std::mutex mu_;
+  std::condition_variable work_cv_, done_cv_, free_cv_;
+  std::vector<Batch*> free_;
+  std::deque<Batch*> pending_;  // to encode
+  std::deque<Batch*> ordered_;  // submitted, not drained, in input order
+  bool input_done_ = false, stop_ = false, failed_ = false, finished_ = false;
+  Status drain_error_;
+  std::vector<std::thread> threads_;  // the encoders
+  std::thread drain_;
+};
+
+}  // namespace
+
 Status EncodeObjects(const EncoderOptions& options, const ObjectReader& read, const EncodedSink& sink) {
   const uint32_t threads = EncoderThreads(options.threads);
-  std::vector<std::unique_ptr<Batch>> all;  // declared before the pool: workers may use them until joined
-  // The calling thread reads, drains and helps encode, so threads - 1 workers keep every core busy.
-  WorkerPool pool(options, threads - 1);
-  // Enough batches in flight that no worker waits for the reader, few enough to bound memory.
-  const size_t max_in_flight = threads == 1 ? 1 : threads + 2;
-  std::vector<Batch*> free_batches;
-  std::deque<Batch*> in_flight;  // in input order
   Status read_error;
-  bool input_done = false;
-
-  // Hands the oldest batch's objects to the sink, in order; then recycles the batch.
-  auto drain = [&](Batch* b) -> Status {
-    for (size_t i = 0; i < b->count; ++i) {
-      if (i == b->error_at) return b->error;
-      const size_t begin = i == 0 ? 0 : b->entry_end[i - 1];
-      const EncodedObject e{b->boxes[i],
-                            std::span<const uint8_t>(b->entries.data() + begin, b->entry_end[i] - begin)};
-      MKTREE_RETURN_IF_ERROR(sink(b->objects[i], e));
-      Mesh& m = b->objects[i].mesh;
-      if (8 * m.vertices.capacity() + 4 * m.triangles.capacity() > kKeepMeshBytes) m = Mesh{};
+  if (threads == 1) {  // everything on the calling thread
+    Batch b;
+    for (bool more = true; more;) {
+      more = FillBatch(read, &b, &read_error);
+      EncodeBatch(options, &b);
+      MKTREE_RETURN_IF_ERROR(DrainBatch(&b, sink));
     }
-    if (b->entries.capacity() > 2 * kBatchRawBytes) b->entries = {};
-    b->count = 0;
-    free_batches.push_back(b);
-    return Status::Ok();
-  };
-
-  for (;;) {
-    // Drain what is finished first: it frees batches and keeps the spill writes flowing.
-    while (!in_flight.empty() && pool.Done(in_flight.front())) {
-      Batch* b = in_flight.front();
-      in_flight.pop_front();
-      MKTREE_RETURN_IF_ERROR(drain(b));
-    }
-    if (!input_done && in_flight.size() < max_in_flight) {
-      if (free_batches.empty()) {
-        all.push_back(std::make_unique<Batch>());
-        free_batches.push_back(all.back().get());
-      }
-      Batch* b = free_batches.back();
-      free_batches.pop_back();
-      uint64_t raw = 0;
-      while (b->count < kBatchObjects && raw < kBatchRawBytes) {
-        if (b->objects.size() == b->count) b->objects.emplace_back();
-        auto more = read(&b->objects[b->count]);
-        if (!more.ok() || !*more) {
-          // A read error surfaces after the objects before it, as in a sequential loop.
-          if (!more.ok()) read_error = more.status();
-          input_done = true;
-          break;
-        }
-        raw += b->objects[b->count].mesh.RawGeometryBytes();
-        ++b->count;
-      }
-      if (b->count == 0) {
-        free_batches.push_back(b);
-      } else {
-        pool.Submit(b);
-        in_flight.push_back(b);
-      }
-      continue;
-    }
-    if (in_flight.empty()) break;
-    Batch* b = in_flight.front();
-    pool.Await(b);
-    in_flight.pop_front();
-    MKTREE_RETURN_IF_ERROR(drain(b));
+    return read_error;
   }
+  // One encoder per core: the reader and the drain mostly wait on each other and on the encoders, and
+  // the kernel gives their cores to whichever stage has work. One batch filling, one per encoder and one
+  // draining: the memory bound of the earlier design (a batch holds at most ~kBatchRawBytes of geometry).
+  Pipeline pipeline(options, sink, threads, threads + 2);
+  for (bool more = true; more;) {
+    Batch* b = pipeline.Take();
+    if (b == nullptr) break;  // the drain failed: its error is the first in input order
+    more = FillBatch(read, b, &read_error);
+    if (b->count == 0) {
+      pipeline.Return(b);
+    } else {
+      pipeline.Submit(b);
+    }
+  }
+  MKTREE_RETURN_IF_ERROR(pipeline.Finish());
   return read_error;
 }
 

@@ -1,10 +1,10 @@
-// The encoding half of ingest: each object's edge check (CheckEdges) and leaf entry (EncodeObjectEntry)
-// computed on worker threads, in batches, while the calling thread reads the next objects; results come
-// back to the calling thread in input order, so the spill is written in id order exactly as a
-// single-threaded loop would write it.
+// The encoding half of ingest, a pipeline of three stages on their own threads: the calling thread reads
+// objects into batches, one worker per core computes each object's edge check (CheckEdges) and leaf entry
+// (EncodeObjectEntry), and a drain thread hands the results to the sink in input order, so the spill is
+// written in id order exactly as a single-threaded loop would write it.
 //
-// Memory stays bounded: at most a few batches are in flight (each closes at kBatchObjects objects or
-// kBatchRawBytes of raw geometry), and the reader waits (or encodes a batch itself) when they are full.
+// Memory stays bounded: a fixed pool of batches circulates (each closes at kBatchObjects objects or
+// kBatchRawBytes of raw geometry), and the reader waits when none is free.
 #pragma once
 
 #include <cstdint>
@@ -25,15 +25,17 @@ struct EncodedObject {
 
 struct EncoderOptions {
   CodecOptions codec;
-  // Threads working on ingest, the calling thread included: 1 encodes on the calling thread (no
-  // workers); 0 means one per core.
+  // Encoding threads: 1 runs every stage on the calling thread (no other thread); n > 1 starts n
+  // encoders and a drain thread besides the reading caller; 0 means one per core.
   uint32_t threads = 0;
   Vec3d origin;  // the store frame's origin (engine/store/object_codec.h)
 };
 
 // Fills *obj with the next object; false at the end of the input. Called on the calling thread only.
 using ObjectReader = std::function<Result<bool>(SceneObject* obj)>;
-// Receives each object with its encoding, in the order read. Called on the calling thread only.
+// Receives each object with its encoding, in the order read. Called on one thread at a time (with more
+// than one thread, a drain thread that runs while `read` runs on the calling thread: the two must not
+// share unguarded state); every call has returned when EncodeObjects returns.
 using EncodedSink = std::function<Status(const SceneObject& obj, const EncodedObject& encoded)>;
 
 // Reads every object, encodes it and passes it to `sink`, in order. Stops at the first error, which is

@@ -2,12 +2,17 @@
 
 #include <sys/stat.h>
 
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <future>
 #include <limits>
 #include <span>
 #include <unordered_map>
@@ -183,6 +188,9 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
                               ", expected " + std::to_string(next_id));
     if (next_id == kNoIndex) return Status::InvalidArgument("too many objects: ids are 32-bit");
     ++next_id;
+    // Reported here, on the calling thread, not by the sink (a drain thread): a progress callback may
+    // need the caller's thread (Python checks Ctrl-C only on its main thread).
+    if (next_id % kProgressEvery == 0) progress(IngestStage::kRead, next_id, 0);
     return true;
   };
   CoarseBoxes coarse;
@@ -208,7 +216,6 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
     report.triangles += obj.mesh.triangle_count();
     report.raw_geometry_bytes += obj.mesh.RawGeometryBytes();
     report.encoded_bytes += rec.encoded_bytes;
-    if (records.size() % kProgressEvery == 0) progress(IngestStage::kRead, records.size(), 0);
     return Status::Ok();
   };
   // The store frame, chosen from the first object before any is encoded (entries hold boxes in it).
@@ -228,6 +235,11 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
   encoder.origin = report.origin;
   encoder.threads = options.threads;
   MKTREE_RETURN_IF_ERROR(EncodeObjects(encoder, read_all, spill));
+#if defined(__GLIBC__)
+  // The pipeline's threads freed their batches and buffers into their own malloc arenas, which keep the
+  // pages; hand them back before the tree build, the build's memory peak.
+  malloc_trim(0);
+#endif
   if (coarse.count > 0) report.warnings.push_back(coarse.Warning(report.origin));
   report.objects = next_id;
   progress(IngestStage::kRead, next_id, next_id);
@@ -272,41 +284,65 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
   const uint32_t leaf_count = static_cast<uint32_t>(tree.leaves.size());
   tree.leaf_filter.resize(uint64_t{kLeafFilterBytesPerObject} * report.objects);
   uint64_t filter_at = 0;
-  std::vector<uint8_t> window;  // the entries of leaves [leaf, window_end), leaf by leaf
-  std::vector<SpillFile::Range> ranges;
+  // A window: the entries of leaves [begin, end), leaf by leaf. While one is assembled into pages, the
+  // next is read from the spill on another thread (its reads are system calls and copies that would
+  // otherwise stall this loop).
+  struct Window {
+    uint32_t begin = 0, end = 0;
+    std::vector<uint8_t> bytes;
+    std::vector<SpillFile::Range> ranges;
+  };
+  // Whole leaves from `leaf` up to kWindowBytes of entries (at least one leaf, however large).
+  auto plan = [&](uint32_t leaf, Window* w) {
+    w->begin = w->end = leaf;
+    uint64_t bytes = 0;
+    while (w->end < leaf_count) {
+      uint64_t leaf_bytes = 0;
+      for (uint64_t i = result.leaf_offsets[w->end]; i < result.leaf_offsets[w->end + 1]; ++i)
+        leaf_bytes += entry_bytes[result.leaf_objects[i]];
+      if (w->end > leaf && bytes + leaf_bytes > kWindowBytes) break;
+      bytes += leaf_bytes;
+      ++w->end;
+    }
+    w->bytes.resize(bytes);
+  };
+  // Reads the planned window's entries; touches only what is read-only by now and the window itself.
+  auto load = [&](Window* w) -> Status {
+    w->ranges.clear();
+    uint64_t at = 0;
+    for (uint64_t i = result.leaf_offsets[w->begin]; i < result.leaf_offsets[w->end]; ++i) {
+      const ObjectId id = result.leaf_objects[i];
+      w->ranges.push_back({spill_offset[id], entry_bytes[id], w->bytes.data() + at});
+      at += entry_bytes[id];
+    }
+    return geometry.ReadMany(&w->ranges);
+  };
+  Window windows[2];
   std::vector<std::span<const uint8_t>> entries;
   std::vector<uint32_t> leaf_of(report.objects, kNoIndex);
   uint64_t page = 0;
-  for (uint32_t leaf = 0; leaf < leaf_count;) {
-    // The window: whole leaves up to kWindowBytes of entries (at least one leaf, however large).
-    uint32_t window_end = leaf;
-    uint64_t bytes = 0;
-    while (window_end < leaf_count) {
-      uint64_t leaf_bytes = 0;
-      for (uint64_t i = result.leaf_offsets[window_end]; i < result.leaf_offsets[window_end + 1]; ++i)
-        leaf_bytes += entry_bytes[result.leaf_objects[i]];
-      if (window_end > leaf && bytes + leaf_bytes > kWindowBytes) break;
-      bytes += leaf_bytes;
-      ++window_end;
+  if (leaf_count > 0) {
+    plan(0, &windows[0]);
+    MKTREE_RETURN_IF_ERROR(load(&windows[0]));
+  }
+  for (int cur = 0; windows[cur].begin < windows[cur].end; cur ^= 1) {
+    Window& w = windows[cur];
+    Window& next = windows[cur ^ 1];
+    next.begin = next.end = w.end;
+    // On an early return the future's destructor waits for the read, so `next` outlives it.
+    std::future<Status> next_read;
+    if (w.end < leaf_count) {
+      plan(w.end, &next);
+      next_read = std::async(std::launch::async, [&load, &next] { return load(&next); });
     }
-    window.resize(bytes);
-    ranges.clear();
     uint64_t at = 0;
-    for (uint64_t i = result.leaf_offsets[leaf]; i < result.leaf_offsets[window_end]; ++i) {
-      const ObjectId id = result.leaf_objects[i];
-      ranges.push_back({spill_offset[id], entry_bytes[id], window.data() + at});
-      at += entry_bytes[id];
-    }
-    MKTREE_RETURN_IF_ERROR(geometry.ReadMany(&ranges));
-
-    at = 0;
-    for (; leaf < window_end; ++leaf) {
+    for (uint32_t leaf = w.begin; leaf < w.end; ++leaf) {
       entries.clear();
       for (uint64_t i = result.leaf_offsets[leaf]; i < result.leaf_offsets[leaf + 1]; ++i) {
         const ObjectId id = result.leaf_objects[i];
         leaf_of[id] = leaf;
-        entries.emplace_back(window.data() + at, entry_bytes[id]);
-        auto parsed = ParseObjectEntry(window.data() + at, entry_bytes[id]);
+        entries.emplace_back(w.bytes.data() + at, entry_bytes[id]);
+        auto parsed = ParseObjectEntry(w.bytes.data() + at, entry_bytes[id]);
         if (!parsed.ok()) return parsed.status();
         QuantizeBox(tree.leaves[leaf].box, parsed->box, tree.leaf_filter.data() + filter_at);
         filter_at += kLeafFilterBytesPerObject;
@@ -321,8 +357,9 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
         return Status::Internal("leaf " + std::to_string(leaf) + " wrote an unexpected number of pages");
       if (leaf % 4096 == 0) progress(IngestStage::kWritePages, leaf, leaf_count);
     }
+    if (next_read.valid()) MKTREE_RETURN_IF_ERROR(next_read.get());
   }
-  window = {};
+  windows[0] = windows[1] = {};
   report.pages = page;
   if (!tree.IndexLeafFilter())
     return Status::Internal("leaf filter does not match the leaves' object counts");

@@ -6,7 +6,9 @@
 #include <cmath>
 #include <filesystem>
 #include <limits>
+#include <new>
 #include <random>
+#include <stdexcept>
 
 #include "engine/generator/tanker_generator.h"
 #include "engine/ingest/object_encoder.h"
@@ -168,6 +170,47 @@ TEST(ObjectEncoderTest, FirstErrorInInputOrderWins) {
     st = EncodeObjects({CodecOptions{}, threads, {}}, read_ok, failing_sink);
     EXPECT_EQ(st.message(), "spill full");
     EXPECT_EQ(sunk, 700u);
+  }
+}
+
+// The sink runs on the drain thread: what it throws (std::bad_alloc under a memory limit) must come back
+// as a Status, not end the process; what the reader throws (on the calling thread) propagates after the
+// pipeline's threads are stopped.
+TEST(ObjectEncoderTest, ExceptionsInTheStagesDoNotEscapeTheirThreads) {
+  for (uint32_t threads : {1u, 2u, 4u}) {
+    ObjectId next = 0, sunk = 0;
+    auto read = [&](SceneObject* obj) -> Result<bool> {
+      if (next == 5000) return false;
+      MakeCube(next++, kNoIndex, obj);
+      return true;
+    };
+    auto throwing_sink = [&](const SceneObject& obj, const EncodedObject&) -> Status {
+      if (obj.id == 900) throw std::bad_alloc();
+      ++sunk;
+      return Status::Ok();
+    };
+    Status st = Status::Ok();
+    if (threads == 1) {  // no drain thread: the exception reaches the caller, as it did before
+      EXPECT_THROW(st = EncodeObjects({CodecOptions{}, threads, {}}, read, throwing_sink), std::bad_alloc);
+    } else {
+      st = EncodeObjects({CodecOptions{}, threads, {}}, read, throwing_sink);
+      EXPECT_EQ(st.code(), Status::Code::kInternal) << st.ToString();
+      EXPECT_NE(st.message().find("out of memory"), std::string::npos) << st.ToString();
+    }
+    EXPECT_EQ(sunk, 900u);
+
+    next = sunk = 0;
+    auto throwing_read = [&](SceneObject* obj) -> Result<bool> {
+      if (next == 3000) throw std::runtime_error("reader broke");
+      MakeCube(next++, kNoIndex, obj);
+      return true;
+    };
+    auto sink = [&](const SceneObject&, const EncodedObject&) -> Status {
+      ++sunk;
+      return Status::Ok();
+    };
+    EXPECT_THROW(st = EncodeObjects({CodecOptions{}, threads, {}}, throwing_read, sink), std::runtime_error);
+    EXPECT_LE(sunk, 3000u);
   }
 }
 
