@@ -212,7 +212,11 @@ Status RunSelfClash(const ClashStore& st, const ClashOptions& o, const ClashVisi
   clash::NeededObjects needed;
   clash::FilterLeafPairs(tree, o.clearance, pool, &pairs, &needed);
   s.leaf_pairs_visited = pairs.size();
-  s.window_budget_bytes = o.window_bytes ? o.window_bytes : kDefaultClashWindowBytes;
+  s.window_budget_bytes =
+      o.window_bytes
+          ? o.window_bytes
+          : std::max<uint64_t>(kDefaultClashWindowBytes,
+                               kDecodedBytesPerPayloadByte * st.cache.capacity() * tree.params.mem_page());
   std::vector<uint64_t> leaf_bytes(tree.leaves.size());
   for (size_t i = 0; i < leaf_bytes.size(); ++i) leaf_bytes[i] = DecodedLeafEstimate(tree.leaves[i]);
   const clash::SweepPlan plan =

@@ -66,7 +66,7 @@ struct ClashPair {
 // deterministic.
 using ClashExclude = std::function<bool(ObjectId a, ObjectId b)>;
 
-// The self-clash's default window of decoded leaves (docs/clash.md section 3 says why this size).
+// The self-clash's smallest default window of decoded leaves (docs/clash.md section 3 says why this size).
 inline constexpr uint64_t kDefaultClashWindowBytes = uint64_t{32} << 20;
 
 struct ClashOptions {
@@ -82,9 +82,11 @@ struct ClashOptions {
   // Worker threads (0: one per core). The pairs and their order are the same for any count.
   unsigned threads = 1;
   // Self-clash: the memory for decoded leaves (meshes and narrow-phase shapes) kept between the leaf pairs
-  // that need them, in bytes; 0 is kDefaultClashWindowBytes. Planned from each leaf's estimated decoded
-  // size; a smaller window re-reads leaves (through the page cache), a larger one costs RAM. The answer
-  // is the same for any size.
+  // that need them, in bytes; 0: the larger of kDefaultClashWindowBytes and the decoded size of a full
+  // page cache (OpenOptions::cache_pages pages at the estimate below), so the window grows with the cache
+  // the caller gives. Planned from each leaf's estimated decoded size; a smaller window re-reads leaves
+  // (through the page cache) and decodes them again, a larger one costs RAM up to what the sweep's front
+  // holds. The answer is the same for any size.
   uint64_t window_bytes = 0;
   // Optional, on the calling thread: work done of total (leaf steps), for progress displays.
   std::function<void(uint64_t done, uint64_t total)> progress;
