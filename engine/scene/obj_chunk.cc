@@ -20,16 +20,7 @@ std::string_view Trim(std::string_view s) {
   return s;
 }
 
-// Splits off the next whitespace-separated token of `*s` (empty when none is left).
-std::string_view NextToken(std::string_view* s) {
-  size_t i = 0;
-  while (i < s->size() && IsBlank((*s)[i])) ++i;
-  size_t j = i;
-  while (j < s->size() && !IsBlank((*s)[j])) ++j;
-  std::string_view tok = s->substr(i, j - i);
-  s->remove_prefix(j);
-  return tok;
-}
+std::string_view NextToken(std::string_view* s) { return ObjNextToken(s); }
 
 // Quoted token for messages, shortened so a garbage line cannot flood an error message.
 std::string Quote(std::string_view s) {
@@ -328,6 +319,16 @@ void ChunkParser::Run() {
 }
 
 }  // namespace
+
+std::string_view ObjNextToken(std::string_view* s) {
+  size_t i = 0;
+  while (i < s->size() && IsBlank((*s)[i])) ++i;
+  size_t j = i;
+  while (j < s->size() && !IsBlank((*s)[j])) ++j;
+  std::string_view tok = s->substr(i, j - i);
+  s->remove_prefix(j);
+  return tok;
+}
 
 void ObjChunk::Reset(size_t b, size_t e, bool eof) {
   begin = b;

@@ -7,11 +7,16 @@
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "mktree/status.h"
 
 namespace mktree {
+
+// Splits off the next token of an OBJ line, separated by blanks (space, tab, CR, FF, VT); empty when none
+// is left.
+std::string_view ObjNextToken(std::string_view* s);
 
 enum class ObjOpKind : uint8_t {
   kVertices,   // `count` vertices on lines `line`, `line` + 1, ... (xyz in ObjChunk::vertices)

@@ -25,19 +25,6 @@ namespace {
 
 constexpr size_t kReadBufferBytes = size_t{1} << 20;
 
-bool IsBlank(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\f' || c == '\v'; }
-
-// Splits off the next whitespace-separated token of `*s` (empty when none is left).
-std::string_view NextToken(std::string_view* s) {
-  size_t i = 0;
-  while (i < s->size() && IsBlank((*s)[i])) ++i;
-  size_t j = i;
-  while (j < s->size() && !IsBlank((*s)[j])) ++j;
-  std::string_view tok = s->substr(i, j - i);
-  s->remove_prefix(j);
-  return tok;
-}
-
 std::string Errno(const std::string& path) { return path + ": " + std::strerror(errno); }
 
 // Open-addressing map from global vertex index to local (per-object) index. Its size follows the current
@@ -392,7 +379,8 @@ void ObjReader::EndFace() {
 
 void ObjReader::SetGroups(std::string_view names) {
   groups_.clear();
-  for (std::string_view n = NextToken(&names); !n.empty(); n = NextToken(&names)) groups_.emplace_back(n);
+  for (std::string_view n = ObjNextToken(&names); !n.empty(); n = ObjNextToken(&names))
+    groups_.emplace_back(n);
   ++attributes_version_;
 }
 

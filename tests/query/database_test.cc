@@ -13,6 +13,7 @@
 #include "engine/geometry/exact_geometry.h"
 #include "engine/ingest/store_builder.h"
 #include "engine/scene/vector_scene_source.h"
+#include "query/query_oracle.h"
 #include "query/scene_fixtures.h"
 #include "store/stored_geometry.h"
 #include "test_dirs.h"
@@ -37,53 +38,11 @@ IngestOptions Options(Backend backend, Codec codec, uint32_t block, uint32_t d) 
   return o;
 }
 
+using testing::BruteForce;
+
 Status Build(const std::vector<SceneObject>& objs, const std::string& path, const IngestOptions& o) {
-  std::vector<SceneOpener> in{[&objs](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
-    return std::unique_ptr<SceneSource>(new VectorSceneSource(&objs, first));
-  }};
-  auto r = BuildStore(in, path, o);
-  return r.ok() ? Status::Ok() : r.status();
+  return testing::BuildFromObjects(objs, path, o);
 }
-
-// Brute force over the geometry the store keeps (tests/store/stored_geometry.h), in the store frame of
-// the scene (ChooseStoreOrigin of its first object).
-class Brute {
- public:
-  explicit Brute(const std::vector<SceneObject>& objs)
-      : origin_(ChooseStoreOrigin(objs[0].mesh.Bounds())), stored_(testing::StoredScene(objs, origin_)) {}
-
-  std::vector<ObjectId> Point(const Vec3d& world, QueryMode mode) const {
-    const Vec3d p{world.x - origin_.x, world.y - origin_.y, world.z - origin_.z};
-    std::vector<ObjectId> out;
-    for (const testing::StoredObject& o : stored_) {
-      if (!o.box.Contains(p)) continue;
-      if (mode == QueryMode::kExact && !PointInSolid(o.mesh, p)) continue;
-      out.push_back(o.id);
-    }
-    return out;
-  }
-  std::vector<ObjectId> Box(const Box3d& world, QueryMode mode) const {
-    Box3d b;
-    for (int a = 0; a < 3; ++a) {
-      b.min[a] = world.min[a] - origin_[a];
-      b.max[a] = world.max[a] - origin_[a];
-    }
-    std::vector<ObjectId> out;
-    for (const testing::StoredObject& o : stored_) {
-      if (!o.box.Intersects(b)) continue;
-      if (mode == QueryMode::kExact && !MeshMeetsBox(o.mesh, b)) continue;
-      out.push_back(o.id);
-    }
-    return out;
-  }
-  std::vector<ObjectId> Answer(const Query& q) const {
-    return q.kind == Query::Kind::kPoint ? Point(q.point, q.mode) : Box(q.box, q.mode);
-  }
-
- private:
-  Vec3d origin_;
-  std::vector<testing::StoredObject> stored_;
-};
 
 // Random queries around the scene: points on object corners and inside objects, boxes of mixed sizes.
 std::vector<Query> RandomQueries(const std::vector<SceneObject>& objs, size_t n, uint64_t seed) {
@@ -131,7 +90,7 @@ void CheckStats(const QueryResult& r, bool cold) {
 void CheckAll(const Database& db, const std::vector<SceneObject>& objs, const std::vector<Query>& qs,
               QueryMode mode, bool cold) {
   QueryResult r;
-  const Brute brute(objs);
+  const BruteForce brute(objs);
   for (size_t i = 0; i < qs.size(); ++i) {
     if (cold) const_cast<Database&>(db).ClearCache();
     Query q = qs[i];
@@ -179,7 +138,7 @@ TEST_P(DatabaseTest, BatchFromManyThreadsEqualsSingleQueries) {
   std::vector<QueryResult> results;
   ASSERT_TRUE((*db)->RunBatch(qs, 4, &results).ok());
   ASSERT_EQ(results.size(), qs.size());
-  const Brute brute(objs);
+  const BruteForce brute(objs);
   for (size_t i = 0; i < qs.size(); ++i) EXPECT_EQ(results[i].hits, brute.Answer(qs[i])) << i;
   fs::remove(path);
 }
@@ -219,7 +178,7 @@ TEST_P(DatabaseTest, AVisitorMayQueryTheDatabaseAndItsExceptionsAreAStatus) {
   ASSERT_TRUE(Build(objs, path, Options(GetParam().backend, GetParam().codec, 1024, 2)).ok());
   auto db = Database::Open(path, {.cache_pages = 4});
   ASSERT_TRUE(db.ok());
-  const Brute brute(objs);
+  const BruteForce brute(objs);
   const Query whole = Query::Box((*db)->bounds());
   std::vector<ObjectId> visited;
   QueryResult inner;
@@ -296,7 +255,7 @@ TEST_P(DatabaseTest, LargeAnswersAndRepeatedQueriesKeepAnswersAndCounts) {
       qs.push_back(Query::Box(b));
     }
   }
-  const Brute brute(objs);
+  const BruteForce brute(objs);
   for (QueryMode mode : {QueryMode::kAabb, QueryMode::kExact}) {
     QueryResult first, again;
     for (Query q : qs) {

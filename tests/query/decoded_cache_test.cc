@@ -12,6 +12,7 @@
 #include "engine/ingest/store_builder.h"
 #include "engine/scene/vector_scene_source.h"
 #include "mktree/database.h"
+#include "query/query_oracle.h"
 #include "query/scene_fixtures.h"
 #include "storage/memory_page_store.h"
 #include "storage/page_cache.h"
@@ -32,40 +33,10 @@ Status Build(const std::vector<SceneObject>& objs, const std::string& path) {
   o.store.backend = Backend::kPagedFile;
   o.store.params.block_size = 1024;
   o.store.params.blocks_per_page = 2;
-  std::vector<SceneOpener> in{[&objs](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
-    return std::unique_ptr<SceneSource>(new VectorSceneSource(&objs, first));
-  }};
-  auto r = BuildStore(in, path, o);
-  return r.ok() ? Status::Ok() : r.status();
+  return testing::BuildFromObjects(objs, path, o);
 }
 
-// Brute force over the stored boxes and meshes, in the store frame.
-class Brute {
- public:
-  explicit Brute(const std::vector<SceneObject>& objs)
-      : origin_(ChooseStoreOrigin(objs[0].mesh.Bounds())), stored_(testing::StoredScene(objs, origin_)) {}
-  std::vector<ObjectId> Answer(const Query& q) const {
-    Box3d b;
-    for (int a = 0; a < 3; ++a) {
-      b.min[a] = (q.kind == Query::Kind::kPoint ? q.point[a] : q.box.min[a]) - origin_[a];
-      b.max[a] = (q.kind == Query::Kind::kPoint ? q.point[a] : q.box.max[a]) - origin_[a];
-    }
-    const Vec3d p{b.min[0], b.min[1], b.min[2]};
-    std::vector<ObjectId> out;
-    for (const testing::StoredObject& o : stored_) {
-      if (q.kind == Query::Kind::kPoint ? !o.box.Contains(p) : !o.box.Intersects(b)) continue;
-      if (q.mode == QueryMode::kExact &&
-          !(q.kind == Query::Kind::kPoint ? PointInSolid(o.mesh, p) : MeshMeetsBox(o.mesh, b)))
-        continue;
-      out.push_back(o.id);
-    }
-    return out;
-  }
-
- private:
-  Vec3d origin_;
-  std::vector<testing::StoredObject> stored_;
-};
+using Brute = testing::BruteForce;
 
 // Points (on box corners, so that float rounding of the query matters) and boxes of mixed sizes, some
 // with faces exactly on object faces and some with coordinates between two floats.

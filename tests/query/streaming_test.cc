@@ -11,6 +11,7 @@
 #include "engine/query/store_database.h"
 #include "engine/scene/vector_scene_source.h"
 #include "mktree/database.h"
+#include "query/query_oracle.h"
 #include "query/scene_fixtures.h"
 #include "storage/memory_page_store.h"
 #include "store/stored_geometry.h"
@@ -31,35 +32,8 @@ Status Build(const std::vector<SceneObject>& objs, const std::string& path, Back
   o.store.backend = backend;
   o.store.params.block_size = 1024;
   o.store.params.blocks_per_page = 2;
-  std::vector<SceneOpener> in{[&objs](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
-    return std::unique_ptr<SceneSource>(new VectorSceneSource(&objs, first));
-  }};
-  auto r = BuildStore(in, path, o);
-  return r.ok() ? Status::Ok() : r.status();
+  return testing::BuildFromObjects(objs, path, o);
 }
-
-// AABB answers by brute force over the boxes the store keeps, in its frame.
-class BruteAabb {
- public:
-  explicit BruteAabb(const std::vector<SceneObject>& objs)
-      : origin_(ChooseStoreOrigin(objs[0].mesh.Bounds())), stored_(testing::StoredScene(objs, origin_)) {}
-  std::vector<ObjectId> Answer(const Query& q) const {
-    std::vector<ObjectId> out;
-    const Vec3d p{q.point.x - origin_.x, q.point.y - origin_.y, q.point.z - origin_.z};
-    Box3d b;
-    for (int a = 0; a < 3; ++a) {
-      b.min[a] = q.box.min[a] - origin_[a];
-      b.max[a] = q.box.max[a] - origin_[a];
-    }
-    for (const testing::StoredObject& o : stored_)
-      if (q.kind == Query::Kind::kPoint ? o.box.Contains(p) : o.box.Intersects(b)) out.push_back(o.id);
-    return out;
-  }
-
- private:
-  Vec3d origin_;
-  std::vector<testing::StoredObject> stored_;
-};
 
 // Points inside and beside objects, and boxes from tiny to a fifth of the scene.
 std::vector<Query> RandomQueries(const std::vector<SceneObject>& objs, size_t n, uint64_t seed) {
@@ -105,7 +79,7 @@ class StreamingTest : public ::testing::TestWithParam<Backend> {
 TEST_P(StreamingTest, StreamedBatchEqualsRunBatchAndRunOnAnyThreads) {
   auto db = Database::Open(path_, {.cache_pages = 12});
   ASSERT_TRUE(db.ok()) << db.status().ToString();
-  const BruteAabb brute(objs_);
+  const testing::BruteForce brute(objs_);
   for (uint64_t seed : {1u, 2u}) {
     std::vector<Query> qs = RandomQueries(objs_, 150, seed);
     for (size_t i = 0; i < qs.size(); i += 7) qs[i].limit = i % 5;  // some limited
@@ -115,7 +89,7 @@ TEST_P(StreamingTest, StreamedBatchEqualsRunBatchAndRunOnAnyThreads) {
       for (size_t i = 0; i < qs.size(); ++i) {
         (*db)->ClearCache();
         ASSERT_TRUE((*db)->Run(qs[i], &singles[i]).ok());
-        if (mode == QueryMode::kAabb && qs[i].limit == Query::kNoLimit) {
+        if (qs[i].limit == Query::kNoLimit) {
           ASSERT_EQ(singles[i].hits, brute.Answer(qs[i])) << i;
         }
       }
@@ -237,7 +211,7 @@ TEST_P(StreamingTest, EarlyStopReadsOnlyUpToTheFirstHits) {
 TEST_P(StreamingTest, LimitTruncatesAndSaysSo) {
   auto db = Database::Open(path_, {.cache_pages = 100000});
   ASSERT_TRUE(db.ok());
-  const BruteAabb brute(objs_);
+  const testing::BruteForce brute(objs_);
   std::vector<Query> qs = RandomQueries(objs_, 120, 5);
   qs.push_back(Query::Box((*db)->bounds()));
   size_t cut = 0;

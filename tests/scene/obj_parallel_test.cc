@@ -37,7 +37,9 @@ Outcome ReadEverything(Result<std::unique_ptr<SceneSource>> src) {
       // Sticky: a second call fails the same way.
       auto again = (*src)->Next(&o);
       EXPECT_FALSE(again.ok());
-      if (!again.ok()) EXPECT_EQ(again.status().message(), more.status().message());
+      if (!again.ok()) {
+        EXPECT_EQ(again.status().message(), more.status().message());
+      }
       return out;
     }
     if (!*more) return out;
