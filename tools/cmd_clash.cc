@@ -212,13 +212,9 @@ int Run(const ClashArgs& a, bool collide) {
   if (!db.ok()) return Fail(db.status().message());
   Progress progress(!a.progress);
   if (a.progress) o.progress = [&](uint64_t done, uint64_t total) { progress.Update("clash", done, total); };
-  // Names come from a second handle on the store with a small cache of its own, so that reading them
-  // leaves the clash's cache and statistics as they are without --names.
   std::unique_ptr<Database> names_db;
   if (a.names) {
-    OpenOptions no = oo;
-    no.cache_pages = 64;
-    auto n = Database::Open(a.store, no);
+    auto n = OpenNamesHandle(a.store, oo);
     if (!n.ok()) return Fail(n.status().message());
     names_db = std::move(*n);
   }

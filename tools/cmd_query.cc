@@ -151,13 +151,9 @@ int RunQuery(const QueryArgs& a) {
   oo.direct_io = a.direct_io;
   auto db = Database::Open(a.store, oo);
   if (!db.ok()) return Fail(db.status().message());
-  // Names come from a second handle on the store with a small cache of its own, so that reading them
-  // leaves the queries' cache and statistics as they are without --names.
   std::unique_ptr<Database> names_db;
   if (a.names) {
-    OpenOptions no = oo;
-    no.cache_pages = 64;
-    auto n = Database::Open(a.store, no);
+    auto n = OpenNamesHandle(a.store, oo);
     if (!n.ok()) return Fail(n.status().message());
     names_db = std::move(*n);
   }

@@ -7,6 +7,8 @@
 #include <string>
 #include <string_view>
 
+#include "mktree/database.h"
+
 namespace mktree::tools {
 
 // The length of the valid UTF-8 sequence at s[i] (shortest form, no surrogates, at most U+10FFFF), or 0.
@@ -75,5 +77,12 @@ inline std::string JsonText(std::string_view s) {
 // One line of text: the same escapes as JsonText, so that a name never breaks a line or a column (a tab
 // shows as \u0009, a newline as \u000a).
 inline std::string LineText(std::string_view s) { return JsonText(s); }
+
+// A second handle on `store` for --names, with a small cache of its own: reading names then leaves the
+// main handle's cache and statistics as they are without --names.
+inline Result<std::unique_ptr<Database>> OpenNamesHandle(const std::string& store, OpenOptions options) {
+  options.cache_pages = 64;
+  return Database::Open(store, options);
+}
 
 }  // namespace mktree::tools
