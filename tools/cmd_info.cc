@@ -75,17 +75,6 @@ int RunObject(const InfoArgs& a) {
   return 0;
 }
 
-// The scene's bounds in world coordinates: the root's box (store frame) plus the origin.
-Box3d WorldBounds(const MKTree& t) {
-  Box3d b;
-  if (t.empty()) return b;
-  for (int i = 0; i < 3; ++i) {
-    b.min[i] = t.origin[i] + t.nodes[0].box.min[i];
-    b.max[i] = t.origin[i] + t.nodes[0].box.max[i];
-  }
-  return b;
-}
-
 int RunInfo(const InfoArgs& a) {
   if (a.has_object) return RunObject(a);
   auto reader = StoreReader::Open(a.store);  // refuses statistics other than the builder's (printed below)
@@ -128,7 +117,8 @@ int RunInfo(const InfoArgs& a) {
         t.params.balance_r, t.split_nodes.size(), static_cast<unsigned long long>(split_cells),
         static_cast<unsigned long long>(both_cells), fill, static_cast<unsigned long long>(t.MemoryBytes()),
         static_cast<unsigned long long>(t.FilterMemoryBytes()), t.origin.x, t.origin.y, t.origin.z,
-        JsonBox(WorldBounds(t)).c_str(), static_cast<unsigned long long>(r.objects().record_directory.size()),
+        JsonBox(t.WorldBounds()).c_str(),
+        static_cast<unsigned long long>(r.objects().record_directory.size()),
         r.stats_json().empty() ? "null" : r.stats_json().c_str());
     return 0;
   }
@@ -152,7 +142,7 @@ int RunInfo(const InfoArgs& a) {
   std::printf("balance r    %g\n", t.params.balance_r);
   std::printf("store frame  origin (%.17g, %.17g, %.17g); geometry is kept relative to it\n", t.origin.x,
               t.origin.y, t.origin.z);
-  std::printf("bounds       %s (world)\n", TextBox(WorldBounds(t)).c_str());
+  std::printf("bounds       %s (world)\n", TextBox(t.WorldBounds()).c_str());
   std::printf("records      %llu pages (names, sources, attributes; %zu sources)\n",
               static_cast<unsigned long long>(r.objects().record_directory.size()),
               r.objects().sources.size());

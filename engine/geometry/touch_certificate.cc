@@ -63,16 +63,6 @@ struct Interval {
   double lo = std::numeric_limits<double>::infinity(), hi = -std::numeric_limits<double>::infinity();
   bool complete = true;
 };
-Interval Project(const Mesh& m, const Vec3d& n) {
-  Interval r;
-  const double* v = m.vertices.data();
-  for (size_t i = 0; i < m.vertex_count(); ++i, v += 3) {
-    const double p = v[0] * n.x + v[1] * n.y + v[2] * n.z;
-    r.lo = std::min(r.lo, p);
-    r.hi = std::max(r.hi, p);
-  }
-  return r;
-}
 
 // Do the corners of `u` lie strictly on both sides of `t`'s plane, and those of `t` of `u`'s? Two meeting
 // triangles that do cross along a segment; their solids then overlap near it (for meshes that do not cross
@@ -106,6 +96,10 @@ Interval ProjectUntil(const Mesh& m, const Vec3d& n, const Interval& other, doub
     }
   }
   return r;
+}
+// The whole projection of `m`'s vertices on `n` (an empty `other` never stops it).
+Interval Project(const Mesh& m, const Vec3d& n) {
+  return ProjectUntil(m, n, Interval{}, std::numeric_limits<double>::infinity());
 }
 
 bool BoxesMeet(const Box3d& x, const Box3d& y) {

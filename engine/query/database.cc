@@ -253,16 +253,7 @@ class StoreDatabase final : public Database {
       return Status::Internal(path() + ": object " + std::to_string(id) + " missing from its leaf");
     });
   }
-  Box3d bounds() const override {
-    const MKTree& t = reader_->tree();
-    Box3d b;
-    if (t.empty()) return b;
-    for (int i = 0; i < 3; ++i) {
-      b.min[i] = t.origin[i] + t.nodes[0].box.min[i];
-      b.max[i] = t.origin[i] + t.nodes[0].box.max[i];
-    }
-    return b;
-  }
+  Box3d bounds() const override { return reader_->tree().WorldBounds(); }
   double objects_per_page() const override {
     const MKTree& t = reader_->tree();
     uint64_t pages = 0;

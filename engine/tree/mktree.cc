@@ -82,6 +82,16 @@ void QueuePrefetched(const MKTree& t, uint32_t i, std::vector<uint32_t>* queue) 
 
 }  // namespace
 
+Box3d MKTree::WorldBounds() const {
+  Box3d b;
+  if (empty()) return b;
+  for (int i = 0; i < 3; ++i) {
+    b.min[i] = origin[i] + nodes[0].box.min[i];
+    b.max[i] = origin[i] + nodes[0].box.max[i];
+  }
+  return b;
+}
+
 void MKTree::RoutePoint(const Vec3d& p, std::vector<uint32_t>* leaves_out, QueryStats* stats) const {
   QueryStats local;
   if (stats == nullptr) stats = &local;

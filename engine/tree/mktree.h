@@ -75,6 +75,8 @@ struct MKTree {
   std::vector<uint64_t> leaf_filter_begin;
 
   bool empty() const { return nodes.empty(); }
+  // The scene's bounds in world coordinates: the root's box plus the origin; empty for an empty tree.
+  Box3d WorldBounds() const;
   // Leaves a point query must read, in leaf order, each once; counts internal/SplitTree nodes in stats.
   void RoutePoint(const Vec3d& p, std::vector<uint32_t>* leaves_out, QueryStats* stats) const;
   // Leaves a box query must read, in leaf order, each once.

@@ -109,7 +109,9 @@ TEST(SweepSchedule, ReplayKeepsEveryPairsLeavesWithinTheBudget) {
       EXPECT_EQ(reads, plan.leaf_reads);
       EXPECT_EQ(rereads, plan.leaf_rereads);
       EXPECT_EQ(peak, plan.peak_window_bytes);
-      if (budget >= total) EXPECT_EQ(rereads, 0u);
+      if (budget >= total) {
+        EXPECT_EQ(rereads, 0u);
+      }
     }
   }
 }
