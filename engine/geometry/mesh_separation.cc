@@ -40,21 +40,24 @@ struct ClashShape::Impl {
     });
     return *hierarchy;
   }
-  // Solids only.
+  // Solids only. Apart from the vertex lists: a pair whose depth the other's classifier decides (a
+  // vertex of this object deep in the other) never needs this object's.
   const SolidClassifier& Classifier(NarrowStats* st) const {
-    BuildSolidParts(st);
-    return *classifier;
-  }
-  void BuildSolidParts(NarrowStats* st) const {
-    std::call_once(solid_once, [&] {
+    std::call_once(classifier_once, [&] {
       SolidClassifierOptions options;
       options.edges = edges;
       // Containment asks one point per component; the depth bound asks one per vertex inside.
       options.expected_queries = kGridBreakEven;
       classifier.emplace(mesh, options);
-      component_vertices = ComponentVertices(mesh, &distinct_vertices);
-      solid_built.store(true, std::memory_order_release);
       ++st->classifiers_built;
+    });
+    return *classifier;
+  }
+  // Solids only: component_vertices and distinct_vertices.
+  void BuildVertexLists() const {
+    std::call_once(vertices_once, [&] {
+      component_vertices = ComponentVertices(mesh, &distinct_vertices);
+      vertices_built.store(true, std::memory_order_release);
     });
   }
   void BuildDirections() const {
@@ -83,6 +86,10 @@ struct ClashShape::Impl {
         seen |= std::fabs(d.x - n.x) + std::fabs(d.y - n.y) + std::fabs(d.z - n.z) < 1e-9;
       if (!seen) directions.push_back(n);
     }
+    // Kept for the object's life: no growth slack.
+    directions.shrink_to_fit();
+    direction_lo.reserve(directions.size());
+    direction_hi.reserve(directions.size());
     for (const Vec3d& d : directions) {
       const auto [lo, hi] = ProjectionInterval(d);
       direction_lo.push_back(lo);
@@ -103,7 +110,7 @@ struct ClashShape::Impl {
       lo = std::min(lo, p);
       hi = std::max(hi, p);
     };
-    if (solid_built.load(std::memory_order_acquire)) {
+    if (vertices_built.load(std::memory_order_acquire)) {
       for (uint32_t i : distinct_vertices) add(i);
     } else {
       for (size_t i = 0; i < mesh.vertex_count(); ++i) add(i);
@@ -176,10 +183,10 @@ struct ClashShape::Impl {
   double projection_slack = 0;
   double negligible2 = 0;
   // Built on first use (the accessors above).
-  mutable std::once_flag hierarchy_once, solid_once, directions_once;
+  mutable std::once_flag hierarchy_once, classifier_once, vertices_once, directions_once;
   mutable std::optional<TriangleHierarchy> hierarchy;
   mutable std::optional<SolidClassifier> classifier;
-  mutable std::atomic<bool> solid_built{false};
+  mutable std::atomic<bool> vertices_built{false};
   mutable std::vector<uint32_t> component_vertices;
   mutable std::vector<uint32_t> distinct_vertices;  // solids: ComponentVertices
   mutable std::vector<Vec3d> directions;            // FaceDirections
@@ -311,7 +318,7 @@ bool InsideDeeper(const Vec3d& v, const Impl& y, double* deepest2, NarrowStats* 
 // once: a repeated one cannot raise the depth again, so the answer is that of every vertex in order.
 double DeepestVertex(const Impl& x, const Impl& y, double deepest, double stop, NarrowStats* st) {
   double deepest2 = deepest * deepest;
-  x.BuildSolidParts(st);
+  x.BuildVertexLists();
   for (size_t k = 0; k < x.distinct_vertices.size() && deepest2 < stop * stop; ++k) {
     const Vec3d v = VertexAt(x.mesh, x.distinct_vertices[k]);
     if (!y.kdop.Contains(v)) continue;
@@ -431,7 +438,7 @@ bool ComponentInside(const Impl& x, const Impl& y, Vec3d* point, NarrowStats* st
   // nothing here (no triangles meet, so it may lie just outside), and a vertex clear of it is used.
   const SolidClassifier& cy = y.Classifier(st);
   const TriangleHierarchy& hy = y.Hierarchy(st);
-  x.BuildSolidParts(st);
+  x.BuildVertexLists();
   const double tol2 = 4 * cy.tolerance() * cy.tolerance();
   bool unsure = false;
   for (uint32_t v : x.component_vertices) {

@@ -50,7 +50,8 @@ double BoxDistanceSquared(const Box3d& a, const Box3d& b) {
   return d2;
 }
 
-TriangleHierarchy::TriangleHierarchy(const Mesh& mesh) : vertices_(mesh.vertices.data()) {
+TriangleHierarchy::TriangleHierarchy(const Mesh& mesh)
+    : vertices_(mesh.vertices.data()), triangles_(mesh.triangles.data()) {
   const size_t n = mesh.triangle_count();
   if (n == 0) return;
   mesh_index_.resize(n);
@@ -68,10 +69,6 @@ TriangleHierarchy::TriangleHierarchy(const Mesh& mesh) : vertices_(mesh.vertices
   nodes_.reserve(NodeCount(static_cast<uint32_t>(n)));
   nodes_.emplace_back();
   Build(0, 0, static_cast<uint32_t>(n), centroids);
-  // Leaf order: the corners' vertex indices, after the build has settled the order of mesh_index_.
-  corners_.resize(n);
-  for (size_t i = 0; i < n; ++i)
-    for (int k = 0; k < 3; ++k) corners_[i][k] = mesh.triangles[3 * size_t{mesh_index_[i]} + k];
   // Boxes, bottom-up (children always follow their parent in the array).
   for (size_t i = nodes_.size(); i-- > 0;) {
     Node& node = nodes_[i];
@@ -116,8 +113,7 @@ void TriangleHierarchy::Build(uint32_t self, uint32_t first, uint32_t count, std
 }
 
 size_t TriangleHierarchy::MemoryBytes() const {
-  return nodes_.capacity() * sizeof(Node) + corners_.capacity() * sizeof(corners_[0]) +
-         mesh_index_.capacity() * sizeof(uint32_t);
+  return nodes_.capacity() * sizeof(Node) + mesh_index_.capacity() * sizeof(uint32_t);
 }
 
 namespace {

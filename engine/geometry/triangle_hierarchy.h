@@ -1,7 +1,8 @@
 // A bounding-volume hierarchy over one mesh's triangles: a binary tree of axis-aligned boxes in a flat
 // array, built top-down by median splits of the triangle centroids on the longest axis (O(T log T)),
-// leaves of at most kLeafTriangles triangles. The corners' vertex indices are kept in leaf order and the
-// coordinates read from the mesh (a copy of the corners would take 72 bytes a triangle).
+// leaves of at most kLeafTriangles triangles. The triangles are kept in leaf order as their mesh indices,
+// and the corners read from the mesh (a copy of the corners' coordinates would take 72 bytes a triangle,
+// of their vertex indices 12).
 //
 // Queries between two hierarchies walk pairs of nodes (a dual traversal), descending the larger box:
 //   - FindMeeting: the first triangle pair that meets (exact TrianglesMeet), pruning node pairs whose
@@ -40,10 +41,10 @@ class TriangleHierarchy {
     bool leaf() const { return count != 0; }
   };
 
-  size_t triangle_count() const { return corners_.size(); }
+  size_t triangle_count() const { return mesh_index_.size(); }
   const std::vector<Node>& nodes() const { return nodes_; }
   Triangle triangle(uint32_t i) const {  // leaf order
-    const auto& c = corners_[i];
+    const uint32_t* c = triangles_ + 3 * size_t{mesh_index_[i]};
     return {At(c[0]), At(c[1]), At(c[2])};
   }
   uint32_t mesh_triangle(uint32_t i) const { return mesh_index_[i]; }  // its index in the mesh
@@ -79,8 +80,8 @@ class TriangleHierarchy {
     return {p[0], p[1], p[2]};
   }
   const double* vertices_;
-  std::vector<std::array<uint32_t, 3>> corners_;  // leaf order
-  std::vector<uint32_t> mesh_index_;
+  const uint32_t* triangles_;
+  std::vector<uint32_t> mesh_index_;  // leaf order
 };
 
 // Squared distance between two boxes (0 when they meet).
