@@ -58,13 +58,21 @@ struct LoadedLeaf {
   uint64_t bytes = 0;  // heap held by its meshes and shapes (about)
 };
 
+constexpr size_t kKeptFoundCapacity = 64;
+
 // What the tests of one leaf pair (or one collide chunk) found.
 struct PairWork {
   std::vector<ClashPair> found;
   uint64_t candidates = 0, excluded = 0;
   NarrowStats narrow;
   void Clear() {
-    found.clear();
+    // A slot keeps no more than a typical leaf pair's pairs: each of a batch's slots would otherwise keep
+    // the most it ever held, and two batches of slots are alive (megabytes on the 100k tanker).
+    if (found.capacity() > kKeptFoundCapacity) {
+      std::vector<ClashPair>().swap(found);
+    } else {
+      found.clear();
+    }
     candidates = excluded = 0;
     narrow = {};
   }
@@ -137,6 +145,21 @@ uint64_t DecodedLeafBytes(const LoadedLeaf& l) {
   return bytes;
 }
 
+// ReadLeaf with one duplicate-id scratch for every pinned leaf: ReadLeaf leaves it all zero, and each
+// PinnedLeaf's own would keep a bit per object of the store (a batch pins up to hundreds of leaves).
+Status ReadPinned(const ClashStore& st, uint32_t leaf, IoCount* io, std::vector<uint64_t>* seen,
+                  PinnedLeaf* out) {
+  const StoreReader& reader = st.reader;
+  const MKTree& tree = reader.tree();
+  const LeafInfo& info = tree.leaves[leaf];
+  out->seen.swap(*seen);
+  const Status s = ReadLeaf(st.cache, reader.pages().name(), leaf, info, reader.objects().leaf,
+                            tree.params.mem_page(), st.verify_checksums, &io->q, out);
+  out->seen.swap(*seen);
+  if (s.ok()) io->Mark(info);
+  return s;
+}
+
 uint64_t StorePages(const MKTree& tree) {
   uint64_t n = 0;
   for (const LeafInfo& l : tree.leaves) n += l.page_count;
@@ -191,7 +214,6 @@ Status RunSelfClash(const ClashStore& st, const ClashOptions& o, const ClashVisi
   const Clock::time_point start = Clock::now();
   const StoreReader& reader = st.reader;
   const MKTree& tree = reader.tree();
-  const std::string& pages_name = reader.pages().name();
   s.store_pages = StorePages(tree);
   clash::WorkPool pool(ThreadCount(o.threads));
   // Group names from the record pages, read in id order (each page once) straight from the store, so
@@ -228,6 +250,7 @@ Status RunSelfClash(const ClashStore& st, const ClashOptions& o, const ClashVisi
   std::vector<std::unique_ptr<LoadedLeaf>> window(tree.leaves.size());
   uint64_t window_bytes = 0;
   std::vector<PinnedLeaf> pinned;
+  std::vector<uint64_t> seen;
   IoCount io;
   Emitter emit{o, visit, s};
   std::vector<PairWork> work, previous;  // this batch's results, the last batch's (not yet handed on)
@@ -259,10 +282,7 @@ Status RunSelfClash(const ClashStore& st, const ClashOptions& o, const ClashVisi
     tasks.clear();
     for (size_t i = 0; i < b.load.size(); ++i) {
       const uint32_t leaf = b.load[i];
-      const LeafInfo& info = tree.leaves[leaf];
-      MKTREE_RETURN_IF_ERROR(ReadLeaf(st.cache, pages_name, leaf, info, reader.objects().leaf,
-                                      tree.params.mem_page(), st.verify_checksums, &io.q, &pinned[i]));
-      io.Mark(info);
+      MKTREE_RETURN_IF_ERROR(ReadPinned(st, leaf, &io, &seen, &pinned[i]));
       auto l = std::make_unique<LoadedLeaf>();
       const auto& entries = pinned[i].view.entries();
       l->objects.resize(entries.size());
@@ -375,7 +395,6 @@ Status RunCollide(const ClashStore& st, const Mesh& mesh, const std::optional<Ri
   const Clock::time_point start = Clock::now();
   const StoreReader& reader = st.reader;
   const MKTree& tree = reader.tree();
-  const std::string& pages_name = reader.pages().name();
   s.store_pages = StorePages(tree);
 
   // The object in the store's frame.
@@ -412,6 +431,7 @@ Status RunCollide(const ClashStore& st, const Mesh& mesh, const std::optional<Ri
 
   clash::WorkPool pool(ThreadCount(o.threads));
   IoCount io;
+  std::vector<uint64_t> seen;
   Emitter emit{o, visit, s};
   // Candidates are found as their leaves are read (on this thread, in leaf order); their leaves stay
   // pinned until a chunk of candidates is decoded, prepared and tested on all threads.
@@ -452,11 +472,8 @@ Status RunCollide(const ClashStore& st, const Mesh& mesh, const std::optional<Ri
   uint64_t candidates = 0, excluded = 0;
   for (uint32_t leaf : leaves) {
     const Clock::time_point t = Clock::now();
-    const LeafInfo& info = tree.leaves[leaf];
     PinnedLeaf& pin = pins[pinned];
-    MKTREE_RETURN_IF_ERROR(ReadLeaf(st.cache, pages_name, leaf, info, reader.objects().leaf,
-                                    tree.params.mem_page(), st.verify_checksums, &io.q, &pin));
-    io.Mark(info);
+    MKTREE_RETURN_IF_ERROR(ReadPinned(st, leaf, &io, &seen, &pin));
     const size_t before = chunk.size();
     const auto& entries = pin.view.entries();
     for (uint32_t pos = 0; pos < entries.size(); ++pos) {
