@@ -81,9 +81,9 @@ struct ClashShape::Impl {
       n = {n.x / len, n.y / len, n.z / len};
       // Opposite normals give the same intervals.
       if (n.x < 0 || (n.x == 0 && (n.y < 0 || (n.y == 0 && n.z < 0)))) n = {-n.x, -n.y, -n.z};
-      bool seen = false;
-      for (const Vec3d& d : directions)
-        seen |= std::fabs(d.x - n.x) + std::fabs(d.y - n.y) + std::fabs(d.z - n.z) < 1e-9;
+      const bool seen = std::any_of(directions.begin(), directions.end(), [&](const Vec3d& d) {
+        return std::fabs(d.x - n.x) + std::fabs(d.y - n.y) + std::fabs(d.z - n.z) < 1e-9;
+      });
       if (!seen) directions.push_back(n);
     }
     // Kept for the object's life: no growth slack.
@@ -316,13 +316,21 @@ bool InsideDeeper(const Vec3d& v, const Impl& y, double* deepest2, NarrowStats* 
 
 // Stops once the depth reaches `stop` (the answer can then not change what it is used for). Each position
 // once: a repeated one cannot raise the depth again, so the answer is that of every vertex in order.
+// A mesh with no more vertices than triangles shares its positions (a closed indexed mesh has about half
+// as many): its vertices are visited in index order without sorting out the repeats, which is the same
+// answer (a repeat finds what its first occurrence found, which raised the depth or did not).
 double DeepestVertex(const Impl& x, const Impl& y, double deepest, double stop, NarrowStats* st) {
   double deepest2 = deepest * deepest;
-  x.BuildVertexLists();
-  for (size_t k = 0; k < x.distinct_vertices.size() && deepest2 < stop * stop; ++k) {
-    const Vec3d v = VertexAt(x.mesh, x.distinct_vertices[k]);
-    if (!y.kdop.Contains(v)) continue;
-    if (!InsideDeeper(v, y, &deepest2, st)) continue;
+  auto visit = [&](size_t i) {
+    const Vec3d v = VertexAt(x.mesh, i);
+    if (y.kdop.Contains(v)) InsideDeeper(v, y, &deepest2, st);
+  };
+  if (x.mesh.vertex_count() <= x.mesh.triangle_count()) {
+    for (size_t i = 0; i < x.mesh.vertex_count() && deepest2 < stop * stop; ++i) visit(i);
+  } else {
+    x.BuildVertexLists();
+    for (size_t k = 0; k < x.distinct_vertices.size() && deepest2 < stop * stop; ++k)
+      visit(x.distinct_vertices[k]);
   }
   return std::sqrt(deepest2);
 }
