@@ -434,67 +434,83 @@ Status RunCollide(const ClashStore& st, const Mesh& mesh, const std::optional<Ri
   std::vector<uint64_t> seen;
   Emitter emit{o, visit, s};
   // Candidates are found as their leaves are read (on this thread, in leaf order); their leaves stay
-  // pinned until a chunk of candidates is decoded, prepared and tested on all threads.
+  // pinned until their chunk of candidates is decoded, prepared and tested on all threads. While one
+  // chunk is tested this thread reads the next one's leaves (each leaf is still read once, in leaf
+  // order: the same pages and counts).
   struct Candidate {
-    size_t pin;  // index into pins
+    size_t pin;  // index into the chunk's pins
     uint32_t pos;
   };
-  std::vector<PinnedLeaf> pins(kCollidePinnedLeaves);
-  size_t pinned = 0;
-  std::vector<Candidate> chunk;
-  std::vector<PairWork> work;
-  std::vector<Status> errors;
-  auto flush = [&]() -> Status {
-    const Clock::time_point t = Clock::now();
-    work.resize(std::max(work.size(), chunk.size()));
-    errors.assign(chunk.size(), Status::Ok());
-    pool.For(chunk.size(), [&](size_t k) {
-      work[k].Clear();
-      const ObjectEntryView& e = pins[chunk[k].pin].view.entry(chunk[k].pos);
-      Mesh mesh;
-      errors[k] = DecodeStoredMesh(reader.path(), e, &mesh);
-      if (!errors[k].ok()) return;
-      const ClashShape other(mesh, StoredEdges(e));
-      const double r = CoordinateResolution(e.box);
-      const Separation sep =
-          Separate(other, shape, clash::NarrowMaxDistance(o, r), &work[k].narrow, clash::NarrowOptions(o, r));
-      ClashPair pair;
-      if (clash::Classify(sep, o, r, e.id, kCollideObject, tree.origin, &pair)) work[k].found.push_back(pair);
-    });
-    for (size_t i = 0; i < pinned; ++i) pins[i].Release();
-    pinned = 0;
-    s.narrow_seconds += Since(t);
-    MKTREE_RETURN_IF_ERROR(FirstError(errors));
-    for (size_t k = 0; k < chunk.size(); ++k) emit.Add(work[k]);
-    chunk.clear();
-    return Status::Ok();
+  struct Chunk {
+    std::vector<PinnedLeaf> pins = std::vector<PinnedLeaf>(kCollidePinnedLeaves);
+    size_t pinned = 0;
+    std::vector<Candidate> candidates;
   };
+  Chunk chunks[2];
+  size_t next_leaf = 0;
   uint64_t candidates = 0, excluded = 0;
-  for (uint32_t leaf : leaves) {
+  // Reads leaves into `c` until it holds kCollideChunk candidates or kCollidePinnedLeaves leaves with
+  // candidates, or no leaf is left.
+  auto fill = [&](Chunk& c) -> Status {
     const Clock::time_point t = Clock::now();
-    PinnedLeaf& pin = pins[pinned];
-    MKTREE_RETURN_IF_ERROR(ReadPinned(st, leaf, &io, &seen, &pin));
-    const size_t before = chunk.size();
-    const auto& entries = pin.view.entries();
-    for (uint32_t pos = 0; pos < entries.size(); ++pos) {
-      const ObjectEntryView& e = entries[pos];
-      if (!clash::GrownMeet(clash::ToBox3d(e.box), qbox, o.clearance)) continue;
-      ++candidates;
-      if (o.exclude && o.exclude(e.id, kCollideObject)) {
-        ++excluded;
-        continue;
+    while (next_leaf < leaves.size() && c.candidates.size() < kCollideChunk && c.pinned < c.pins.size()) {
+      PinnedLeaf& pin = c.pins[c.pinned];
+      MKTREE_RETURN_IF_ERROR(ReadPinned(st, leaves[next_leaf++], &io, &seen, &pin));
+      const size_t before = c.candidates.size();
+      const auto& entries = pin.view.entries();
+      for (uint32_t pos = 0; pos < entries.size(); ++pos) {
+        const ObjectEntryView& e = entries[pos];
+        if (!clash::GrownMeet(clash::ToBox3d(e.box), qbox, o.clearance)) continue;
+        ++candidates;
+        if (o.exclude && o.exclude(e.id, kCollideObject)) {
+          ++excluded;
+          continue;
+        }
+        c.candidates.push_back({c.pinned, pos});
       }
-      chunk.push_back({pinned, pos});
-    }
-    if (chunk.size() > before) {
-      ++pinned;
-    } else {
-      pin.Release();
+      if (c.candidates.size() > before) {
+        ++c.pinned;
+      } else {
+        pin.Release();
+      }
     }
     s.read_seconds += Since(t);
-    if (chunk.size() >= kCollideChunk || pinned == pins.size()) MKTREE_RETURN_IF_ERROR(flush());
+    return Status::Ok();
+  };
+  std::vector<PairWork> work;
+  std::vector<Status> errors;
+  MKTREE_RETURN_IF_ERROR(fill(chunks[0]));
+  for (size_t cur = 0; !chunks[cur].candidates.empty(); cur ^= 1) {
+    Chunk& c = chunks[cur];
+    const Clock::time_point t = Clock::now();
+    work.resize(std::max(work.size(), c.candidates.size()));
+    errors.assign(c.candidates.size(), Status::Ok());
+    Status read_status;
+    pool.For(
+        c.candidates.size(),
+        [&](size_t k) {
+          work[k].Clear();
+          const ObjectEntryView& e = c.pins[c.candidates[k].pin].view.entry(c.candidates[k].pos);
+          Mesh mesh;
+          errors[k] = DecodeStoredMesh(reader.path(), e, &mesh);
+          if (!errors[k].ok()) return;
+          const ClashShape other(mesh, StoredEdges(e));
+          const double r = CoordinateResolution(e.box);
+          const Separation sep = Separate(other, shape, clash::NarrowMaxDistance(o, r), &work[k].narrow,
+                                          clash::NarrowOptions(o, r));
+          ClashPair pair;
+          if (clash::Classify(sep, o, r, e.id, kCollideObject, tree.origin, &pair))
+            work[k].found.push_back(pair);
+        },
+        [&] { read_status = fill(chunks[cur ^ 1]); });
+    for (size_t i = 0; i < c.pinned; ++i) c.pins[i].Release();
+    c.pinned = 0;
+    s.narrow_seconds += Since(t);
+    MKTREE_RETURN_IF_ERROR(FirstError(errors));
+    for (size_t k = 0; k < c.candidates.size(); ++k) emit.Add(work[k]);
+    c.candidates.clear();
+    MKTREE_RETURN_IF_ERROR(read_status);
   }
-  MKTREE_RETURN_IF_ERROR(flush());
   s.candidate_pairs = candidates;
   s.excluded_pairs = excluded;
   io.Fill(&s);
