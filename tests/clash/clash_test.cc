@@ -276,6 +276,71 @@ TEST(Clash, SameOutputInTheSameOrderForAnyThreadCount) {
   }
 }
 
+// Collide reads the next chunk of candidates' leaves while one is tested: an object meeting most of the
+// scene (several chunks) gives the brute force's pairs, in the same order and with the same counts on any
+// thread count.
+TEST(Clash, CollideSameOutputInTheSameOrderForAnyThreadCount) {
+  const auto scene = PlantedScene(900, 11);
+  const std::string path = TempPath("collide_threads");
+  ASSERT_TRUE(Build(scene, path, Backend::kPagedFile).ok());
+  const Oracle oracle(scene);
+  Box3d all;
+  for (const SceneObject& x : scene) {
+    const Box3d b = x.mesh.Bounds();
+    all.Extend(b.min[0], b.min[1], b.min[2]);
+    all.Extend(b.max[0], b.max[1], b.max[2]);
+  }
+  Box3d big;  // the middle 80 % of the scene on each axis
+  for (int k = 0; k < 3; ++k) {
+    const double w = all.max[k] - all.min[k];
+    big.min[k] = all.min[k] + 0.1 * w;
+    big.max[k] = all.max[k] - 0.1 * w;
+  }
+  const Mesh box = BoxMesh(big);
+  Mesh moved = box;
+  for (size_t i = 0; i < moved.vertices.size(); ++i) moved.vertices[i] -= oracle.origin[i % 3];
+  const ClashShape q(moved);
+  std::vector<ClashPair> want;
+  for (size_t i = 0; i < oracle.objects.size(); ++i) {
+    ClashPair p;
+    p.a = oracle.objects[i].id;
+    p.b = kCollideObject;
+    const double r = CoordinateResolution(oracle.objects[i].box);
+    SeparateOptions narrow;
+    narrow.depth_lower_enough = std::max(0.002, r);
+    const double reach = std::nextafter(r, std::numeric_limits<double>::infinity());
+    if (!OracleClass(Separate(*oracle.shapes[i], q, reach, nullptr, narrow), 0, 0.002, r, &p)) continue;
+    for (Vec3d* x : {&p.point_a, &p.point_b})
+      *x = {x->x + oracle.origin.x, x->y + oracle.origin.y, x->z + oracle.origin.z};
+    want.push_back(p);
+  }
+  auto run = [&](unsigned threads, ClashStats* s) {
+    auto db = Database::Open(path, {.cache_pages = 4});
+    EXPECT_TRUE(db.ok());
+    ClashOptions o;
+    o.threads = threads;
+    std::vector<ClashPair> got;
+    EXPECT_TRUE((*db)
+                    ->Collide(
+                        box, std::nullopt, o, [&](const ClashPair& p) { got.push_back(p); }, s)
+                    .ok());
+    return got;
+  };
+  ClashStats s1;
+  const auto one = run(1, &s1);
+  ExpectSame(Sorted(one), want);
+  EXPECT_GT(s1.candidate_pairs, 512u);  // several chunks of candidates
+  EXPECT_GT(s1.leaf_reads, 32u);
+  for (unsigned t : {2u, 4u}) {
+    ClashStats st;
+    ExpectSame(run(t, &st), one);  // the same sequence
+    EXPECT_EQ(st.pages_read, s1.pages_read);
+    EXPECT_EQ(st.distinct_pages, s1.distinct_pages);
+    EXPECT_EQ(st.candidate_pairs, s1.candidate_pairs);
+    EXPECT_EQ(st.triangle_tests, s1.triangle_tests);
+  }
+}
+
 // The window of decoded leaves changes what is re-read, never the answer or its order: one pair's leaves
 // (1 byte), the default and the whole store, on one and two threads.
 TEST(Clash, SameOutputForEveryWindowSize) {
