@@ -133,6 +133,15 @@ class VertexTable {
   size_t size_ = 0;
 };
 
+template <typename T>
+void CopyInto(const std::vector<T>& from, std::vector<T>* to) {
+  if (to->capacity() > 2 * from.size() + 64) {
+    std::vector<T>(from).swap(*to);
+  } else {
+    to->assign(from.begin(), from.end());
+  }
+}
+
 enum class GroupRule { kUnknown, kGroupsStartObjects, kGroupsIgnored };
 
 // The open file and its size when opened. Read with pread into each chunk's own buffer, not mapped: a file
@@ -508,11 +517,23 @@ Result<bool> ObjReader::Emit(SceneObject* out) {
   out->id = static_cast<ObjectId>(next_id_++);
   out->name = name_.empty() ? "object_" + std::to_string(out->id) : name_;
   out->source = path_;
-  out->attributes = std::move(object_attributes_);
+  out->attributes.swap(object_attributes_);
   object_attributes_.clear();
   object_version_ = ~uint64_t{0};
-  out->mesh = std::move(mesh_);
-  mesh_ = Mesh();
+  // A small mesh is copied into *out's buffers (ingest reuses its slots) rather than moved: mesh_ keeps
+  // its capacity, so the next object does not regrow it allocation by allocation. A slot buffer much
+  // larger than the object is replaced, so that slots hold no more than a moved buffer would. A large
+  // mesh is moved, not copied and not kept.
+  constexpr size_t kCopyBytes = size_t{1} << 20;
+  if (8 * mesh_.vertices.capacity() + 4 * mesh_.triangles.capacity() > kCopyBytes) {
+    out->mesh = std::move(mesh_);
+    mesh_ = Mesh();
+  } else {
+    CopyInto(mesh_.vertices, &out->mesh.vertices);
+    CopyInto(mesh_.triangles, &out->mesh.triangles);
+    mesh_.vertices.clear();
+    mesh_.triangles.clear();
+  }
   local_of_global_.Clear();
   return true;
 }
