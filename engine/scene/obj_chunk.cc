@@ -278,8 +278,8 @@ void ChunkParser::ParseFace(std::string_view rest) {
 }
 
 void ChunkParser::Run() {
-  p_ = data_ + c_.begin;
-  end_ = data_ + c_.end;
+  p_ = data_;
+  end_ = data_ + (c_.end - c_.begin);
   std::string_view line;
   while (!c_.has_error && NextRecord(&line)) {
     std::string_view rest = line;
@@ -330,10 +330,9 @@ std::string_view ObjNextToken(std::string_view* s) {
   return tok;
 }
 
-void ObjChunk::Reset(size_t b, size_t e, bool eof) {
+void ObjChunk::Reset(size_t b, size_t e) {
   begin = b;
   end = e;
-  at_eof = eof;
   lines = unterminated_line = 0;
   vertices.clear();
   refs.clear();
@@ -346,19 +345,19 @@ void ObjChunk::Reset(size_t b, size_t e, bool eof) {
 
 void ParseObjChunk(const char* data, ObjChunk* chunk) { ChunkParser(data, chunk).Run(); }
 
-size_t ObjChunkEnd(const char* data, size_t size, size_t begin, size_t target) {
-  if (target >= size - begin) return size;
-  size_t at = begin + target;
-  while (true) {
+size_t ObjLineBoundary(const char* data, size_t size, size_t from) {
+  size_t at = from;
+  while (at < size) {
     const char* nl = static_cast<const char*>(std::memchr(data + at, '\n', size - at));
-    if (nl == nullptr) return size;
+    if (nl == nullptr) break;
     const size_t i = nl - data;
     // "\\\n" and "\\\r\n" continue the line (see NextRecord).
     const bool continued =
-        (i > begin && data[i - 1] == '\\') || (i > begin + 1 && data[i - 1] == '\r' && data[i - 2] == '\\');
+        (i >= 1 && data[i - 1] == '\\') || (i >= 2 && data[i - 1] == '\r' && data[i - 2] == '\\');
     if (!continued) return i + 1;
     at = i + 1;
   }
+  return SIZE_MAX;
 }
 
 bool ParseObjCoordinate(const char* b, const char* e, double* out, std::string* why) {

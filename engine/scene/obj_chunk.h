@@ -41,9 +41,8 @@ struct ObjOp {
 };
 
 struct ObjChunk {
-  // Input: bytes [begin, end) of the file; at_eof when end is the end of the file.
+  // Input: bytes [begin, end) of the file.
   size_t begin = 0, end = 0;
-  bool at_eof = false;
 
   // Output of ParseObjChunk.
   uint64_t lines = 0;              // lines the chunk holds (when it has no error)
@@ -60,16 +59,17 @@ struct ObjChunk {
   uint64_t error_stop = 0;  // kFaceError: the references checked before the error
   std::string error_what;
 
-  void Reset(size_t b, size_t e, bool eof);
+  void Reset(size_t b, size_t e);
 };
 
-// Parses `data[chunk->begin, chunk->end)`; `chunk->begin` is a line start and `chunk->end` follows a line
-// end that does not continue the line (or is the end of the file).
-void ParseObjChunk(const char* data, ObjChunk* chunk);
+// Parses the chunk's bytes, `bytes[0, chunk->end - chunk->begin)`; `chunk->begin` is a line start and
+// `chunk->end` follows a line end that does not continue the line (or is the end of the file).
+void ParseObjChunk(const char* bytes, ObjChunk* chunk);
 
-// Where a chunk that starts at `begin` and wants about `target` bytes ends: just after the first line end
-// at or past begin + target whose line is not continued by a trailing backslash, or `size`.
-size_t ObjChunkEnd(const char* data, size_t size, size_t begin, size_t target);
+// Chunk boundaries: just after the first line end at or past `data + from` whose line is not continued by
+// a trailing backslash; SIZE_MAX when `data[from, size)` holds none. Looks back up to two bytes before a
+// line end (data[from - 2] when from >= 2), so a boundary depends only on the file, not on the chunking.
+size_t ObjLineBoundary(const char* data, size_t size, size_t from);
 
 // A coordinate as the reader takes it: a decimal or "inf"/"nan" number with an optional leading '+',
 // correctly rounded. Overflow is an error, underflow written with a negative exponent reads as 0; NaN,

@@ -1,7 +1,6 @@
 #include "engine/scene/obj_reader.h"
 
 #include <fcntl.h>
-#include <sys/mman.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -134,20 +133,40 @@ class VertexTable {
   size_t size_ = 0;
 };
 
+template <typename T>
+void CopyInto(const std::vector<T>& from, std::vector<T>* to) {
+  if (to->capacity() > 2 * from.size() + 64) {
+    std::vector<T>(from).swap(*to);
+  } else {
+    to->assign(from.begin(), from.end());
+  }
+}
+
 enum class GroupRule { kUnknown, kGroupsStartObjects, kGroupsIgnored };
 
-// The file's bytes, mapped read-only; empty files map nothing.
-struct Mapping {
-  const char* data = nullptr;
+// The open file and its size when opened. Read with pread into each chunk's own buffer, not mapped: a file
+// that shrinks under a mapping kills the process with SIGBUS, a short pread is an error to report.
+struct InputFile {
+  int fd = -1;
   size_t size = 0;
-  ~Mapping() {
-    if (size > 0) ::munmap(const_cast<char*>(data), size);
+  ~InputFile() {
+    if (fd >= 0) ::close(fd);
   }
+};
+
+// A chunk, its bytes and what reading them found.
+struct LoadedChunk {
+  uint64_t index = 0;
+  ObjChunk chunk;
+  std::vector<char> buffer;  // file bytes from buffer_offset on, the first `used`; reused (never shrinks)
+  size_t buffer_offset = 0, used = 0;
+  Status read_error;
 };
 
 class ObjReader final : public SceneSource {
  public:
-  ObjReader(std::string path, std::unique_ptr<Mapping> map, ObjectId first_id, const ObjReadOptions& options);
+  ObjReader(std::string path, std::unique_ptr<InputFile> file, ObjectId first_id,
+            const ObjReadOptions& options);
   ~ObjReader() override;
   ObjReader(const ObjReader&) = delete;
   ObjReader& operator=(const ObjReader&) = delete;
@@ -155,11 +174,16 @@ class ObjReader final : public SceneSource {
   Result<bool> Next(SceneObject* out) override;
 
  private:
-  // The next chunk in file order, parsed (nullptr after the last).
-  ObjChunk* TakeChunk();
+  // The next chunk in file order, read and parsed (nullptr after the last).
+  LoadedChunk* TakeChunk();
   void ReleaseChunk();
   void Dispatch();  // fills the ring with chunks to parse (under mu_)
   void Work();      // a parsing thread
+  // Reads chunk `c->index`: bytes [E(i * chunk_bytes_), E((i + 1) * chunk_bytes_)) of the file, where E(x)
+  // is ObjLineBoundary from x (0 for x = 0, the file's size when none), then parses it.
+  void LoadAndParse(LoadedChunk* c) const;
+  // Makes c->buffer hold the file's bytes up to `to` (at most the size at open); false on a short read.
+  bool Fill(LoadedChunk* c, size_t to) const;
 
   Status ErrorAt(uint64_t line, const std::string& what, bool unterminated = false) const;
   Status ChunkError(const ObjChunk& c) const;
@@ -174,23 +198,24 @@ class ObjReader final : public SceneSource {
   Result<bool> Emit(SceneObject* out);
 
   const std::string path_;
-  const std::unique_ptr<Mapping> map_;
+  const std::unique_ptr<InputFile> file_;
   const size_t chunk_bytes_;
+  const uint64_t chunk_count_;
   uint64_t next_id_;
 
   // Chunks: ring_[seq % ring_.size()] holds chunk number seq; [consumed_, dispatched_) are in flight.
   std::mutex mu_;
   std::condition_variable work_cv_, done_cv_;
-  std::vector<std::unique_ptr<ObjChunk>> ring_;
-  std::vector<char> ready_;      // per ring slot, under mu_
-  std::deque<ObjChunk*> queue_;  // dispatched, not yet taken by a parsing thread
+  std::vector<std::unique_ptr<LoadedChunk>> ring_;
+  std::vector<char> ready_;         // per ring slot, under mu_
+  std::deque<LoadedChunk*> queue_;  // dispatched, not yet taken by a parsing thread
   uint64_t dispatched_ = 0, consumed_ = 0;
-  size_t next_begin_ = 0;  // where the next chunk to dispatch starts
   bool stop_ = false;
   std::vector<std::thread> threads_;
 
   // Applying the current chunk.
-  ObjChunk* chunk_ = nullptr;
+  LoadedChunk* loaded_ = nullptr;
+  const ObjChunk* chunk_ = nullptr;
   size_t op_ = 0, vertex_at_ = 0, ref_at_ = 0, name_at_ = 0;
   uint64_t base_line_ = 0;  // lines before the current chunk
   uint64_t last_line_ = 0;  // line of the last operation applied
@@ -214,18 +239,18 @@ class ObjReader final : public SceneSource {
   bool done_ = false;
 };
 
-ObjReader::ObjReader(std::string path, std::unique_ptr<Mapping> map, ObjectId first_id,
+ObjReader::ObjReader(std::string path, std::unique_ptr<InputFile> file, ObjectId first_id,
                      const ObjReadOptions& options)
     : path_(std::move(path)),
-      map_(std::move(map)),
+      file_(std::move(file)),
       chunk_bytes_(std::max<size_t>(options.chunk_bytes, 1)),
+      chunk_count_((file_->size + chunk_bytes_ - 1) / chunk_bytes_),
       next_id_(first_id) {
   int threads = options.threads;
   if (threads < 0) threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  const size_t chunks = map_->size / chunk_bytes_ + 1;
-  threads = static_cast<int>(std::min<size_t>(threads, chunks > 1 ? chunks : 0));
+  threads = static_cast<int>(std::min<uint64_t>(threads, chunk_count_ > 1 ? chunk_count_ : 0));
   ring_.resize(threads == 0 ? 1 : threads + 2);
-  for (auto& c : ring_) c = std::make_unique<ObjChunk>();
+  for (auto& c : ring_) c = std::make_unique<LoadedChunk>();
   ready_.assign(ring_.size(), 0);
   for (int i = 0; i < threads; ++i) threads_.emplace_back([this] { Work(); });
   if (threads > 0) {
@@ -243,13 +268,74 @@ ObjReader::~ObjReader() {
   for (auto& t : threads_) t.join();
 }
 
+bool ObjReader::Fill(LoadedChunk* c, size_t to) const {
+  size_t have = c->buffer_offset + c->used;
+  if (to <= have) return true;
+  if (to - c->buffer_offset > c->buffer.size()) c->buffer.resize(to - c->buffer_offset);
+  char* p = c->buffer.data() + c->used;
+  while (have < to) {
+    const ssize_t n = ::pread(file_->fd, p, to - have, static_cast<off_t>(have));
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) {
+      c->read_error =
+          Status::IOError("cannot read at byte " + std::to_string(have) + ": " + std::strerror(errno));
+      return false;
+    }
+    if (n == 0) {
+      c->read_error = Status::IOError("the file shrank while being read: it had " +
+                                      std::to_string(file_->size) + " bytes when opened, it ends at byte " +
+                                      std::to_string(have) + " now (truncated or rewritten?)");
+      return false;
+    }
+    p += n;
+    have += static_cast<size_t>(n);
+    c->used += static_cast<size_t>(n);
+  }
+  return true;
+}
+
+void ObjReader::LoadAndParse(LoadedChunk* c) const {
+  const size_t size = file_->size;
+  const size_t from = static_cast<size_t>(std::min<uint64_t>(c->index * chunk_bytes_, size));
+  const size_t to = static_cast<size_t>(std::min<uint64_t>((c->index + 1) * chunk_bytes_, size));
+  c->read_error = Status::Ok();
+  c->used = 0;
+  c->buffer_offset = from >= 2 ? from - 2 : 0;  // ObjLineBoundary looks two bytes back
+  c->chunk.Reset(from, from);
+  // Boundaries past `to` need more bytes: grow the read by a lookahead that doubles.
+  size_t lookahead = std::min<size_t>(chunk_bytes_, 4096);
+  auto boundary = [&](size_t x, size_t* out) {
+    if (x == 0 || x >= size) {
+      *out = x == 0 ? 0 : size;
+      return true;
+    }
+    while (true) {
+      const size_t want = std::min(size, std::max(to, x) + lookahead);
+      if (!Fill(c, want)) return false;
+      const size_t b = ObjLineBoundary(c->buffer.data(), c->used, x - c->buffer_offset);
+      if (b != SIZE_MAX) {
+        *out = c->buffer_offset + b;
+        return true;
+      }
+      if (want == size) {
+        *out = size;
+        return true;
+      }
+      lookahead *= 2;
+    }
+  };
+  size_t begin = 0, end = 0;
+  if (!boundary(from, &begin) || !boundary(to, &end)) return;
+  if (!Fill(c, end)) return;
+  c->chunk.Reset(begin, end);
+  ParseObjChunk(c->buffer.data() + (begin - c->buffer_offset), &c->chunk);
+}
+
 void ObjReader::Dispatch() {
-  while (dispatched_ - consumed_ < ring_.size() && next_begin_ < map_->size) {
+  while (dispatched_ - consumed_ < ring_.size() && dispatched_ < chunk_count_) {
     const size_t slot = dispatched_ % ring_.size();
-    const size_t end = ObjChunkEnd(map_->data, map_->size, next_begin_, chunk_bytes_);
-    ring_[slot]->Reset(next_begin_, end, end == map_->size);
+    ring_[slot]->index = dispatched_;
     ready_[slot] = 0;
-    next_begin_ = end;
     ++dispatched_;
     if (!threads_.empty()) {
       queue_.push_back(ring_[slot].get());
@@ -263,10 +349,10 @@ void ObjReader::Work() {
   while (true) {
     work_cv_.wait(lock, [this] { return stop_ || !queue_.empty(); });
     if (stop_) return;
-    ObjChunk* c = queue_.front();
+    LoadedChunk* c = queue_.front();
     queue_.pop_front();
     lock.unlock();
-    ParseObjChunk(map_->data, c);
+    LoadAndParse(c);
     lock.lock();
     for (size_t i = 0; i < ring_.size(); ++i) {
       if (ring_[i].get() == c) ready_[i] = 1;
@@ -275,12 +361,12 @@ void ObjReader::Work() {
   }
 }
 
-ObjChunk* ObjReader::TakeChunk() {
+LoadedChunk* ObjReader::TakeChunk() {
   const size_t slot = consumed_ % ring_.size();
   if (threads_.empty()) {
     Dispatch();
     if (consumed_ == dispatched_) return nullptr;
-    ParseObjChunk(map_->data, ring_[slot].get());
+    LoadAndParse(ring_[slot].get());
     return ring_[slot].get();
   }
   std::unique_lock<std::mutex> lock(mu_);
@@ -290,13 +376,9 @@ ObjChunk* ObjReader::TakeChunk() {
 }
 
 void ObjReader::ReleaseChunk() {
-  // The chunk's pages leave this process's RSS (they stay in the page cache); a page shared with the next
-  // chunk is kept.
-  static const size_t kPage = static_cast<size_t>(::sysconf(_SC_PAGESIZE));
-  const size_t from = chunk_->begin / kPage * kPage, to = chunk_->end / kPage * kPage;
-  if (to > from) ::madvise(const_cast<char*>(map_->data) + from, to - from, MADV_DONTNEED);
   base_line_ += chunk_->lines;
   chunk_ = nullptr;
+  loaded_ = nullptr;
   std::lock_guard<std::mutex> lock(mu_);
   ++consumed_;
   if (!threads_.empty()) Dispatch();
@@ -435,11 +517,23 @@ Result<bool> ObjReader::Emit(SceneObject* out) {
   out->id = static_cast<ObjectId>(next_id_++);
   out->name = name_.empty() ? "object_" + std::to_string(out->id) : name_;
   out->source = path_;
-  out->attributes = std::move(object_attributes_);
+  out->attributes.swap(object_attributes_);
   object_attributes_.clear();
   object_version_ = ~uint64_t{0};
-  out->mesh = std::move(mesh_);
-  mesh_ = Mesh();
+  // A small mesh is copied into *out's buffers (ingest reuses its slots) rather than moved: mesh_ keeps
+  // its capacity, so the next object does not regrow it allocation by allocation. A slot buffer much
+  // larger than the object is replaced, so that slots hold no more than a moved buffer would. A large
+  // mesh is moved, not copied and not kept.
+  constexpr size_t kCopyBytes = size_t{1} << 20;
+  if (8 * mesh_.vertices.capacity() + 4 * mesh_.triangles.capacity() > kCopyBytes) {
+    out->mesh = std::move(mesh_);
+    mesh_ = Mesh();
+  } else {
+    CopyInto(mesh_.vertices, &out->mesh.vertices);
+    CopyInto(mesh_.triangles, &out->mesh.triangles);
+    mesh_.vertices.clear();
+    mesh_.triangles.clear();
+  }
   local_of_global_.Clear();
   return true;
 }
@@ -466,9 +560,17 @@ Result<bool> ObjReader::Next(SceneObject* out) {
   };
   while (true) {
     if (chunk_ == nullptr) {
-      chunk_ = TakeChunk();
+      loaded_ = TakeChunk();
       op_ = 0;
       vertex_at_ = ref_at_ = name_at_ = 0;
+      if (loaded_ != nullptr) {
+        // Every line before this chunk was applied; its own bytes could not all be read.
+        if (!loaded_->read_error.ok()) {
+          return fail(Status::IOError(path_ + ":" + std::to_string(base_line_ + 1) + ": " +
+                                      loaded_->read_error.message()));
+        }
+        chunk_ = &loaded_->chunk;
+      }
       if (chunk_ == nullptr) {
         done_ = true;
         if (mesh_.triangle_count() == 0) return false;
@@ -557,20 +659,11 @@ Result<std::unique_ptr<SceneSource>> OpenObjFile(const std::string& path, Object
     ::close(*fd);
     return s;
   }
-  auto map = std::make_unique<Mapping>();
-  if (st.st_size > 0) {
-    void* p = ::mmap(nullptr, static_cast<size_t>(st.st_size), PROT_READ, MAP_PRIVATE, *fd, 0);
-    if (p == MAP_FAILED) {
-      Status s = Status::IOError(path + ": cannot map the file: " + std::strerror(errno));
-      ::close(*fd);
-      return s;
-    }
-    ::madvise(p, static_cast<size_t>(st.st_size), MADV_SEQUENTIAL);
-    map->data = static_cast<const char*>(p);
-    map->size = static_cast<size_t>(st.st_size);
-  }
-  ::close(*fd);  // the mapping keeps the file
-  return std::unique_ptr<SceneSource>(new ObjReader(path, std::move(map), first_id, options));
+  auto file = std::make_unique<InputFile>();
+  file->fd = *fd;
+  file->size = static_cast<size_t>(st.st_size);
+  ::posix_fadvise(file->fd, 0, 0, POSIX_FADV_SEQUENTIAL);
+  return std::unique_ptr<SceneSource>(new ObjReader(path, std::move(file), first_id, options));
 }
 
 }  // namespace mktree

@@ -25,8 +25,9 @@
 //
 // Memory: OBJ vertex indices are global to the file, so the reader keeps the global vertex table
 // (double x, y, z: 24 bytes per `v` line) plus the current object's mesh and its re-indexing map. Nothing
-// else grows with the file: the file is memory-mapped and parsed in chunks (ObjReadOptions), a fixed number
-// of them in flight, each released (madvise) once its objects are handed out.
+// else grows with the file: it is read (pread into reused buffers) and parsed in chunks (ObjReadOptions), a
+// fixed number of them in flight. Not memory-mapped: a file truncated while being read is an IOError naming
+// the file and the line where the missing bytes begin, where a mapping would die of SIGBUS.
 //
 // `g` versus `o` is decided lazily: if an `o` line comes before any `g` line, nothing more is needed. Only
 // when a `g` line comes first does the reader scan ahead in the file (a separate read, stopping at the

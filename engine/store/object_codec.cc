@@ -59,7 +59,8 @@ void Unshuffle4(const uint8_t* in, size_t n, uint32_t* out) {
 // same size.
 void ForwardTransform(const std::vector<float>& local, const std::vector<uint32_t>& triangles, uint8_t* out) {
   const size_t vc = local.size() / 3, nt = triangles.size();
-  std::vector<uint32_t> w(3 * vc + nt);
+  thread_local std::vector<uint32_t> w;  // per object otherwise: ingest encodes millions
+  w.resize(3 * vc + nt);
   for (int c = 0; c < 3; ++c) {
     uint32_t prev = 0;
     for (size_t i = 0; i < vc; ++i) {
@@ -77,6 +78,7 @@ void ForwardTransform(const std::vector<float>& local, const std::vector<uint32_
   }
   Shuffle4(w.data(), 3 * vc, out);
   Shuffle4(w.data() + 3 * vc, nt, out + 12 * vc);
+  if (w.capacity() > (size_t{1} << 20)) w = {};
 }
 
 void InverseTransform(const uint8_t* in, size_t vc, size_t nt, std::vector<float>* local, Mesh* m) {

@@ -19,6 +19,7 @@
 #include "engine/generator/tanker_generator.h"
 #include "engine/ingest/store_builder.h"
 #include "engine/query/store_database.h"
+#include "engine/scene/obj_reader.h"
 #include "storage/file_ops.h"
 #include "storage/memory_page_store.h"
 #include "test_dirs.h"
@@ -362,6 +363,83 @@ TEST_P(ReadFaultTest, EveryReadFaultIsAnErrorOrTheRightAnswer) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Backends, ReadFaultTest, ::testing::Values(Backend::kPagedFile, Backend::kHdf5),
+                         [](const auto& info) {
+                           return info.param == Backend::kHdf5 ? "Hdf5" : "PagedFile";
+                         });
+
+// An OBJ input truncated while the build reads it (after its 100th object, between two calls of Next(),
+// so deterministically): the build fails with an IOError naming the file and line, and leaves nothing
+// behind: no store, no spill file, the previous store byte for byte when there was one.
+class TruncatingSource : public SceneSource {
+ public:
+  TruncatingSource(std::unique_ptr<SceneSource> inner, std::string path, uint64_t after)
+      : inner_(std::move(inner)), path_(std::move(path)), after_(after) {}
+  Result<bool> Next(SceneObject* out) override {
+    if (++calls_ == after_ + 1) {
+      EXPECT_EQ(::truncate(path_.c_str(), 4096), 0);
+    }
+    return inner_->Next(out);
+  }
+
+ private:
+  std::unique_ptr<SceneSource> inner_;
+  std::string path_;
+  uint64_t after_, calls_ = 0;
+};
+
+class TruncatedInputTest : public ::testing::TestWithParam<Backend> {};
+
+TEST_P(TruncatedInputTest, BuildFailsAndLeavesNothingBehind) {
+  const testing::TempDir dir("mktree_truncated_input");
+  std::string obj;
+  for (int i = 0; i < 20000; ++i) {
+    const std::string x = std::to_string(i);
+    obj += "o t" + x + "\nv " + x + " 0 0\nv " + x + " 1 0\nv " + x + " 0 1\nf 1 2 3\nf -3 -2 -1\n";
+  }
+  const std::string input = dir.file("input.obj"), store = dir.file("store.mkt");
+  IngestOptions o;
+  o.store.backend = GetParam();
+  auto opener = [&](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
+    std::ofstream(input, std::ios::binary | std::ios::trunc) << obj;
+    ObjReadOptions read;
+    read.chunk_bytes = 4096;
+    auto src = OpenObjFile(input, first, read);
+    if (!src.ok()) return src.status();
+    return std::unique_ptr<SceneSource>(new TruncatingSource(std::move(src).value(), input, 100));
+  };
+  auto listing = [&] {
+    std::vector<std::string> names;
+    for (const auto& e : fs::directory_iterator(dir.path())) names.push_back(e.path().filename().string());
+    std::sort(names.begin(), names.end());
+    return names;
+  };
+  std::ofstream(input, std::ios::binary) << obj;
+  for (bool previous : {false, true}) {
+    std::string before;
+    if (previous) {
+      ASSERT_TRUE(BuildStore({[](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
+                               return MakeTankerSource(300, 1, first);
+                             }},
+                             store, o)
+                      .ok());
+      std::ifstream in(store, std::ios::binary);
+      before.assign(std::istreambuf_iterator<char>(in), {});
+    }
+    const std::vector<std::string> files = listing();
+    auto report = BuildStore({opener}, store, o);
+    ASSERT_FALSE(report.ok()) << "previous store " << previous;
+    EXPECT_EQ(report.status().code(), Status::Code::kIOError) << report.status().ToString();
+    EXPECT_NE(report.status().message().find(input + ":"), std::string::npos) << report.status().ToString();
+    EXPECT_NE(report.status().message().find("shrank while being read"), std::string::npos);
+    EXPECT_EQ(listing(), files) << "previous store " << previous;
+    if (previous) {
+      std::ifstream in(store, std::ios::binary);
+      EXPECT_EQ(std::string(std::istreambuf_iterator<char>(in), {}), before);
+    }
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Backends, TruncatedInputTest, ::testing::Values(Backend::kPagedFile, Backend::kHdf5),
                          [](const auto& info) {
                            return info.param == Backend::kHdf5 ? "Hdf5" : "PagedFile";
                          });

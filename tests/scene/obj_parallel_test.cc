@@ -3,7 +3,9 @@
 // on 0, 1, 2 and 4 parsing threads and chunks from one line to the whole file; the numbers parser against
 // std::from_chars on hard and random cases.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <random>
@@ -326,6 +328,69 @@ TEST(ObjParallelTest, FuzzCorpusMatchesTheReference) {
     ++files;
   }
   EXPECT_GT(files, 100u);
+}
+
+// `count` one-triangle objects, one after another.
+std::string ManyTriangles(int count) {
+  std::string s;
+  for (int i = 0; i < count; ++i) {
+    s += "o t" + std::to_string(i) + "\nv " + std::to_string(i) + " 0 0\nv " + std::to_string(i) +
+         ".5 1 0\nv " + std::to_string(i) + " 0 1.25\nf -3 -2 -1\n";
+  }
+  return s;
+}
+
+// A file truncated (or shrunk) while being read: an IOError naming the file and a line at or before the
+// first missing byte, after a prefix of the right objects; never SIGBUS. The cut happens between two calls
+// of Next() on the calling thread, so which objects come first is fixed; with parsing threads, chunks
+// already read ahead (at most threads + 2 of 4 KiB) may still be applied, which the checks allow.
+TEST(ObjParallelTest, FileTruncatedWhileReadingIsAnError) {
+  const std::string content = ManyTriangles(20000);  // about 1 MB, hundreds of 4 KiB chunks
+  const Outcome want = ReadEverything(reference::OpenObjFile(Write(content, "cut.obj")));
+  ASSERT_TRUE(want.status.ok()) << want.status.ToString();
+  for (int threads : {0, 1, 2}) {
+    for (size_t cut : {size_t{0}, content.size() / 2 + 3, content.size() - 1}) {
+      const std::string what = "threads " + std::to_string(threads) + " cut " + std::to_string(cut);
+      const std::string path = Write(content, "cut.obj");
+      ObjReadOptions options;
+      options.threads = threads;
+      options.chunk_bytes = 4096;
+      auto src = OpenObjFile(path, 0, options);
+      ASSERT_TRUE(src.ok()) << src.status().ToString();
+      Outcome got;
+      SceneObject o;
+      auto more = (*src)->Next(&o);
+      ASSERT_TRUE(more.ok() && *more) << what;
+      got.objects.push_back(std::move(o));
+      ASSERT_EQ(::truncate(path.c_str(), static_cast<off_t>(cut)), 0) << what;
+      while (true) {
+        more = (*src)->Next(&o);
+        if (!more.ok() || !*more) break;
+        got.objects.push_back(std::move(o));
+      }
+      ASSERT_FALSE(more.ok()) << what << ": the truncated file read to its end";
+      EXPECT_EQ(more.status().code(), Status::Code::kIOError) << what;
+      const std::string& msg = more.status().message();
+      ASSERT_EQ(msg.rfind(path + ":", 0), 0u) << what << ": " << msg;
+      EXPECT_NE(msg.find("shrank while being read"), std::string::npos) << what << ": " << msg;
+      const uint64_t line = std::stoull(msg.substr(path.size() + 1));
+      // Lines wholly before the first missing byte (of those the file still had when chunks were read).
+      const uint64_t lines_kept =
+          std::count(content.begin(), content.begin() + std::max(cut, size_t{24576}), '\n');
+      EXPECT_GE(line, 1u) << what;
+      EXPECT_LE(line, lines_kept + 1) << what << ": " << msg;
+      // Each object is 5 lines; those returned all end before the reported line.
+      EXPECT_LE(got.objects.size() * 5, line - 1) << what;
+      ASSERT_LE(got.objects.size(), want.objects.size()) << what;
+      Outcome prefix;
+      prefix.objects.assign(want.objects.begin(), want.objects.begin() + got.objects.size());
+      ExpectSame(prefix, got, what);
+      // Sticky.
+      auto again = (*src)->Next(&o);
+      ASSERT_FALSE(again.ok());
+      EXPECT_EQ(again.status().message(), msg);
+    }
+  }
 }
 
 TEST(ObjParallelTest, SourceAndAttributes) {
