@@ -260,7 +260,7 @@ Status RunSelfClash(const ClashStore& st, const ClashOptions& o, const ClashVisi
     for (size_t i = 0; i < b.load.size(); ++i) {
       const uint32_t leaf = b.load[i];
       const LeafInfo& info = tree.leaves[leaf];
-      MKTREE_RETURN_IF_ERROR(ReadLeaf(st.cache, pages_name, leaf, info, reader.objects().leaf,
+      MKTREE_RETURN_IF_ERROR(ReadLeaf(st.cache, pages_name, leaf, info, reader.objects(),
                                       tree.params.mem_page(), st.verify_checksums, &io.q, &pinned[i]));
       io.Mark(info);
       auto l = std::make_unique<LoadedLeaf>();
@@ -454,7 +454,7 @@ Status RunCollide(const ClashStore& st, const Mesh& mesh, const std::optional<Ri
     const Clock::time_point t = Clock::now();
     const LeafInfo& info = tree.leaves[leaf];
     PinnedLeaf& pin = pins[pinned];
-    MKTREE_RETURN_IF_ERROR(ReadLeaf(st.cache, pages_name, leaf, info, reader.objects().leaf,
+    MKTREE_RETURN_IF_ERROR(ReadLeaf(st.cache, pages_name, leaf, info, reader.objects(),
                                     tree.params.mem_page(), st.verify_checksums, &io.q, &pin));
     io.Mark(info);
     const size_t before = chunk.size();
