@@ -44,6 +44,30 @@ def run_measured(cmd):
     return wall, int(digits[-1]) if digits else 0, p.stdout + p.stderr
 
 
+def best_open(mk, store, runs=3):
+    """(best wall seconds, its CPU seconds, largest peak RSS KiB) of `mktree info` over `runs` warm opens: the
+    machine is shared, so the best wall time and the CPU time (user + system) say more than one run."""
+    best = None
+    rss = 0
+    for _ in range(runs):
+        fd, out_file = tempfile.mkstemp(prefix="scale_open.")
+        os.close(fd)
+        t0 = time.monotonic()
+        p = subprocess.run([TIME, "-f", "%M %U %S", "-o", out_file, mk, "info", store], stdout=subprocess.DEVNULL,
+                           stderr=subprocess.PIPE, text=True)
+        wall = time.monotonic() - t0
+        with open(out_file) as f:
+            fields = f.read().split()[-3:]
+        os.unlink(out_file)
+        if p.returncode != 0:
+            sys.exit(f"bench_scale: mktree info {store} failed ({p.returncode}):\n{p.stderr}")
+        rss = max(rss, int(fields[0]))
+        cpu = float(fields[1]) + float(fields[2])
+        if best is None or wall < best[0]:
+            best = (wall, cpu)
+    return best[0], best[1], rss
+
+
 def tool():
     if os.environ.get("MKTREE_BIN"):
         return os.environ["MKTREE_BIN"]
@@ -76,10 +100,10 @@ def measure(mk, n, queries, backend, tmp, keep):
         [mk, "build", f"tanker:{n}:1", "-o", store, "--backend", backend])
     r["objects_per_second"] = n / r["build_seconds"]
     r["store_bytes"] = os.path.getsize(store)
-    # The open alone, twice: the first from a cold OS cache is the disk's, the second the engine's.
+    # The open alone: the first from a cold OS cache is the disk's, then the best of three warm ones the engine's.
     subprocess.run(["sh", "-c", "sync; echo 1 > /proc/sys/vm/drop_caches"], stderr=subprocess.DEVNULL)
     r["open_cold_seconds"], r["open_cold_rss_kib"], _ = run_measured([mk, "info", store])
-    r["open_seconds"], r["open_rss_kib"], _ = run_measured([mk, "info", store])
+    r["open_seconds"], r["open_cpu_seconds"], r["open_rss_kib"] = best_open(mk, store)
     subprocess.run([mk, "generate", "queries", store, "--count", str(queries), "--seed", "7", "-o", qfile],
                    check=True, stdout=subprocess.DEVNULL)
     print(f"bench_scale: {n} objects: queries", flush=True)
@@ -140,12 +164,14 @@ def report(results, args, folder, plotted):
              f"`mktree build tanker:N:1 --backend {args.backend}` (12 KiB pages, zstd 3), `mktree info` (open), "
              f"`mktree query --cold --direct-io --summary` over {args.queries} queries of each kind "
              "(`generate queries --seed 7`). Wall seconds of the whole process; peak RSS from /usr/bin/time.", "",
-             "| objects | build | objects/s | build peak RSS | B/object | store | open (cold OS cache) | open | open RSS |",
+             "| objects | build | objects/s | build peak RSS | B/object | store | open (cold OS cache) | open (best of 3, "
+             "CPU) | open RSS |",
              "|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for r in results:
         lines.append(f"| {r['objects']:,} | {r['build_seconds']:.1f} s | {r['objects_per_second']:,.0f} | "
                      f"{mib(r['build_rss_kib'])} | {r['build_rss_kib'] * 1024 / r['objects']:.0f} | "
-                     f"{r['store_bytes'] / 2**30:.2f} GiB | {r['open_cold_seconds']:.2f} s | {r['open_seconds']:.2f} s | "
+                     f"{r['store_bytes'] / 2**30:.2f} GiB | {r['open_cold_seconds']:.2f} s | {r['open_seconds']:.2f} s "
+                     f"({r.get('open_cpu_seconds', float('nan')):.2f} s) | "
                      f"{mib(r['open_rss_kib'])} |")
     lines += ["", "Cold pages read per query (mean, p99) against the floor ceil(hits / B):", "",
               "| objects | " + " | ".join(["point", "box 0.5", "box 2", "box 8"]) + " | query run peak RSS |",

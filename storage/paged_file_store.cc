@@ -8,6 +8,7 @@
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
+#include <new>
 
 #include "storage/byte_io.h"
 #include "storage/file_util.h"
@@ -146,19 +147,37 @@ Result<uint64_t> WriteSections(int fd, uint64_t offset, uint32_t count,
   return offset;
 }
 
+SectionReader::SectionReader(int fd, uint64_t offset, uint64_t bytes, const std::string& path)
+    : fd_(fd), offset_(offset), bytes_(bytes), path_(path), state_(XXH3_createState()) {
+  if (state_ == nullptr) throw std::bad_alloc();
+  XXH3_64bits_reset(static_cast<XXH3_state_t*>(state_));
+}
+
+SectionReader::~SectionReader() { XXH3_freeState(static_cast<XXH3_state_t*>(state_)); }
+
+Status SectionReader::Read(void* dst, uint64_t n) {
+  if (n > left()) return Status::Internal(path_ + ": section read past its end");
+  MKTREE_RETURN_IF_ERROR(PreadFull(fd_, dst, n, offset_ + done_, path_));
+  XXH3_64bits_update(static_cast<XXH3_state_t*>(state_), dst, n);
+  done_ += n;
+  return Status::Ok();
+}
+
+uint64_t SectionReader::Checksum() const { return XXH3_64bits_digest(static_cast<XXH3_state_t*>(state_)); }
+
 Result<uint64_t> ReadSections(int fd, const uint8_t* table, std::span<const char* const> names,
                               uint64_t offset, uint64_t file_bytes, const std::string& path,
-                              const std::function<Status(size_t i, std::vector<uint8_t>&& bytes)>& take) {
+                              const std::function<Status(size_t i, SectionReader& reader)>& take) {
   for (size_t i = 0; i < names.size(); ++i) {
     const uint8_t* e = table + kSectionEntryBytes * i;
     const uint64_t off = Get<uint64_t>(e), bytes = Get<uint64_t>(e + 8), sum = Get<uint64_t>(e + 16);
-    if (off != offset || bytes > file_bytes - off)
+    if (off != offset || off > file_bytes || bytes > file_bytes - off)
       return Status::Corruption(path + ": " + names[i] + " section out of place");
-    std::vector<uint8_t> s(bytes);
-    MKTREE_RETURN_IF_ERROR(PreadFull(fd, s.data(), bytes, off, path));
-    if (XXH3_64bits(s.data(), s.size()) != sum)
+    SectionReader reader(fd, off, bytes, path);
+    MKTREE_RETURN_IF_ERROR(take(i, reader));
+    if (reader.left() != 0) return Status::Internal(path + ": " + names[i] + " section not read to its end");
+    if (reader.Checksum() != sum)
       return Status::Corruption(path + ": " + names[i] + " section checksum mismatch");
-    MKTREE_RETURN_IF_ERROR(take(i, std::move(s)));
     offset = off + bytes;
   }
   return offset;

@@ -66,13 +66,38 @@ inline constexpr size_t kSectionEntryBytes = 24;
 Result<uint64_t> WriteSections(int fd, uint64_t offset, uint32_t count,
                                const std::function<std::vector<uint8_t>(uint32_t)>& encode, uint8_t* table,
                                const std::string& path, FileOps& ops);
-// Reads the sections of `table` (one entry per name) in order, handing each to `take` as soon as it is
-// read and checked, so that the caller can decode and free it before the next one is read: each must
-// start where the previous one ends (the first at `offset`), fit in `file_bytes` and match its checksum;
-// Corruption "<path>: <name> section out of place" or "... section checksum mismatch" otherwise. An error
-// from `take` stops the reading. Returns the offset past the last one.
+// One section being read: its bytes come in order, in as many pieces as the reader asks for, each
+// hashed as it is read, so that a section is decoded into its final structure without a copy of it.
+class SectionReader {
+ public:
+  SectionReader(int fd, uint64_t offset, uint64_t bytes, const std::string& path);
+  ~SectionReader();
+  SectionReader(const SectionReader&) = delete;
+  SectionReader& operator=(const SectionReader&) = delete;
+
+  uint64_t bytes() const { return bytes_; }
+  uint64_t left() const { return bytes_ - done_; }
+  // Reads the next n bytes into dst. REQUIRES: n <= left().
+  Status Read(void* dst, uint64_t n);
+  // The XXH3-64 of the bytes read so far.
+  uint64_t Checksum() const;
+
+ private:
+  int fd_;
+  uint64_t offset_, bytes_, done_ = 0;
+  const std::string& path_;
+  void* state_;  // XXH3_state_t
+};
+
+// Reads the sections of `table` (one entry per name) in order: each must start where the previous one ends
+// (the first at `offset`) and fit in `file_bytes`, else Corruption "<path>: <name> section out of place".
+// take(i, reader) reads section i whole through `reader` (decoding it as it goes, so that open's peak is
+// the structure plus a piece of a section); then its checksum must match, else Corruption "<path>: <name>
+// section checksum mismatch". The bytes take sees are not yet checksummed: it must treat them as
+// untrusted, and whatever it built is dropped when the checksum fails. An error from take stops the
+// reading. Returns the offset past the last one.
 Result<uint64_t> ReadSections(int fd, const uint8_t* table, std::span<const char* const> names,
                               uint64_t offset, uint64_t file_bytes, const std::string& path,
-                              const std::function<Status(size_t i, std::vector<uint8_t>&& bytes)>& take);
+                              const std::function<Status(size_t i, SectionReader& reader)>& take);
 
 }  // namespace mktree

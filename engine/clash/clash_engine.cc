@@ -153,7 +153,7 @@ Status ReadPinned(const ClashStore& st, uint32_t leaf, IoCount* io, std::vector<
   const MKTree& tree = reader.tree();
   const LeafInfo& info = tree.leaves[leaf];
   out->seen.swap(*seen);
-  const Status s = ReadLeaf(st.cache, reader.pages().name(), leaf, info, reader.objects().leaf,
+  const Status s = ReadLeaf(st.cache, reader.pages().name(), leaf, info, reader.objects(),
                             tree.params.mem_page(), st.verify_checksums, &io->q, out);
   out->seen.swap(*seen);
   if (s.ok()) io->Mark(info);

@@ -235,11 +235,13 @@ class StoreDatabase final : public Database {
       QueryStats local;
       QueryStats& s = stats ? *stats : local;
       s = QueryStats();
-      MKTREE_ASSIGN_OR_RETURN(const uint32_t leaf, reader_->ObjectLeaf(id));
+      // The leaf is in the object's record: one counted record page, then the leaf's pages.
+      MKTREE_ASSIGN_OR_RETURN(const uint32_t leaf,
+                              reader_->ObjectLeaf(id, &cache_, options_.verify_checksums, &s));
       const MKTree& tree = reader_->tree();
       MKTREE_ASSIGN_OR_RETURN(
           PinnedLeaf pinned,
-          ReadLeaf(cache_, reader_->pages().name(), leaf, tree.leaves[leaf], reader_->objects().leaf,
+          ReadLeaf(cache_, reader_->pages().name(), leaf, tree.leaves[leaf], reader_->objects(),
                    tree.params.mem_page(), options_.verify_checksums, &s));
       for (const ObjectEntryView& e : pinned.view.entries()) {
         if (e.id != id) continue;
@@ -249,8 +251,9 @@ class StoreDatabase final : public Database {
         for (size_t v = 0; v < mesh.vertices.size(); ++v) mesh.vertices[v] += o[v % 3];
         return mesh;
       }
-      // CheckLeafEntries proved the leaf holds exactly the objects the table puts in it.
-      return Status::Internal(path() + ": object " + std::to_string(id) + " missing from its leaf");
+      // The leaf's entries passed CheckLeafEntries: the record names the wrong leaf.
+      return Status::Corruption(path() + ": object " + std::to_string(id) + ": its record puts it in leaf " +
+                                std::to_string(leaf) + ", which does not hold it");
     });
   }
   Box3d bounds() const override { return reader_->tree().WorldBounds(); }
@@ -287,8 +290,8 @@ class StoreDatabase final : public Database {
       ~Unpin() { leaf.Release(); }
     } unpin{pinned};
     MKTREE_RETURN_IF_ERROR(ReadLeaf(cache, reader_->pages().name(), leaf, tree.leaves[leaf],
-                                    reader_->objects().leaf, tree.params.mem_page(),
-                                    options_.verify_checksums, s, &pinned, /*decode=*/true));
+                                    reader_->objects(), tree.params.mem_page(), options_.verify_checksums, s,
+                                    &pinned, /*decode=*/true));
     const DecodedLeaf& d = *pinned.decoded;
     const size_t n = d.size();
     if (mode == QueryMode::kAabb && found->size() + n <= cap) {  // no cap within this leaf

@@ -4,7 +4,7 @@
 //   /tree/nodes, /tree/split_nodes, /tree/leaves   compound datasets of the record schemas (tree_codec.h)
 //   /tree/leaf_filter    uint8, 8 per object
 //   /pages               the leaf pages, then the object record pages (record_codec.h)
-//   /objects/leaf, /objects/record_directory, /objects/sources   the object table's canonical encoding
+//   /objects/leaf_digest, /objects/record_directory, /objects/sources   the object table's canonical encoding
 //   /stats_json          scalar fixed-length string
 //   attributes on /      magic "MKTREE-HDF5" (written last), format_version, build parameters, codec, counts,
 //                        and XXH3-64 checksums of the canonical encodings (tree_codec.h) of each part
@@ -44,8 +44,9 @@ constexpr const char* kHdf5Magic = "MKTREE-HDF5";
 // 2: the leaf filter holds 10-bit levels in 8 bytes an object; 3: the store frame (the origin attribute,
 // boxes relative to it, vertices in each object's local frame), and the object table as its canonical
 // encoding (leaf, name_end, names) instead of fixed-length names padded to the longest one; 4: object
-// records in pages after the leaf pages (record_directory and sources instead of name_end and names).
-constexpr uint32_t kHdf5FormatVersion = 4;
+// records in pages after the leaf pages (record_directory and sources instead of name_end and names); 5:
+// each object's leaf in its record, and leaf_digest (u64 per leaf) instead of leaf (u32 per object).
+constexpr uint32_t kHdf5FormatVersion = 5;
 constexpr hsize_t kObjectChunkRows = 65536;
 
 constexpr int kChecksumCount = 7;
@@ -92,12 +93,12 @@ Status ReadOrigin(hid_t loc, Vec3d* origin, const std::string& path) {
   }
   return Status::Ok();
 }
-// XXH3 of the object leaves, record directory and sources table concatenated, streamed part by part.
+// XXH3 of the leaf id digests, record directory and sources table concatenated, streamed part by part.
 uint64_t ObjectsChecksum(const ObjectTable& t) {
   std::unique_ptr<XXH3_state_t, decltype(&XXH3_freeState)> state(XXH3_createState(), XXH3_freeState);
   XXH3_64bits_reset(state.get());
   for (const std::vector<uint8_t>& b :
-       {EncodeObjectLeaves(t), EncodeRecordDirectory(t.record_directory), EncodeSources(t.sources)})
+       {EncodeLeafDigests(t), EncodeRecordDirectory(t.record_directory), EncodeSources(t.sources)})
     XXH3_64bits_update(state.get(), b.data(), b.size());
   return XXH3_64bits_digest(state.get());
 }
@@ -160,9 +161,9 @@ class Hdf5Writer : public StoreWriter::Impl {
     // One encoded section alive at a time (an initializer list would keep every temporary to its end).
     uint64_t sums[kChecksumCount];
     sums[0] = HeaderChecksum(c.params, c.codec, pages, objects, c.tree.origin);
-    sums[1] = Checksum(EncodeNodes(c.tree.nodes));
-    sums[2] = Checksum(EncodeSplitNodes(c.tree.split_nodes));
-    sums[3] = Checksum(EncodeLeaves(c.tree.leaves));
+    sums[1] = RecordsChecksum<kNodeRecord>(c.tree.nodes);
+    sums[2] = RecordsChecksum<kSplitNodeRecord>(c.tree.split_nodes);
+    sums[3] = RecordsChecksum<kLeafRecord>(c.tree.leaves);
     sums[4] = ObjectsChecksum(c.objects);
     sums[5] = Checksum(c.stats_json);
     sums[6] = Checksum(c.tree.leaf_filter);
@@ -185,7 +186,7 @@ class Hdf5Writer : public StoreWriter::Impl {
     return store_->IoStatus();
   }
 
-  // /objects: the object table's canonical encoding (tree_codec.h): leaf (uint32 per object, chunked
+  // /objects: the object table's canonical encoding (tree_codec.h): leaf_digest (uint64 per leaf, chunked
   // with shuffle + deflate), record_directory (uint32 per record page, likewise) and sources (the sources
   // table's bytes, uint8, unfiltered so that its length is bounded by the file's at open).
   Status WriteObjects(hid_t f, const ObjectTable& t) {
@@ -198,7 +199,7 @@ class Hdf5Writer : public StoreWriter::Impl {
       return hdf5::WriteTable(g.get(), name, records, path_, layout, std::string("/objects/") + name)
           .status();
     };
-    MKTREE_RETURN_IF_ERROR(write("leaf", Records<kObjectLeafColumn>(t.leaf)));
+    MKTREE_RETURN_IF_ERROR(write("leaf_digest", Records<kLeafDigestColumn>(t.leaf_digest)));
     MKTREE_RETURN_IF_ERROR(write("record_directory", Records<kRecordDirectoryColumn>(t.record_directory)));
     const std::vector<uint8_t> sources = EncodeSources(t.sources);
     return hdf5::WriteTable(g.get(), "sources", Records<kByteColumn>(sources), path_).status();
@@ -208,10 +209,10 @@ class Hdf5Writer : public StoreWriter::Impl {
   std::unique_ptr<Hdf5PageStore> store_;
 };
 
-// Reads /objects of a store of `expected` objects and `pages` pages. Every length is checked before its
-// allocation: leaf must have `expected` elements (bounded by the pages' size at open), record_directory
-// at most `pages`, sources (unfiltered) at most the file's size.
-Status ReadObjects(hid_t f, uint64_t expected, uint64_t pages, uint64_t file_bytes, ObjectTable* t,
+// Reads /objects of a store of `objects` objects and `pages` pages. Every length is checked before its
+// allocation: leaf_digest and record_directory must have at most `pages` elements (a leaf has a page at
+// least; ValidateStructure then wants one digest per leaf), sources (unfiltered) at most the file's size.
+Status ReadObjects(hid_t f, uint64_t objects, uint64_t pages, uint64_t file_bytes, ObjectTable* t,
                    const std::string& path) {
   auto bad = [&](const std::string& m) { return Status::Corruption(path + ": " + m); };
   if (H5Lexists(f, "objects", H5P_DEFAULT) <= 0) return bad("missing group objects");
@@ -227,21 +228,24 @@ Status ReadObjects(hid_t f, uint64_t expected, uint64_t pages, uint64_t file_byt
     if (!n.ok()) return n.status();
     return static_cast<uint64_t>(*n);
   };
-  H5Id leaf, directory, sources;
-  // leaf and record_directory may be compressed: their lengths are bounded by the counts, not the file.
-  MKTREE_ASSIGN_OR_RETURN(const uint64_t n_leaf, open("leaf", UINT64_MAX, &leaf));
-  if (n_leaf != expected)
-    return bad("objects/leaf has " + std::to_string(n_leaf) + " elements, expected " +
-               std::to_string(expected));
+  H5Id digest, directory, sources;
+  // leaf_digest and record_directory may be compressed: their lengths are bounded by the counts, not the
+  // file.
+  MKTREE_ASSIGN_OR_RETURN(const uint64_t n_digest, open("leaf_digest", UINT64_MAX, &digest));
+  if (n_digest > pages)
+    return bad("objects/leaf_digest has " + std::to_string(n_digest) + " elements for " +
+               std::to_string(pages) + " pages");
   MKTREE_ASSIGN_OR_RETURN(const uint64_t n_dir, open("record_directory", UINT64_MAX, &directory));
   if (n_dir > pages)
     return bad("objects/record_directory has " + std::to_string(n_dir) + " elements for " +
                std::to_string(pages) + " pages");
   MKTREE_ASSIGN_OR_RETURN(const uint64_t n_sources, open("sources", file_bytes, &sources));
-  t->leaf.resize(expected);
+  t->count = objects;
+  t->leaf_digest.resize(n_digest);
   t->record_directory.resize(n_dir);
-  if (expected > 0)
-    MKTREE_RETURN_IF_ERROR(hdf5::ReadRows<kObjectLeafColumn>(leaf.get(), &t->leaf, path, "objects"));
+  if (n_digest > 0)
+    MKTREE_RETURN_IF_ERROR(
+        hdf5::ReadRows<kLeafDigestColumn>(digest.get(), &t->leaf_digest, path, "objects/leaf_digest"));
   if (n_dir > 0)
     MKTREE_RETURN_IF_ERROR(hdf5::ReadRows<kRecordDirectoryColumn>(directory.get(), &t->record_directory, path,
                                                                   "objects/record_directory"));
@@ -336,9 +340,10 @@ Result<OpenedStore> OpenHdf5(const std::string& path, const ReadOptions& opts) {
   c.tree.params = c.params;
   // A crafted file may hold a label its enumeration does not name: keep it one of the four.
   for (SplitNode& s : c.tree.split_nodes) s.label = static_cast<CellLabel>(static_cast<uint8_t>(s.label) & 3);
-  if (Checksum(EncodeNodes(c.tree.nodes)) != sums[1]) return bad("nodes checksum mismatch");
-  if (Checksum(EncodeSplitNodes(c.tree.split_nodes)) != sums[2]) return bad("split_nodes checksum mismatch");
-  if (Checksum(EncodeLeaves(c.tree.leaves)) != sums[3]) return bad("leaves checksum mismatch");
+  if (RecordsChecksum<kNodeRecord>(c.tree.nodes) != sums[1]) return bad("nodes checksum mismatch");
+  if (RecordsChecksum<kSplitNodeRecord>(c.tree.split_nodes) != sums[2])
+    return bad("split_nodes checksum mismatch");
+  if (RecordsChecksum<kLeafRecord>(c.tree.leaves) != sums[3]) return bad("leaves checksum mismatch");
 
   MKTREE_RETURN_IF_ERROR(ReadObjects(f, object_count, page_count, file_bytes, &c.objects, path));
   if (ObjectsChecksum(c.objects) != sums[4]) return bad("objects checksum mismatch");

@@ -9,8 +9,7 @@
 namespace mktree {
 
 Status CheckLeafEntries(const LeafView& view, const std::string& store_name, uint32_t leaf,
-                        const LeafInfo& info, std::span<const uint32_t> object_leaf,
-                        std::vector<uint64_t>* seen) {
+                        const LeafInfo& info, const ObjectTable& objects, std::vector<uint64_t>* seen) {
   auto fail = [&](const std::string& what) {
     return Status::Corruption(store_name + ": page " + std::to_string(info.first_page) + " (leaf " +
                               std::to_string(leaf) + "): " + what);
@@ -21,27 +20,24 @@ Status CheckLeafEntries(const LeafView& view, const std::string& store_name, uin
   if (view.size() != info.object_count)
     return fail("holds " + std::to_string(view.size()) + " objects but the tree says " +
                 std::to_string(info.object_count));
+  if (leaf >= objects.leaf_digest.size())
+    return fail("no id digest for this leaf (" + std::to_string(objects.leaf_digest.size()) + " leaves)");
+  const uint64_t n_objects = objects.size();
   // Duplicates: one bit per object id, set as ids are met and cleared (whole words: every bit set is
   // one of this leaf's) before returning, so that it is all zero between calls. Unlike sorting the ids,
   // this costs a few cache hits per entry.
-  const size_t words = (object_leaf.size() + 63) / 64;
+  const size_t words = (n_objects + 63) / 64;
   if (seen->size() < words) seen->resize(words, 0);
   uint64_t* bits = seen->data();
   const std::vector<ObjectEntryView>& entries = view.entries();
-  // The table lookups miss the CPU caches (ids are scattered over it): start them all first.
-  for (const ObjectEntryView& e : entries)
-    if (e.id < object_leaf.size()) __builtin_prefetch(&object_leaf[e.id]);
   size_t i = 0;
+  uint64_t digest = 0;
   std::string problem;
   for (; i < entries.size(); ++i) {
     const ObjectEntryView& e = entries[i];
-    if (e.id >= object_leaf.size()) {
-      problem = "object " + std::to_string(e.id) + " out of range (" + std::to_string(object_leaf.size()) +
-                " objects)";
-      break;
-    }
-    if (object_leaf[e.id] != leaf) {
-      problem = "object " + std::to_string(e.id) + " belongs to leaf " + std::to_string(object_leaf[e.id]);
+    if (e.id >= n_objects) {
+      problem =
+          "object " + std::to_string(e.id) + " out of range (" + std::to_string(n_objects) + " objects)";
       break;
     }
     if (!BoxWithin(e.box, info.box)) {
@@ -55,8 +51,11 @@ Status CheckLeafEntries(const LeafView& view, const std::string& store_name, uin
       break;
     }
     word |= bit;
+    digest += ObjectIdHash(e.id);
   }
   for (size_t j = 0; j < i; ++j) bits[entries[j].id >> 6] = 0;
+  if (problem.empty() && digest != objects.leaf_digest[leaf])
+    problem = "its objects are not the ones the object table puts in it (id digest mismatch)";
   return problem.empty() ? Status::Ok() : fail(problem);
 }
 
@@ -123,8 +122,8 @@ Status ParsePinned(const std::string& store_name, uint64_t mem_page, PinnedLeaf*
 }
 
 Status ReadLeaf(PageCache& cache, const std::string& store_name, uint32_t leaf, const LeafInfo& info,
-                std::span<const uint32_t> object_leaf, uint64_t mem_page, bool verify_checksums,
-                QueryStats* stats, PinnedLeaf* out, bool decode) {
+                const ObjectTable& objects, uint64_t mem_page, bool verify_checksums, QueryStats* stats,
+                PinnedLeaf* out, bool decode) {
   out->Release();
   out->page_data.clear();
   out->leaf = leaf;
@@ -161,7 +160,7 @@ Status ReadLeaf(PageCache& cache, const std::string& store_name, uint32_t leaf, 
   }
   // Checksums are settled above; Parse still checks every header and entry.
   Status st = LeafView::Parse(store_name, leaf, info.first_page, out->page_data, mem_page, false, &out->view);
-  if (st.ok()) st = CheckLeafEntries(out->view, store_name, leaf, info, object_leaf, &out->seen);
+  if (st.ok()) st = CheckLeafEntries(out->view, store_name, leaf, info, objects, &out->seen);
   if (!st.ok()) {
     out->Release();
     return st;
@@ -199,11 +198,11 @@ Status ReadLeaf(PageCache& cache, const std::string& store_name, uint32_t leaf, 
 }
 
 Result<PinnedLeaf> ReadLeaf(PageCache& cache, const std::string& store_name, uint32_t leaf,
-                            const LeafInfo& info, std::span<const uint32_t> object_leaf, uint64_t mem_page,
+                            const LeafInfo& info, const ObjectTable& objects, uint64_t mem_page,
                             bool verify_checksums, QueryStats* stats) {
   PinnedLeaf out;
   MKTREE_RETURN_IF_ERROR(
-      ReadLeaf(cache, store_name, leaf, info, object_leaf, mem_page, verify_checksums, stats, &out));
+      ReadLeaf(cache, store_name, leaf, info, objects, mem_page, verify_checksums, stats, &out));
   return out;
 }
 

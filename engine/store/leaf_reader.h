@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "engine/store/leaf_codec.h"
+#include "engine/store/tree_codec.h"
 #include "engine/tree/mktree.h"
 #include "mktree/query_stats.h"
 #include "storage/page_cache.h"
@@ -68,39 +69,38 @@ struct PinnedLeaf {
   }
 };
 
-// Checks that a parsed leaf holds what the tree and the object table say it does, so that a store
-// tampered with behind valid checksums gives an error, never a duplicated or missing id: the payload
-// size the tree records (info.payload_bytes), exactly info.object_count entries, each id an object that
-// `object_leaf` (the object table's leaf of each object id) puts in leaf `leaf`, no id twice, each entry's
-// box within info.box. With the table checked at open (each leaf's object_count is its number of objects in
-// the table), the entries are then exactly the leaf's objects. `seen` is scratch: all zero (or empty) before
-// the call, and again after it; it grows to one bit per object. Errors are Corruption naming the store and
+// Checks that a parsed leaf holds what the tree and the object table say it does, so that a damaged
+// store gives an error, never a duplicated or missing id: the payload size the tree records
+// (info.payload_bytes), exactly info.object_count entries, each id below the object count, no id twice,
+// their id digest (the sum of ObjectIdHash) the one `objects` holds for the leaf, each entry's box within
+// info.box. With the digests checked at open (they add up to the digest of all ids, the counts to the
+// object count), the entries are then the leaf's objects but for a digest collision, which damage makes
+// with odds of 2^-64 (a crafted file can aim for one). `seen` is scratch: all zero (or empty) before the
+// call, and again after it; it grows to one bit per object. Errors are Corruption naming the store and
 // the leaf's first page.
 Status CheckLeafEntries(const LeafView& view, const std::string& store_name, uint32_t leaf,
-                        const LeafInfo& info, std::span<const uint32_t> object_leaf,
-                        std::vector<uint64_t>* seen);
+                        const LeafInfo& info, const ObjectTable& objects, std::vector<uint64_t>* seen);
 
 // Pins pages [info.first_page, + info.page_count) of `cache` (adding to *stats if non-null), parses them
 // as leaf `leaf` of `store_name` into *out (releasing what it held first; its buffers are reused) and
-// checks the entries against the tree and the object table (CheckLeafEntries; `object_leaf` is
-// ObjectTable::leaf). With `verify_checksums`, a page's checksum is verified the first time it is read
-// after being loaded into the cache (PageHandle::verified), so a corrupt page is refused on every read,
-// but a cached page is not hashed again on every hit. Errors name the store and the page; on error *out
-// holds nothing.
+// checks the entries against the tree and the object table (CheckLeafEntries). With `verify_checksums`, a
+// page's checksum is verified the first time it is read after being loaded into the cache
+// (PageHandle::verified), so a corrupt page is refused on every read, but a cached page is not hashed again
+// on every hit. Errors name the store and the page; on error *out holds nothing.
 //
 // With `decode`, out->decoded is the leaf's DecodedLeaf: the one cached with its first page if none of its
 // pages was reloaded since it was built (then the pages are pinned, counted and checksummed as always, but
 // the entries are not parsed again and out->view stays empty), else one built now from the parsed and
 // checked entries and cached.
 Status ReadLeaf(PageCache& cache, const std::string& store_name, uint32_t leaf, const LeafInfo& info,
-                std::span<const uint32_t> object_leaf, uint64_t mem_page, bool verify_checksums,
-                QueryStats* stats, PinnedLeaf* out, bool decode = false);
+                const ObjectTable& objects, uint64_t mem_page, bool verify_checksums, QueryStats* stats,
+                PinnedLeaf* out, bool decode = false);
 // Parses out->view from the pinned pages if it is empty (after a ReadLeaf that took a cached DecodedLeaf):
 // the same bytes that were checked when the DecodedLeaf was built, so the same entries in the same order.
 Status ParsePinned(const std::string& store_name, uint64_t mem_page, PinnedLeaf* out);
 // The same, into a new PinnedLeaf.
 Result<PinnedLeaf> ReadLeaf(PageCache& cache, const std::string& store_name, uint32_t leaf,
-                            const LeafInfo& info, std::span<const uint32_t> object_leaf, uint64_t mem_page,
+                            const LeafInfo& info, const ObjectTable& objects, uint64_t mem_page,
                             bool verify_checksums, QueryStats* stats);
 
 // DecodeObjectMesh, naming the store in its error (the entry's own checks cannot know the file).

@@ -1,16 +1,18 @@
 // The paged-file backend's store layout (docs/store_format.md), on a paged file (storage/paged_file_store.h):
 //   [0, P)                       header page (P = MemPage bytes; fixed fields in the first 512 bytes)
 //   [P * (1 + i), P * (2 + i))   page i: the leaf pages, then the object record pages
-//   then the sections, back to back: nodes, split nodes, leaves, object leaves, record directory,
+//   then the sections, back to back: nodes, split nodes, leaves, leaf id digests, record directory,
 //   sources, stats JSON, leaf filter.
 // The header is written last, at Commit, so an unfinished file has a zero header and is refused.
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
 #include <memory>
+#include <type_traits>
 
 #include "engine/store/record_codec.h"
 #include "engine/store/store_backend.h"
@@ -30,8 +32,9 @@ namespace {
 
 // 2: the leaf filter holds 10-bit levels in 8 bytes an object; 3: the store frame (an origin in the header,
 // boxes relative to it, vertices in each object's local frame); 4: object records in pages after the leaf
-// pages (record directory and sources sections instead of name ends and names).
-constexpr uint32_t kPagedFileVersion = 4;
+// pages (record directory and sources sections instead of name ends and names); 5: each object's leaf in
+// its record, and a section of leaf id digests instead of the object leaves (u32 an object, in RAM).
+constexpr uint32_t kPagedFileVersion = 5;
 constexpr uint32_t kFixedHeaderBytes = 512;  // the smallest page the builder accepts
 constexpr uint32_t kParamsOffset = 16;
 constexpr uint32_t kSectionCount = 8;
@@ -41,9 +44,47 @@ constexpr uint32_t kOriginOffset = kHeaderChecksumOffset + 8;  // 280: 3 x f64
 static_assert(kOriginOffset + 24 <= kFixedHeaderBytes);
 static_assert(kParamsOffset + kParamsRecordBytes <= 48);
 
-const char* const kSectionNames[kSectionCount] = {"nodes",         "split nodes",      "leaves",
-                                                  "object leaves", "record directory", "sources",
-                                                  "stats JSON",    "leaf filter"};
+const char* const kSectionNames[kSectionCount] = {"nodes",           "split nodes",      "leaves",
+                                                  "leaf id digests", "record directory", "sources",
+                                                  "stats JSON",      "leaf filter"};
+
+// Whether records of S are encoded as their bytes in RAM (little-endian host, storage/byte_io.h): each
+// named field where the encoding puts it and the record as long as its encoding, so that reserved fields
+// fall on padding. The tree's sections are, and are read straight into their records.
+consteval bool EncodedAsInRam(const RecordSchema& s) {
+  size_t at = 0;
+  for (const RecordField& f : s.fields) {
+    if (f.name != nullptr && f.offset != at) return false;
+    at += f.bytes();
+  }
+  return at == s.ram_bytes;
+}
+static_assert(EncodedAsInRam(kNodeRecord) && EncodedAsInRam(kSplitNodeRecord) && EncodedAsInRam(kLeafRecord));
+
+// Reads a section of records of schema S straight into *out (no encoded copy of the section). The bytes are
+// not checksummed yet: CheckLabels once they are.
+template <const RecordSchema& S, typename T>
+Status ReadRecordSection(SectionReader& r, const std::string& path, std::vector<T>* out) {
+  static_assert(sizeof(T) == S.ram_bytes && std::is_trivially_copyable_v<T> && EncodedAsInRam(S));
+  const uint64_t each = S.encoded_bytes();
+  if (r.bytes() % each != 0)
+    return Status::Corruption(path + ": " + S.what + " section size " + std::to_string(r.bytes()) +
+                              " is not a multiple of its record size " + std::to_string(each));
+  out->assign(r.bytes() / each, T{});
+  return r.Read(out->data(), r.bytes());
+}
+// The labelled fields of records read by ReadRecordSection, checked as DecodeRecords does.
+template <const RecordSchema& S, typename T>
+Status CheckLabels(const std::string& path, const std::vector<T>& records) {
+  for (const RecordField& f : S.fields) {
+    if (f.name == nullptr || f.labels.empty()) continue;
+    const auto* p = reinterpret_cast<const uint8_t*>(records.data()) + f.offset;
+    for (size_t i = 0; i < records.size(); ++i, p += sizeof(T))
+      if (*p >= f.labels.size())
+        return Status::Corruption(path + ": " + S.what + " " + f.name + " out of range");
+  }
+  return Status::Ok();
+}
 
 uint64_t HeaderChecksum(const uint8_t* header_page, uint64_t mem_page) {
   // XXH3 of the whole header page with its checksum field taken as zero.
@@ -72,7 +113,7 @@ class PagedFileWriter : public StoreWriter::Impl {
         case 2:
           return EncodeLeaves(c.tree.leaves);
         case 3:
-          return EncodeObjectLeaves(c.objects);
+          return EncodeLeafDigests(c.objects);
         case 4:
           return EncodeRecordDirectory(c.objects.record_directory);
         case 5:
@@ -184,44 +225,56 @@ Result<OpenedStore> OpenPagedFile(const std::string& path, const ReadOptions& op
     c.tree.origin[i] = Get<double>(h + kOriginOffset + 8 * i);
     if (!std::isfinite(c.tree.origin[i])) return bad("header: origin is not finite");
   }
-  // Each section is decoded as soon as it is read and then freed: open's peak is the structure plus one
-  // section, not plus all of them. (The object table's three sections are decoded together.)
-  std::vector<uint8_t> object_leaves, directory;
-  auto take = [&](size_t i, std::vector<uint8_t>&& s) -> Status {
+  // Each section is read straight into its final structure: open's peak is the structure, not plus a copy
+  // of the largest section. Nothing is decoded before every checksum matched (the object table's three
+  // sections are small and decoded together at the end).
+  std::vector<uint8_t> leaf_digests, directory, sources;
+  auto whole = [](SectionReader& r, std::vector<uint8_t>* out) {
+    out->resize(r.bytes());
+    return r.Read(out->data(), r.bytes());
+  };
+  auto take = [&](size_t i, SectionReader& r) -> Status {
     Status d;
     switch (i) {
       case 0:
-        d = DecodeNodes(s, &c.tree.nodes);
+        d = ReadRecordSection<kNodeRecord>(r, path, &c.tree.nodes);
         break;
       case 1:
-        d = DecodeSplitNodes(s, &c.tree.split_nodes);
+        d = ReadRecordSection<kSplitNodeRecord>(r, path, &c.tree.split_nodes);
         break;
       case 2:
-        d = DecodeLeaves(s, &c.tree.leaves);
+        d = ReadRecordSection<kLeafRecord>(r, path, &c.tree.leaves);
         break;
       case 3:
-        object_leaves = std::move(s);
+        d = whole(r, &leaf_digests);
         break;
       case 4:
-        directory = std::move(s);
+        d = whole(r, &directory);
         break;
       case 5:
-        d = DecodeObjectTable(object_leaves, directory, s, &c.objects);
-        object_leaves = {};
-        directory = {};
+        d = whole(r, &sources);
         break;
-      case 6:
-        c.stats_json.assign(s.begin(), s.end());
+      case 6: {
+        std::vector<uint8_t> json;
+        d = whole(r, &json);
+        c.stats_json.assign(json.begin(), json.end());
         break;
+      }
       default:
-        c.tree.leaf_filter = std::move(s);
+        d = whole(r, &c.tree.leaf_filter);
     }
-    return d.ok() ? d : bad(d.message());
+    return d;
   };
   auto end = ReadSections(fd, h + kSectionTableOffset, kSectionNames, (1 + page_count) * mem_page, file_bytes,
                           path, take);
   if (!end.ok()) return end.status();
   if (*end != file_bytes) return bad("sections do not end at the end of the file");
+  // Decoded once every checksum matched.
+  MKTREE_RETURN_IF_ERROR(CheckLabels<kNodeRecord>(path, c.tree.nodes));
+  MKTREE_RETURN_IF_ERROR(CheckLabels<kSplitNodeRecord>(path, c.tree.split_nodes));
+  MKTREE_RETURN_IF_ERROR(CheckLabels<kLeafRecord>(path, c.tree.leaves));
+  if (Status d = DecodeObjectTable(object_count, leaf_digests, directory, sources, &c.objects); !d.ok())
+    return bad(d.message());
   if (c.objects.size() != object_count) return bad("object table size does not match the header");
   MKTREE_RETURN_IF_ERROR(ValidateStructure(c.tree, c.objects, page_count, path));
 

@@ -27,7 +27,7 @@ void PutBytes(std::vector<uint8_t>* out, std::string_view s) {
 
 }  // namespace
 
-Status EncodeRecord(const Box3f& box, uint32_t source, std::string_view name,
+Status EncodeRecord(const Box3f& box, uint32_t source, uint32_t leaf, std::string_view name,
                     std::span<const ObjectAttribute> attributes, std::vector<uint8_t>* out) {
   uint64_t bytes = kRecordFixedBytes - 4 + name.size();
   for (const ObjectAttribute& a : attributes) bytes += 8 + a.key.size() + a.value.size();
@@ -47,6 +47,7 @@ Status EncodeRecord(const Box3f& box, uint32_t source, std::string_view name,
     Put<float>(out->data() + n, box.max[i]);
   }
   PutU32(out, source);
+  PutU32(out, leaf);
   PutBytes(out, name);
   PutU32(out, static_cast<uint32_t>(attributes.size()));
   for (const ObjectAttribute& a : attributes) {
@@ -70,7 +71,8 @@ Status ParseRecord(const uint8_t* data, uint64_t n, uint64_t* used, StoredRecord
     if (std::isnan(out->box.min[i]) || std::isnan(out->box.max[i]))
       return Status::Corruption("object record box is not a number");
   out->source = Get<uint32_t>(p);
-  p += 4;
+  out->leaf = Get<uint32_t>(p + 4);
+  p += 8;
   // Each length is checked against what is left of the record before anything is sized by it.
   auto take = [&](std::string* s) -> bool {
     if (end - p < 4) return false;
@@ -245,6 +247,9 @@ Status RecordReader::LoadGroup(uint64_t g0, uint64_t pages, QueryStats* stats) {
     uint64_t used = 0;
     Status st = ParseRecord(payload_.data() + at, payload_.size() - at, &used, &records_[i]);
     if (!st.ok()) return fail("object " + std::to_string(first + i) + ": " + st.message());
+    if (records_[i].leaf >= l.leaf_count)
+      return fail("object " + std::to_string(first + i) + ": in leaf " + std::to_string(records_[i].leaf) +
+                  " of " + std::to_string(l.leaf_count));
     at += used;
   }
   if (at != payload_.size()) return fail("trailing bytes after its records");

@@ -27,20 +27,29 @@
 namespace mktree {
 
 inline constexpr uint64_t kRecordGroupHeaderBytes = 8;  // record count u32, reserved u32
-// A record's fixed part: its length u32, box 6 x f32, source u32, name length u32, attribute count u32.
-inline constexpr uint64_t kRecordFixedBytes = 4 + 24 + 4 + 4 + 4;
+// A record's fixed part: its length u32, box 6 x f32, source u32, leaf u32, name length u32, attribute
+// count u32.
+inline constexpr uint64_t kRecordFixedBytes = 4 + 24 + 4 + 4 + 4 + 4;
+// The leaf of a record not yet placed in one (ingest's spilled records).
+inline constexpr uint32_t kRecordNoLeaf = UINT32_MAX;
 
 // One object's record as stored (box in the store frame).
 struct StoredRecord {
   Box3f box;
-  uint32_t source = 0;  // index into the sources table
+  uint32_t source = 0;            // index into the sources table
+  uint32_t leaf = kRecordNoLeaf;  // the leaf whose entries hold the object
   std::string name;
   std::vector<ObjectAttribute> attributes;
 };
 
 // Appends one record's bytes to *out. InvalidArgument if it would exceed 4 GiB (the length is a u32).
-Status EncodeRecord(const Box3f& box, uint32_t source, std::string_view name,
+Status EncodeRecord(const Box3f& box, uint32_t source, uint32_t leaf, std::string_view name,
                     std::span<const ObjectAttribute> attributes, std::vector<uint8_t>* out);
+// A record in no leaf yet (kRecordNoLeaf).
+inline Status EncodeRecord(const Box3f& box, uint32_t source, std::string_view name,
+                           std::span<const ObjectAttribute> attributes, std::vector<uint8_t>* out) {
+  return EncodeRecord(box, source, kRecordNoLeaf, name, attributes, out);
+}
 // Parses the record at data[0, n): sets *used to its bytes. Corruption (message without the file) if a
 // length runs past `n` or past the record.
 Status ParseRecord(const uint8_t* data, uint64_t n, uint64_t* used, StoredRecord* out);
@@ -88,6 +97,7 @@ struct RecordLayout {
   uint64_t first_page = 0;  // the page index of record page 0 (the number of leaf pages)
   std::span<const uint32_t> directory;
   uint64_t object_count = 0;
+  uint64_t leaf_count = 0;  // a record naming a leaf past it is Corruption
   uint64_t mem_page = 0;
 };
 

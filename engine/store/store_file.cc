@@ -175,12 +175,23 @@ Status StoreWriter::AppendObject(ObjectId id, uint32_t leaf, const Box3f& box, s
   auto [it, added] =
       source_index_.try_emplace(std::string(source), static_cast<uint32_t>(objects_.sources.size()));
   if (added) objects_.sources.emplace_back(source);
+  // Every leaf has a page, all written by now: a larger index is in no leaf.
+  if (leaf >= leaf_pages_)
+    return Status::InvalidArgument(final_path_ + ": object " + std::to_string(id) + " put in leaf " +
+                                   std::to_string(leaf) + " of a store of " + std::to_string(leaf_pages_) +
+                                   " leaf pages");
   record_.clear();
-  Status st = EncodeRecord(box, it->second, name, attributes, &record_);
+  Status st = EncodeRecord(box, it->second, leaf, name, attributes, &record_);
   if (!st.ok())
     return Status::InvalidArgument(final_path_ + ": object " + std::to_string(id) + ": " + st.message());
   MKTREE_RETURN_IF_ERROR(records_->Add(id, record_));
-  objects_.leaf.push_back(leaf);
+  if (leaf >= leaf_count_.size()) {
+    leaf_count_.resize(leaf + 1, 0);
+    objects_.leaf_digest.resize(leaf + 1, 0);
+  }
+  ++leaf_count_[leaf];
+  objects_.leaf_digest[leaf] += ObjectIdHash(id);
+  ++objects_.count;
   return Status::Ok();
 }
 
@@ -202,6 +213,19 @@ Status StoreWriter::Commit(MKTree tree, const std::string& stats_json) {
     if (backend_->pages().page_count() != leaf_pages_ + objects_.record_directory.size())
       return fail(Status::InvalidArgument(final_path_ + ": leaf pages written after the first object"));
   }
+  // The objects appended must be the tree's: each leaf's count (ValidateStructure can only check sums).
+  if (leaf_count_.size() > tree.leaves.size())
+    return fail(Status::InvalidArgument(final_path_ + ": an object was put in leaf " +
+                                        std::to_string(leaf_count_.size() - 1) + " of a tree of " +
+                                        std::to_string(tree.leaves.size()) + " leaves"));
+  leaf_count_.resize(tree.leaves.size(), 0);
+  objects_.leaf_digest.resize(tree.leaves.size(), 0);
+  for (size_t l = 0; l < tree.leaves.size(); ++l)
+    if (leaf_count_[l] != tree.leaves[l].object_count)
+      return fail(Status::InvalidArgument(final_path_ + ": leaf " + std::to_string(l) + " holds " +
+                                          std::to_string(tree.leaves[l].object_count) + " objects but " +
+                                          std::to_string(leaf_count_[l]) + " were put in it"));
+  leaf_count_ = {};
   StoreContents c;
   c.params = tree.params;
   c.codec = opts_.codec;
@@ -277,6 +301,7 @@ RecordLayout StoreReader::record_layout() const {
   l.first_page = leaf_page_count();
   l.directory = objects_.record_directory;
   l.object_count = objects_.size();
+  l.leaf_count = tree_.leaves.size();
   l.mem_page = options_.params.mem_page();
   return l;
 }
@@ -302,11 +327,12 @@ Result<std::string> StoreReader::SourceName(const StoredRecord& record) const {
   return objects_.sources[record.source];
 }
 
-Result<uint32_t> StoreReader::ObjectLeaf(ObjectId id) const {
-  if (id >= objects_.size())
-    return Status::InvalidArgument(path_ + ": object " + std::to_string(id) + " out of range (" +
-                                   std::to_string(objects_.size()) + " objects)");
-  return objects_.leaf[id];
+Result<uint32_t> StoreReader::ObjectLeaf(ObjectId id, PageCache* cache, bool verify_checksums,
+                                         QueryStats* stats) const {
+  RecordReader reader(record_layout(), cache, verify_checksums);
+  auto r = reader.Get(id, stats);
+  if (!r.ok()) return r.status();
+  return (*r)->leaf;
 }
 
 }  // namespace mktree

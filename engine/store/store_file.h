@@ -100,7 +100,8 @@ class StoreWriter {
   StoreOptions opts_;
   std::unique_ptr<Impl> backend_;
   std::unique_ptr<Lock> lock_;
-  ObjectTable objects_;  // leaves and sources; the directory comes from records_ at Commit
+  ObjectTable objects_;  // count, leaf digests and sources; the directory comes from records_ at Commit
+  std::vector<uint32_t> leaf_count_;  // objects appended per leaf
   std::unordered_map<std::string, uint32_t> source_index_;
   std::unique_ptr<RecordPager> records_;  // made at the first AppendObject, after the leaf pages
   uint64_t leaf_pages_ = 0;
@@ -136,7 +137,10 @@ class StoreReader {
                                   QueryStats* stats) const;
   // The record's name (ReadRecord without a cache).
   Result<std::string> ObjectName(ObjectId id) const;
-  Result<uint32_t> ObjectLeaf(ObjectId id) const;
+  // The leaf that holds the object, from its record (ReadRecord's reads and errors); checked against the
+  // tree: Corruption naming the store and the record page if its record names no leaf of the tree.
+  Result<uint32_t> ObjectLeaf(ObjectId id, PageCache* cache = nullptr, bool verify_checksums = true,
+                              QueryStats* stats = nullptr) const;
   // Where the record pages are, for a RecordReader (valid as long as this reader).
   RecordLayout record_layout() const;
   // The input file of a record, or Corruption if its index is not in the sources table.

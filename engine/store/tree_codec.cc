@@ -2,7 +2,10 @@
 
 #include <xxhash.h>
 
+#include <algorithm>
 #include <cmath>
+#include <memory>
+#include <new>
 
 #include "engine/store/record_codec.h"
 #include "engine/tree/leaf_filter.h"
@@ -64,17 +67,35 @@ std::vector<uint8_t> EncodeLeaves(const std::vector<LeafInfo>& leaves) {
 Status DecodeLeaves(std::span<const uint8_t> in, std::vector<LeafInfo>* leaves) {
   return DecodeRecords<kLeafRecord>(in, leaves);
 }
-std::vector<uint8_t> EncodeObjectLeaves(const ObjectTable& t) {
-  return EncodeRecords<kObjectLeafColumn>(std::span(t.leaf));
+std::vector<uint8_t> EncodeLeafDigests(const ObjectTable& t) {
+  return EncodeRecords<kLeafDigestColumn>(std::span(t.leaf_digest));
 }
-Status DecodeObjectTable(std::span<const uint8_t> leaves, std::span<const uint8_t> directory,
-                         std::span<const uint8_t> sources, ObjectTable* t) {
-  MKTREE_RETURN_IF_ERROR(DecodeRecords<kObjectLeafColumn>(leaves, &t->leaf));
+Status DecodeObjectTable(uint64_t count, std::span<const uint8_t> leaf_digests,
+                         std::span<const uint8_t> directory, std::span<const uint8_t> sources,
+                         ObjectTable* t) {
+  t->count = count;
+  MKTREE_RETURN_IF_ERROR(DecodeRecords<kLeafDigestColumn>(leaf_digests, &t->leaf_digest));
   MKTREE_RETURN_IF_ERROR(DecodeRecords<kRecordDirectoryColumn>(directory, &t->record_directory));
   return DecodeSources(sources, &t->sources);
 }
 
 uint64_t Checksum(std::span<const uint8_t> bytes) { return XXH3_64bits(bytes.data(), bytes.size()); }
+
+uint64_t RecordsChecksum(const RecordSchema& s, const void* records, size_t n) {
+  constexpr size_t kBlock = 65536;
+  std::unique_ptr<XXH3_state_t, decltype(&XXH3_freeState)> state(XXH3_createState(), XXH3_freeState);
+  if (!state) throw std::bad_alloc();
+  XXH3_64bits_reset(state.get());
+  std::vector<uint8_t> block;
+  const auto* in = static_cast<const uint8_t*>(records);
+  for (size_t at = 0; at < n; at += kBlock) {
+    const size_t k = std::min(kBlock, n - at);
+    block.clear();
+    EncodeRecords(s, in + at * s.ram_bytes, k, &block);
+    XXH3_64bits_update(state.get(), block.data(), block.size());
+  }
+  return XXH3_64bits_digest(state.get());
+}
 
 namespace {
 
@@ -211,16 +232,19 @@ Status ValidateStructure(const MKTree& tree, const ObjectTable& objects, uint64_
                  " payload bytes");
   }
 
-  std::vector<uint32_t> in_leaf(nl, 0);
-  for (size_t i = 0; i < n_objects; ++i) {
-    const uint32_t l = objects.leaf[i];
-    if (l >= nl) return bad("object " + Num(i) + ": leaf index out of range");
-    ++in_leaf[l];
+  // Each leaf's entries are checked against its count and digest when it is read (CheckLeafEntries): the
+  // counts and digests must account for every object once.
+  if (objects.leaf_digest.size() != nl)
+    return bad(Num(objects.leaf_digest.size()) + " leaf id digests for " + Num(nl) + " leaves");
+  uint64_t in_leaves = 0, digests = 0;
+  for (size_t i = 0; i < nl; ++i) {
+    in_leaves += tree.leaves[i].object_count;
+    digests += objects.leaf_digest[i];
   }
-  for (size_t i = 0; i < nl; ++i)
-    if (in_leaf[i] != tree.leaves[i].object_count)
-      return bad("leaf " + Num(i) + ": holds " + Num(tree.leaves[i].object_count) +
-                 " objects but the object table puts " + Num(in_leaf[i]) + " in it");
+  if (in_leaves != n_objects)
+    return bad("the leaves hold " + Num(in_leaves) + " objects but the store has " + Num(n_objects));
+  if (digests != AllIdsDigest(n_objects))
+    return bad("the leaves' id digests do not add up to the store's " + Num(n_objects) + " objects");
   if (!tree.leaf_filter.empty() && tree.leaf_filter.size() != uint64_t{kLeafFilterBytesPerObject} * n_objects)
     return bad("leaf filter holds " + Num(tree.leaf_filter.size()) + " bytes for " + Num(n_objects) +
                " objects");

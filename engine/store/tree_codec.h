@@ -20,17 +20,38 @@
 
 namespace mktree {
 
-// The object table, what a store keeps of its objects in RAM: each object's leaf (CheckLeafEntries needs
+// The object table, what a store keeps of its objects in RAM, O(leaves + record pages): the object count,
+// each leaf's id digest (LeafIdDigest of the ids it holds: CheckLeafEntries proves a leaf's entries by
 // it), the record directory (the first object id of each record page, engine/store/record_codec.h) and
-// the sources table (the distinct input files). Names and attributes live in the record pages.
+// the sources table (the distinct input files). Each object's leaf, name and attributes live in its
+// record, in the record pages.
 struct ObjectTable {
-  std::vector<uint32_t> leaf;              // leaf index per object
+  uint64_t count = 0;                      // objects, ids 0 .. count - 1
+  std::vector<uint64_t> leaf_digest;       // per leaf: LeafIdDigest of its objects' ids
   std::vector<uint32_t> record_directory;  // first object id of each record page
   std::vector<std::string> sources;        // the distinct input files, by index
 
-  uint64_t size() const { return leaf.size(); }
+  uint64_t size() const { return count; }
   bool operator==(const ObjectTable&) const = default;
 };
+
+// One id's term of a leaf's id digest: a 64-bit mix, so that sums of different id sets differ except by
+// chance (2^-64 for damage; a crafted file can find a collision: this is a checksum, not a proof).
+inline uint64_t ObjectIdHash(uint32_t id) {
+  uint64_t x = (uint64_t{id} + 1) * 0x9E3779B97F4A7C15ull;
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+  return x ^ (x >> 31);
+}
+// A leaf's id digest: the sum (mod 2^64) of ObjectIdHash over the ids it holds. The digests of a store's
+// leaves add up to AllIdsDigest(object count) exactly when the leaves hold every id once (but for a
+// collision), which ValidateStructure checks at open; CheckLeafEntries checks each leaf's entries against
+// its digest when it is read.
+inline uint64_t AllIdsDigest(uint64_t count) {
+  uint64_t sum = 0;
+  for (uint64_t id = 0; id < count; ++id) sum += ObjectIdHash(static_cast<uint32_t>(id));
+  return sum;
+}
 
 // The parameter record: the build parameters and the codec, as stored.
 struct ParamsRecord {
@@ -89,10 +110,11 @@ inline constexpr RecordField kParamsFields[] = {
     MKTREE_RECORD_FIELD("zstd_level", ParamsRecord, zstd_level, kI32),
 };
 inline constexpr RecordSchema kParamsRecord{"parameter", sizeof(ParamsRecord), kParamsFields};
-// The object table's columns (object id = row); names and the leaf filter are kByteColumn.
-inline constexpr RecordField kObjectLeafFields[] = {
-    MakeRecordField("leaf", 0, sizeof(uint32_t), FieldType::kU32)};
-inline constexpr RecordSchema kObjectLeafColumn{"object leaf", sizeof(uint32_t), kObjectLeafFields, false};
+// The object table's columns (leaf = row, record page = row); the sources and the leaf filter are
+// kByteColumn.
+inline constexpr RecordField kLeafDigestFields[] = {
+    MakeRecordField("id_digest", 0, sizeof(uint64_t), FieldType::kU64)};
+inline constexpr RecordSchema kLeafDigestColumn{"leaf id digest", sizeof(uint64_t), kLeafDigestFields, false};
 inline constexpr RecordField kRecordDirectoryFields[] = {
     MakeRecordField("first_object", 0, sizeof(uint32_t), FieldType::kU32)};
 inline constexpr RecordSchema kRecordDirectoryColumn{"record directory", sizeof(uint32_t),
@@ -106,7 +128,7 @@ static_assert(kNodeRecordBytes == 52 && kSplitNodeRecordBytes == 16 && kLeafReco
               kParamsRecordBytes == 28);
 static_assert(FieldsFitRecord(kNodeRecord) && FieldsFitRecord(kSplitNodeRecord) &&
               FieldsFitRecord(kLeafRecord) && FieldsFitRecord(kParamsRecord) &&
-              FieldsFitRecord(kObjectLeafColumn) && FieldsFitRecord(kRecordDirectoryColumn) &&
+              FieldsFitRecord(kLeafDigestColumn) && FieldsFitRecord(kRecordDirectoryColumn) &&
               FieldsFitRecord(kByteColumn));
 
 ParamsRecord ToParamsRecord(const BuildParams& p, const CodecOptions& c);
@@ -119,12 +141,21 @@ std::vector<uint8_t> EncodeSplitNodes(const std::vector<SplitNode>& nodes);
 Status DecodeSplitNodes(std::span<const uint8_t> in, std::vector<SplitNode>* nodes);
 std::vector<uint8_t> EncodeLeaves(const std::vector<LeafInfo>& leaves);
 Status DecodeLeaves(std::span<const uint8_t> in, std::vector<LeafInfo>* leaves);
-std::vector<uint8_t> EncodeObjectLeaves(const ObjectTable& t);
-// Rebuilds a table from its three sections (object leaves, record directory, sources table).
-Status DecodeObjectTable(std::span<const uint8_t> leaves, std::span<const uint8_t> directory,
-                         std::span<const uint8_t> sources, ObjectTable* t);
+std::vector<uint8_t> EncodeLeafDigests(const ObjectTable& t);
+// Rebuilds a table of `count` objects from its three sections (leaf id digests, record directory,
+// sources table).
+Status DecodeObjectTable(uint64_t count, std::span<const uint8_t> leaf_digests,
+                         std::span<const uint8_t> directory, std::span<const uint8_t> sources,
+                         ObjectTable* t);
 
 uint64_t Checksum(std::span<const uint8_t> bytes);
+// Checksum of the canonical encoding of the records, encoded a block at a time (no copy of them all).
+uint64_t RecordsChecksum(const RecordSchema& s, const void* records, size_t n);
+template <const RecordSchema& S, typename T>
+uint64_t RecordsChecksum(const std::vector<T>& records) {
+  static_assert(sizeof(T) == S.ram_bytes, "the schema describes another record");
+  return RecordsChecksum(S, records.data(), records.size());
+}
 inline uint64_t Checksum(std::string_view s) {
   return Checksum(std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(s.data()), s.size()));
 }
@@ -149,8 +180,9 @@ inline bool BoxWithin(const Box3f& inner, const Box3f& outer) {
 // and b = R(child 0).max[axis] (docs/design.md §3.3); leaves are numbered in that order, each referenced by
 // exactly one node that it references back, with page ranges in order, disjoint, within `page_count` and
 // as many as its payload needs; each SplitTree is a tree (no split node reached twice, none left over) of
-// at most kMaxSplitTreeLevels levels; every object is in an existing leaf and each leaf's object_count is
-// the number of objects the table puts in it; the leaf filter is empty or 8 bytes per object.
+// at most kMaxSplitTreeLevels levels; there is one id digest per leaf, the leaves' object_counts add up to
+// the object count and their digests to AllIdsDigest of it; the leaf filter is empty or 8 bytes per
+// object.
 // `page_count` is the store's, record pages included: the record directory has one entry per record page,
 // which follow the leaf pages, and is the writer's (ValidateRecordDirectory). Errors are Corruption, prefixed
 // with `what` (the file).

@@ -27,11 +27,11 @@ Rgb ClashColour(ClashMark c) {
 Result<Box3f> StoredObjectBox(const StoreReader& store, uint64_t id) {
   if (id >= store.object_count())
     return Status::InvalidArgument(store.path() + ": no object " + std::to_string(id));
-  const uint32_t leaf = store.objects().leaf[id];
+  MKTREE_ASSIGN_OR_RETURN(const uint32_t leaf, store.ObjectLeaf(static_cast<ObjectId>(id)));
   PageCache cache(&store.pages(), 0);
   PinnedLeaf read;
   MKTREE_RETURN_IF_ERROR(ReadLeaf(cache, store.pages().name(), leaf, store.tree().leaves[leaf],
-                                  store.objects().leaf, store.tree().params.mem_page(),
+                                  store.objects(), store.tree().params.mem_page(),
                                   /*verify_checksums=*/true, nullptr, &read));
   for (const ObjectEntryView& e : read.view.entries())
     if (e.id == id) return e.box;

@@ -43,9 +43,8 @@ Status ForEachObjectAtLevel(const StoreReader& store, int k, const LevelVisitor&
   const uint64_t n = tree.leaves.size();
   PinnedLeaf read;  // reused leaf after leaf: its buffers are allocated once
   for (uint32_t leaf = 0; leaf < n; ++leaf) {
-    MKTREE_RETURN_IF_ERROR(ReadLeaf(cache, store.pages().name(), leaf, tree.leaves[leaf],
-                                    store.objects().leaf, tree.params.mem_page(), /*verify_checksums=*/true,
-                                    nullptr, &read));
+    MKTREE_RETURN_IF_ERROR(ReadLeaf(cache, store.pages().name(), leaf, tree.leaves[leaf], store.objects(),
+                                    tree.params.mem_page(), /*verify_checksums=*/true, nullptr, &read));
     for (const ObjectEntryView& e : read.view.entries())
       MKTREE_RETURN_IF_ERROR(visit(leaf, e, GroupAtLevel(tree, leaf, e.box, k)));
     if (progress && (leaf % 256 == 0 || leaf + 1 == n)) progress(leaf + 1, n);

@@ -96,19 +96,31 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   info.page_count = static_cast<uint32_t>(page_count);
   const uint32_t leaf = Get<uint32_t>(store.mutable_page(0) + 8);  // the leaf its first page names
   // The tree's side of the check: the count the leaf header claims, a box holding anything, and an object
-  // table that puts ids below kObjects in this leaf.
+  // table of kObjects objects.
   constexpr size_t kObjects = 1024;
   info.object_count = Get<uint32_t>(store.mutable_page(0) + mktree::kPageHeaderBytes);
   for (int k = 0; k < 3; ++k) {
     info.box.min[k] = -std::numeric_limits<float>::infinity();
     info.box.max[k] = std::numeric_limits<float>::infinity();
   }
-  const std::vector<uint32_t> object_leaf(kObjects, leaf);
+  // The object table's digest for this leaf is taken from the ids its entries hold (below kObjects), so
+  // that a well-formed leaf reaches the decoders.
+  mktree::ObjectTable objects;
+  objects.count = kObjects;
+  constexpr uint32_t kLeaves = 1 << 16;  // a leaf index past them has no digest (refused)
+  objects.leaf_digest.assign(kLeaves, 0);
+  if (leaf < kLeaves) {
+    std::vector<const uint8_t*> data;
+    for (uint64_t p = 0; p < page_count; ++p) data.push_back(store.mutable_page(p));
+    mktree::LeafView view;
+    if (mktree::LeafView::Parse(store.name(), leaf, 0, data, mem_page, true, &view).ok())
+      for (const mktree::ObjectEntryView& e : view.entries())
+        if (e.id < kObjects) objects.leaf_digest[leaf] += mktree::ObjectIdHash(e.id);
+  }
   mktree::PageCache cache(&store, 2);
   mktree::QueryStats stats;
   mktree::PinnedLeaf pinned;
-  if (Status st =
-          mktree::ReadLeaf(cache, store.name(), leaf, info, object_leaf, mem_page, true, &stats, &pinned);
+  if (Status st = mktree::ReadLeaf(cache, store.name(), leaf, info, objects, mem_page, true, &stats, &pinned);
       !st.ok()) {
     mktree::fuzz::Refused(st.ToString());
     return 0;

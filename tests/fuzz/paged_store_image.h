@@ -17,10 +17,10 @@
 namespace mktree::fuzz {
 
 inline constexpr char kPagedMagic[8] = {'M', 'K', 'T', 'R', 'E', 'E', 'P', 'F'};
-inline constexpr uint32_t kPagedVersion = 4;  // the origin (offset 280) stays 0: a frame at the world's
+inline constexpr uint32_t kPagedVersion = 5;  // the origin (offset 280) stays 0: a frame at the world's
 inline constexpr uint32_t kFixedHeaderBytes = 512;
 inline constexpr uint32_t kParamsOffset = 16;
-inline constexpr uint32_t kSectionCount = 8;  // nodes, split nodes, leaves, object leaves, record
+inline constexpr uint32_t kSectionCount = 8;  // nodes, split nodes, leaves, leaf id digests, record
                                               // directory, sources, stats JSON, leaf filter
 inline constexpr uint32_t kSectionTableOffset = 80;
 inline constexpr uint32_t kHeaderChecksumOffset = kSectionTableOffset + kSectionCount * 24;
@@ -54,7 +54,7 @@ inline uint64_t HeaderPageChecksum(const uint8_t* header, uint64_t mem_page) {
 
 // A paged-file store: header page, leaf and record pages (`pages` split into mem_page pieces, the last one
 // padded with zeros, each given a valid page checksum), then the sections. Every checksum is valid; the
-// header's object count is the object-leaves section's record count.
+// header's object count is the sum of the leaves' object counts (the leaf records' u32 at byte 28).
 inline std::vector<uint8_t> AssemblePagedFile(std::span<const uint8_t> params_record, uint64_t mem_page,
                                               std::span<const uint8_t> pages,
                                               const std::span<const uint8_t> (&sections)[kSectionCount]) {
@@ -73,7 +73,10 @@ inline std::vector<uint8_t> AssemblePagedFile(std::span<const uint8_t> params_re
   std::memcpy(h + kParamsOffset, params_record.data(),
               std::min<size_t>(params_record.size(), kParamsRecordBytes));
   Put<uint64_t>(h + 48, page_count);
-  Put<uint64_t>(h + 56, sections[3].size() / 4);
+  uint64_t objects = 0;
+  for (size_t at = 0; at + kLeafRecordBytes <= sections[2].size(); at += kLeafRecordBytes)
+    objects += storage_internal::Get<uint32_t>(sections[2].data() + at + 28);
+  Put<uint64_t>(h + 56, objects);
   Put<uint32_t>(h + 72, kSectionCount);
   for (uint32_t i = 0; i < kSectionCount; ++i) {
     uint8_t* e = file.data() + kSectionTableOffset + 24 * i;  // `h` may move as the file grows

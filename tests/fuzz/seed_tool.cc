@@ -83,7 +83,7 @@ int StoreStruct(const std::string& store, const std::string& out_path) {
   Append(&out, mktree::EncodeNodes(t.nodes), true);
   Append(&out, mktree::EncodeSplitNodes(t.split_nodes), true);
   Append(&out, mktree::EncodeLeaves(t.leaves), true);
-  Append(&out, mktree::EncodeObjectLeaves(o), true);
+  Append(&out, mktree::EncodeLeafDigests(o), true);
   Append(&out, mktree::EncodeRecordDirectory(o.record_directory), true);
   Append(&out, mktree::EncodeSources(o.sources), true);
   Append(&out, std::vector<uint8_t>(r->stats_json().begin(), r->stats_json().end()), true);

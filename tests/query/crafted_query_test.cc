@@ -83,6 +83,28 @@ TEST_F(CraftedQueryTest, LeafReferencedTwiceIsRefusedNotAnsweredTwice) {
 
 // An entry whose geometry does not decode fails the exact query with an error naming the store (the
 // hostile campaign's crafted-030 to 032 said only "object N: ...").
+// An object's leaf is in its record: a record naming another leaf (an index the tree has) makes that
+// object's geometry a Corruption, never another object's mesh; the other objects and the queries are
+// unaffected.
+TEST_F(CraftedQueryTest, RecordNamingAnotherLeafIsCorruptionAtTheObjectsGeometry) {
+  const uint32_t moved = 17;
+  const uint32_t own = image_.object_leaf[moved];
+  image_.object_leaf[moved] = own == 0 ? 1 : 0;
+  ASSERT_TRUE(testing::SetObjectRecords(&image_, testing::MakeObjects(300, 11)).ok());
+  auto db = WriteAndOpen();
+  ASSERT_TRUE(db.ok()) << db.status().ToString();
+  Status st = (*db)->ObjectGeometry(moved).status();
+  ExpectCorruptionNamingTheFile(st);
+  EXPECT_NE(st.message().find("object 17: its record puts it in leaf " + std::to_string(own == 0 ? 1 : 0) +
+                              ", which does not hold it"),
+            std::string::npos)
+      << st.message();
+  EXPECT_TRUE((*db)->ObjectGeometry(moved + 1).ok());
+  QueryResult r;
+  ASSERT_TRUE((*db)->Run(Query::Box(Everything(image_)), &r).ok());
+  EXPECT_EQ(r.hits.size(), 300u);
+}
+
 TEST_F(CraftedQueryTest, GeometryThatDoesNotDecodeIsCorruptionNamingTheStore) {
   auto img = testing::MakeTestImage(testing::MakeObjects(300, 11), {}, Codec::kNone);
   ASSERT_TRUE(img.ok()) << img.status().ToString();

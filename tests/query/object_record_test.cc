@@ -149,12 +149,18 @@ TEST_P(ObjectRecordTest, RecordsAreCountedPageReads) {
   ASSERT_TRUE((*db)->Object(10, &s).ok());
   EXPECT_EQ(s.pages_read, 0u);
   EXPECT_EQ(s.cache_hits, 1u);
+  // The object's leaf comes from its record (cached now), then the leaf's pages are read.
+  (*db)->ClearCache();
   ASSERT_TRUE((*db)->ObjectGeometry(10, &s).ok());
-  EXPECT_GE(s.pages_read, 1u);
+  EXPECT_GE(s.pages_read, 2u);
+  ASSERT_TRUE((*db)->ObjectGeometry(10, &s).ok());
+  EXPECT_EQ(s.pages_read, 0u);
+  EXPECT_GE(s.cache_hits, 2u);
 }
 
 // Open reads no record page: every record page damaged, the store still opens and answers queries; the
-// record of an object fails, as a Corruption naming the store and its page, never a wrong name.
+// record of an object fails, as a Corruption naming the store and its page, never a wrong name (and so does
+// its geometry, whose leaf is in the record).
 TEST_P(ObjectRecordTest, DamagedRecordPagesFailOnlyTheirRecords) {
   const std::string path = dir_.file("damaged.mkt");
   const std::vector<SceneObject> objects = RecordObjects(200, 55);
@@ -198,8 +204,11 @@ TEST_P(ObjectRecordTest, DamagedRecordPagesFailOnlyTheirRecords) {
   QueryResult got;
   ASSERT_TRUE((*db)->Run(Query::Box((*db)->bounds()), &got).ok());
   EXPECT_EQ(got.hits, want.hits);
-  EXPECT_TRUE((*db)->ObjectGeometry(3).ok());
   for (ObjectId id : {ObjectId{0}, ObjectId{77}, ObjectId{199}}) {
+    // The geometry too: the object's leaf is in its record.
+    const Status geometry = (*db)->ObjectGeometry(id).status();
+    EXPECT_EQ(geometry.code(), Status::Code::kCorruption) << geometry.ToString();
+    EXPECT_EQ(geometry.message().rfind(path + ": page ", 0), 0u) << geometry.message();
     auto r = (*db)->Object(id);
     ASSERT_FALSE(r.ok());
     EXPECT_EQ(r.status().code(), Status::Code::kCorruption) << r.status().ToString();

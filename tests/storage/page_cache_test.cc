@@ -212,8 +212,7 @@ class PageCacheFaultTest : public ::testing::Test {
 TEST_F(PageCacheFaultTest, FlippedBytesAndShortReadsAreCorruptionNotWrongAnswers) {
   const LeafInfo& leaf = built.tree.leaves[1];
   auto parse = [&](PageCache& cache) -> Status {
-    return ReadLeaf(cache, faulty.name(), 1, leaf, built.object_leaf, mem.page_bytes(), true, nullptr)
-        .status();
+    return ReadLeaf(cache, faulty.name(), 1, leaf, built.objects, mem.page_bytes(), true, nullptr).status();
   };
   {
     PageCache cache(&faulty, 8);
@@ -272,7 +271,7 @@ TEST_F(PageCacheFaultTest, ChecksumsAreVerifiedOncePerLoadAndCorruptPagesAlwaysR
   PageCache cache(&faulty, 8);
   PinnedLeaf pinned;  // reused across reads, as queries do
   QueryStats s;
-  ASSERT_TRUE(ReadLeaf(cache, faulty.name(), 1, leaf, built.object_leaf, page_bytes, true, &s, &pinned).ok());
+  ASSERT_TRUE(ReadLeaf(cache, faulty.name(), 1, leaf, built.objects, page_bytes, true, &s, &pinned).ok());
   EXPECT_EQ(pinned.view.size(), leaf.object_count);
   pinned.Release();
   EXPECT_EQ(cache.pinned_pages(), 0u);
@@ -285,7 +284,7 @@ TEST_F(PageCacheFaultTest, ChecksumsAreVerifiedOncePerLoadAndCorruptPagesAlwaysR
   cache.Clear();  // the next read loads the corrupt copy
   for (int round = 0; round < 3; ++round) {
     QueryStats r;
-    Status st = ReadLeaf(cache, faulty.name(), 1, leaf, built.object_leaf, page_bytes, true, &r, &pinned);
+    Status st = ReadLeaf(cache, faulty.name(), 1, leaf, built.objects, page_bytes, true, &r, &pinned);
     EXPECT_EQ(st.code(), Status::Code::kCorruption) << "round " << round;
     EXPECT_NE(st.message().find("checksum mismatch"), std::string::npos) << st.message();
     EXPECT_EQ(r.pages_touched, 1u);
@@ -297,13 +296,13 @@ TEST_F(PageCacheFaultTest, ChecksumsAreVerifiedOncePerLoadAndCorruptPagesAlwaysR
   EXPECT_EQ(cache.pinned_pages(), 0u);
   // Without verification the flipped geometry byte goes unnoticed and the page is not marked verified.
   ASSERT_TRUE(
-      ReadLeaf(cache, faulty.name(), 1, leaf, built.object_leaf, page_bytes, false, nullptr, &pinned).ok());
+      ReadLeaf(cache, faulty.name(), 1, leaf, built.objects, page_bytes, false, nullptr, &pinned).ok());
   EXPECT_FALSE(pinned.pages[0].verified());
   pinned.Release();
   faulty.ClearFaults();
   cache.Clear();
   ASSERT_TRUE(
-      ReadLeaf(cache, faulty.name(), 1, leaf, built.object_leaf, page_bytes, true, nullptr, &pinned).ok());
+      ReadLeaf(cache, faulty.name(), 1, leaf, built.objects, page_bytes, true, nullptr, &pinned).ok());
   EXPECT_TRUE(pinned.pages[0].verified());
   const auto k = cache.counters();
   EXPECT_EQ(k.hits + k.misses, k.lookups);

@@ -28,6 +28,7 @@ namespace testing {
 struct StoreImage {
   StoreContents contents;
   std::vector<std::vector<uint8_t>> pages;
+  std::vector<uint32_t> object_leaf;  // each object's leaf, as SetObjectRecords writes it in the records
 
   MKTree& tree() { return contents.tree; }
   ObjectTable& objects() { return contents.objects; }
@@ -46,6 +47,11 @@ inline Result<StoreImage> LoadStoreImage(const std::string& path) {
   img.contents.tree.leaf_filter_begin.clear();  // derived at open
   img.contents.objects = s.objects();
   img.contents.stats_json = s.stats_json();
+  for (ObjectId id = 0; id < s.object_count(); ++id) {
+    auto leaf = s.ObjectLeaf(id);
+    if (!leaf.ok()) return leaf.status();
+    img.object_leaf.push_back(*leaf);
+  }
   img.pages.resize(s.pages().page_count());
   for (uint64_t i = 0; i < img.pages.size(); ++i) {
     img.pages[i].resize(s.pages().page_bytes());
@@ -69,7 +75,8 @@ inline Status WriteStoreImage(const StoreImage& image, const std::string& path, 
 }
 
 // Replaces the image's object record pages (the pages after its leaf pages) and sources by records of
-// `objects` (box from the mesh, name, source, attributes), as StoreWriter::AppendObject writes them.
+// `objects` (box from the mesh, name, source, attributes, leaf from img->object_leaf), as
+// StoreWriter::AppendObject writes them.
 inline Status SetObjectRecords(StoreImage* img, const std::vector<SceneObject>& objects) {
   ObjectTable& t = img->objects();
   img->pages.resize(img->pages.size() - t.record_directory.size());
@@ -84,7 +91,8 @@ inline Status SetObjectRecords(StoreImage* img, const std::vector<SceneObject>& 
     while (source < t.sources.size() && t.sources[source] != o.source) ++source;
     if (source == t.sources.size()) t.sources.push_back(o.source);
     record.clear();
-    MKTREE_RETURN_IF_ERROR(EncodeRecord(o.Aabb(), source, o.name, o.attributes, &record));
+    const uint32_t leaf = o.id < img->object_leaf.size() ? img->object_leaf[o.id] : kRecordNoLeaf;
+    MKTREE_RETURN_IF_ERROR(EncodeRecord(o.Aabb(), source, leaf, o.name, o.attributes, &record));
     MKTREE_RETURN_IF_ERROR(pager.Add(o.id, record));
   }
   MKTREE_RETURN_IF_ERROR(pager.Finish());
@@ -102,7 +110,8 @@ inline Result<StoreImage> MakeTestImage(const std::vector<SceneObject>& objects,
   BuiltStore built;
   MKTREE_RETURN_IF_ERROR(BuildTestStore(objects, img.contents.codec, params, &pages, &built));
   img.contents.tree = std::move(built.tree);
-  img.contents.objects.leaf = built.object_leaf;
+  img.contents.objects = built.objects;
+  img.object_leaf = built.object_leaf;
   img.contents.stats_json = ComputeTreeStats(img.contents.tree, objects.size(), {}).ToJson();
   img.pages.resize(pages.page_count());
   for (uint64_t i = 0; i < img.pages.size(); ++i)

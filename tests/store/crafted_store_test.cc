@@ -36,8 +36,11 @@ class CraftedStoreTest : public ::testing::TestWithParam<Backend> {
     PinnedLeaf pinned;
     const MKTree& t = (*r)->tree();
     for (uint32_t l = 0; l < t.leaves.size(); ++l)
-      MKTREE_RETURN_IF_ERROR(ReadLeaf(cache, path_, l, t.leaves[l], (*r)->objects().leaf, t.params.mem_page(),
+      MKTREE_RETURN_IF_ERROR(ReadLeaf(cache, path_, l, t.leaves[l], (*r)->objects(), t.params.mem_page(),
                                       true, nullptr, &pinned));
+    // And every object's record (its leaf among them).
+    for (ObjectId id = 0; id < (*r)->object_count(); ++id)
+      MKTREE_RETURN_IF_ERROR((*r)->ObjectLeaf(id, &cache, true, nullptr).status());
     return Status::Ok();
   }
   // Expects a Corruption naming the file and saying `why`.
@@ -48,6 +51,12 @@ class CraftedStoreTest : public ::testing::TestWithParam<Backend> {
     EXPECT_NE(st.message().find(why), std::string::npos) << st.message();
   }
   MKTree& tree() { return image_.tree(); }
+  // Rewrites the record pages for the first `n` of the image's 300 objects (MakeObjects(300, 7)).
+  void SetRecordsOf(uint32_t n) {
+    std::vector<SceneObject> objects = testing::MakeObjects(300, 7);
+    objects.resize(n);
+    ASSERT_TRUE(testing::SetObjectRecords(&image_, objects).ok());
+  }
   // Rewrites the payload of `leaf`'s single page through `edit` (given the page and its entry offsets),
   // then reseals it.
   void EditLeafPage(uint32_t leaf,
@@ -133,24 +142,36 @@ TEST_P(CraftedStoreTest, DepthsMustCountFromTheRoot) {
   ExpectRefused("node 1: depth 7 where 1 was expected");
 }
 
-TEST_P(CraftedStoreTest, ObjectInNoLeafIsRefused) {
-  image_.objects().leaf[5] = static_cast<uint32_t>(tree().leaves.size());
-  ExpectRefused("object 5: leaf index out of range");
+TEST_P(CraftedStoreTest, LeafDigestsMustBeOnePerLeaf) {
+  image_.objects().leaf_digest.push_back(0);
+  ExpectRefused(std::to_string(tree().leaves.size() + 1) + " leaf id digests for " +
+                std::to_string(tree().leaves.size()) + " leaves");
 }
 
-TEST_P(CraftedStoreTest, LeafCountsDisagreeingWithTheObjectTableAreRefused) {
-  const uint32_t l = image_.objects().leaf[5];
-  image_.objects().leaf[5] = l == 0 ? 1 : 0;  // listed in another leaf than the one whose page holds it
-  ExpectRefused("leaf " + std::to_string(l) + ": holds");
+TEST_P(CraftedStoreTest, LeafDigestsNotAddingUpToEveryObjectAreRefused) {
+  image_.objects().leaf_digest[3] += 1;
+  ExpectRefused("the leaves' id digests do not add up to the store's 300 objects");
 }
 
-TEST_P(CraftedStoreTest, ObjectsSwappedBetweenLeavesInTheTableAreRefusedAtTheirLeafRead) {
-  // Counts still agree, so open accepts it; the page of each leaf then holds an object listed elsewhere.
-  const uint32_t a = 5;
-  uint32_t b = 0;
-  while (image_.objects().leaf[b] == image_.objects().leaf[a]) ++b;
-  std::swap(image_.objects().leaf[a], image_.objects().leaf[b]);
-  ExpectRefused("belongs to leaf");
+TEST_P(CraftedStoreTest, LeafCountsNotAddingUpToEveryObjectAreRefused) {
+  // One object dropped from the store's count: the leaves account for one more.
+  image_.contents.objects.count = 299;
+  SetRecordsOf(299);
+  ExpectRefused("the leaves hold 300 objects but the store has 299");
+}
+
+TEST_P(CraftedStoreTest, DigestsSwappedBetweenLeavesAreRefusedAtTheirLeafRead) {
+  // The sum still agrees, so open accepts it; each leaf's entries then disagree with its digest.
+  std::swap(image_.objects().leaf_digest[0], image_.objects().leaf_digest[1]);
+  ExpectRefused("page " + std::to_string(tree().leaves[0].first_page) +
+                " (leaf 0): its objects are not the ones the object table puts in it");
+}
+
+TEST_P(CraftedStoreTest, RecordNamingNoLeafIsRefusedAtItsRead) {
+  image_.object_leaf[5] = static_cast<uint32_t>(tree().leaves.size());
+  SetRecordsOf(300);
+  ExpectRefused("object 5: in leaf " + std::to_string(tree().leaves.size()) + " of " +
+                std::to_string(tree().leaves.size()));
 }
 
 TEST_P(CraftedStoreTest, SplitTreeCycleIsRefused) {
@@ -299,10 +320,10 @@ TEST_P(CraftedStoreTest, PageDuplicatingAnIdIsRefusedAtItsRead) {
 TEST_P(CraftedStoreTest, PageCarryingAnotherLeafsObjectIsRefusedAtItsRead) {
   const uint32_t l = testing::LeafWithObjects(tree(), 2);
   uint32_t other = 0;
-  while (image_.objects().leaf[other] == l) ++other;
+  while (image_.object_leaf[other] == l) ++other;
   EditLeafPage(
       l, [&](std::vector<uint8_t>& page, const std::vector<size_t>& at) { SetIdAt(page, at[1], other); });
-  ExpectRefused("object " + std::to_string(other) + " belongs to leaf");
+  ExpectRefused("(leaf " + std::to_string(l) + "): its objects are not the ones the object table puts in it");
 }
 
 TEST_P(CraftedStoreTest, PageWithAnIdOutOfRangeIsRefusedAtItsRead) {
@@ -347,7 +368,10 @@ TEST(CraftedStructureTest, EmptyTreeMustHoldNothing) {
   MKTree t;
   ObjectTable objects;
   EXPECT_TRUE(ValidateStructure(t, objects, 0, "s").ok());
-  objects.leaf.push_back(0);
+  objects.count = 1;
+  EXPECT_EQ(ValidateStructure(t, objects, 0, "s").code(), Status::Code::kCorruption);
+  objects.count = 0;
+  objects.leaf_digest.push_back(0);
   EXPECT_EQ(ValidateStructure(t, objects, 0, "s").code(), Status::Code::kCorruption);
 }
 

@@ -110,8 +110,8 @@ class FullDiskTest : public ::testing::TestWithParam<Backend> {
     PageCache cache(&(*r)->pages(), 0);
     size_t seen = 0;
     for (uint32_t l = 0; l < (*r)->tree().leaves.size(); ++l) {
-      auto v = ReadLeaf(cache, path, l, (*r)->tree().leaves[l], (*r)->objects().leaf,
-                        (*r)->pages().page_bytes(), true, nullptr);
+      auto v = ReadLeaf(cache, path, l, (*r)->tree().leaves[l], (*r)->objects(), (*r)->pages().page_bytes(),
+                        true, nullptr);
       ASSERT_TRUE(v.ok()) << v.status().ToString();
       for (const auto& e : v->view.entries()) {
         Mesh m;

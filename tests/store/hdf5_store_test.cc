@@ -130,15 +130,15 @@ TEST(Hdf5StoreTest, ObjectTableIsItsCanonicalEncoding) {
     H5Sclose(space);
     H5Dclose(d);
   };
-  std::vector<uint32_t> leaf(objects.size());
+  std::vector<uint64_t> digest(t.leaf_digest.size());
   std::vector<uint32_t> directory(t.record_directory.size());
   const std::vector<uint8_t> sources_bytes = EncodeSources(t.sources);
   std::vector<uint8_t> sources(sources_bytes.size());
-  read("/objects/leaf", H5T_NATIVE_UINT32, leaf.data(), leaf.size());
+  read("/objects/leaf_digest", H5T_NATIVE_UINT64, digest.data(), digest.size());
   read("/objects/record_directory", H5T_NATIVE_UINT32, directory.data(), directory.size());
   read("/objects/sources", H5T_NATIVE_UINT8, sources.data(), sources.size());
   H5Fclose(f);
-  EXPECT_EQ(leaf, t.leaf);
+  EXPECT_EQ(digest, t.leaf_digest);
   EXPECT_EQ(directory, t.record_directory);
   EXPECT_EQ(sources, sources_bytes);
   EXPECT_EQ(*(*r)->ObjectName(7), std::string("a\0b", 3));
@@ -258,7 +258,7 @@ class CraftedHdf5Test : public ::testing::Test {
     storage_internal::ByteWriter w(&b);
     w.Put<uint64_t>(pages);
     w.Put<uint64_t>(objects);
-    w.Put<uint32_t>(4);                              // the HDF5 format version
+    w.Put<uint32_t>(5);                              // the HDF5 format version
     for (int i = 0; i < 3; ++i) w.Put<double>(0.0);  // the store frame's origin: these scenes lie near 0
     return Checksum(b);
   }
@@ -295,7 +295,7 @@ TEST_F(CraftedHdf5Test, HugeObjectCountWithAValidHeaderSumIsRefused) {
   const Status st = OpenEdited([&](hid_t f) {
     SetU64Attr(f, "object_count", huge);
     SetU64Attr(f, "checksum_header", HeaderSum(pages_, huge));
-    ReplaceWithHugeDataset(f, "objects/leaf", H5T_STD_U32LE, huge);
+    ReplaceWithHugeDataset(f, "objects/leaf_digest", H5T_STD_U64LE, huge);
     ReplaceWithHugeDataset(f, "objects/record_directory", H5T_STD_U32LE, huge);
   });
   ExpectCorruption(st, "objects do not fit");

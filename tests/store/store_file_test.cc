@@ -120,8 +120,8 @@ class StoreFileTest : public ::testing::TestWithParam<Param> {
     if (!r.ok()) return r.status();
     PageCache cache(&(*r)->pages(), 0);
     for (uint32_t l = 0; l < (*r)->tree().leaves.size(); ++l) {
-      auto v = ReadLeaf(cache, path, l, (*r)->tree().leaves[l], (*r)->objects().leaf,
-                        (*r)->pages().page_bytes(), true, nullptr);
+      auto v = ReadLeaf(cache, path, l, (*r)->tree().leaves[l], (*r)->objects(), (*r)->pages().page_bytes(),
+                        true, nullptr);
       if (!v.ok()) return v.status();
       for (const auto& e : v->view.entries()) {
         Mesh m;
@@ -624,10 +624,10 @@ TEST_P(StoreFileTest, PagesChangedOnDiskAfterTheirFirstReadAreStillRefused) {
   const LeafInfo leaf = (*r)->tree().leaves[0];
   PageCache cache(&(*r)->pages(), 0);
   const uint64_t mem_page = (*r)->pages().page_bytes();
-  ASSERT_TRUE(ReadLeaf(cache, path, 0, leaf, (*r)->objects().leaf, mem_page, true, nullptr).ok());
+  ASSERT_TRUE(ReadLeaf(cache, path, 0, leaf, (*r)->objects(), mem_page, true, nullptr).ok());
   if (GetParam().backend != Backend::kPagedFile) return;  // (where HDF5 keeps the page is its business)
   FlipByte(path, (1 + leaf.first_page) * mem_page + 100, 0x10);
-  auto again = ReadLeaf(cache, path, 0, leaf, (*r)->objects().leaf, mem_page, true, nullptr);
+  auto again = ReadLeaf(cache, path, 0, leaf, (*r)->objects(), mem_page, true, nullptr);
   EXPECT_EQ(again.status().code(), Status::Code::kCorruption) << again.status().ToString();
 }
 

@@ -13,6 +13,7 @@
 
 #include "engine/store/leaf_codec.h"
 #include "engine/store/object_codec.h"
+#include "engine/store/tree_codec.h"
 #include "engine/tree/mktree.h"
 #include "engine/tree/page_budget.h"
 #include "mktree/scene.h"
@@ -104,6 +105,7 @@ inline std::vector<SceneObject> MakeObjects(uint32_t n, uint32_t seed, bool with
 struct BuiltStore {
   MKTree tree;
   std::vector<uint32_t> object_leaf;
+  ObjectTable objects;                        // count and leaf id digests (what CheckLeafEntries needs)
   std::vector<std::vector<uint8_t>> entries;  // by object id
 };
 
@@ -132,6 +134,8 @@ inline Status BuildTestStore(const std::vector<SceneObject>& objects, const Code
     sum += sz;
   }
   out->object_leaf.assign(objects.size(), 0);
+  out->objects = ObjectTable();
+  out->objects.count = objects.size();
   uint64_t page = 0;
   for (uint32_t l = 0; l < groups.size(); ++l) {
     std::vector<std::span<const uint8_t>> spans;
@@ -143,6 +147,8 @@ inline Status BuildTestStore(const std::vector<SceneObject>& objects, const Code
       info.box.Extend(objects[id].Aabb());
       out->object_leaf[id] = l;
     }
+    out->objects.leaf_digest.push_back(0);
+    for (uint32_t id : groups[l]) out->objects.leaf_digest.back() += ObjectIdHash(id);
     info.object_count = static_cast<uint32_t>(groups[l].size());
     info.payload_bytes = LeafPayloadBytes(entry_sum);
     info.first_page = page;

@@ -65,7 +65,7 @@ class LevelExportTest : public ::testing::Test {
   Expected Expect(int k, bool boxes) const {
     Expected e;
     for (const SceneObject& o : *objs_) {
-      const int g = GroupIndex(GroupAtLevel(reader_->tree(), reader_->objects().leaf[o.id], o.Aabb(), k));
+      const int g = GroupIndex(GroupAtLevel(reader_->tree(), *reader_->ObjectLeaf(o.id), o.Aabb(), k));
       ++e.objects[g];
       e.vertices[g] += boxes ? 8 : o.mesh.vertex_count();
       e.triangles[g] += boxes ? 12 : o.mesh.triangle_count();

@@ -98,8 +98,7 @@ std::unique_ptr<StoreReader> BuildStore(const std::vector<SceneObject>& objs, co
 
 GroupCounts Expect(const StoreReader& r, const std::vector<SceneObject>& objs, int k) {
   GroupCounts c{};
-  for (const SceneObject& o : objs)
-    ++c[GroupIndex(GroupAtLevel(r.tree(), r.objects().leaf[o.id], o.Aabb(), k))];
+  for (const SceneObject& o : objs) ++c[GroupIndex(GroupAtLevel(r.tree(), *r.ObjectLeaf(o.id), o.Aabb(), k))];
   return c;
 }
 
