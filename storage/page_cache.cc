@@ -244,18 +244,36 @@ bool PageCache::PinCached(uint64_t first, uint64_t count, bool verified, QuerySt
   return true;
 }
 
-void PageCache::Prefetch(std::span<const uint64_t> pages) const {
-  constexpr size_t kMax = 32;
-  const PageFrame* frames[kMax];
-  size_t n = 0;
+size_t PageCache::PinCachedPages(std::span<const uint64_t> pages, bool verified, bool attached,
+                                 QueryStats* stats, std::vector<PageHandle>* out) {
   std::lock_guard<std::mutex> lock(mu_);
+  // The frames, then what the caller reads next (their attachments), are loaded side by side rather than
+  // one miss after another.
+  for (uint64_t p : pages)
+    if (p < table_.size() && table_[p].frame != nullptr) __builtin_prefetch(table_[p].frame);
+  for (uint64_t p : pages)
+    if (p < table_.size() && table_[p].frame != nullptr)
+      __builtin_prefetch(table_[p].frame->attachment.load(std::memory_order_relaxed));
+  size_t n = 0;
   for (uint64_t p : pages) {
-    if (n == kMax) break;
-    if (p >= table_.size() || table_[p].frame == nullptr) continue;
-    frames[n++] = table_[p].frame;
-    __builtin_prefetch(frames[n - 1]);
+    PageFrame* f = p < table_.size() ? table_[p].frame : nullptr;
+    if (f == nullptr || f->loading || (verified && !f->verified.load(std::memory_order_acquire)) ||
+        (attached && f->attachment.load(std::memory_order_acquire) == nullptr))
+      break;
+    ++counters_.lookups;
+    ++counters_.hits;
+    if (stats) {
+      ++stats->pages_touched;
+      ++stats->cache_hits;
+    }
+    if (f->pins++ == 0) {
+      ++pinned_;
+      table_[p].unpinned_at = 0;
+    }
+    out->push_back(PageHandle(this, f));
+    ++n;
   }
-  for (size_t k = 0; k < n; ++k) __builtin_prefetch(frames[k]->attachment.load(std::memory_order_relaxed));
+  return n;
 }
 
 void PageCache::Release(std::span<PageHandle> handles) {

@@ -98,12 +98,15 @@ class PageCache {
   // and counts nothing and returns false. One lock for the lot: the warm path of a leaf read.
   bool PinCached(uint64_t first, uint64_t count, bool verified, QueryStats* stats,
                  std::vector<PageHandle>* out);
+  // Pins pages[0], pages[1], ... in order as long as each is cached and loaded (with `verified`, marked
+  // verified; with `attached`, carrying an attachment), appending their handles to *out and counting each
+  // as Pin counts a hit; returns how many it pinned (the first that fails the test is not counted). One
+  // lock for the lot, the frames prefetched first.
+  size_t PinCachedPages(std::span<const uint64_t> pages, bool verified, bool attached, QueryStats* stats,
+                        std::vector<PageHandle>* out);
   // Unpins `handles` (this cache's, or empty) in order under one lock, as their Release() one after
   // another would, leaving them empty.
   void Release(std::span<PageHandle> handles);
-  // A hint: starts loading into the CPU caches what hits on these pages will read (their frames and
-  // attachments; at most 32 pages). Changes nothing in the cache.
-  void Prefetch(std::span<const uint64_t> pages) const;
   // Drops every unpinned page (for cold queries). Counters are kept.
   void Clear();
 

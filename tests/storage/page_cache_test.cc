@@ -408,6 +408,21 @@ TEST(PageCacheTest, LruOrderMatchesAModelUnderPinCachedAndBatchReleases) {
           evict();
         }
         held.emplace_back(p, std::move(*h));
+      } else if (op < 5 && held.size() < 6) {  // PinCachedPages of 1-3 pages anywhere
+        uint64_t pages[3];
+        const size_t m = 1 + g() % 3;
+        for (size_t k = 0; k < m; ++k) pages[k] = g() % kPages;
+        size_t expect = 0;
+        while (expect < m && resident[pages[expect]]) ++expect;
+        QueryStats s;
+        std::vector<PageHandle> hs;
+        ASSERT_EQ(cache.PinCachedPages(std::span<const uint64_t>(pages, m), false, false, &s, &hs), expect);
+        EXPECT_EQ(s.cache_hits, expect);
+        EXPECT_EQ(s.pages_touched, expect);
+        for (size_t k = 0; k < expect; ++k) {
+          pinned_model(pages[k]);
+          held.emplace_back(pages[k], std::move(hs[k]));
+        }
       } else if (op < 6 && held.size() < 6) {  // PinCached of a run of 1-3 pages
         const uint64_t first = g() % kPages;
         const uint64_t count = std::min<uint64_t>(1 + g() % 3, kPages - first);
@@ -472,7 +487,8 @@ TEST(PageCacheTest, LruOrderMatchesAModelUnderPinCachedAndBatchReleases) {
   }
 }
 
-// PinCached refuses a run with a page not yet verified when asked to (the caller then verifies it).
+// PinCached refuses a run with a page not yet verified when asked to (the caller then verifies it);
+// PinCachedPages pins up to the first page not cached, verified or attached as asked.
 TEST(PageCacheTest, PinCachedCanRequireVerifiedPages) {
   CountingStore store(4);
   PageCache cache(&store, 4);
@@ -488,11 +504,19 @@ TEST(PageCacheTest, PinCachedCanRequireVerifiedPages) {
   EXPECT_FALSE(cache.PinCached(2, 2, false, nullptr, &hs));  // page 3 is not cached
   EXPECT_FALSE(cache.PinCached(3, 5, false, nullptr, &hs));  // past the store's end
   EXPECT_EQ(hs.size(), 3u);
+  // PinCachedPages stops at the first page that fails: unverified (1), not attached (2), not cached (3).
+  const uint64_t order[] = {0, 2, 1, 3};
+  EXPECT_EQ(cache.PinCachedPages(order, true, false, nullptr, &hs), 2u);
+  EXPECT_EQ(cache.PinCachedPages(order, false, false, nullptr, &hs), 3u);
+  EXPECT_EQ(cache.PinCachedPages(order, false, true, nullptr, &hs), 0u);
+  hs[0].Attach(std::make_unique<PageAttachment>());
+  EXPECT_EQ(cache.PinCachedPages(order, false, true, nullptr, &hs), 1u);
+  EXPECT_EQ(hs.size(), 9u);
   cache.Release(hs);
   EXPECT_EQ(cache.pinned_pages(), 0u);
 }
 
-// Threads pin runs with PinCached, prefetch and release in batches while others miss and evict.
+// Threads pin runs with PinCached and PinCachedPages and release in batches while others miss and evict.
 TEST(PageCacheTest, ConcurrentPinCachedAndBatchReleases) {
   CountingStore store(40);
   PageCache cache(&store, 8);
@@ -504,16 +528,21 @@ TEST(PageCacheTest, ConcurrentPinCachedAndBatchReleases) {
       std::vector<PageHandle> hs;
       for (int i = 0; i < 3000; ++i) {
         const uint64_t first = g() % 39, count = 1 + g() % 2;
-        const uint64_t pages[2] = {first, first + 1};
-        cache.Prefetch(pages);
-        if (t % 2 == 0) {
+        if (t % 3 == 0) {
           auto h = cache.Pin(first, nullptr);
           if (!h.ok() || h->data()[9] != first % 251) ++wrong;
           continue;
         }
-        if (cache.PinCached(first, count, false, nullptr, &hs))
-          for (uint64_t k = 0; k < count; ++k)
-            if (hs[hs.size() - count + k].data()[100] != (first + k) % 251) ++wrong;
+        if (t % 3 == 1) {
+          if (cache.PinCached(first, count, false, nullptr, &hs))
+            for (uint64_t k = 0; k < count; ++k)
+              if (hs[hs.size() - count + k].data()[100] != (first + k) % 251) ++wrong;
+        } else {
+          const uint64_t pages[3] = {first, (first + 7) % 40, (first + 3) % 40};
+          const size_t n = cache.PinCachedPages(pages, false, false, nullptr, &hs);
+          for (size_t k = 0; k < n; ++k)
+            if (hs[hs.size() - n + k].data()[100] != pages[k] % 251) ++wrong;
+        }
         if (hs.size() > 4) {
           cache.Release(hs);
           hs.clear();
