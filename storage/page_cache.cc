@@ -1,5 +1,6 @@
 #include "storage/page_cache.h"
 
+#include <algorithm>
 #include <atomic>
 #include <cstdlib>
 #include <memory>
@@ -37,9 +38,6 @@ struct PageFrame {
   std::atomic<PageAttachment*> attachment{nullptr};  // owned; cleared only while unpinned, under the lock
   ~PageFrame() { delete attachment.load(std::memory_order_relaxed); }
   void DropAttachment() { delete attachment.exchange(nullptr, std::memory_order_acq_rel); }
-  PageFrame* lru_prev = nullptr;  // towards the head (more recent)
-  PageFrame* lru_next = nullptr;
-  bool in_lru = false;
 };
 
 PageHandle::PageHandle(PageHandle&& o) noexcept : cache_(o.cache_), frame_(o.frame_) {
@@ -79,10 +77,10 @@ const PageAttachment* PageHandle::Attach(std::unique_ptr<PageAttachment> a) {
 }
 
 PageCache::PageCache(const PageStore* store, size_t capacity_pages)
-    : store_(store), capacity_(capacity_pages), table_(store->page_count(), nullptr) {}
+    : store_(store), capacity_(capacity_pages), table_(store->page_count()) {}
 
 PageCache::~PageCache() {
-  for (PageFrame* f : table_) delete f;
+  for (const Slot& s : table_) delete s.frame;
   for (PageFrame* f : spare_) delete f;
 }
 
@@ -113,23 +111,31 @@ void PageCache::FreeFrameLocked(PageFrame* f) {
     delete f;
 }
 
-void PageCache::LruUnlinkLocked(PageFrame* f) {
-  (f->lru_prev ? f->lru_prev->lru_next : lru_head_) = f->lru_next;
-  (f->lru_next ? f->lru_next->lru_prev : lru_tail_) = f->lru_prev;
-  f->lru_prev = f->lru_next = nullptr;
-  f->in_lru = false;
+PageFrame* PageCache::LruFrameLocked(const LruEntry& e) const {
+  // A slot's stamp is that of its frame's last unpin while the frame is unpinned, else 0.
+  const Slot* s = e.page < table_.size() ? &table_[e.page] : nullptr;
+  return s != nullptr && s->unpinned_at == e.stamp ? s->frame : nullptr;
+}
+
+void PageCache::CompactLruLocked() {
+  // Unpinned resident frames have one live entry each; the rest are stale. Dropping them in place keeps
+  // the order and costs O(1) per unpin over time.
+  if (lru_.size() < 2 * (resident_ - std::min(resident_, pinned_)) + 64) return;
+  std::erase_if(lru_, [this](const LruEntry& e) { return LruFrameLocked(e) == nullptr; });
 }
 
 Result<PageHandle> PageCache::Pin(uint64_t page, QueryStats* stats) {
   std::unique_lock<std::mutex> lock(mu_);
   ++counters_.lookups;
   if (stats) ++stats->pages_touched;
-  if (page >= table_.size() && page < store_->page_count()) table_.resize(store_->page_count(), nullptr);
-  if (PageFrame* f = page < table_.size() ? table_[page] : nullptr) {
+  if (page >= table_.size() && page < store_->page_count()) table_.resize(store_->page_count());
+  if (PageFrame* f = page < table_.size() ? table_[page].frame : nullptr) {
     ++counters_.hits;
     if (stats) ++stats->cache_hits;
-    if (f->in_lru) LruUnlinkLocked(f);
-    if (f->pins++ == 0) ++pinned_;
+    if (f->pins++ == 0) {  // its LRU entry goes stale: it gets a new one when unpinned
+      ++pinned_;
+      table_[page].unpinned_at = 0;
+    }
     loaded_.wait(lock, [&] { return !f->loading; });
     if (f->failed) {
       Status st = f->load_status;
@@ -152,7 +158,7 @@ Result<PageHandle> PageCache::Pin(uint64_t page, QueryStats* stats) {
   if (page >= table_.size()) return PageOutOfRange(store_->name(), page, store_->page_count());
   PageFrame* f = NewFrameLocked(page);
   ++pinned_;
-  table_[page] = f;
+  table_[page] = {f, 0};
   ++resident_;
   EvictLocked();  // keep resident <= max(capacity, pinned)
   lock.unlock();
@@ -176,7 +182,7 @@ Result<PageHandle> PageCache::Pin(uint64_t page, QueryStats* stats) {
   // lookup retries the read.
   f->failed = true;
   f->load_status = st;
-  table_[page] = nullptr;
+  table_[page] = {};
   --resident_;
   if (--f->pins == 0) {
     --pinned_;
@@ -188,35 +194,111 @@ Result<PageHandle> PageCache::Pin(uint64_t page, QueryStats* stats) {
 void PageCache::Unpin(PageFrame* f) {
   // Handles exist only for loaded frames, which stay in the table while pinned.
   std::lock_guard<std::mutex> lock(mu_);
-  if (--f->pins > 0) return;
-  --pinned_;
-  f->lru_prev = nullptr;
-  f->lru_next = lru_head_;
-  (lru_head_ ? lru_head_->lru_prev : lru_tail_) = f;
-  lru_head_ = f;
-  f->in_lru = true;
+  UnpinLocked(f);
   EvictLocked();
 }
 
+void PageCache::UnpinLocked(PageFrame* f) {
+  if (--f->pins > 0) return;
+  --pinned_;
+  table_[f->page].unpinned_at = ++stamps_;
+  lru_.push_back({f->page, stamps_});
+}
+
 void PageCache::EvictLocked() {
-  while (resident_ > capacity_ && lru_tail_ != nullptr) {
-    PageFrame* victim = lru_tail_;
-    LruUnlinkLocked(victim);
-    table_[victim->page] = nullptr;
+  while (resident_ > capacity_ && !lru_.empty()) {
+    const LruEntry e = lru_.front();
+    lru_.pop_front();
+    PageFrame* victim = LruFrameLocked(e);
+    if (victim == nullptr) continue;  // stale: pinned again since, or gone
+    table_[victim->page] = {};
     --resident_;
     FreeFrameLocked(victim);
+  }
+  CompactLruLocked();
+}
+
+bool PageCache::PinCached(uint64_t first, uint64_t count, bool verified, QueryStats* stats,
+                          std::vector<PageHandle>* out) {
+  std::lock_guard<std::mutex> lock(mu_);
+  if (first > table_.size() || count > table_.size() - first) return false;
+  for (uint64_t p = first; p < first + count; ++p) {
+    const PageFrame* f = table_[p].frame;
+    if (f == nullptr || f->loading || (verified && !f->verified.load(std::memory_order_acquire)))
+      return false;
+  }
+  for (uint64_t p = first; p < first + count; ++p) {
+    PageFrame* f = table_[p].frame;
+    ++counters_.lookups;
+    ++counters_.hits;
+    if (stats) {
+      ++stats->pages_touched;
+      ++stats->cache_hits;
+    }
+    if (f->pins++ == 0) {
+      ++pinned_;
+      table_[p].unpinned_at = 0;
+    }
+    out->push_back(PageHandle(this, f));
+  }
+  return true;
+}
+
+size_t PageCache::PinCachedPages(std::span<const uint64_t> pages, bool verified, bool attached,
+                                 QueryStats* stats, std::vector<PageHandle>* out) {
+  std::lock_guard<std::mutex> lock(mu_);
+  // The frames, then what the caller reads next (their attachments), are loaded side by side rather than
+  // one miss after another.
+  for (uint64_t p : pages)
+    if (p < table_.size() && table_[p].frame != nullptr) __builtin_prefetch(table_[p].frame);
+  for (uint64_t p : pages)
+    if (p < table_.size() && table_[p].frame != nullptr)
+      __builtin_prefetch(table_[p].frame->attachment.load(std::memory_order_relaxed));
+  size_t n = 0;
+  for (uint64_t p : pages) {
+    PageFrame* f = p < table_.size() ? table_[p].frame : nullptr;
+    if (f == nullptr || f->loading || (verified && !f->verified.load(std::memory_order_acquire)) ||
+        (attached && f->attachment.load(std::memory_order_acquire) == nullptr))
+      break;
+    ++counters_.lookups;
+    ++counters_.hits;
+    if (stats) {
+      ++stats->pages_touched;
+      ++stats->cache_hits;
+    }
+    if (f->pins++ == 0) {
+      ++pinned_;
+      table_[p].unpinned_at = 0;
+    }
+    out->push_back(PageHandle(this, f));
+    ++n;
+  }
+  return n;
+}
+
+void PageCache::Release(std::span<PageHandle> handles) {
+  if (handles.empty()) return;
+  std::lock_guard<std::mutex> lock(mu_);
+  for (PageHandle& h : handles) {
+    if (h.frame_ == nullptr) continue;
+    UnpinLocked(h.frame_);
+    h.frame_ = nullptr;
+    h.cache_ = nullptr;
+    // Evicting after each unpin keeps the victims those of unpinning one handle at a time.
+    EvictLocked();
   }
 }
 
 void PageCache::Clear() {
   std::lock_guard<std::mutex> lock(mu_);
-  while (lru_head_ != nullptr) {
-    PageFrame* f = lru_head_;
-    LruUnlinkLocked(f);
-    table_[f->page] = nullptr;
+  for (const LruEntry& e : lru_) {
+    PageFrame* f = LruFrameLocked(e);
+    if (f == nullptr) continue;
+    table_[f->page] = {};
     --resident_;
     FreeFrameLocked(f);
   }
+  lru_.clear();
 }
 
 PageCache::Counters PageCache::counters() const {

@@ -4,7 +4,9 @@
 // - Capacity is in pages. A pinned page (a live PageHandle) is never evicted; while pages are pinned the
 //   cache may hold more than `capacity` pages, and evicts down to capacity as they are unpinned.
 //   Capacity 0: every lookup of an unpinned page is a miss; a page is held only while pinned.
-// - Eviction is deterministic: the least recently unpinned page goes first.
+// - Eviction is deterministic: the least recently unpinned page goes first. The order is a queue of
+//   (page, unpin stamp) entries rather than a linked list of frames, so that a hit touches no other
+//   frame; entries of pages pinned again since go stale and are skipped or dropped.
 // - Counters: lookups == hits + misses always; bytes_read == misses * page_bytes. A lookup that waits for
 //   another thread's in-flight read of the same page counts as a hit (it costs no disk access): concurrent
 //   misses on one page read it once.
@@ -14,16 +16,18 @@
 //   as arrays). It is dropped with the copy (eviction, Clear, a failed load), so it lives exactly as long
 //   as the bytes it was decoded from, and a reload starts without one. Each load has a number (load_id),
 //   unique within the cache, so that a reader decoding several pages can tell that none was reloaded since.
-// - Memory: the cached pages and their attachments, plus 8 bytes per page of the store (the page table: a
-//   lookup is one index).
+// - Memory: the cached pages and their attachments, plus 16 bytes per page of the store (the page table: a
+//   lookup is one index) and at most 32 bytes per cached page for the LRU order.
 // Thread safety: all methods may be called from many threads at once. Store reads run outside the cache's
 // lock, so misses on different pages proceed in parallel (as far as the store allows).
 #pragma once
 
 #include <condition_variable>
 #include <cstdint>
+#include <deque>
 #include <memory>
 #include <mutex>
+#include <span>
 #include <vector>
 
 #include "mktree/query_stats.h"
@@ -89,6 +93,20 @@ class PageCache {
   // Returns the page pinned. On a miss reads it from the store. Adds to *stats (if non-null):
   // pages_touched always; cache_hits on a hit; pages_read and bytes_read on a miss.
   Result<PageHandle> Pin(uint64_t page, QueryStats* stats);
+  // Pins pages [first, first + count) if every one is cached and loaded (and, with `verified`, marked
+  // verified), appending their handles to *out in order and counting each as Pin counts a hit; else pins
+  // and counts nothing and returns false. One lock for the lot: the warm path of a leaf read.
+  bool PinCached(uint64_t first, uint64_t count, bool verified, QueryStats* stats,
+                 std::vector<PageHandle>* out);
+  // Pins pages[0], pages[1], ... in order as long as each is cached and loaded (with `verified`, marked
+  // verified; with `attached`, carrying an attachment), appending their handles to *out and counting each
+  // as Pin counts a hit; returns how many it pinned (the first that fails the test is not counted). One
+  // lock for the lot, the frames prefetched first.
+  size_t PinCachedPages(std::span<const uint64_t> pages, bool verified, bool attached, QueryStats* stats,
+                        std::vector<PageHandle>* out);
+  // Unpins `handles` (this cache's, or empty) in order under one lock, as their Release() one after
+  // another would, leaving them empty.
+  void Release(std::span<PageHandle> handles);
   // Drops every unpinned page (for cold queries). Counters are kept.
   void Clear();
 
@@ -104,10 +122,17 @@ class PageCache {
 
  private:
   friend class PageHandle;
+  struct LruEntry {
+    uint64_t page;
+    uint64_t stamp;
+  };
   void Unpin(PageFrame* f);
+  void UnpinLocked(PageFrame* f);
   PageFrame* NewFrameLocked(uint64_t page);
   void FreeFrameLocked(PageFrame* f);
-  void LruUnlinkLocked(PageFrame* f);
+  // The frame `e` stands for if it is still that page's unpinned copy of that unpin, else null.
+  PageFrame* LruFrameLocked(const LruEntry& e) const;
+  void CompactLruLocked();
   void EvictLocked();
 
   const PageStore* store_;
@@ -116,11 +141,16 @@ class PageCache {
   std::condition_variable loaded_;
   // The page table, indexed by page (the store's page count, grown if the store grows): the resident
   // frames, owned; a frame whose load failed leaves it at once.
-  std::vector<PageFrame*> table_;
+  struct Slot {
+    PageFrame* frame = nullptr;
+    uint64_t unpinned_at = 0;  // the stamp of the frame's last unpin while it is unpinned, else 0
+  };
+  std::vector<Slot> table_;
   size_t resident_ = 0;
-  // Unpinned resident frames, an intrusive list: most recently unpinned at lru_head_, victims at lru_tail_.
-  PageFrame* lru_head_ = nullptr;
-  PageFrame* lru_tail_ = nullptr;
+  // One entry per unpin, oldest first: the victim is the first entry whose page is still resident,
+  // unpinned, and unpinned last at that stamp.
+  std::deque<LruEntry> lru_;
+  uint64_t stamps_ = 0;
   // Frames (with their page buffers) kept from evictions for the next misses: a miss in a full cache
   // then allocates nothing.
   std::vector<PageFrame*> spare_;

@@ -1,7 +1,9 @@
 #include "engine/store/leaf_reader.h"
 
 #include <algorithm>
+#include <cstddef>
 #include <limits>
+#include <new>
 
 #include "engine/store/tree_codec.h"
 #include "storage/page_codec.h"
@@ -59,16 +61,22 @@ Status CheckLeafEntries(const LeafView& view, const std::string& store_name, uin
   return problem.empty() ? Status::Ok() : fail(problem);
 }
 
+void DecodedLeaf::FreeBlock::operator()(void* p) const { ::operator delete (p, std::align_val_t{64}); }
+
 DecodedLeaf::DecodedLeaf(const LeafView& view, uint64_t mesh_budget, std::vector<uint64_t> later_page_loads)
     : later_page_loads_(std::move(later_page_loads)), mesh_budget_(mesh_budget) {
   const size_t n = view.size();
+  size_ = n;
   padded_ = (n + kLanes - 1) / kLanes * kLanes;
-  ids_.resize(n);
-  shape_flags_.resize(n);
-  boxes_.resize(6 * padded_);
+  static_assert(sizeof(float) == sizeof(ObjectId));
+  const size_t bytes = 7 * padded_ * sizeof(float) + n;
+  block_.reset(::operator new (std::max<size_t>(bytes, 1), std::align_val_t{64}));
+  boxes_ = static_cast<float*>(block_.get());
+  ids_ = reinterpret_cast<ObjectId*>(static_cast<std::byte*>(block_.get()) + 6 * padded_ * sizeof(float));
+  shape_flags_ = reinterpret_cast<uint8_t*>(ids_ + padded_);
   const float inf = std::numeric_limits<float>::infinity();
   for (int p = 0; p < 6; ++p) {
-    float* plane = boxes_.data() + static_cast<size_t>(p) * padded_;
+    float* plane = boxes_ + static_cast<size_t>(p) * padded_;
     for (size_t i = 0; i < n; ++i) {
       const Box3f& b = view.entry(i).box;
       plane[i] = p < 3 ? b.min[p] : b.max[p - 3];
@@ -77,15 +85,25 @@ DecodedLeaf::DecodedLeaf(const LeafView& view, uint64_t mesh_budget, std::vector
     std::fill(plane + n, plane + padded_, p < 3 ? inf : -inf);
   }
   for (size_t i = 0; i < n; ++i) {
-    ids_[i] = view.entry(i).id;
-    shape_flags_[i] = view.entry(i).shape_flags;
+    const ObjectEntryView& e = view.entry(i);
+    ids_[i] = e.id;
+    shape_flags_[i] = e.shape_flags;
+    for (int a = 0; a < 3; ++a) boxes_ordered_ = boxes_ordered_ && e.box.min[a] <= e.box.max[a];
   }
+  std::fill(ids_ + n, ids_ + padded_, ObjectId{0});
   meshes_ = std::make_unique<std::atomic<const Mesh*>[]>(n);
   for (size_t i = 0; i < n; ++i) meshes_[i].store(nullptr, std::memory_order_relaxed);
 }
 
 DecodedLeaf::~DecodedLeaf() {
-  for (size_t i = 0; i < ids_.size(); ++i) delete meshes_[i].load(std::memory_order_relaxed);
+  for (size_t i = 0; i < size_; ++i) delete meshes_[i].load(std::memory_order_relaxed);
+}
+
+void DecodedLeaf::Prefetch(bool boxes) const {
+  const char* from = reinterpret_cast<const char*>(boxes ? static_cast<const void*>(boxes_)
+                                                         : static_cast<const void*>(ids_));
+  const char* to = reinterpret_cast<const char*>(ids_ + size_);
+  for (const char* p = from; p < to; p += 64) __builtin_prefetch(p);
 }
 
 namespace {
@@ -111,9 +129,9 @@ const Mesh* DecodedLeaf::CacheMesh(size_t i, Mesh&& mesh) const {
 }
 
 uint64_t DecodedLeaf::bytes() const {
-  return sizeof(*this) + ids_.capacity() * sizeof(ObjectId) + shape_flags_.capacity() +
-         boxes_.capacity() * sizeof(float) + later_page_loads_.capacity() * sizeof(uint64_t) +
-         ids_.size() * sizeof(std::atomic<const Mesh*>) + mesh_bytes_.load(std::memory_order_relaxed);
+  return sizeof(*this) + 7 * padded_ * sizeof(float) + size_ +
+         later_page_loads_.capacity() * sizeof(uint64_t) + size_ * sizeof(std::atomic<const Mesh*>) +
+         mesh_bytes_.load(std::memory_order_relaxed);
 }
 
 Status ParsePinned(const std::string& store_name, uint64_t mem_page, PinnedLeaf* out) {
@@ -121,29 +139,21 @@ Status ParsePinned(const std::string& store_name, uint64_t mem_page, PinnedLeaf*
   return LeafView::Parse(store_name, out->leaf, out->first_page, out->page_data, mem_page, false, &out->view);
 }
 
-Status ReadLeaf(PageCache& cache, const std::string& store_name, uint32_t leaf, const LeafInfo& info,
-                const ObjectTable& objects, uint64_t mem_page, bool verify_checksums, QueryStats* stats,
-                PinnedLeaf* out, bool decode) {
-  out->Release();
+namespace {
+
+// ReadLeaf after its pages are pinned in out->pages: checksums, then the cached DecodedLeaf or a parse,
+// check and decode. On an error the pages stay pinned.
+Status FinishPinned(const std::string& store_name, uint32_t leaf, const LeafInfo& info,
+                    const ObjectTable& objects, uint64_t mem_page, bool verify_checksums, PinnedLeaf* out,
+                    bool decode) {
   out->page_data.clear();
-  out->leaf = leaf;
-  out->first_page = info.first_page;
-  for (uint64_t p = info.first_page; p < info.first_page + info.page_count; ++p) {
-    auto h = cache.Pin(p, stats);
-    if (!h.ok()) {
-      out->Release();
-      return h.status();
+  for (size_t k = 0; k < out->pages.size(); ++k) {
+    PageHandle& h = out->pages[k];
+    if (verify_checksums && !h.verified()) {
+      MKTREE_RETURN_IF_ERROR(CheckPage(h.data(), mem_page, true, store_name, info.first_page + k).status());
+      h.MarkVerified();
     }
-    if (verify_checksums && !h->verified()) {
-      auto checked = CheckPage(h->data(), mem_page, true, store_name, p);
-      if (!checked.ok()) {
-        out->Release();
-        return checked.status();
-      }
-      h->MarkVerified();
-    }
-    out->page_data.push_back(h->data());
-    out->pages.push_back(std::move(*h));
+    out->page_data.push_back(h.data());
   }
   if (decode && !out->pages.empty()) {
     // Cached with the first page, and built from these very copies of the others: the entries were parsed
@@ -162,7 +172,7 @@ Status ReadLeaf(PageCache& cache, const std::string& store_name, uint32_t leaf, 
   Status st = LeafView::Parse(store_name, leaf, info.first_page, out->page_data, mem_page, false, &out->view);
   if (st.ok()) st = CheckLeafEntries(out->view, store_name, leaf, info, objects, &out->seen);
   if (!st.ok()) {
-    out->Release();
+    out->view.Clear();
     return st;
   }
   if (decode && out->pages.empty()) {  // a leaf of no pages (an empty tree's): nothing to cache
@@ -195,6 +205,50 @@ Status ReadLeaf(PageCache& cache, const std::string& store_name, uint32_t leaf, 
     }
   }
   return Status::Ok();
+}
+
+}  // namespace
+
+Status ReadLeaf(PageCache& cache, const std::string& store_name, uint32_t leaf, const LeafInfo& info,
+                const ObjectTable& objects, uint64_t mem_page, bool verify_checksums, QueryStats* stats,
+                PinnedLeaf* out, bool decode) {
+  out->Release();
+  out->cache = &cache;
+  out->leaf = leaf;
+  out->first_page = info.first_page;
+  // Each page pinned and checked before the next is pinned, so that an error leaves the later pages
+  // unread.
+  for (uint64_t p = info.first_page; p < info.first_page + info.page_count; ++p) {
+    auto h = cache.Pin(p, stats);
+    if (!h.ok()) {
+      out->Release();
+      return h.status();
+    }
+    if (verify_checksums && !h->verified()) {
+      auto checked = CheckPage(h->data(), mem_page, true, store_name, p);
+      if (!checked.ok()) {
+        out->Release();
+        return checked.status();
+      }
+      h->MarkVerified();
+    }
+    out->pages.push_back(std::move(*h));
+  }
+  Status st = FinishPinned(store_name, leaf, info, objects, mem_page, false, out, decode);
+  if (!st.ok()) out->Release();
+  return st;
+}
+
+Result<bool> ReadCachedLeaf(PageCache& cache, const std::string& store_name, uint32_t leaf,
+                            const LeafInfo& info, const ObjectTable& objects, uint64_t mem_page,
+                            bool verify_checksums, QueryStats* stats, PinnedLeaf* out, bool decode) {
+  out->Release();
+  out->cache = &cache;
+  out->leaf = leaf;
+  out->first_page = info.first_page;
+  if (!cache.PinCached(info.first_page, info.page_count, verify_checksums, stats, &out->pages)) return false;
+  MKTREE_RETURN_IF_ERROR(FinishPinned(store_name, leaf, info, objects, mem_page, false, out, decode));
+  return true;
 }
 
 Result<PinnedLeaf> ReadLeaf(PageCache& cache, const std::string& store_name, uint32_t leaf,

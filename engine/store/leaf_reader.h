@@ -19,7 +19,8 @@ namespace mktree {
 // A leaf's entries decoded for scanning, kept in the page cache with its first page (PageAttachment) and
 // built only from pages that passed every check ReadLeaf makes: ids, shape flags and float32 boxes as
 // arrays (struct of arrays, each box plane padded to a multiple of kLanes with boxes that meet nothing),
-// and, for exact mode, the meshes decoded so far, up to as many bytes as the leaf's pages hold.
+// and, for exact mode, the meshes decoded so far, up to as many bytes as the leaf's pages hold. The planes
+// and ids are one block of memory, so that a scan reads it as one stream (and Prefetch can start it).
 // Thread safety: immutable once built, but for the mesh slots, which any number of threads may fill.
 class DecodedLeaf final : public PageAttachment {
  public:
@@ -27,12 +28,17 @@ class DecodedLeaf final : public PageAttachment {
   DecodedLeaf(const LeafView& view, uint64_t mesh_budget, std::vector<uint64_t> later_page_loads);
   ~DecodedLeaf() override;
 
-  size_t size() const { return ids_.size(); }
-  const ObjectId* ids() const { return ids_.data(); }
+  size_t size() const { return size_; }
+  const ObjectId* ids() const { return ids_; }
   uint8_t shape_flags(size_t i) const { return shape_flags_[i]; }
   // Plane p: 0-2 min x/y/z, 3-5 max x/y/z; padded_size() floats each.
-  const float* plane(int p) const { return boxes_.data() + static_cast<size_t>(p) * padded_; }
+  const float* plane(int p) const { return boxes_ + static_cast<size_t>(p) * padded_; }
   size_t padded_size() const { return padded_; }
+  // Whether every box has min <= max on each axis (none empty, no NaN). Then, as CheckLeafEntries found
+  // each box within the leaf's box, a query box containing the leaf's box meets every one of them.
+  bool boxes_ordered() const { return boxes_ordered_; }
+  // Starts loading the ids (and with `boxes`, the planes) into the CPU caches.
+  void Prefetch(bool boxes) const;
   // Load ids (PageHandle::load_id) of the leaf's pages after the first, as they were when it was built.
   const std::vector<uint64_t>& later_page_loads() const { return later_page_loads_; }
   // Object i's mesh if cached, else null.
@@ -42,10 +48,16 @@ class DecodedLeaf final : public PageAttachment {
   uint64_t bytes() const;  // memory held, meshes included
 
  private:
-  std::vector<ObjectId> ids_;
-  std::vector<uint8_t> shape_flags_;
+  struct FreeBlock {
+    void operator()(void* p) const;
+  };
+  size_t size_ = 0;
   size_t padded_ = 0;
-  std::vector<float> boxes_;
+  std::unique_ptr<void, FreeBlock> block_;  // the planes, then the ids, then the shape flags
+  float* boxes_ = nullptr;
+  ObjectId* ids_ = nullptr;
+  uint8_t* shape_flags_ = nullptr;
+  bool boxes_ordered_ = true;
   std::vector<uint64_t> later_page_loads_;
   std::unique_ptr<std::atomic<const Mesh*>[]> meshes_;
   const uint64_t mesh_budget_;
@@ -60,11 +72,13 @@ struct PinnedLeaf {
   std::vector<uint64_t> seen;             // CheckLeafEntries' bit per object id, all zero between reads
   uint32_t leaf = 0;
   uint64_t first_page = 0;
+  PageCache* cache = nullptr;  // the pages' cache
 
-  // Unpins the pages and empties the view, keeping the buffers for the next ReadLeaf.
+  // Unpins the pages (under one lock) and empties the view, keeping the buffers for the next ReadLeaf.
   void Release() {
     view.Clear();
     decoded = nullptr;
+    if (cache != nullptr && !pages.empty()) cache->Release(pages);
     pages.clear();
   }
 };
@@ -98,6 +112,14 @@ Status ReadLeaf(PageCache& cache, const std::string& store_name, uint32_t leaf, 
 // Parses out->view from the pinned pages if it is empty (after a ReadLeaf that took a cached DecodedLeaf):
 // the same bytes that were checked when the DecodedLeaf was built, so the same entries in the same order.
 Status ParsePinned(const std::string& store_name, uint64_t mem_page, PinnedLeaf* out);
+// ReadLeaf's warm path: if every page of the leaf is in the cache (PageCache::PinCached) and, with
+// `verify_checksums`, verified already, pins them and does what ReadLeaf does after pinning, returning
+// true; else returns false having pinned and counted nothing (ReadLeaf then reads it as always). Unlike
+// ReadLeaf, on an error out->pages stay pinned for the caller to release (in the order it pinned them), and
+// out->view and out->decoded are empty.
+Result<bool> ReadCachedLeaf(PageCache& cache, const std::string& store_name, uint32_t leaf,
+                            const LeafInfo& info, const ObjectTable& objects, uint64_t mem_page,
+                            bool verify_checksums, QueryStats* stats, PinnedLeaf* out, bool decode);
 // The same, into a new PinnedLeaf.
 Result<PinnedLeaf> ReadLeaf(PageCache& cache, const std::string& store_name, uint32_t leaf,
                             const LeafInfo& info, const ObjectTable& objects, uint64_t mem_page,

@@ -6,6 +6,8 @@
 //                                         leaf's ids at a time however large the answer; `visit` returns
 //                                         false to stop (no further page is read)
 //   Visit(query, visit, &stats)           the same with a visitor that never stops
+//   VisitSpans(query, visit, &stats)      the same, the ids handed over a span at a time (one or more
+//                                         leaves' ids per call, no call per id); no limit: a whole answer
 //   Any(query, &stats)                    whether anything answers; reads pages up to the first hit only
 //   Run(query, &result)                   the answer sorted, with its statistics
 //   RunBatchStreamed(source, options, deliver)
@@ -41,6 +43,7 @@
 #include <functional>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -111,6 +114,9 @@ struct ObjectRecord {
 using ObjectVisitor = std::function<void(ObjectId)>;
 // The same, for VisitUntil: returns false to stop the query.
 using StoppableVisitor = std::function<bool(ObjectId)>;
+// Receives a streamed answer a span of ids at a time (Database::VisitSpans); the span is valid only
+// during the call.
+using SpanVisitor = std::function<void(std::span<const ObjectId> ids)>;
 
 // The queries of a streamed batch, one a call: fills `*next` and returns true, or returns false at the
 // end. An error stops the batch and is returned as it is (name the file and line in it).
@@ -154,6 +160,11 @@ class Database {
                                   QueryStats* stats) const = 0;
   // VisitUntil with a visitor that never stops.
   Status Visit(const Query& query, const ObjectVisitor& visit, QueryStats* stats) const;
+  // Visit, the ids handed to `visit` a span at a time: the same ids in the same order and the same
+  // statistics, one call per leaf or per several leaves (warm AABB queries without a limit read the
+  // cached leaves a few at a time, all released before their ids are visited, so `visit` may query this
+  // Database too). The fast way to collect a large answer.
+  virtual Status VisitSpans(const Query& query, const SpanVisitor& visit, QueryStats* stats) const;
   // Whether any object answers `query` (its limit is ignored): the query with limit 0, which reads the
   // leaves up to the first one holding an answer and tests its objects up to that answer. No id is
   // visited, so stats->hits is 0.

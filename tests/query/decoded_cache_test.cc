@@ -1,11 +1,14 @@
 // The decoded-leaf cache (engine/store/leaf_reader.h DecodedLeaf, attached to cached pages): warm answers
 // against brute force at cache sizes 0, one leaf, small and the whole store, in AABB and exact mode; page
 // counts as without it; attachments dropped with their pages; corruption refused on every read, never
-// cached; and many threads sharing one Database (DecodedCache.Concurrent*, label concurrency).
+// cached; many threads sharing one Database (DecodedCache.Concurrent*, label concurrency); the warm
+// window of leaves (Run) against one leaf at a time (VisitUntil): same answers and same counts.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <random>
+#include <span>
 #include <thread>
 
 #include "engine/geometry/exact_geometry.h"
@@ -278,6 +281,193 @@ TEST_F(DecodedCacheTest, ConcurrentQueriesShareDecodedLeaves) {
     // And the batch path, which shares the cache the same way.
     std::vector<QueryResult> results;
     ASSERT_TRUE((*db)->RunBatch(qs, 4, &results).ok());
+    for (size_t i = 0; i < qs.size(); ++i) EXPECT_EQ(results[i].hits, expected[i]) << i;
+  }
+}
+
+// Boxes from unions of nearby objects' boxes (so that some equal a leaf's box, whose objects then answer
+// untested), the same boxes shrunk by one double step or grown, and scene-sized boxes; points too.
+std::vector<Query> LargeQueries(const std::vector<SceneObject>& objs, size_t n, uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::vector<Query> qs;
+  Box3f scene;
+  for (const SceneObject& o : objs) scene.Extend(o.Aabb());
+  for (size_t i = 0; i < n; ++i) {
+    Box3d box;
+    const size_t first = rng() % objs.size(), count = 1 + rng() % 60;
+    for (int a = 0; a < 3; ++a) {
+      box.min[a] = objs[first].Aabb().min[a];
+      box.max[a] = objs[first].Aabb().max[a];
+    }
+    for (size_t k = 1; k < count && first + k < objs.size(); ++k)
+      for (int a = 0; a < 3; ++a) {
+        box.min[a] = std::min<double>(box.min[a], objs[first + k].Aabb().min[a]);
+        box.max[a] = std::max<double>(box.max[a], objs[first + k].Aabb().max[a]);
+      }
+    if (i % 4 == 1)
+      for (int a = 0; a < 3; ++a) {
+        box.min[a] = std::nextafter(box.min[a], 1e300);
+        box.max[a] = std::nextafter(box.max[a], -1e300);
+      }
+    if (i % 4 == 2)
+      for (int a = 0; a < 3; ++a) {
+        const double grow = (scene.max[a] - scene.min[a]) * 0.1 * static_cast<double>(rng() % 4);
+        box.min[a] -= grow;
+        box.max[a] += grow;
+      }
+    if (i % 9 == 0)
+      for (int a = 0; a < 3; ++a) {
+        box.min[a] = scene.min[a];
+        box.max[a] = scene.max[a];
+      }
+    qs.push_back(i % 11 == 5 ? Query::Point(Vec3d{box.min[0], box.min[1], box.min[2]}) : Query::Box(box));
+  }
+  return qs;
+}
+
+// The windowed warm path (Run: no limit, no stop) gives brute force's answers and, query after query,
+// the very statistics of reading one leaf at a time (VisitUntil), page counts and cache hits included, at
+// cache sizes 0, one page, small and the whole store: the same pages read, hit and evicted in the same
+// order. VisitSpans hands over Visit's ids in Visit's order.
+TEST_F(DecodedCacheTest, WindowedLeavesKeepAnswersAndCountsOfOneLeafAtATime) {
+  std::vector<Query> qs = LargeQueries(*objs_, 300, 41);
+  for (const Query& q : Queries(*objs_, 200, 43, QueryMode::kAabb)) qs.push_back(q);
+  std::vector<std::vector<ObjectId>> expected;
+  size_t big = 0;
+  for (const Query& q : qs) {
+    expected.push_back(brute_->Answer(q));
+    big += expected.back().size() > 100;
+  }
+  ASSERT_GT(big, 30u);  // answers spanning many leaves
+  for (uint64_t cache : {0u, 1u, 12u, 60u, 1000000u}) {
+    SCOPED_TRACE("cache " + std::to_string(cache));
+    auto windowed = Database::Open(TempPath("scene.mkt"), {.cache_pages = cache});
+    auto single = Database::Open(TempPath("scene.mkt"), {.cache_pages = cache});
+    ASSERT_TRUE(windowed.ok() && single.ok());
+    for (int pass = 0; pass < 2; ++pass) {
+      for (size_t i = 0; i < qs.size(); ++i) {
+        QueryResult r;
+        ASSERT_TRUE((*windowed)->Run(qs[i], &r).ok());
+        ASSERT_EQ(r.hits, expected[i]) << "pass " << pass << " query " << i;
+        std::vector<ObjectId> one;
+        QueryStats s;
+        auto complete = (*single)->VisitUntil(
+            qs[i],
+            [&](ObjectId id) {
+              one.push_back(id);
+              return true;
+            },
+            &s);
+        ASSERT_TRUE(complete.ok() && *complete);
+        std::sort(one.begin(), one.end());
+        ASSERT_EQ(one, expected[i]);
+        const QueryStats& w = r.stats;
+        EXPECT_EQ(w.pages_read, s.pages_read) << "pass " << pass << " query " << i;
+        EXPECT_EQ(w.pages_touched, s.pages_touched) << i;
+        EXPECT_EQ(w.cache_hits, s.cache_hits) << i;
+        EXPECT_EQ(w.bytes_read, s.bytes_read) << i;
+        EXPECT_EQ(w.leaves_visited, s.leaves_visited) << i;
+        EXPECT_EQ(w.leaves_filtered, s.leaves_filtered) << i;
+        EXPECT_EQ(w.leaves_with_hits, s.leaves_with_hits) << i;
+        EXPECT_EQ(w.candidates_tested, s.candidates_tested) << i;
+        EXPECT_EQ(w.internal_nodes_visited, s.internal_nodes_visited) << i;
+        EXPECT_EQ(w.split_nodes_visited, s.split_nodes_visited) << i;
+        EXPECT_EQ(w.hits, s.hits) << i;
+      }
+    }
+    for (size_t i = 0; i < qs.size(); i += 7) {
+      std::vector<ObjectId> by_id, by_span;
+      QueryStats a, b;
+      ASSERT_TRUE((*single)
+                      ->Visit(
+                          qs[i], [&](ObjectId id) { by_id.push_back(id); }, &a)
+                      .ok());
+      size_t calls = 0;
+      ASSERT_TRUE((*single)
+                      ->VisitSpans(
+                          qs[i],
+                          [&](std::span<const ObjectId> ids) {
+                            ++calls;
+                            EXPECT_FALSE(ids.empty());
+                            by_span.insert(by_span.end(), ids.begin(), ids.end());
+                          },
+                          &b)
+                      .ok());
+      EXPECT_EQ(by_span, by_id) << i;
+      EXPECT_EQ(b.hits, a.hits) << i;
+      EXPECT_LE(calls, b.leaves_with_hits) << i;  // one call per leaf or fewer
+    }
+  }
+}
+
+// A visitor may query the Database from inside a span: the window's pages are released by then.
+TEST_F(DecodedCacheTest, SpanVisitorMayQueryTheDatabase) {
+  auto db = Database::Open(TempPath("scene.mkt"), {.cache_pages = 1000000});
+  ASSERT_TRUE(db.ok());
+  const std::vector<Query> qs = LargeQueries(*objs_, 20, 47);
+  for (int pass = 0; pass < 2; ++pass) {
+    for (size_t i = 0; i < qs.size(); ++i) {
+      std::vector<ObjectId> got;
+      ASSERT_TRUE((*db)
+                      ->VisitSpans(
+                          qs[i],
+                          [&](std::span<const ObjectId> ids) {
+                            got.insert(got.end(), ids.begin(), ids.end());
+                            QueryResult inner;
+                            EXPECT_TRUE((*db)->Run(qs[(i + 1) % qs.size()], &inner).ok());
+                            EXPECT_EQ(inner.hits, brute_->Answer(qs[(i + 1) % qs.size()]));
+                          },
+                          nullptr)
+                      .ok());
+      std::sort(got.begin(), got.end());
+      EXPECT_EQ(got, brute_->Answer(qs[i])) << i;
+    }
+  }
+}
+
+// Threads run large boxes through the windowed path (Run, RunBatch) and the one-leaf path (VisitUntil)
+// on one Database, small caches churning: answers always brute force's.
+TEST_F(DecodedCacheTest, ConcurrentWindowedLargeBoxes) {
+  const std::vector<Query> qs = LargeQueries(*objs_, 80, 53);
+  std::vector<std::vector<ObjectId>> expected;
+  for (const Query& q : qs) expected.push_back(brute_->Answer(q));
+  for (uint64_t cache : {1u, 6u, 1000000u}) {
+    SCOPED_TRACE("cache " + std::to_string(cache));
+    auto db = Database::Open(TempPath("scene.mkt"), {.cache_pages = cache});
+    ASSERT_TRUE(db.ok());
+    std::atomic<int> wrong{0}, failed{0};
+    std::vector<std::thread> threads;
+    for (int t = 0; t < 4; ++t) {
+      threads.emplace_back([&, t] {
+        for (int round = 0; round < 2; ++round) {
+          for (size_t k = 0; k < qs.size(); ++k) {
+            const size_t i = (k * 5 + static_cast<size_t>(t) * 11 + static_cast<size_t>(round)) % qs.size();
+            std::vector<ObjectId> got;
+            if (t == 3) {
+              auto st = (*db)->VisitUntil(
+                  qs[i],
+                  [&](ObjectId id) {
+                    got.push_back(id);
+                    return true;
+                  },
+                  nullptr);
+              if (!st.ok()) ++failed;
+              std::sort(got.begin(), got.end());
+            } else {
+              QueryResult r;
+              if (!(*db)->Run(qs[i], &r).ok()) ++failed;
+              got = std::move(r.hits);
+            }
+            if (got != expected[i]) ++wrong;
+          }
+        }
+      });
+    }
+    for (auto& th : threads) th.join();
+    EXPECT_EQ(failed.load(), 0);
+    EXPECT_EQ(wrong.load(), 0);
+    std::vector<QueryResult> results;
+    ASSERT_TRUE((*db)->RunBatch(qs, 3, &results).ok());
     for (size_t i = 0; i < qs.size(); ++i) EXPECT_EQ(results[i].hits, expected[i]) << i;
   }
 }

@@ -4,7 +4,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
+#include <random>
 #include <thread>
 
 #include "engine/store/leaf_reader.h"
@@ -357,6 +359,200 @@ TEST(PageCacheTest, ConcurrentPinsUnderEvictionPressure) {
   EXPECT_EQ(wrong.load(), 0);
   EXPECT_EQ(cache.pinned_pages(), 0u);
   EXPECT_LE(cache.resident_pages(), 5u);
+  ExpectInvariants(cache);
+  EXPECT_EQ(store.reads.load(), cache.counters().misses);
+}
+
+// The LRU order against a model (a list of unpinned pages, most recent first, and pin counts): random
+// pins, releases one at a time or in batches, PinCached and Clear at capacities 0 to 9, with the LRU
+// queue's stale entries compacted along the way. After each step the resident pages are the model's.
+TEST(PageCacheTest, LruOrderMatchesAModelUnderPinCachedAndBatchReleases) {
+  for (size_t capacity : {0u, 1u, 2u, 5u, 9u}) {
+    SCOPED_TRACE("capacity " + std::to_string(capacity));
+    constexpr uint64_t kPages = 16;
+    CountingStore store(kPages);
+    PageCache cache(&store, capacity);
+    std::vector<uint64_t> lru;         // model: unpinned resident pages, most recently unpinned first
+    std::vector<int> pins(kPages, 0);  // model: pins per page
+    std::vector<bool> resident(kPages, false);
+    std::vector<std::pair<uint64_t, PageHandle>> held;
+    std::mt19937 g(static_cast<unsigned>(capacity) + 1);
+    auto evict = [&] {
+      size_t n = 0;
+      for (bool r : resident) n += r;
+      while (n > capacity && !lru.empty()) {
+        resident[lru.back()] = false;
+        lru.pop_back();
+        --n;
+      }
+    };
+    auto pinned_model = [&](uint64_t p) {
+      if (pins[p]++ == 0) lru.erase(std::remove(lru.begin(), lru.end(), p), lru.end());
+    };
+    auto unpinned_model = [&](uint64_t p) {
+      if (--pins[p] == 0) lru.insert(lru.begin(), p);
+      evict();
+    };
+    for (int step = 0; step < 4000; ++step) {
+      const unsigned op = g() % 10;
+      if (op < 4 && held.size() < 6) {  // Pin
+        const uint64_t p = g() % kPages;
+        QueryStats s;
+        auto h = cache.Pin(p, &s);
+        ASSERT_TRUE(h.ok());
+        EXPECT_EQ(s.cache_hits == 1, static_cast<bool>(resident[p])) << "step " << step;
+        pinned_model(p);
+        if (!resident[p]) {
+          resident[p] = true;
+          evict();
+        }
+        held.emplace_back(p, std::move(*h));
+      } else if (op < 5 && held.size() < 6) {  // PinCachedPages of 1-3 pages anywhere
+        uint64_t pages[3];
+        const size_t m = 1 + g() % 3;
+        for (size_t k = 0; k < m; ++k) pages[k] = g() % kPages;
+        size_t expect = 0;
+        while (expect < m && resident[pages[expect]]) ++expect;
+        QueryStats s;
+        std::vector<PageHandle> hs;
+        ASSERT_EQ(cache.PinCachedPages(std::span<const uint64_t>(pages, m), false, false, &s, &hs), expect);
+        EXPECT_EQ(s.cache_hits, expect);
+        EXPECT_EQ(s.pages_touched, expect);
+        for (size_t k = 0; k < expect; ++k) {
+          pinned_model(pages[k]);
+          held.emplace_back(pages[k], std::move(hs[k]));
+        }
+      } else if (op < 6 && held.size() < 6) {  // PinCached of a run of 1-3 pages
+        const uint64_t first = g() % kPages;
+        const uint64_t count = std::min<uint64_t>(1 + g() % 3, kPages - first);
+        bool all = true;
+        for (uint64_t p = first; p < first + count; ++p) all = all && resident[p];
+        QueryStats s;
+        std::vector<PageHandle> hs;
+        const auto before = cache.counters();
+        ASSERT_EQ(cache.PinCached(first, count, false, &s, &hs), all) << "step " << step;
+        if (!all) {
+          EXPECT_TRUE(hs.empty());
+          EXPECT_EQ(s.pages_touched, 0u);
+          EXPECT_EQ(cache.counters().lookups, before.lookups);
+          continue;
+        }
+        EXPECT_EQ(s.cache_hits, count);
+        EXPECT_EQ(s.pages_touched, count);
+        for (uint64_t p = first; p < first + count; ++p) {
+          pinned_model(p);
+          EXPECT_EQ(hs[p - first].page(), p);
+          held.emplace_back(p, std::move(hs[p - first]));
+        }
+      } else if (op < 8 && !held.empty()) {  // release one
+        const size_t i = g() % held.size();
+        unpinned_model(held[i].first);
+        held[i].second.Release();
+        held.erase(held.begin() + static_cast<std::ptrdiff_t>(i));
+      } else if (op < 9 && !held.empty()) {  // release the last few at once, in order
+        const size_t k = 1 + g() % held.size();
+        std::vector<PageHandle> batch;
+        for (size_t i = held.size() - k; i < held.size(); ++i) {
+          unpinned_model(held[i].first);
+          batch.push_back(std::move(held[i].second));
+        }
+        held.resize(held.size() - k);
+        cache.Release(batch);
+        for (const PageHandle& h : batch) EXPECT_FALSE(h);
+      } else if (g() % 8 == 0) {
+        cache.Clear();
+        for (uint64_t p : lru) resident[p] = false;
+        lru.clear();
+      }
+      size_t n = 0, pinned = 0;
+      for (uint64_t p = 0; p < kPages; ++p) {
+        n += resident[p];
+        pinned += pins[p] > 0;
+      }
+      ASSERT_EQ(cache.resident_pages(), n) << "step " << step;
+      ASSERT_EQ(cache.pinned_pages(), pinned) << "step " << step;
+    }
+    for (auto& [p, h] : held) {
+      unpinned_model(p);
+      h.Release();
+    }
+    held.clear();
+    for (uint64_t p = 0; p < kPages; ++p) {
+      if (!resident[p]) continue;
+      std::vector<PageHandle> hs;
+      EXPECT_TRUE(cache.PinCached(p, 1, false, nullptr, &hs)) << p;
+    }
+    ExpectInvariants(cache);
+  }
+}
+
+// PinCached refuses a run with a page not yet verified when asked to (the caller then verifies it);
+// PinCachedPages pins up to the first page not cached, verified or attached as asked.
+TEST(PageCacheTest, PinCachedCanRequireVerifiedPages) {
+  CountingStore store(4);
+  PageCache cache(&store, 4);
+  for (uint64_t p = 0; p < 3; ++p) {
+    auto h = cache.Pin(p, nullptr);
+    ASSERT_TRUE(h.ok());
+    if (p != 1) h->MarkVerified();
+  }
+  std::vector<PageHandle> hs;
+  EXPECT_FALSE(cache.PinCached(0, 3, true, nullptr, &hs));
+  EXPECT_TRUE(cache.PinCached(0, 3, false, nullptr, &hs));
+  EXPECT_EQ(hs.size(), 3u);
+  EXPECT_FALSE(cache.PinCached(2, 2, false, nullptr, &hs));  // page 3 is not cached
+  EXPECT_FALSE(cache.PinCached(3, 5, false, nullptr, &hs));  // past the store's end
+  EXPECT_EQ(hs.size(), 3u);
+  // PinCachedPages stops at the first page that fails: unverified (1), not attached (2), not cached (3).
+  const uint64_t order[] = {0, 2, 1, 3};
+  EXPECT_EQ(cache.PinCachedPages(order, true, false, nullptr, &hs), 2u);
+  EXPECT_EQ(cache.PinCachedPages(order, false, false, nullptr, &hs), 3u);
+  EXPECT_EQ(cache.PinCachedPages(order, false, true, nullptr, &hs), 0u);
+  hs[0].Attach(std::make_unique<PageAttachment>());
+  EXPECT_EQ(cache.PinCachedPages(order, false, true, nullptr, &hs), 1u);
+  EXPECT_EQ(hs.size(), 9u);
+  cache.Release(hs);
+  EXPECT_EQ(cache.pinned_pages(), 0u);
+}
+
+// Threads pin runs with PinCached and PinCachedPages and release in batches while others miss and evict.
+TEST(PageCacheTest, ConcurrentPinCachedAndBatchReleases) {
+  CountingStore store(40);
+  PageCache cache(&store, 8);
+  std::vector<std::thread> threads;
+  std::atomic<int> wrong{0};
+  for (int t = 0; t < 6; ++t)
+    threads.emplace_back([&, t] {
+      std::mt19937 g(t + 100);
+      std::vector<PageHandle> hs;
+      for (int i = 0; i < 3000; ++i) {
+        const uint64_t first = g() % 39, count = 1 + g() % 2;
+        if (t % 3 == 0) {
+          auto h = cache.Pin(first, nullptr);
+          if (!h.ok() || h->data()[9] != first % 251) ++wrong;
+          continue;
+        }
+        if (t % 3 == 1) {
+          if (cache.PinCached(first, count, false, nullptr, &hs))
+            for (uint64_t k = 0; k < count; ++k)
+              if (hs[hs.size() - count + k].data()[100] != (first + k) % 251) ++wrong;
+        } else {
+          const uint64_t pages[3] = {first, (first + 7) % 40, (first + 3) % 40};
+          const size_t n = cache.PinCachedPages(pages, false, false, nullptr, &hs);
+          for (size_t k = 0; k < n; ++k)
+            if (hs[hs.size() - n + k].data()[100] != pages[k] % 251) ++wrong;
+        }
+        if (hs.size() > 4) {
+          cache.Release(hs);
+          hs.clear();
+        }
+      }
+      cache.Release(hs);
+    });
+  for (auto& th : threads) th.join();
+  EXPECT_EQ(wrong.load(), 0);
+  EXPECT_EQ(cache.pinned_pages(), 0u);
+  EXPECT_LE(cache.resident_pages(), 8u);
   ExpectInvariants(cache);
   EXPECT_EQ(store.reads.load(), cache.counters().misses);
 }
