@@ -381,10 +381,12 @@ void Run(const Workload& w) {
     const BuildTimings& tm = built->timings;
     std::printf(
         "%-14s %6.2f s  %6.2f Mobj/s  peak %6.1f B/obj  tree hash %016llx  nodes %zu  split nodes %zu"
-        "  leaves %zu  (layout %.3f sorts %.3f nodes %.3f finish %.3f s; stitch %.3f of nodes)\n",
+        "  leaves %zu  (layout %.3f sorts %.3f nodes %.3f finish %.3f s; stitch %.3f of nodes;"
+        " peak B/obj at the end of layout %.1f sorts %.1f nodes %.1f finish %.1f)\n",
         w.name, secs, n / secs / 1e6, peak / n, (unsigned long long)TreeHash(*built),
         built->tree.nodes.size(), built->tree.split_nodes.size(), built->tree.leaves.size(), tm.layout,
-        tm.sorts, tm.nodes, tm.finish, tm.stitch);
+        tm.sorts, tm.nodes, tm.finish, tm.stitch, tm.peak_layout / n, tm.peak_sorts / n, tm.peak_nodes / n,
+        tm.peak_finish / n);
     std::fflush(stdout);
     if (std::getenv("TREE_BENCH_HASH_ONLY")) return;
   }
@@ -397,9 +399,11 @@ void Run(const Workload& w) {
       w.name, (unsigned long long)w.objects, secs, n / secs / 1e6, peak / n, rss_records / n,
       s.index_bytes_per_object, s.tree_bytes_per_object);
   std::printf(
-      "%-14s phases: layout %.3f s  sorts %.3f s  nodes %.3f s (of which stitch %.3f s)  finish %.3f s\n", "",
-      built->timings.layout, built->timings.sorts, built->timings.nodes, built->timings.stitch,
-      built->timings.finish);
+      "%-14s phases: layout %.3f s  sorts %.3f s  nodes %.3f s (of which stitch %.3f s)  finish %.3f s"
+      "  (peak B/obj at their ends %.1f %.1f %.1f %.1f)\n",
+      "", built->timings.layout, built->timings.sorts, built->timings.nodes, built->timings.stitch,
+      built->timings.finish, built->timings.peak_layout / n, built->timings.peak_sorts / n,
+      built->timings.peak_nodes / n, built->timings.peak_finish / n);
   std::printf(
       "%-14s height %u  leaves %llu  obj/leaf %.2f  fill mean %.1f%% min %.1f%%  multi-page %llu"
       "  |Sm| %llu  SplitTree nodes %llu (max %u)  BOTH cells %llu/%llu\n",

@@ -1,5 +1,7 @@
 #include "engine/tree/mktree_builder.h"
 
+#include <sys/resource.h>
+
 #include <algorithm>
 #include <chrono>
 #include <thread>
@@ -16,6 +18,12 @@
 
 namespace mktree {
 namespace {
+
+uint64_t PeakRss() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return static_cast<uint64_t>(u.ru_maxrss) * 1024;  // (KiB on Linux)
+}
 
 using build::BuildRecords;
 using build::BuildState;
@@ -74,10 +82,11 @@ Result<BuildResult> BuildMKTree(std::vector<BuildObject> records, const BuildPar
                                 const BuildTuning& tuning) {
   using Clock = std::chrono::steady_clock;
   Clock::time_point mark = Clock::now();
-  auto lap = [&mark](double* phase) {
+  auto lap = [&mark](double* phase, uint64_t* peak) {
     const Clock::time_point now = Clock::now();
     *phase = std::chrono::duration<double>(now - mark).count();
     mark = now;
+    *peak = PeakRss();
   };
   const int threads = tuning.threads > 0
                           ? tuning.threads
@@ -97,15 +106,12 @@ Result<BuildResult> BuildMKTree(std::vector<BuildObject> records, const BuildPar
   BuildVector<ObjectId> ids;
   BuildRecords rec;
   BuildState state{rec.box, rec.bytes, params, tuning, {}, {}, {}};
-  {
-    BuildVector<uint32_t> input_position;
-    rec = build::SpatialLayout(std::move(records), bounds, &ids, &input_position, threads);
-    MKTREE_RETURN_IF_ERROR(build::CheckUniqueIds(ids, input_position, max_id));
-  }
-  lap(&result.timings.layout);
+  MKTREE_RETURN_IF_ERROR(build::CheckUniqueIds(records, max_id));
+  rec = build::SpatialLayout(std::move(records), bounds, &ids, threads);
+  lap(&result.timings.layout, &result.timings.peak_layout);
   build::SortKeyOrders(rec.box, &state.lists);
   build::TrimHeap();
-  lap(&result.timings.sorts);
+  lap(&result.timings.sorts, &result.timings.peak_sorts);
   state.side.assign(n, 0);
   state.done.Init(n, &state.lists);
   uint64_t total_bytes = 0;
@@ -113,9 +119,9 @@ Result<BuildResult> BuildMKTree(std::vector<BuildObject> records, const BuildPar
 
   SubtreeOut out;
   result.timings.stitch = BuildNodes(&state, n, total_bytes, threads, &out);
-  lap(&result.timings.nodes);
+  lap(&result.timings.nodes, &result.timings.peak_nodes);
   Finish(std::move(out), ids, &state, threads, &result);
-  lap(&result.timings.finish);
+  lap(&result.timings.finish, &result.timings.peak_finish);
   return result;
 }
 

@@ -44,6 +44,8 @@ struct BuildTimings {
   double nodes = 0;   // SOA splits, SplitTrees, list partitions (and the 2-thread stitch)
   double stitch = 0;  // of `nodes`: joining the 2-thread build's fragments into one tree
   double finish = 0;  // pages, leaf objects, statistics
+  // The process's peak RSS (bytes, getrusage) at the end of each phase: what each phase adds to it.
+  uint64_t peak_layout = 0, peak_sorts = 0, peak_nodes = 0, peak_finish = 0;
 };
 
 struct BuildResult {
