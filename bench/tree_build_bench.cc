@@ -19,6 +19,8 @@
 //                    axis ratio 0), so that a change meant to keep the tree (a speed-up) is checked beyond
 //                    the default tuning of the workloads above. Hash 2b8f318b586d54fc (the same from cbcf6d9
 //                    on)
+//   random_tunings_spilled  (only when named) the same 400 builds with the out-of-core top levels forced
+//                    (BuildTuning::ram_node_objects 1 to 400): the same hash as random_tunings
 // Usage: tree_build_bench [workload...]   (default: all of them)
 //
 // Records: id, Aabb() and encoded_bytes = 64 + mesh.RawGeometryBytes() / 2, a stand-in for the compressed
@@ -481,8 +483,9 @@ void RunPacking(uint64_t objects) {
 }
 
 // See random_tunings in the header.
-void RunRandomTunings() {
+void RunRandomTunings(bool spilled) {
   std::mt19937_64 rng(11);
+  std::mt19937_64 budgets(12);  // (its own stream: the scenes and tunings stay those of random_tunings)
   Fnv all;
   constexpr int kBuilds = 400;
   for (int t = 0; t < kBuilds; ++t) {
@@ -523,6 +526,7 @@ void RunRandomTunings() {
     if (rng() % 4 == 0) tuning.fill_aware_pages = static_cast<uint32_t>(2 + rng() % 30);
     if (rng() % 5 == 0) tuning.split_policy = SplitPolicy::kSoa;
     if (rng() % 5 == 0) tuning.compact_axis_ratio = 0.0;
+    if (spilled) tuning.ram_node_objects = static_cast<uint32_t>(1 + budgets() % 400);
     auto built = BuildMKTree(std::move(recs), params, tuning);
     if (!built.ok()) {
       std::fprintf(stderr, "error: random_tunings build %d: %s\n", t, built.status().ToString().c_str());
@@ -530,7 +534,8 @@ void RunRandomTunings() {
     }
     all.Add(TreeHash(*built));
   }
-  std::printf("random_tunings: %d builds, hash %016llx\n", kBuilds, static_cast<unsigned long long>(all.h));
+  std::printf("random_tunings%s: %d builds, hash %016llx\n", spilled ? "_spilled" : "", kBuilds,
+              static_cast<unsigned long long>(all.h));
   std::fflush(stdout);
 }
 
@@ -561,8 +566,10 @@ int main(int argc, char** argv) {
       "99\n");
   for (int i = 1; i < argc; ++i)
     if (std::strcmp(argv[i], "tanker_1m_packing") == 0) mktree::RunPacking(1000000);
-  for (int i = 1; i < argc; ++i)
-    if (std::strcmp(argv[i], "random_tunings") == 0) mktree::RunRandomTunings();
+  for (int i = 1; i < argc; ++i) {
+    if (std::strcmp(argv[i], "random_tunings") == 0) mktree::RunRandomTunings(false);
+    if (std::strcmp(argv[i], "random_tunings_spilled") == 0) mktree::RunRandomTunings(true);
+  }
   for (const Workload& w : all) {
     bool wanted = argc == 1;
     for (int i = 1; i < argc; ++i) wanted |= std::strcmp(argv[i], w.name) == 0;

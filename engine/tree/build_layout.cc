@@ -172,9 +172,13 @@ BuildRecords SpatialLayout(std::vector<BuildObject> records, const Box3f& all, B
   return rec;
 }
 
-void SortKeyOrders(const BuildVector<Box3f>& box, std::array<BuildVector<uint32_t>, 6>* lists) {
+void SortKeyOrders(const BuildVector<Box3f>& box, std::array<BuildVector<uint32_t>, 6>* lists,
+                   const std::function<void(int)>& sorted) {
   BuildVector<uint64_t> a, b;
-  for (int l = 0; l < 6; ++l) SortByKey(box, l / 2, l % 2 == 1, &a, &b, &(*lists)[l]);
+  for (int l = 0; l < 6; ++l) {
+    SortByKey(box, l / 2, l % 2 == 1, &a, &b, &(*lists)[l]);
+    sorted(l);
+  }
 }
 
 }  // namespace mktree::build

@@ -5,6 +5,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "engine/tree/build_memory.h"
@@ -35,6 +36,8 @@ BuildRecords SpatialLayout(std::vector<BuildObject> records, const Box3f& all, B
 // max_w (key 1), stable (ties in layout order, so that the boxes are read in order, not gathered). One
 // sort after another, on one thread: one pair of radix buffers (two sorts side by side held two pairs,
 // 16 bytes an object more at the peak, and were no faster: the sorts are bound by memory).
-void SortKeyOrders(const BuildVector<Box3f>& box, std::array<BuildVector<uint32_t>, 6>* lists);
+// `sorted(l)` runs once list l is complete (BuildMKTree spills it there).
+void SortKeyOrders(const BuildVector<Box3f>& box, std::array<BuildVector<uint32_t>, 6>* lists,
+                   const std::function<void(int)>& sorted);
 
 }  // namespace mktree::build

@@ -27,6 +27,7 @@
 #pragma once
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "engine/tree/mktree.h"
@@ -100,6 +101,17 @@ struct BuildTuning {
   // With 2 threads or more, a root of at least this many objects shares its key sweeps and list partitions
   // with a second thread (the others have nothing to do until it is split).
   uint32_t cooperative_root_objects = 1u << 17;
+  // Memory (the build's peak RSS; bench/README.md, tree_build_bench): a node of more than
+  // `ram_node_objects` objects keeps its six key lists (24 bytes an object) in a spill file in `spill_dir`
+  // between its sweeps, which load one list (two on a cooperative root) at a time; smaller nodes are built
+  // in RAM as before. The tree is the same whatever the budget. 0: N / 8 for N of at least 2^18 objects,
+  // else no spill (kNoIndex: never). Contract: the peak is then at most about 60 bytes an object plus the
+  // process's fixed part (the records 28, ids 4, side flags 1, the root's sweeps about 16 of which 4 for
+  // the list loaded, the lists of the nodes in RAM at most 3, and the tree as it grows), and the file holds
+  // 24 bytes an object until the build returns. It has no name (list_spill.h), so nothing is left behind.
+  // "": $TMPDIR, else /tmp (BuildStore passes the directory of its own spill files).
+  uint32_t ram_node_objects = 0;
+  std::string spill_dir;
 };
 
 // REQUIRES nothing of `records` beyond the checks below, which return InvalidArgument naming the object:

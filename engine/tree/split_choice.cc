@@ -220,7 +220,7 @@ void SplitChooser::ScanKey(const Task& t, const ScanRequest& req, uint64_t* boun
   const BuildVector<uint32_t>& order = s_.lists[2 * req.axis + kKey];
   if (tied_only) {
     if (tied.count == 0 || tied.key != req.tie_key) return;
-    PrefixSuffixMargins(t, order, tied.k_min, tied.k_max);
+    PrefixSuffixMargins(t, 2 * req.axis + kKey, tied.k_min, tied.k_max);
   }
   const uint32_t k_first = tied_only ? tied.k_min : req.cuts.k_lo;
   const uint32_t k_last = tied_only ? tied.k_max : req.cuts.k_hi;
@@ -232,6 +232,7 @@ void SplitChooser::ScanKey(const Task& t, const ScanRequest& req, uint64_t* boun
   const float* const smax = planes.smax;
   const uint64_t tie_key_wanted = req.tie_key;
   uint64_t bound = *bound_io;
+  if (fill_aware) Need(t, list);  // (PrefixSuffixMargins loaded it for the tied cuts)
   const uint32_t* const ord = order.data() + t.lo;
   const uint32_t* const bytes = bytes_.data();
   uint64_t left_bytes = 0;      // encoded bytes of the first k objects

@@ -177,6 +177,22 @@ class SplitChooser {
   // The best candidate among the cuts of `cuts` of the node of `t` (steps 2-3, as BuildTuning ranks).
   Candidate Choose(const Task& t, CutRange cuts);
 
+  // A spilled node (Task::spilled): makes lists l and l2 (-1: none) the ones in RAM over its range, loaded
+  // from the spill file, the others loaded before given back (unchanged by the sweeps: not written).
+  // Nothing for a node in RAM. Choose calls it before every sweep, the node's builder before its own.
+  void Need(const Task& t, int l, int l2 = -1) {
+    if (!t.spilled) return;
+    for (int& r : resident_)
+      if (r >= 0 && r != l && r != l2) s_.spill->Drop(r, t.lo, t.hi), r = -1;
+    for (int want : {l, l2}) {
+      if (want < 0 || want == resident_[0] || want == resident_[1]) continue;
+      s_.spill->Load(want, t.lo, t.hi);
+      (resident_[0] < 0 ? resident_[0] : resident_[1]) = want;
+    }
+  }
+  // Gives back what Need loaded (once the node's lists are all in the file again).
+  void DropAll(const Task& t) { Need(t, -1); }
+
   // Gives back the scratch beyond what a node of n objects needs.
   void ShrinkScratch(size_t n);
   size_t ScratchObjects() const { return sorted_min_.capacity(); }
@@ -200,8 +216,7 @@ class SplitChooser {
   void ScanKey(const Task& t, const ScanRequest& req, uint64_t* bound, ScanOutcome* out);
 
   // The key sweeps (split_key_sweeps.cc).
-  void PrefixSuffixMargins(const Task& t, const BuildVector<uint32_t>& order, uint32_t k_min32,
-                           uint32_t k_max32);
+  void PrefixSuffixMargins(const Task& t, int list, uint32_t k_min32, uint32_t k_max32);
   void GatherAxis(const Task& t, int w, CutRange cuts);
   template <bool kFar>
   void GatherRuns(const Task& t, int w, uint32_t k_lo32, uint32_t k_hi32);
@@ -221,6 +236,7 @@ class SplitChooser {
   Scratch<float> margin_pre_, margin_suf_;  // kCompact only
   Scratch<uint32_t> block_pa_, block_pb_;   // ScanKeys' counts at its block ends
   uint32_t margin_base_ = 0;                // margin_pre_ / margin_suf_ index of the cut k_min
+  int resident_[2] = {-1, -1};              // a spilled node's lists in RAM (Need)
 };
 
 }  // namespace mktree::build

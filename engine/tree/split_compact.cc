@@ -45,6 +45,7 @@ Candidate SplitChooser::ChooseCompact(const Task& t, CutRange cuts, const Rankin
       }
     }
     if (lone) {
+      Need(t, best.list);
       best.margin = SplitMargin(t, best.list, best.k);
       lone = false;
     }
@@ -67,7 +68,7 @@ void SplitChooser::ScanWasteMargins(const Task& t, int w, CutRange cuts, Candida
   for (int key = 0; key < 2; ++key) {
     const int list = 2 * w + key;
     const BuildVector<uint32_t>& order = s_.lists[list];
-    PrefixSuffixMargins(t, order, k_lo, k_hi);
+    PrefixSuffixMargins(t, list, k_lo, k_hi);  // (loads the list of a spilled node)
     const uint32_t* const ord = order.data() + t.lo;
     uint64_t sum = 0;  // encoded bytes of the first k objects
     for (uint32_t i = 0; i + 1 < k_lo; ++i) sum += bytes[ord[i]];

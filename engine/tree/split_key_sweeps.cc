@@ -12,10 +12,11 @@ namespace mktree::build {
 // margin_pre_[i - (k_min-1)], and of order[lo+i .. hi) for i in [k_min, k_max] at margin_suf_[i - k_min]:
 // what the cuts k in [k_min, k_max] need. Each sweep runs in two stretches (without, then with a margin
 // stored) over the boxes as vectors.
-void SplitChooser::PrefixSuffixMargins(const Task& t, const BuildVector<uint32_t>& order, uint32_t k_min32,
-                                       uint32_t k_max32) {
+void SplitChooser::PrefixSuffixMargins(const Task& t, int list, uint32_t k_min32, uint32_t k_max32) {
   const size_t n = t.hi - t.lo, k_min = k_min32, k_max = k_max32;  // (64-bit: no zero-extensions)
   margin_base_ = k_min32;
+  Need(t, list);
+  const BuildVector<uint32_t>& order = s_.lists[list];
   margin_pre_.Fit(k_max - k_min + 1);
   margin_suf_.Fit(k_max - k_min + 1);
   const uint32_t* ord = order.data() + t.lo;
@@ -106,9 +107,12 @@ void SplitChooser::GatherRuns(const Task& t, int w, uint32_t k_lo32, uint32_t k_
     for (; i > 0;) down(--i);
   };
   if (t.cooperative) {
+    Need(t, 2 * w, 2 * w + 1);
     Together(sweep_up, sweep_down);
   } else {
+    Need(t, 2 * w);
     sweep_up();
+    Need(t, 2 * w + 1);
     sweep_down();
   }
 }

@@ -73,10 +73,12 @@ void SubtreeBuilder::RunSpawning(const Task& root, SubtreeOut* out, uint32_t min
   }
 }
 
-bool SubtreeBuilder::ProcessNode(const Task& t, SubtreeOut* out, Task kids[2]) {
+bool SubtreeBuilder::ProcessNode(const Task& task, SubtreeOut* out, Task kids[2]) {
+  Task t = task;
   const uint32_t n = t.hi - t.lo;
   const uint32_t me = static_cast<uint32_t>(out->nodes.size());
   if (t.parent != kNoIndex) out->nodes[t.parent].child[t.slot] = me;
+  if (t.spilled) Unspill(&t);
   TreeNode node;
   node.box = NodeBox(t);
   node.depth = static_cast<uint8_t>(std::min<uint32_t>(t.depth, 255));
@@ -96,8 +98,8 @@ bool SubtreeBuilder::ProcessNode(const Task& t, SubtreeOut* out, Task kids[2]) {
   const Partition part = PartitionLists(t, w);
 
   // The stored planes are those of the final children (free objects may have narrowed the slab).
-  node.a = box_[s_.lists[2 * w][t.lo + part.n1]].min[w];
-  node.b = box_[s_.lists[2 * w + 1][t.lo + part.n1 - 1]].max[w];
+  node.a = part.a;
+  node.b = part.b;
   uint32_t sm = 0;
   if (node.a < node.b) {
     sm = CountOverlap(n_items, w, node.a, node.b);
@@ -111,7 +113,27 @@ bool SubtreeBuilder::ProcessNode(const Task& t, SubtreeOut* out, Task kids[2]) {
     out->split_count.push_back(node.split_root == kNoIndex ? 0 : static_cast<uint32_t>(split_.size()));
   kids[0] = Task{t.lo, t.lo + part.n1, t.depth + 1, me, 0, part.left_bytes, part.leaf_kids};
   kids[1] = Task{t.lo + part.n1, t.hi, t.depth + 1, me, 1, t.bytes - part.left_bytes, part.leaf_kids};
+  kids[0].spilled = kids[1].spilled = t.spilled;
   return true;
+}
+
+// A spilled node small enough for RAM (or a leaf: list 0, its objects, and the lists' ends for its box
+// unless its parent made it leaf_lists_only) has its lists loaded and is built in RAM from here on. A
+// larger one gets the ends of its lists, which give its box and its spreads (NodeBox,
+// SplitChooser::CompactAxes); its sweeps load the rest as they go. (The box from the lists' ends and the
+// one from the objects may differ in the sign of a zero: each node takes it as the RAM build does.)
+void SubtreeBuilder::Unspill(Task* t) {
+  ListSpill& spill = *s_.spill;
+  const bool leaf = IsLeaf(t->hi - t->lo, t->bytes);
+  if (!leaf && t->hi - t->lo <= s_.ram_node_objects) {
+    for (int l = 0; l < 6; ++l) spill.Load(l, t->lo, t->hi);
+    t->spilled = false;
+    return;
+  }
+  if (leaf) spill.Load(0, t->lo, t->hi);
+  if (!t->leaf_lists_only)
+    for (int l = leaf ? 1 : 0; l < 6; ++l) spill.Load(l, t->lo, t->lo + 1), spill.Load(l, t->hi - 1, t->hi);
+  if (leaf) t->spilled = false;
 }
 
 // R(Sn): from the ends of the six sorted lists, or from the objects when only list 0 holds them in order.
@@ -156,10 +178,12 @@ uint32_t SubtreeBuilder::AssignSides(const Task& t, const Candidate& best) {
   const size_t k = best.k, n = t.hi - t.lo;
   const bool key0 = best.list % 2 == 0;
   uint32_t n_items = 0;
+  chooser_.Need(t, best.list);  // (a spilled node: one list in RAM at a time)
   if (!(best.a < best.b)) {
     MarkSides(side, chosen, k, n);
   } else if (!key0) {
     MarkSides(side, chosen, k, n);
+    chooser_.Need(t, best.list - 1);
     n_items = GatherSlabItems<false>(t, best);
   } else if (t.cooperative) {
     Together([=] { MarkSides(side, chosen, k, n); }, [&] { n_items = GatherSlabItems<true>(t, best); });
@@ -167,6 +191,7 @@ uint32_t SubtreeBuilder::AssignSides(const Task& t, const Candidate& best) {
     MarkSides(side, chosen, k, n);
     n_items = GatherSlabItems<true>(t, best);
   }
+  chooser_.DropAll(t);
   return n_items;
 }
 
@@ -251,21 +276,34 @@ SubtreeBuilder::Partition SubtreeBuilder::PartitionLists(const Task& t, int w) {
   const uint32_t n = t.hi - t.lo;
   uint32_t* const tmp = chooser_.PartitionBuffer(0, n);
   Partition part;
+  // A spilled node's lists one at a time: loaded, partitioned, stored back; all are cut, as its children
+  // may be anything. The planes of the final children are read off the split axis' two.
+  auto one = [&](int l, uint32_t* buffer) {
+    if (t.spilled) s_.spill->Load(l, t.lo, t.hi);
+    uint32_t n1 = 0;
+    if (l == 0)
+      n1 = part.n1 = PartitionList<true>(t, 0, buffer, &part.left_bytes);
+    else
+      n1 = PartitionList<false>(t, l, buffer, nullptr);
+    if (l == 2 * w) part.a = box_[s_.lists[l][t.lo + n1]].min[w];
+    if (l == 2 * w + 1) part.b = box_[s_.lists[l][t.lo + n1 - 1]].max[w];
+    if (t.spilled) s_.spill->Store(l, t.lo, t.hi);
+  };
   auto lists_0_to_2 = [&] {
-    part.n1 = PartitionList<true>(t, 0, tmp, &part.left_bytes);
+    one(0, tmp);
     part.leaf_kids = IsLeaf(part.n1, part.left_bytes) && IsLeaf(n - part.n1, t.bytes - part.left_bytes);
     for (int l = 1; l < 3; ++l)
-      if (!part.leaf_kids || l / 2 == w) PartitionList<false>(t, l, tmp, nullptr);
+      if (!part.leaf_kids || l / 2 == w || t.spilled) one(l, tmp);
   };
   if (t.cooperative) {  // lists 3-5 on the other thread (partitioned even for leaf children: harmless)
     uint32_t* const other_tmp = chooser_.PartitionBuffer(1, n);
     Together(lists_0_to_2, [&] {
-      for (int l = 3; l < 6; ++l) PartitionList<false>(t, l, other_tmp, nullptr);
+      for (int l = 3; l < 6; ++l) one(l, other_tmp);
     });
   } else {
     lists_0_to_2();
     for (int l = 3; l < 6; ++l)
-      if (!part.leaf_kids || l / 2 == w) PartitionList<false>(t, l, tmp, nullptr);
+      if (!part.leaf_kids || l / 2 == w || t.spilled) one(l, tmp);
   }
   return part;
 }
@@ -321,6 +359,10 @@ void SubtreeBuilder::ShrinkScratch(size_t n) {
 void ReleaseBuildLists(BuildState* state) {
   for (int l = 1; l < 6; ++l) BuildVector<uint32_t>().swap(state->lists[l]);
   std::vector<uint8_t>().swap(state->side);
+  if (state->records != nullptr) {
+    BuildVector<Box3f>().swap(state->records->box);
+    BuildVector<uint32_t>().swap(state->records->bytes);
+  }
   TrimHeap();
 }
 
