@@ -48,8 +48,12 @@ Status ListSpill::Open(const std::string& dir, uint32_t n, std::array<BuildVecto
 }
 
 void ListSpill::Store(int l, uint32_t lo, uint32_t hi) {
-  uint32_t* const data = (*lists_)[l].data();
-  const char* p = reinterpret_cast<const char*>(data + lo);
+  Write(l, lo, hi, (*lists_)[l].data() + lo);
+  Evict(l, lo, hi);
+}
+
+void ListSpill::Write(int l, uint32_t lo, uint32_t hi, const uint32_t* from) {
+  const char* p = reinterpret_cast<const char*>(from);
   size_t left = size_t{hi - lo} * sizeof(uint32_t);
   off_t at = static_cast<off_t>((uint64_t{static_cast<uint32_t>(l)} * n_ + lo) * sizeof(uint32_t));
   while (left > 0) {
@@ -59,10 +63,7 @@ void ListSpill::Store(int l, uint32_t lo, uint32_t hi) {
     p += w, at += w, left -= static_cast<size_t>(w);
   }
   written_.fetch_add(size_t{hi - lo} * sizeof(uint32_t), std::memory_order_relaxed);
-  Evict(l, lo, hi);
 }
-
-void ListSpill::Drop(int l, uint32_t lo, uint32_t hi) { Evict(l, lo, hi); }
 
 void ListSpill::Evict(int l, uint32_t lo, uint32_t hi) {
   uint32_t* const data = (*lists_)[l].data();
@@ -83,8 +84,8 @@ void ListSpill::Evict(int l, uint32_t lo, uint32_t hi) {
   std::memset(data + lo, 0, size_t{hi - lo} * sizeof(uint32_t));
 }
 
-void ListSpill::Load(int l, uint32_t lo, uint32_t hi) {
-  char* p = reinterpret_cast<char*>((*lists_)[l].data() + lo);
+void ListSpill::Read(int l, uint32_t lo, uint32_t hi, uint32_t* to) {
+  char* p = reinterpret_cast<char*>(to);
   size_t left = size_t{hi - lo} * sizeof(uint32_t);
   off_t at = static_cast<off_t>((uint64_t{static_cast<uint32_t>(l)} * n_ + lo) * sizeof(uint32_t));
   while (left > 0) {

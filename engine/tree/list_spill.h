@@ -1,8 +1,8 @@
 // The out-of-core top levels of the MKtree build (BuildMKTree, mktree_builder.h): the key lists of a node
-// of more than BuildTuning::ram_node_objects objects live in a spill file between the node's sweeps, which
-// load one list, or one axis' two, at a time into the lists' own (mapped, otherwise untouched) storage at
-// the node's positions, and store them back after. The file holds list l's position p at (l * n + p) * 4,
-// as RAM does, so a node's range is one stretch of each list. Internal to engine/tree.
+// of more than BuildTuning::ram_node_objects objects live in a spill file, which the node's sweeps read one
+// list at a time into a window (SplitChooser::Range) and its list partitions write back. A node small
+// enough is loaded into the lists' own storage and built in RAM. The file holds list l's position p at
+// (l * n + p) * 4, as RAM does, so a node's range is one stretch of each list. Internal to engine/tree.
 #pragma once
 
 #include <array>
@@ -35,13 +35,14 @@ class ListSpill {
   Status Open(const std::string& dir, uint32_t n, std::array<BuildVector<uint32_t>, 6>* lists);
   bool open() const { return fd_ >= 0; }
 
-  // Writes list l's positions [lo, hi) to the file and gives their RAM back (whole pages inside the range
-  // are unmapped, the rest zeroed: a read without Load finds zeros, never stale values).
+  // Writes list l's positions [lo, hi) from RAM to the file and gives their RAM back (whole pages inside
+  // the range are unmapped, the rest zeroed: a read without Load finds zeros, never stale values).
   void Store(int l, uint32_t lo, uint32_t hi);
   // Reads list l's positions [lo, hi) from the file into RAM.
-  void Load(int l, uint32_t lo, uint32_t hi);
-  // Gives list l's RAM over [lo, hi) back as Store does, without writing (the file holds the same).
-  void Drop(int l, uint32_t lo, uint32_t hi);
+  void Load(int l, uint32_t lo, uint32_t hi) { Read(l, lo, hi, (*lists_)[l].data() + lo); }
+  // List l's positions [lo, hi) from the file to `to` / from `from` to the file.
+  void Read(int l, uint32_t lo, uint32_t hi, uint32_t* to);
+  void Write(int l, uint32_t lo, uint32_t hi, const uint32_t* from);
   uint64_t bytes_written() const { return written_.load(std::memory_order_relaxed); }
 
  private:

@@ -177,21 +177,34 @@ class SplitChooser {
   // The best candidate among the cuts of `cuts` of the node of `t` (steps 2-3, as BuildTuning ranks).
   Candidate Choose(const Task& t, CutRange cuts);
 
-  // A spilled node (Task::spilled): makes lists l and l2 (-1: none) the ones in RAM over its range, loaded
-  // from the spill file, the others loaded before given back (unchanged by the sweeps: not written).
-  // Nothing for a node in RAM. Choose calls it before every sweep, the node's builder before its own.
-  void Need(const Task& t, int l, int l2 = -1) {
-    if (!t.spilled) return;
-    for (int& r : resident_)
-      if (r >= 0 && r != l && r != l2) s_.spill->Drop(r, t.lo, t.hi), r = -1;
-    for (int want : {l, l2}) {
-      if (want < 0 || want == resident_[0] || want == resident_[1]) continue;
-      s_.spill->Load(want, t.lo, t.hi);
-      (resident_[0] < 0 ? resident_[0] : resident_[1]) = want;
+  // List l over the node's range, indexed from 0 (position t.lo). In RAM; for a spilled node
+  // (Task::spilled) read from the spill file into window `slot` (1: only the second thread of a
+  // cooperative root), which holds one list at a time and keeps its pages from node to node (loading into
+  // the lists' own storage faulted them in at every load). The pointer stays valid until the slot loads
+  // another list or the node ends (NodeDone).
+  const uint32_t* Range(const Task& t, int l, int slot = 0) {
+    if (!t.spilled) return s_.lists[l].data() + t.lo;
+    if (held_[slot] != l) {
+      Window(slot, t.hi - t.lo);
+      s_.spill->Read(l, t.lo, t.hi, window_[slot].data());
+      held_[slot] = l;
     }
+    return window_[slot].data();
   }
-  // Gives back what Need loaded (once the node's lists are all in the file again).
-  void DropAll(const Task& t) { Need(t, -1); }
+  // Window `slot` with room for n positions, for the builder's own use (its list partitions).
+  uint32_t* Window(int slot, size_t n) {
+    window_[slot].Fit(n);
+    held_[slot] = -1;
+    return window_[slot].data();
+  }
+  // The node is done: the windows' contents are not its lists any more. A spilled node's windows give
+  // their pages back (between its sweeps, its SplitTree and its children they would add to the peak; a
+  // window faults its pages in once a node, not once a list).
+  void NodeDone(const Task& t) {
+    held_[0] = held_[1] = -1;
+    if (t.spilled)
+      for (Scratch<uint32_t>& w : window_) w.Reset(0);
+  }
 
   // Gives back the scratch beyond what a node of n objects needs.
   void ShrinkScratch(size_t n);
@@ -210,7 +223,7 @@ class SplitChooser {
   Candidate ChooseSoa(const Task& t, CutRange cuts, const Ranking& ranking, const bool axis_ok[3]);
   Candidate ChooseCompact(const Task& t, CutRange cuts, const Ranking& ranking, const bool axis_ok[3]);
   void ScanWasteMargins(const Task& t, int w, CutRange cuts, Candidate* best);
-  float SplitMargin(const Task& t, int list, uint32_t k) const;
+  float SplitMargin(const Task& t, int list, uint32_t k);
   void ScanKeys(const Task& t, const ScanRequest& req, ScanOutcome* out);
   template <int kKey>
   void ScanKey(const Task& t, const ScanRequest& req, uint64_t* bound, ScanOutcome* out);
@@ -236,7 +249,8 @@ class SplitChooser {
   Scratch<float> margin_pre_, margin_suf_;  // kCompact only
   Scratch<uint32_t> block_pa_, block_pb_;   // ScanKeys' counts at its block ends
   uint32_t margin_base_ = 0;                // margin_pre_ / margin_suf_ index of the cut k_min
-  int resident_[2] = {-1, -1};              // a spilled node's lists in RAM (Need)
+  Scratch<uint32_t> window_[2];             // a spilled node's lists (Range)
+  int held_[2] = {-1, -1};                  // the list each window holds, -1: none
 };
 
 }  // namespace mktree::build

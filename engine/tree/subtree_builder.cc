@@ -174,24 +174,22 @@ void SubtreeBuilder::AppendLeaf(const Task& t, TreeNode node, SubtreeOut* out) {
 // its position (no read of side[], and the sides may be marked meanwhile, on the root's second thread).
 uint32_t SubtreeBuilder::AssignSides(const Task& t, const Candidate& best) {
   uint8_t* const side = s_.side.data();
-  const uint32_t* const chosen = s_.lists[best.list].data() + t.lo;
+  const uint32_t* const chosen = chooser_.Range(t, best.list);
   const size_t k = best.k, n = t.hi - t.lo;
   const bool key0 = best.list % 2 == 0;
   uint32_t n_items = 0;
-  chooser_.Need(t, best.list);  // (a spilled node: one list in RAM at a time)
   if (!(best.a < best.b)) {
     MarkSides(side, chosen, k, n);
   } else if (!key0) {
     MarkSides(side, chosen, k, n);
-    chooser_.Need(t, best.list - 1);
-    n_items = GatherSlabItems<false>(t, best);
+    n_items = GatherSlabItems<false>(t, best);  // (a spilled node: its by_min list replaces `chosen`)
   } else if (t.cooperative) {
     Together([=] { MarkSides(side, chosen, k, n); }, [&] { n_items = GatherSlabItems<true>(t, best); });
   } else {
     MarkSides(side, chosen, k, n);
     n_items = GatherSlabItems<true>(t, best);
   }
-  chooser_.DropAll(t);
+  chooser_.NodeDone(t);  // (its lists are read again by PartitionLists)
   return n_items;
 }
 
@@ -209,16 +207,16 @@ uint32_t SubtreeBuilder::GatherSlabItems(const Task& t, const Candidate& best) {
   SplitItem* const items = items_.data();
   uint32_t* const ids = overlap_ids_.data();
   const int axis = best.list / 2;
-  const uint32_t* const by_min = s_.lists[2 * axis].data();
+  const uint32_t* const by_min = chooser_.Range(t, 2 * axis);  // [0]: position t.lo
   const Box3f* const box = box_.data();
   const uint32_t* const bytes = bytes_.data();
   const uint8_t* const sides = s_.side.data();
   const float a = best.a, b = best.b;
-  const size_t lo = t.lo, hi = t.hi;  // (64-bit: no zero-extensions in the loop)
-  const size_t prefetch_end = n >= kPrefetchObjects ? hi - kPrefetch : lo;
-  const size_t first_right = lo + best.k;
+  const size_t size = n;  // (64-bit: no zero-extensions in the loop)
+  const size_t prefetch_end = n >= kPrefetchObjects ? size - kPrefetch : 0;
+  const size_t first_right = best.k;
   size_t count = 0;
-  for (size_t i = lo; i < hi; ++i) {
+  for (size_t i = 0; i < size; ++i) {
     if (i < prefetch_end) {  // (box, bytes and side are each a random read in a large node)
       const uint32_t ahead = by_min[i + kPrefetch];
       __builtin_prefetch(&box[ahead]);
@@ -271,57 +269,59 @@ void SubtreeBuilder::PlaceSlabObjects(const Task& t, const Box3f& box, const Can
 
 // Stable in-place partition of the lists by side, keeping each half sorted by its key. List 0 goes first
 // and also sums the left child's bytes: when both children are leaves, only list 0 (their objects) and
-// the split axis' lists (the planes) are partitioned, as a leaf takes its box from its objects.
+// the split axis' lists (the planes) are partitioned, as a leaf takes its box from its objects. A spilled
+// node's lists are all cut (its children may be anything), each read into a window, partitioned there and
+// written back. The planes of the final children are read off the split axis' two lists.
 SubtreeBuilder::Partition SubtreeBuilder::PartitionLists(const Task& t, int w) {
   const uint32_t n = t.hi - t.lo;
-  uint32_t* const tmp = chooser_.PartitionBuffer(0, n);
   Partition part;
-  // A spilled node's lists one at a time: loaded, partitioned, stored back; all are cut, as its children
-  // may be anything. The planes of the final children are read off the split axis' two.
-  auto one = [&](int l, uint32_t* buffer) {
-    if (t.spilled) s_.spill->Load(l, t.lo, t.hi);
+  auto one = [&](int l, int slot) {
+    uint32_t* const buffer = chooser_.PartitionBuffer(slot, n);
+    uint32_t* v = s_.lists[l].data() + t.lo;
+    if (t.spilled) {
+      v = chooser_.Window(slot, n);
+      s_.spill->Read(l, t.lo, t.hi, v);
+    }
     uint32_t n1 = 0;
     if (l == 0)
-      n1 = part.n1 = PartitionList<true>(t, 0, buffer, &part.left_bytes);
+      n1 = part.n1 = PartitionList<true>(v, n, buffer, &part.left_bytes);
     else
-      n1 = PartitionList<false>(t, l, buffer, nullptr);
-    if (l == 2 * w) part.a = box_[s_.lists[l][t.lo + n1]].min[w];
-    if (l == 2 * w + 1) part.b = box_[s_.lists[l][t.lo + n1 - 1]].max[w];
-    if (t.spilled) s_.spill->Store(l, t.lo, t.hi);
+      n1 = PartitionList<false>(v, n, buffer, nullptr);
+    if (l == 2 * w) part.a = box_[v[n1]].min[w];
+    if (l == 2 * w + 1) part.b = box_[v[n1 - 1]].max[w];
+    if (t.spilled) s_.spill->Write(l, t.lo, t.hi, v);
   };
   auto lists_0_to_2 = [&] {
-    one(0, tmp);
+    one(0, 0);
     part.leaf_kids = IsLeaf(part.n1, part.left_bytes) && IsLeaf(n - part.n1, t.bytes - part.left_bytes);
     for (int l = 1; l < 3; ++l)
-      if (!part.leaf_kids || l / 2 == w || t.spilled) one(l, tmp);
+      if (!part.leaf_kids || l / 2 == w || t.spilled) one(l, 0);
   };
   if (t.cooperative) {  // lists 3-5 on the other thread (partitioned even for leaf children: harmless)
-    uint32_t* const other_tmp = chooser_.PartitionBuffer(1, n);
     Together(lists_0_to_2, [&] {
-      for (int l = 3; l < 6; ++l) one(l, other_tmp);
+      for (int l = 3; l < 6; ++l) one(l, 1);
     });
   } else {
     lists_0_to_2();
     for (int l = 3; l < 6; ++l)
-      if (!part.leaf_kids || l / 2 == w || t.spilled) one(l, tmp);
+      if (!part.leaf_kids || l / 2 == w || t.spilled) one(l, 0);
   }
+  chooser_.NodeDone(t);
   return part;
 }
 
-// One list of PartitionLists, through `right` (room for the node's objects); kSumBytes: *left_bytes gets
-// the encoded bytes of Sn1. Returns |Sn1|. Branch-free: the sides of neighbours in key order are not
+// One list of PartitionLists: the n positions at v, through `right` (room for n); kSumBytes: *left_bytes
+// gets the encoded bytes of Sn1. Returns |Sn1|. Branch-free: the sides of neighbours in key order are not
 // predictable.
 template <bool kSumBytes>
-uint32_t SubtreeBuilder::PartitionList(const Task& t, int l, uint32_t* right, uint64_t* left_bytes) {
-  // (Locals: the list stores could alias the task's bounds and the byte sum.)
-  uint32_t* v = s_.lists[l].data();
+uint32_t SubtreeBuilder::PartitionList(uint32_t* v, size_t n, uint32_t* right, uint64_t* left_bytes) {
+  // (Locals: the list stores could alias the byte sum.)
   const uint8_t* side = s_.side.data();
   const uint32_t* bytes = bytes_.data();
   // 64-bit positions and 1 - r: no zero-extensions in the loop.
-  const size_t lo = t.lo, hi = t.hi;
-  size_t wpos = lo, tpos = 0;
+  size_t wpos = 0, tpos = 0;
   uint64_t sum = 0;
-  for (size_t i = lo; i < hi; ++i) {
+  for (size_t i = 0; i < n; ++i) {
     const uint32_t idx = v[i];
     const size_t r = side[idx];
     v[wpos] = idx;
@@ -332,7 +332,7 @@ uint32_t SubtreeBuilder::PartitionList(const Task& t, int l, uint32_t* right, ui
   }
   std::copy(right, right + tpos, v + wpos);
   if (kSumBytes) *left_bytes = sum;
-  return static_cast<uint32_t>(wpos - lo);
+  return static_cast<uint32_t>(wpos);
 }
 
 // |Sm| of the final children: the slab's objects with max_w > a and min_w < b. The items' boxes are

@@ -71,7 +71,7 @@ class SubtreeBuilder {
                         uint32_t n_items);
   Partition PartitionLists(const Task& t, int w);
   template <bool kSumBytes>
-  uint32_t PartitionList(const Task& t, int l, uint32_t* right, uint64_t* left_bytes);
+  uint32_t PartitionList(uint32_t* v, size_t n, uint32_t* right, uint64_t* left_bytes);
   uint32_t CountOverlap(uint32_t n_items, int w, float a, float b) const;
   void ShrinkScratch(size_t n);
 
