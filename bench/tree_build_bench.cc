@@ -355,6 +355,8 @@ void Run(const Workload& w) {
   tune.threads = w.threads;
   tune.fill_aware = w.fill_aware;
   tune.split_policy = w.policy;
+  // TREE_BENCH_RAM_NODES=k: BuildTuning::ram_node_objects (nodes of more objects keep their lists on disk).
+  if (const char* ram = std::getenv("TREE_BENCH_RAM_NODES")) tune.ram_node_objects = std::atoi(ram);
   // TREE_BENCH_REPEAT=k: k more builds of copies of the same records first, timed alone (for A/B runs on a
   // noisy machine; the peak RSS of the main build then includes the copy).
   if (const char* rep = std::getenv("TREE_BENCH_REPEAT")) {

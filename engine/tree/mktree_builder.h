@@ -1,5 +1,6 @@
 // BuildMKTree: constructs the MKtree (docs/design.md §2) from per-object records only (id, AABB, encoded
-// bytes; never geometry), in RAM, in O(N log^2 N) time and well under 100 bytes per object.
+// bytes; never geometry), in O(N log^2 N) time and about 60 bytes per object (BuildTuning: the key lists
+// of the top levels in a spill file).
 //
 // Node layout: nodes in DFS preorder (root 0, left child n+1, right child after the left subtree), so a
 // subtree is the contiguous index range [n, child-range end); leaves numbered in DFS order; a leaf's pages
@@ -21,9 +22,10 @@
 //
 // The implementation, by concern (internal headers of engine/tree, namespace mktree::build): the checks
 // (build_validation.h), the records' Morton layout and the six key sorts (build_layout.h), the build's
-// allocator and scratch arrays (build_memory.h), the split choice (split_choice.h, with the SOA's rule in
-// the paper's notation; split_compact.cc and split_key_sweeps.cc), node processing (subtree_builder.h),
-// the multi-thread build (parallel_build.h), and the phases in order (mktree_builder.cc).
+// allocator and scratch arrays (build_memory.h), the spill file of the top levels' lists (list_spill.h), the
+// split choice (split_choice.h, with the SOA's rule in the paper's notation; split_compact.cc and
+// split_key_sweeps.cc), node processing (subtree_builder.h), the multi-thread build (parallel_build.h), and
+// the phases in order (mktree_builder.cc).
 #pragma once
 
 #include <cstdint>
