@@ -19,6 +19,8 @@
 //                    axis ratio 0), so that a change meant to keep the tree (a speed-up) is checked beyond
 //                    the default tuning of the workloads above. Hash 2b8f318b586d54fc (the same from cbcf6d9
 //                    on)
+//   random_tunings_spilled  (only when named) the same 400 builds with the out-of-core top levels forced
+//                    (BuildTuning::ram_node_objects 1 to 400): the same hash as random_tunings
 // Usage: tree_build_bench [workload...]   (default: all of them)
 //
 // Records: id, Aabb() and encoded_bytes = 64 + mesh.RawGeometryBytes() / 2, a stand-in for the compressed
@@ -353,6 +355,8 @@ void Run(const Workload& w) {
   tune.threads = w.threads;
   tune.fill_aware = w.fill_aware;
   tune.split_policy = w.policy;
+  // TREE_BENCH_RAM_NODES=k: BuildTuning::ram_node_objects (nodes of more objects keep their lists on disk).
+  if (const char* ram = std::getenv("TREE_BENCH_RAM_NODES")) tune.ram_node_objects = std::atoi(ram);
   // TREE_BENCH_REPEAT=k: k more builds of copies of the same records first, timed alone (for A/B runs on a
   // noisy machine; the peak RSS of the main build then includes the copy).
   if (const char* rep = std::getenv("TREE_BENCH_REPEAT")) {
@@ -381,10 +385,12 @@ void Run(const Workload& w) {
     const BuildTimings& tm = built->timings;
     std::printf(
         "%-14s %6.2f s  %6.2f Mobj/s  peak %6.1f B/obj  tree hash %016llx  nodes %zu  split nodes %zu"
-        "  leaves %zu  (layout %.3f sorts %.3f nodes %.3f finish %.3f s; stitch %.3f of nodes)\n",
+        "  leaves %zu  (layout %.3f sorts %.3f nodes %.3f finish %.3f s; stitch %.3f of nodes;"
+        " peak B/obj at the end of layout %.1f sorts %.1f nodes %.1f finish %.1f)\n",
         w.name, secs, n / secs / 1e6, peak / n, (unsigned long long)TreeHash(*built),
         built->tree.nodes.size(), built->tree.split_nodes.size(), built->tree.leaves.size(), tm.layout,
-        tm.sorts, tm.nodes, tm.finish, tm.stitch);
+        tm.sorts, tm.nodes, tm.finish, tm.stitch, tm.peak_layout / n, tm.peak_sorts / n, tm.peak_nodes / n,
+        tm.peak_finish / n);
     std::fflush(stdout);
     if (std::getenv("TREE_BENCH_HASH_ONLY")) return;
   }
@@ -397,9 +403,11 @@ void Run(const Workload& w) {
       w.name, (unsigned long long)w.objects, secs, n / secs / 1e6, peak / n, rss_records / n,
       s.index_bytes_per_object, s.tree_bytes_per_object);
   std::printf(
-      "%-14s phases: layout %.3f s  sorts %.3f s  nodes %.3f s (of which stitch %.3f s)  finish %.3f s\n", "",
-      built->timings.layout, built->timings.sorts, built->timings.nodes, built->timings.stitch,
-      built->timings.finish);
+      "%-14s phases: layout %.3f s  sorts %.3f s  nodes %.3f s (of which stitch %.3f s)  finish %.3f s"
+      "  (peak B/obj at their ends %.1f %.1f %.1f %.1f)\n",
+      "", built->timings.layout, built->timings.sorts, built->timings.nodes, built->timings.stitch,
+      built->timings.finish, built->timings.peak_layout / n, built->timings.peak_sorts / n,
+      built->timings.peak_nodes / n, built->timings.peak_finish / n);
   std::printf(
       "%-14s height %u  leaves %llu  obj/leaf %.2f  fill mean %.1f%% min %.1f%%  multi-page %llu"
       "  |Sm| %llu  SplitTree nodes %llu (max %u)  BOTH cells %llu/%llu\n",
@@ -477,8 +485,9 @@ void RunPacking(uint64_t objects) {
 }
 
 // See random_tunings in the header.
-void RunRandomTunings() {
+void RunRandomTunings(bool spilled) {
   std::mt19937_64 rng(11);
+  std::mt19937_64 budgets(12);  // (its own stream: the scenes and tunings stay those of random_tunings)
   Fnv all;
   constexpr int kBuilds = 400;
   for (int t = 0; t < kBuilds; ++t) {
@@ -519,6 +528,7 @@ void RunRandomTunings() {
     if (rng() % 4 == 0) tuning.fill_aware_pages = static_cast<uint32_t>(2 + rng() % 30);
     if (rng() % 5 == 0) tuning.split_policy = SplitPolicy::kSoa;
     if (rng() % 5 == 0) tuning.compact_axis_ratio = 0.0;
+    if (spilled) tuning.ram_node_objects = static_cast<uint32_t>(1 + budgets() % 400);
     auto built = BuildMKTree(std::move(recs), params, tuning);
     if (!built.ok()) {
       std::fprintf(stderr, "error: random_tunings build %d: %s\n", t, built.status().ToString().c_str());
@@ -526,7 +536,8 @@ void RunRandomTunings() {
     }
     all.Add(TreeHash(*built));
   }
-  std::printf("random_tunings: %d builds, hash %016llx\n", kBuilds, static_cast<unsigned long long>(all.h));
+  std::printf("random_tunings%s: %d builds, hash %016llx\n", spilled ? "_spilled" : "", kBuilds,
+              static_cast<unsigned long long>(all.h));
   std::fflush(stdout);
 }
 
@@ -557,8 +568,10 @@ int main(int argc, char** argv) {
       "99\n");
   for (int i = 1; i < argc; ++i)
     if (std::strcmp(argv[i], "tanker_1m_packing") == 0) mktree::RunPacking(1000000);
-  for (int i = 1; i < argc; ++i)
-    if (std::strcmp(argv[i], "random_tunings") == 0) mktree::RunRandomTunings();
+  for (int i = 1; i < argc; ++i) {
+    if (std::strcmp(argv[i], "random_tunings") == 0) mktree::RunRandomTunings(false);
+    if (std::strcmp(argv[i], "random_tunings_spilled") == 0) mktree::RunRandomTunings(true);
+  }
   for (const Workload& w : all) {
     bool wanted = argc == 1;
     for (int i = 1; i < argc; ++i) wanted |= std::strcmp(argv[i], w.name) == 0;

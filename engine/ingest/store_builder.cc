@@ -261,7 +261,9 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
   // 2. The tree, from the records alone.
   const auto build_start = Clock::now();
   progress(IngestStage::kBuildTree, 0, 1);
-  auto built = BuildMKTree(std::move(records), options.store.params, options.tuning);
+  BuildTuning tuning = options.tuning;
+  if (tuning.spill_dir.empty()) tuning.spill_dir = dir;  // the tree build's spill file beside the others
+  auto built = BuildMKTree(std::move(records), options.store.params, tuning);
   if (!built.ok()) return built.status();
   BuildResult& result = *built;
   report.tree_stats = result.stats;

@@ -3,9 +3,14 @@
 #include <algorithm>
 #include <bit>
 #include <cstddef>
+#include <cstdint>
 #include <utility>
 
 #include "engine/tree/build_threads.h"
+
+#ifdef __linux__
+#include <sys/mman.h>
+#endif
 
 namespace mktree::build {
 namespace {
@@ -86,10 +91,28 @@ inline uint32_t Spread3(uint32_t v) {
   return v;
 }
 
+// Records copied between two releases of the pages read (ReleaseReadPages).
+constexpr size_t kReleaseObjects = size_t{1} << 15;
+
+// Gives back the whole pages of bytes [from, to) of the storage at `base`, but never the page `base` is in
+// (the allocator's header of the block may share it): those records are not read again, and freeing
+// their vector later reads only its header.
+void ReleaseReadPages(const char* base, size_t from, size_t to) {
+#ifdef __linux__
+  constexpr uintptr_t kPage = 4096;
+  const uintptr_t b = reinterpret_cast<uintptr_t>(base);
+  const uintptr_t first = std::max((b + from + kPage - 1) & ~(kPage - 1), (b & ~(kPage - 1)) + kPage);
+  const uintptr_t last = (b + to) & ~(kPage - 1);
+  if (last > first) madvise(reinterpret_cast<void*>(first), last - first, MADV_DONTNEED);
+#else
+  (void)base, (void)from, (void)to;
+#endif
+}
+
 }  // namespace
 
 BuildRecords SpatialLayout(std::vector<BuildObject> records, const Box3f& all, BuildVector<ObjectId>* ids,
-                           BuildVector<uint32_t>* input_position, int threads) {
+                           int threads) {
   const size_t n = records.size();
   constexpr uint32_t kCellsPerAxis = 16;
   constexpr size_t kCells = kCellsPerAxis * kCellsPerAxis * kCellsPerAxis;
@@ -124,32 +147,38 @@ BuildRecords SpatialLayout(std::vector<BuildObject> records, const Box3f& all, B
       start += here;
     }
   }
-  BuildVector<uint32_t> order(n);  // layout position -> input position (record index)
-  RunOnHalves(n, threads, [&](size_t lo, size_t hi) {
-    size_t* const next = count.data() + (lo == 0 ? 0 : kCells);
-    for (size_t i = lo; i < hi; ++i) order[next[cell[i]]++] = static_cast<uint32_t>(i);
-  });
-  BuildVector<uint16_t>().swap(cell);
   BuildRecords rec;
   rec.box.resize(n);
   rec.bytes.resize(n);
   ids->resize(n);
+  // Scattered in input order, so that the records read are given back as the copy goes (a gather in
+  // layout order reads them at random: the records and their copy would be resident together). The
+  // writes go to one run per cell, each filled in order.
+  const char* const base = reinterpret_cast<const char*>(records.data());
   RunOnHalves(n, threads, [&](size_t lo, size_t hi) {
+    size_t* const next = count.data() + (lo == 0 ? 0 : kCells);
+    size_t given_back = lo;
     for (size_t i = lo; i < hi; ++i) {
-      if (i + kPrefetch < hi) __builtin_prefetch(&records[order[i + kPrefetch]]);  // (a random read each)
-      const uint32_t from = order[i];
-      rec.box[i] = records[from].box;
-      rec.bytes[i] = records[from].encoded_bytes;
-      (*ids)[i] = records[from].id;
+      const size_t to = next[cell[i]]++;
+      rec.box[to] = records[i].box;
+      rec.bytes[to] = records[i].encoded_bytes;
+      (*ids)[to] = records[i].id;
+      if (i + 1 - given_back >= kReleaseObjects || i + 1 == hi) {
+        ReleaseReadPages(base, given_back * sizeof(BuildObject), (i + 1) * sizeof(BuildObject));
+        given_back = i + 1;
+      }
     }
   });
-  *input_position = std::move(order);
   return rec;
 }
 
-void SortKeyOrders(const BuildVector<Box3f>& box, std::array<BuildVector<uint32_t>, 6>* lists) {
+void SortKeyOrders(const BuildVector<Box3f>& box, std::array<BuildVector<uint32_t>, 6>* lists,
+                   const std::function<void(int)>& sorted) {
   BuildVector<uint64_t> a, b;
-  for (int l = 0; l < 6; ++l) SortByKey(box, l / 2, l % 2 == 1, &a, &b, &(*lists)[l]);
+  for (int l = 0; l < 6; ++l) {
+    SortByKey(box, l / 2, l % 2 == 1, &a, &b, &(*lists)[l]);
+    sorted(l);
+  }
 }
 
 }  // namespace mktree::build

@@ -5,6 +5,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "engine/tree/build_memory.h"
@@ -26,15 +27,17 @@ struct BuildRecords {
 // within a cell, so that a node's objects lie close together in RAM: the split sweeps and the list
 // partitions read records in key order, which in input order misses the cache all the way down the tree.
 // Cells this coarse cost one counting pass, and keep what locality the input order has. `all`: the union
-// of the boxes. Frees `records`; *ids: the object ids in the same layout; *input_position: the input
-// position of the object at each layout position. With `threads` >= 2 the passes run on two halves.
+// of the boxes. Frees `records`, giving their pages back as they are copied; *ids: the object ids in the
+// same layout. With `threads` >= 2 the passes run on two halves.
 BuildRecords SpatialLayout(std::vector<BuildObject> records, const Box3f& all, BuildVector<ObjectId>* ids,
-                           BuildVector<uint32_t>* input_position, int threads);
+                           int threads);
 
 // The six key orders: (*lists)[2 * w + key] holds the object indices 0..n-1 sorted by min_w (key 0) or
 // max_w (key 1), stable (ties in layout order, so that the boxes are read in order, not gathered). One
 // sort after another, on one thread: one pair of radix buffers (two sorts side by side held two pairs,
 // 16 bytes an object more at the peak, and were no faster: the sorts are bound by memory).
-void SortKeyOrders(const BuildVector<Box3f>& box, std::array<BuildVector<uint32_t>, 6>* lists);
+// `sorted(l)` runs once list l is complete (BuildMKTree spills it there).
+void SortKeyOrders(const BuildVector<Box3f>& box, std::array<BuildVector<uint32_t>, 6>* lists,
+                   const std::function<void(int)>& sorted);
 
 }  // namespace mktree::build

@@ -1,11 +1,11 @@
 // Memory of the MKtree build (BuildMKTree, mktree_builder.h): the allocator of its large arrays, the
 // per-node scratch arrays, and giving freed heap memory back between phases. Internal to engine/tree.
 //
-// The build's peak RSS is reported per object (bench/tree_build_bench) and is part of its contract ("well
-// under 100 bytes per object"), so the arrays are sized and freed on purpose: nothing is zero-filled that
-// is written before it is read, large arrays are mapped on their own so that freeing one returns it to the
-// system at once, and scratch arrays keep their pages mapped as they shrink (see bench/README.md,
-// tree_build_bench, for what these choices measured).
+// The build's peak RSS is reported per object (bench/tree_build_bench) and is part of its contract (about
+// 60 bytes per object, BuildTuning::ram_node_objects), so the arrays are sized and freed on purpose: nothing
+// is zero-filled that is written before it is read, large arrays are mapped on their own so that freeing one
+// returns it to the system at once, and scratch arrays keep their pages mapped as they shrink (see
+// bench/README.md, tree_build_bench, for what these choices measured).
 #pragma once
 
 #include <algorithm>

@@ -9,7 +9,9 @@
 #include <memory>
 #include <vector>
 
+#include "engine/tree/build_layout.h"
 #include "engine/tree/build_memory.h"
+#include "engine/tree/list_spill.h"
 #include "engine/tree/mktree.h"
 #include "engine/tree/mktree_builder.h"
 #include "mktree/geometry.h"
@@ -42,6 +44,12 @@ struct BuildState {
   std::array<BuildVector<uint32_t>, 6> lists;
   std::vector<uint8_t> side;  // per object: 0 = Sn1, 1 = Sn2 at the node being split
   DoneRanges done;
+  // Nodes of more objects keep their lists in `spill` (list_spill.h) between their sweeps; null: none do.
+  uint32_t ram_node_objects = kNoIndex;
+  ListSpill* spill = nullptr;
+  // What box and bytes refer to, freed with the lists (ReleaseBuildLists): the stitch and Finish need
+  // neither.
+  BuildRecords* records = nullptr;
 };
 
 // A node to build: its objects are lists[l][lo, hi) of every list l.
@@ -53,6 +61,7 @@ struct Task {
   uint64_t bytes = 0;            // sum of encoded_bytes of the objects
   bool leaf_lists_only = false;  // a leaf whose range is sorted in list 0 (and the split axis' lists) only
   bool cooperative = false;      // the root of a multi-thread build: it takes an idle thread along (Together)
+  bool spilled = false;          // its lists are in BuildState::spill, not in RAM
 };
 
 // What one builder produces for a subtree; indices are local to it until merged. Aligned to cache lines:

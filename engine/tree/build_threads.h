@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstddef>
+#include <exception>
 #include <thread>
 #include <utility>
 
@@ -23,12 +24,26 @@ void RunOnHalves(size_t n, int threads, Fn&& fn) {
 }
 
 // Runs a() here and b() on a thread of its own, and waits for both: for the parts of a multi-thread build
-// during which the other threads have nothing to do (the root, the stitch).
+// during which the other threads have nothing to do (the root, the stitch). An exception of either (a
+// spill file's error) is thrown here once both are done.
 template <typename A, typename B>
 void Together(A&& a, B&& b) {
-  std::thread other(std::forward<B>(b));
-  a();
+  std::exception_ptr failed;
+  std::thread other([&] {
+    try {
+      b();
+    } catch (...) {
+      failed = std::current_exception();
+    }
+  });
+  try {
+    a();
+  } catch (...) {
+    other.join();
+    throw;
+  }
   other.join();
+  if (failed) std::rethrow_exception(failed);
 }
 
 }  // namespace mktree::build

@@ -67,11 +67,11 @@ Status Validate(const std::vector<BuildObject>& records, const BuildParams& para
   return Status::Ok();
 }
 
-Status CheckUniqueIds(const BuildVector<ObjectId>& ids, const BuildVector<uint32_t>& input_position,
-                      ObjectId max_id) {
-  const size_t n = ids.size();
+Status CheckUniqueIds(const std::vector<BuildObject>& records, ObjectId max_id) {
+  const size_t n = records.size();
   if (uint64_t{max_id} > 64 * uint64_t{n}) {
-    std::vector<ObjectId> sorted(ids.begin(), ids.end());
+    std::vector<ObjectId> sorted(n);
+    for (size_t i = 0; i < n; ++i) sorted[i] = records[i].id;
     std::sort(sorted.begin(), sorted.end());
     auto dup = std::adjacent_find(sorted.begin(), sorted.end());
     if (dup != sorted.end())
@@ -79,25 +79,14 @@ Status CheckUniqueIds(const BuildVector<ObjectId>& ids, const BuildVector<uint32
     return Status::Ok();
   }
   std::vector<uint64_t> seen(max_id / 64 + 1, 0);
-  auto seen_before = [&seen](ObjectId id) {  // marks id seen; whether it was already
-    uint64_t& word = seen[id / 64];
-    const uint64_t bit = uint64_t{1} << (id % 64);
-    const bool was = (word & bit) != 0;
+  for (const BuildObject& r : records) {
+    uint64_t& word = seen[r.id / 64];
+    const uint64_t bit = uint64_t{1} << (r.id % 64);
+    if (word & bit)
+      return Status::InvalidArgument("object " + std::to_string(r.id) + ": duplicate object id");
     word |= bit;
-    return was;
-  };
-  bool found = false;
-  for (const ObjectId id : ids) found |= seen_before(id);
-  if (!found) return Status::Ok();
-  std::fill(seen.begin(), seen.end(), 0);
-  std::vector<uint32_t> at_input(n);  // input position -> layout position
-  for (size_t i = 0; i < n; ++i) at_input[input_position[i]] = static_cast<uint32_t>(i);
-  for (size_t p = 0; p < n; ++p) {
-    const ObjectId id = ids[at_input[p]];
-    if (seen_before(id))
-      return Status::InvalidArgument("object " + std::to_string(id) + ": duplicate object id");
   }
-  return Status::Internal("a duplicate object id was not found again");
+  return Status::Ok();
 }
 
 }  // namespace mktree::build

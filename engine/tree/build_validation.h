@@ -19,10 +19,9 @@ namespace mktree::build {
 Status Validate(const std::vector<BuildObject>& records, const BuildParams& params, int threads,
                 Box3f* bounds, ObjectId* max_id);
 
-// Unique ids, checked on the laid-out ids (8 bytes an object, not the 40 of a record): a bitmap when ids
-// are dense (the normal 0-based case), else a sorted copy. An error names the first object in input order
-// whose id came before (input_position gives the input order; only then is it needed).
-Status CheckUniqueIds(const BuildVector<ObjectId>& ids, const BuildVector<uint32_t>& input_position,
-                      ObjectId max_id);
+// Unique ids, checked in input order before the layout: a bitmap when ids are dense (the normal 0-based
+// case), else a sorted copy of the ids. An error names the first object in input order whose id came
+// before (the bitmap), or the least duplicate id (the sorted copy).
+Status CheckUniqueIds(const std::vector<BuildObject>& records, ObjectId max_id);
 
 }  // namespace mktree::build

@@ -1,5 +1,7 @@
 #include "engine/tree/mktree_builder.h"
 
+#include <sys/resource.h>
+
 #include <algorithm>
 #include <chrono>
 #include <thread>
@@ -17,6 +19,15 @@
 namespace mktree {
 namespace {
 
+// Below this many objects no node is spilled by default (BuildTuning::ram_node_objects).
+constexpr uint32_t kSpillMinObjects = 1u << 18;
+
+uint64_t PeakRss() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return static_cast<uint64_t>(u.ru_maxrss) * 1024;  // (KiB on Linux)
+}
+
 using build::BuildRecords;
 using build::BuildState;
 using build::BuildVector;
@@ -27,6 +38,7 @@ using build::Task;
 // list 0. Returns the wall seconds of the multi-thread build's stitch (0 on one thread).
 double BuildNodes(BuildState* state, uint32_t n, uint64_t total_bytes, int threads, SubtreeOut* out) {
   Task root{0, n, 0, kNoIndex, 0, total_bytes};
+  root.spilled = state->spill != nullptr;
   if (threads >= 2) {
     root.cooperative = n >= state->tuning.cooperative_root_objects;
     return build::BuildParallel(state, root, threads, out);
@@ -74,10 +86,11 @@ Result<BuildResult> BuildMKTree(std::vector<BuildObject> records, const BuildPar
                                 const BuildTuning& tuning) {
   using Clock = std::chrono::steady_clock;
   Clock::time_point mark = Clock::now();
-  auto lap = [&mark](double* phase) {
+  auto lap = [&mark](double* phase, uint64_t* peak) {
     const Clock::time_point now = Clock::now();
     *phase = std::chrono::duration<double>(now - mark).count();
     mark = now;
+    *peak = PeakRss();
   };
   const int threads = tuning.threads > 0
                           ? tuning.threads
@@ -97,25 +110,39 @@ Result<BuildResult> BuildMKTree(std::vector<BuildObject> records, const BuildPar
   BuildVector<ObjectId> ids;
   BuildRecords rec;
   BuildState state{rec.box, rec.bytes, params, tuning, {}, {}, {}};
-  {
-    BuildVector<uint32_t> input_position;
-    rec = build::SpatialLayout(std::move(records), bounds, &ids, &input_position, threads);
-    MKTREE_RETURN_IF_ERROR(build::CheckUniqueIds(ids, input_position, max_id));
+  state.records = &rec;
+  MKTREE_RETURN_IF_ERROR(build::CheckUniqueIds(records, max_id));
+  rec = build::SpatialLayout(std::move(records), bounds, &ids, threads);
+  lap(&result.timings.layout, &result.timings.peak_layout);
+  // Out of core (list_spill.h): the root's lists go to the spill file as they are sorted.
+  const uint32_t ram_objects = tuning.ram_node_objects > 0 ? tuning.ram_node_objects
+                               : n >= kSpillMinObjects     ? n / 8
+                                                           : kNoIndex;
+  build::ListSpill spill;
+  if (n > ram_objects) {
+    MKTREE_RETURN_IF_ERROR(spill.Open(tuning.spill_dir, n, &state.lists));
+    state.spill = &spill;
+    state.ram_node_objects = ram_objects;
   }
-  lap(&result.timings.layout);
-  build::SortKeyOrders(rec.box, &state.lists);
-  build::TrimHeap();
-  lap(&result.timings.sorts);
-  state.side.assign(n, 0);
-  state.done.Init(n, &state.lists);
-  uint64_t total_bytes = 0;
-  for (uint32_t b : rec.bytes) total_bytes += b;
-
   SubtreeOut out;
-  result.timings.stitch = BuildNodes(&state, n, total_bytes, threads, &out);
-  lap(&result.timings.nodes);
+  try {
+    build::SortKeyOrders(rec.box, &state.lists, [&](int l) {
+      if (state.spill != nullptr) state.spill->Store(l, 0, n);
+    });
+    build::TrimHeap();
+    lap(&result.timings.sorts, &result.timings.peak_sorts);
+    state.side.assign(n, 0);
+    state.done.Init(n, &state.lists);
+    uint64_t total_bytes = 0;
+    for (uint32_t b : rec.bytes) total_bytes += b;
+
+    result.timings.stitch = BuildNodes(&state, n, total_bytes, threads, &out);
+    lap(&result.timings.nodes, &result.timings.peak_nodes);
+  } catch (const build::SpillError& e) {
+    return Status::IOError(e.what());
+  }
   Finish(std::move(out), ids, &state, threads, &result);
-  lap(&result.timings.finish);
+  lap(&result.timings.finish, &result.timings.peak_finish);
   return result;
 }
 

@@ -1,5 +1,6 @@
 // BuildMKTree: constructs the MKtree (docs/design.md §2) from per-object records only (id, AABB, encoded
-// bytes; never geometry), in RAM, in O(N log^2 N) time and well under 100 bytes per object.
+// bytes; never geometry), in O(N log^2 N) time and about 60 bytes per object (BuildTuning: the key lists
+// of the top levels in a spill file).
 //
 // Node layout: nodes in DFS preorder (root 0, left child n+1, right child after the left subtree), so a
 // subtree is the contiguous index range [n, child-range end); leaves numbered in DFS order; a leaf's pages
@@ -21,12 +22,14 @@
 //
 // The implementation, by concern (internal headers of engine/tree, namespace mktree::build): the checks
 // (build_validation.h), the records' Morton layout and the six key sorts (build_layout.h), the build's
-// allocator and scratch arrays (build_memory.h), the split choice (split_choice.h, with the SOA's rule in
-// the paper's notation; split_compact.cc and split_key_sweeps.cc), node processing (subtree_builder.h),
-// the multi-thread build (parallel_build.h), and the phases in order (mktree_builder.cc).
+// allocator and scratch arrays (build_memory.h), the spill file of the top levels' lists (list_spill.h), the
+// split choice (split_choice.h, with the SOA's rule in the paper's notation; split_compact.cc and
+// split_key_sweeps.cc), node processing (subtree_builder.h), the multi-thread build (parallel_build.h), and
+// the phases in order (mktree_builder.cc).
 #pragma once
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "engine/tree/mktree.h"
@@ -44,6 +47,8 @@ struct BuildTimings {
   double nodes = 0;   // SOA splits, SplitTrees, list partitions (and the 2-thread stitch)
   double stitch = 0;  // of `nodes`: joining the 2-thread build's fragments into one tree
   double finish = 0;  // pages, leaf objects, statistics
+  // The process's peak RSS (bytes, getrusage) at the end of each phase: what each phase adds to it.
+  uint64_t peak_layout = 0, peak_sorts = 0, peak_nodes = 0, peak_finish = 0;
 };
 
 struct BuildResult {
@@ -98,6 +103,17 @@ struct BuildTuning {
   // With 2 threads or more, a root of at least this many objects shares its key sweeps and list partitions
   // with a second thread (the others have nothing to do until it is split).
   uint32_t cooperative_root_objects = 1u << 17;
+  // Memory (the build's peak RSS; bench/README.md, tree_build_bench): a node of more than
+  // `ram_node_objects` objects keeps its six key lists (24 bytes an object) in a spill file in `spill_dir`
+  // between its sweeps, which load one list (two on a cooperative root) at a time; smaller nodes are built
+  // in RAM as before. The tree is the same whatever the budget. 0: N / 8 for N of at least 2^18 objects,
+  // else no spill (kNoIndex: never). Contract: the peak is then at most about 60 bytes an object plus the
+  // process's fixed part (the records 28, ids 4, side flags 1, the root's sweeps about 16 of which 4 for
+  // the list loaded, the lists of the nodes in RAM at most 3, and the tree as it grows), and the file holds
+  // 24 bytes an object until the build returns. It has no name (list_spill.h), so nothing is left behind.
+  // "": $TMPDIR, else /tmp (BuildStore passes the directory of its own spill files).
+  uint32_t ram_node_objects = 0;
+  std::string spill_dir;
 };
 
 // REQUIRES nothing of `records` beyond the checks below, which return InvalidArgument naming the object:

@@ -6,6 +6,7 @@
 #include <condition_variable>
 #include <cstddef>
 #include <deque>
+#include <exception>
 #include <memory>
 #include <mutex>
 #include <thread>
@@ -47,16 +48,26 @@ class TaskPool final : public TaskSink {
     std::unique_lock<std::mutex> lock(mu_);
     for (;;) {
       cv_.wait(lock, [&] { return !queue_.empty() || busy_ == 0; });
-      if (queue_.empty()) break;              // and nobody busy: done
+      if (failed_) queue_.clear();
+      if (queue_.empty()) break;              // and nobody busy (or a task failed): done
       const auto [task, id] = queue_.back();  // newest first: depth-first, smaller scratch
       queue_.pop_back();
       QueueChanged();
       SubtreeOut* frag = frags_[id].get();
       ++busy_;
       lock.unlock();
-      builder.RunSpawning(task, frag, min_spawn, this);
-      frag->ShrinkToFit();  // fragments live until stitched: no growth slack in the peak
+      std::exception_ptr failed;
+      try {
+        builder.RunSpawning(task, frag, min_spawn, this);
+        frag->ShrinkToFit();  // fragments live until stitched: no growth slack in the peak
+      } catch (...) {
+        failed = std::current_exception();
+      }
       lock.lock();
+      if (failed) {  // (a spill file's error) the first is kept; nothing more is built
+        if (!failed_) failed_ = failed;
+      }
+      if (failed_) queue_.clear();
       --busy_;
       if (busy_ == 0 && queue_.empty()) cv_.notify_all();
     }
@@ -64,6 +75,8 @@ class TaskPool final : public TaskSink {
 
   // Once every worker is done.
   const Fragments& fragments() const { return frags_; }
+  // Once every worker is done: the first exception a task threw, if any.
+  std::exception_ptr failed() const { return failed_; }
 
  private:
   void QueueChanged() {  // (under mu_)
@@ -78,6 +91,7 @@ class TaskPool final : public TaskSink {
   std::atomic<uint32_t> queued_largest_{0};      // (kept under mu_, read without it)
   Fragments frags_;
   int busy_ = 0;
+  std::exception_ptr failed_;
 };
 
 // A SplitTree placed by the stitch's walk: `count` nodes at `from` (index `at` in its fragment) go to
@@ -167,6 +181,7 @@ double BuildParallel(BuildState* state, const Task& root, int threads, SubtreeOu
   for (int i = 1; i < threads; ++i) workers.emplace_back([&] { pool.Work(state, min_spawn); });
   pool.Work(state, min_spawn);
   for (std::thread& th : workers) th.join();
+  if (pool.failed()) std::rethrow_exception(pool.failed());
   ReleaseBuildLists(state);  // before stitching, which holds the fragments and the tree at once
 
   const auto stitch_start = std::chrono::steady_clock::now();

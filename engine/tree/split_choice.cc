@@ -141,6 +141,8 @@ CutRange BalancedCuts(uint32_t n, uint32_t depth, double balance_r) {
 void SplitChooser::ShrinkScratch(size_t n) {
   for (auto* v : {&sorted_min_, &prefix_max_, &sorted_max_, &suffix_min_, &margin_pre_, &margin_suf_})
     if (v->capacity() > n + 1) v->Reset(n + 1);
+  for (int slot = 0; slot < 2; ++slot)
+    if (window_[slot].capacity() > n) window_[slot].Reset(n), held_[slot] = -1;
 }
 
 Candidate SplitChooser::Choose(const Task& t, CutRange cuts) {
@@ -217,10 +219,9 @@ void SplitChooser::ScanKey(const Task& t, const ScanRequest& req, uint64_t* boun
   const bool sm_free = fill_aware && mode != ScanMode::kLeastSm && sm_min + slack >= n;
   const bool tied_only = mode == ScanMode::kTiedMargins;  // the second kCompact pass: the tied cuts only
   const ListTies& tied = req.tied[kKey];
-  const BuildVector<uint32_t>& order = s_.lists[2 * req.axis + kKey];
   if (tied_only) {
     if (tied.count == 0 || tied.key != req.tie_key) return;
-    PrefixSuffixMargins(t, order, tied.k_min, tied.k_max);
+    PrefixSuffixMargins(t, 2 * req.axis + kKey, tied.k_min, tied.k_max);
   }
   const uint32_t k_first = tied_only ? tied.k_min : req.cuts.k_lo;
   const uint32_t k_last = tied_only ? tied.k_max : req.cuts.k_hi;
@@ -232,7 +233,8 @@ void SplitChooser::ScanKey(const Task& t, const ScanRequest& req, uint64_t* boun
   const float* const smax = planes.smax;
   const uint64_t tie_key_wanted = req.tie_key;
   uint64_t bound = *bound_io;
-  const uint32_t* const ord = order.data() + t.lo;
+  // Bytes only near the leaves (PrefixSuffixMargins has loaded the list for the tied cuts).
+  const uint32_t* const ord = fill_aware ? Range(t, list) : nullptr;
   const uint32_t* const bytes = bytes_.data();
   uint64_t left_bytes = 0;      // encoded bytes of the first k objects
   if (fill_aware && tied_only)  // the first pass's candidate at k_first has them

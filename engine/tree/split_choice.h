@@ -177,6 +177,35 @@ class SplitChooser {
   // The best candidate among the cuts of `cuts` of the node of `t` (steps 2-3, as BuildTuning ranks).
   Candidate Choose(const Task& t, CutRange cuts);
 
+  // List l over the node's range, indexed from 0 (position t.lo). In RAM; for a spilled node
+  // (Task::spilled) read from the spill file into window `slot` (1: only the second thread of a
+  // cooperative root), which holds one list at a time and keeps its pages from node to node (loading into
+  // the lists' own storage faulted them in at every load). The pointer stays valid until the slot loads
+  // another list or the node ends (NodeDone).
+  const uint32_t* Range(const Task& t, int l, int slot = 0) {
+    if (!t.spilled) return s_.lists[l].data() + t.lo;
+    if (held_[slot] != l) {
+      Window(slot, t.hi - t.lo);
+      s_.spill->Read(l, t.lo, t.hi, window_[slot].data());
+      held_[slot] = l;
+    }
+    return window_[slot].data();
+  }
+  // Window `slot` with room for n positions, for the builder's own use (its list partitions).
+  uint32_t* Window(int slot, size_t n) {
+    window_[slot].Fit(n);
+    held_[slot] = -1;
+    return window_[slot].data();
+  }
+  // The node is done: the windows' contents are not its lists any more. A spilled node's windows give
+  // their pages back (between its sweeps, its SplitTree and its children they would add to the peak; a
+  // window faults its pages in once a node, not once a list).
+  void NodeDone(const Task& t) {
+    held_[0] = held_[1] = -1;
+    if (t.spilled)
+      for (Scratch<uint32_t>& w : window_) w.Reset(0);
+  }
+
   // Gives back the scratch beyond what a node of n objects needs.
   void ShrinkScratch(size_t n);
   size_t ScratchObjects() const { return sorted_min_.capacity(); }
@@ -194,14 +223,13 @@ class SplitChooser {
   Candidate ChooseSoa(const Task& t, CutRange cuts, const Ranking& ranking, const bool axis_ok[3]);
   Candidate ChooseCompact(const Task& t, CutRange cuts, const Ranking& ranking, const bool axis_ok[3]);
   void ScanWasteMargins(const Task& t, int w, CutRange cuts, Candidate* best);
-  float SplitMargin(const Task& t, int list, uint32_t k) const;
+  float SplitMargin(const Task& t, int list, uint32_t k);
   void ScanKeys(const Task& t, const ScanRequest& req, ScanOutcome* out);
   template <int kKey>
   void ScanKey(const Task& t, const ScanRequest& req, uint64_t* bound, ScanOutcome* out);
 
   // The key sweeps (split_key_sweeps.cc).
-  void PrefixSuffixMargins(const Task& t, const BuildVector<uint32_t>& order, uint32_t k_min32,
-                           uint32_t k_max32);
+  void PrefixSuffixMargins(const Task& t, int list, uint32_t k_min32, uint32_t k_max32);
   void GatherAxis(const Task& t, int w, CutRange cuts);
   template <bool kFar>
   void GatherRuns(const Task& t, int w, uint32_t k_lo32, uint32_t k_hi32);
@@ -221,6 +249,8 @@ class SplitChooser {
   Scratch<float> margin_pre_, margin_suf_;  // kCompact only
   Scratch<uint32_t> block_pa_, block_pb_;   // ScanKeys' counts at its block ends
   uint32_t margin_base_ = 0;                // margin_pre_ / margin_suf_ index of the cut k_min
+  Scratch<uint32_t> window_[2];             // a spilled node's lists (Range)
+  int held_[2] = {-1, -1};                  // the list each window holds, -1: none
 };
 
 }  // namespace mktree::build

@@ -66,9 +66,8 @@ void SplitChooser::ScanWasteMargins(const Task& t, int w, CutRange cuts, Candida
   const uint32_t* const bytes = bytes_.data();
   for (int key = 0; key < 2; ++key) {
     const int list = 2 * w + key;
-    const BuildVector<uint32_t>& order = s_.lists[list];
-    PrefixSuffixMargins(t, order, k_lo, k_hi);
-    const uint32_t* const ord = order.data() + t.lo;
+    PrefixSuffixMargins(t, list, k_lo, k_hi);
+    const uint32_t* const ord = Range(t, list);
     uint64_t sum = 0;  // encoded bytes of the first k objects
     for (uint32_t i = 0; i + 1 < k_lo; ++i) sum += bytes[ord[i]];
     const uint64_t sum_begin = sum;
@@ -144,12 +143,12 @@ void SplitChooser::CompactAxes(const Task& t, bool axis_ok[3]) const {
 }
 
 // N1 x margin(R(Sn1)) + N2 x margin(R(Sn2)) of one candidate, as ScanKeys computes it.
-float SplitChooser::SplitMargin(const Task& t, int list, uint32_t k) const {
-  const BuildVector<uint32_t>& order = s_.lists[list];
-  LanesUnion lo, hi;
-  for (uint32_t i = t.lo; i < t.lo + k; ++i) lo.Add(box_[order[i]]);
-  for (uint32_t i = t.lo + k; i < t.hi; ++i) hi.Add(box_[order[i]]);
+float SplitChooser::SplitMargin(const Task& t, int list, uint32_t k) {
+  const uint32_t* const ord = Range(t, list);
   const uint32_t n = t.hi - t.lo;
+  LanesUnion lo, hi;
+  for (uint32_t i = 0; i < k; ++i) lo.Add(box_[ord[i]]);
+  for (uint32_t i = k; i < n; ++i) hi.Add(box_[ord[i]]);
   return static_cast<float>(static_cast<double>(k) * lo.Margin() + static_cast<double>(n - k) * hi.Margin());
 }
 

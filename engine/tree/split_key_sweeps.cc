@@ -12,13 +12,12 @@ namespace mktree::build {
 // margin_pre_[i - (k_min-1)], and of order[lo+i .. hi) for i in [k_min, k_max] at margin_suf_[i - k_min]:
 // what the cuts k in [k_min, k_max] need. Each sweep runs in two stretches (without, then with a margin
 // stored) over the boxes as vectors.
-void SplitChooser::PrefixSuffixMargins(const Task& t, const BuildVector<uint32_t>& order, uint32_t k_min32,
-                                       uint32_t k_max32) {
+void SplitChooser::PrefixSuffixMargins(const Task& t, int list, uint32_t k_min32, uint32_t k_max32) {
   const size_t n = t.hi - t.lo, k_min = k_min32, k_max = k_max32;  // (64-bit: no zero-extensions)
   margin_base_ = k_min32;
   margin_pre_.Fit(k_max - k_min + 1);
   margin_suf_.Fit(k_max - k_min + 1);
-  const uint32_t* ord = order.data() + t.lo;
+  const uint32_t* ord = Range(t, list);
   const Box3f* box = box_.data();
   float* const pre_out = margin_pre_.data();
   float* const suf_out = margin_suf_.data();
@@ -73,8 +72,8 @@ void SplitChooser::GatherRuns(const Task& t, int w, uint32_t k_lo32, uint32_t k_
   // (64-bit positions: no zero-extensions in the loops.)
   const size_t n = t.hi - t.lo, k_lo = k_lo32, k_hi = k_hi32;
   const Box3f* box = box_.data();
-  const uint32_t* by_min = s_.lists[2 * w].data() + t.lo;
-  const uint32_t* by_max = s_.lists[2 * w + 1].data() + t.lo;
+  const uint32_t* by_min = nullptr;  // (a spilled node's: one window at a time on one thread)
+  const uint32_t* by_max = nullptr;
   float* smin = sorted_min_.data();
   float* smax = sorted_max_.data();
   float* pmax = prefix_max_.data();  // [k - k_lo]: max of max_w over the first k objects
@@ -106,9 +105,13 @@ void SplitChooser::GatherRuns(const Task& t, int w, uint32_t k_lo32, uint32_t k_
     for (; i > 0;) down(--i);
   };
   if (t.cooperative) {
+    by_min = Range(t, 2 * w, 0);
+    by_max = Range(t, 2 * w + 1, 1);
     Together(sweep_up, sweep_down);
   } else {
+    by_min = Range(t, 2 * w);
     sweep_up();
+    by_max = Range(t, 2 * w + 1);
     sweep_down();
   }
 }

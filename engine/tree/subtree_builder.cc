@@ -73,10 +73,12 @@ void SubtreeBuilder::RunSpawning(const Task& root, SubtreeOut* out, uint32_t min
   }
 }
 
-bool SubtreeBuilder::ProcessNode(const Task& t, SubtreeOut* out, Task kids[2]) {
+bool SubtreeBuilder::ProcessNode(const Task& task, SubtreeOut* out, Task kids[2]) {
+  Task t = task;
   const uint32_t n = t.hi - t.lo;
   const uint32_t me = static_cast<uint32_t>(out->nodes.size());
   if (t.parent != kNoIndex) out->nodes[t.parent].child[t.slot] = me;
+  if (t.spilled) Unspill(&t);
   TreeNode node;
   node.box = NodeBox(t);
   node.depth = static_cast<uint8_t>(std::min<uint32_t>(t.depth, 255));
@@ -96,8 +98,8 @@ bool SubtreeBuilder::ProcessNode(const Task& t, SubtreeOut* out, Task kids[2]) {
   const Partition part = PartitionLists(t, w);
 
   // The stored planes are those of the final children (free objects may have narrowed the slab).
-  node.a = box_[s_.lists[2 * w][t.lo + part.n1]].min[w];
-  node.b = box_[s_.lists[2 * w + 1][t.lo + part.n1 - 1]].max[w];
+  node.a = part.a;
+  node.b = part.b;
   uint32_t sm = 0;
   if (node.a < node.b) {
     sm = CountOverlap(n_items, w, node.a, node.b);
@@ -111,7 +113,27 @@ bool SubtreeBuilder::ProcessNode(const Task& t, SubtreeOut* out, Task kids[2]) {
     out->split_count.push_back(node.split_root == kNoIndex ? 0 : static_cast<uint32_t>(split_.size()));
   kids[0] = Task{t.lo, t.lo + part.n1, t.depth + 1, me, 0, part.left_bytes, part.leaf_kids};
   kids[1] = Task{t.lo + part.n1, t.hi, t.depth + 1, me, 1, t.bytes - part.left_bytes, part.leaf_kids};
+  kids[0].spilled = kids[1].spilled = t.spilled;
   return true;
+}
+
+// A spilled node small enough for RAM (or a leaf: list 0, its objects, and the lists' ends for its box
+// unless its parent made it leaf_lists_only) has its lists loaded and is built in RAM from here on. A
+// larger one gets the ends of its lists, which give its box and its spreads (NodeBox,
+// SplitChooser::CompactAxes); its sweeps load the rest as they go. (The box from the lists' ends and the
+// one from the objects may differ in the sign of a zero: each node takes it as the RAM build does.)
+void SubtreeBuilder::Unspill(Task* t) {
+  ListSpill& spill = *s_.spill;
+  const bool leaf = IsLeaf(t->hi - t->lo, t->bytes);
+  if (!leaf && t->hi - t->lo <= s_.ram_node_objects) {
+    for (int l = 0; l < 6; ++l) spill.Load(l, t->lo, t->hi);
+    t->spilled = false;
+    return;
+  }
+  if (leaf) spill.Load(0, t->lo, t->hi);
+  if (!t->leaf_lists_only)
+    for (int l = leaf ? 1 : 0; l < 6; ++l) spill.Load(l, t->lo, t->lo + 1), spill.Load(l, t->hi - 1, t->hi);
+  if (leaf) t->spilled = false;
 }
 
 // R(Sn): from the ends of the six sorted lists, or from the objects when only list 0 holds them in order.
@@ -152,7 +174,7 @@ void SubtreeBuilder::AppendLeaf(const Task& t, TreeNode node, SubtreeOut* out) {
 // its position (no read of side[], and the sides may be marked meanwhile, on the root's second thread).
 uint32_t SubtreeBuilder::AssignSides(const Task& t, const Candidate& best) {
   uint8_t* const side = s_.side.data();
-  const uint32_t* const chosen = s_.lists[best.list].data() + t.lo;
+  const uint32_t* const chosen = chooser_.Range(t, best.list);
   const size_t k = best.k, n = t.hi - t.lo;
   const bool key0 = best.list % 2 == 0;
   uint32_t n_items = 0;
@@ -160,13 +182,14 @@ uint32_t SubtreeBuilder::AssignSides(const Task& t, const Candidate& best) {
     MarkSides(side, chosen, k, n);
   } else if (!key0) {
     MarkSides(side, chosen, k, n);
-    n_items = GatherSlabItems<false>(t, best);
+    n_items = GatherSlabItems<false>(t, best);  // (a spilled node: its by_min list replaces `chosen`)
   } else if (t.cooperative) {
     Together([=] { MarkSides(side, chosen, k, n); }, [&] { n_items = GatherSlabItems<true>(t, best); });
   } else {
     MarkSides(side, chosen, k, n);
     n_items = GatherSlabItems<true>(t, best);
   }
+  chooser_.NodeDone(t);  // (its lists are read again by PartitionLists)
   return n_items;
 }
 
@@ -184,16 +207,16 @@ uint32_t SubtreeBuilder::GatherSlabItems(const Task& t, const Candidate& best) {
   SplitItem* const items = items_.data();
   uint32_t* const ids = overlap_ids_.data();
   const int axis = best.list / 2;
-  const uint32_t* const by_min = s_.lists[2 * axis].data();
+  const uint32_t* const by_min = chooser_.Range(t, 2 * axis);  // [0]: position t.lo
   const Box3f* const box = box_.data();
   const uint32_t* const bytes = bytes_.data();
   const uint8_t* const sides = s_.side.data();
   const float a = best.a, b = best.b;
-  const size_t lo = t.lo, hi = t.hi;  // (64-bit: no zero-extensions in the loop)
-  const size_t prefetch_end = n >= kPrefetchObjects ? hi - kPrefetch : lo;
-  const size_t first_right = lo + best.k;
+  const size_t size = n;  // (64-bit: no zero-extensions in the loop)
+  const size_t prefetch_end = n >= kPrefetchObjects ? size - kPrefetch : 0;
+  const size_t first_right = best.k;
   size_t count = 0;
-  for (size_t i = lo; i < hi; ++i) {
+  for (size_t i = 0; i < size; ++i) {
     if (i < prefetch_end) {  // (box, bytes and side are each a random read in a large node)
       const uint32_t ahead = by_min[i + kPrefetch];
       __builtin_prefetch(&box[ahead]);
@@ -246,44 +269,59 @@ void SubtreeBuilder::PlaceSlabObjects(const Task& t, const Box3f& box, const Can
 
 // Stable in-place partition of the lists by side, keeping each half sorted by its key. List 0 goes first
 // and also sums the left child's bytes: when both children are leaves, only list 0 (their objects) and
-// the split axis' lists (the planes) are partitioned, as a leaf takes its box from its objects.
+// the split axis' lists (the planes) are partitioned, as a leaf takes its box from its objects. A spilled
+// node's lists are all cut (its children may be anything), each read into a window, partitioned there and
+// written back. The planes of the final children are read off the split axis' two lists.
 SubtreeBuilder::Partition SubtreeBuilder::PartitionLists(const Task& t, int w) {
   const uint32_t n = t.hi - t.lo;
-  uint32_t* const tmp = chooser_.PartitionBuffer(0, n);
   Partition part;
+  auto one = [&](int l, int slot) {
+    uint32_t* const buffer = chooser_.PartitionBuffer(slot, n);
+    uint32_t* v = s_.lists[l].data() + t.lo;
+    if (t.spilled) {
+      v = chooser_.Window(slot, n);
+      s_.spill->Read(l, t.lo, t.hi, v);
+    }
+    uint32_t n1 = 0;
+    if (l == 0)
+      n1 = part.n1 = PartitionList<true>(v, n, buffer, &part.left_bytes);
+    else
+      n1 = PartitionList<false>(v, n, buffer, nullptr);
+    if (l == 2 * w) part.a = box_[v[n1]].min[w];
+    if (l == 2 * w + 1) part.b = box_[v[n1 - 1]].max[w];
+    if (t.spilled) s_.spill->Write(l, t.lo, t.hi, v);
+  };
   auto lists_0_to_2 = [&] {
-    part.n1 = PartitionList<true>(t, 0, tmp, &part.left_bytes);
+    one(0, 0);
     part.leaf_kids = IsLeaf(part.n1, part.left_bytes) && IsLeaf(n - part.n1, t.bytes - part.left_bytes);
     for (int l = 1; l < 3; ++l)
-      if (!part.leaf_kids || l / 2 == w) PartitionList<false>(t, l, tmp, nullptr);
+      if (!part.leaf_kids || l / 2 == w || t.spilled) one(l, 0);
   };
   if (t.cooperative) {  // lists 3-5 on the other thread (partitioned even for leaf children: harmless)
-    uint32_t* const other_tmp = chooser_.PartitionBuffer(1, n);
     Together(lists_0_to_2, [&] {
-      for (int l = 3; l < 6; ++l) PartitionList<false>(t, l, other_tmp, nullptr);
+      for (int l = 3; l < 6; ++l) one(l, 1);
     });
   } else {
     lists_0_to_2();
     for (int l = 3; l < 6; ++l)
-      if (!part.leaf_kids || l / 2 == w) PartitionList<false>(t, l, tmp, nullptr);
+      if (!part.leaf_kids || l / 2 == w || t.spilled) one(l, 0);
   }
+  chooser_.NodeDone(t);
   return part;
 }
 
-// One list of PartitionLists, through `right` (room for the node's objects); kSumBytes: *left_bytes gets
-// the encoded bytes of Sn1. Returns |Sn1|. Branch-free: the sides of neighbours in key order are not
+// One list of PartitionLists: the n positions at v, through `right` (room for n); kSumBytes: *left_bytes
+// gets the encoded bytes of Sn1. Returns |Sn1|. Branch-free: the sides of neighbours in key order are not
 // predictable.
 template <bool kSumBytes>
-uint32_t SubtreeBuilder::PartitionList(const Task& t, int l, uint32_t* right, uint64_t* left_bytes) {
-  // (Locals: the list stores could alias the task's bounds and the byte sum.)
-  uint32_t* v = s_.lists[l].data();
+uint32_t SubtreeBuilder::PartitionList(uint32_t* v, size_t n, uint32_t* right, uint64_t* left_bytes) {
+  // (Locals: the list stores could alias the byte sum.)
   const uint8_t* side = s_.side.data();
   const uint32_t* bytes = bytes_.data();
   // 64-bit positions and 1 - r: no zero-extensions in the loop.
-  const size_t lo = t.lo, hi = t.hi;
-  size_t wpos = lo, tpos = 0;
+  size_t wpos = 0, tpos = 0;
   uint64_t sum = 0;
-  for (size_t i = lo; i < hi; ++i) {
+  for (size_t i = 0; i < n; ++i) {
     const uint32_t idx = v[i];
     const size_t r = side[idx];
     v[wpos] = idx;
@@ -294,7 +332,7 @@ uint32_t SubtreeBuilder::PartitionList(const Task& t, int l, uint32_t* right, ui
   }
   std::copy(right, right + tpos, v + wpos);
   if (kSumBytes) *left_bytes = sum;
-  return static_cast<uint32_t>(wpos - lo);
+  return static_cast<uint32_t>(wpos);
 }
 
 // |Sm| of the final children: the slab's objects with max_w > a and min_w < b. The items' boxes are
@@ -321,6 +359,10 @@ void SubtreeBuilder::ShrinkScratch(size_t n) {
 void ReleaseBuildLists(BuildState* state) {
   for (int l = 1; l < 6; ++l) BuildVector<uint32_t>().swap(state->lists[l]);
   std::vector<uint8_t>().swap(state->side);
+  if (state->records != nullptr) {
+    BuildVector<Box3f>().swap(state->records->box);
+    BuildVector<uint32_t>().swap(state->records->bytes);
+  }
   TrimHeap();
 }
 

@@ -53,13 +53,15 @@ class SubtreeBuilder {
     uint32_t n1 = 0;          // objects of Sn1
     uint64_t left_bytes = 0;  // their encoded bytes
     bool leaf_kids = false;   // both children are leaves (only list 0 and the split axis' lists were cut)
+    float a = 0, b = 0;       // the planes of the final children
   };
 
   bool IsLeaf(uint32_t count, uint64_t bytes) const { return build::IsLeaf(count, bytes, mem_page_); }
   uint64_t Pages(uint64_t bytes) const { return PagesForLeaf(bytes, mem_page_); }
 
   // Appends the node of `t` to `out`; returns true with its two child tasks when it is internal.
-  bool ProcessNode(const Task& t, SubtreeOut* out, Task kids[2]);
+  bool ProcessNode(const Task& task, SubtreeOut* out, Task kids[2]);
+  void Unspill(Task* t);
   Box3f NodeBox(const Task& t) const;
   void AppendLeaf(const Task& t, TreeNode node, SubtreeOut* out);
   uint32_t AssignSides(const Task& t, const Candidate& best);
@@ -69,7 +71,7 @@ class SubtreeBuilder {
                         uint32_t n_items);
   Partition PartitionLists(const Task& t, int w);
   template <bool kSumBytes>
-  uint32_t PartitionList(const Task& t, int l, uint32_t* right, uint64_t* left_bytes);
+  uint32_t PartitionList(uint32_t* v, size_t n, uint32_t* right, uint64_t* left_bytes);
   uint32_t CountOverlap(uint32_t n_items, int w, float a, float b) const;
   void ShrinkScratch(size_t n);
 
@@ -85,7 +87,8 @@ class SubtreeBuilder {
   Scratch<uint32_t> overlap_ids_;
 };
 
-// Frees what only the splits needed: lists 1-5 and the side flags (list 0 gives the leaves' objects).
+// Frees what only the splits needed: lists 1-5, the side flags and the records (list 0 gives the leaves'
+// objects).
 void ReleaseBuildLists(BuildState* state);
 
 }  // namespace mktree::build

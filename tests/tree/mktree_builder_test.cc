@@ -1,9 +1,13 @@
 #include "engine/tree/mktree_builder.h"
 
 #include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/resource.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <cmath>
+#include <filesystem>
 #include <limits>
 #include <random>
 #include <unordered_map>
@@ -306,6 +310,139 @@ TEST(BuildMKTree, ListPagesGivenBackDuringTheBuildKeepTheTree) {
     ASSERT_TRUE(r2.ok());
     ExpectSameTree(*r1, *r2);
   }
+}
+
+// The names in a directory (the spill files must be gone however the build ends).
+std::vector<std::string> DirEntries(const std::filesystem::path& dir) {
+  std::vector<std::string> names;
+  for (const auto& e : std::filesystem::directory_iterator(dir))
+    names.push_back(e.path().filename().string());
+  return names;
+}
+
+// A fresh empty directory for one test's spill files.
+std::filesystem::path FreshSpillDir(const std::string& name) {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() /
+                                    ("mktree_builder_test_" + name + "_" + std::to_string(getpid()));
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  return dir;
+}
+
+// Out-of-core top levels (BuildTuning::ram_node_objects): with tiny budgets nearly every node, leaves
+// included, keeps its lists in the spill file and loads them a list at a time; the tree must be the one
+// built in RAM, on one thread and on several (a cooperative root, tiny tasks), and the file must be gone.
+TEST(BuildMKTree, OutOfCoreTopLevelsBuildTheSameTree) {
+  const std::filesystem::path dir = FreshSpillDir("same");
+  for (SplitPolicy policy : kAllPolicies) {
+    for (SceneKind kind : {SceneKind::kShip, SceneKind::kClustered, SceneKind::kOversized}) {
+      auto recs = MakeScene(kind, 6000, 13);
+      BuildParams p;
+      p.block_size = 2048;
+      BuildTuning in_ram = WithPolicy(policy);
+      in_ram.threads = 1;
+      auto r1 = BuildMKTree(recs, p, in_ram);
+      ASSERT_TRUE(r1.ok());
+      for (uint32_t budget : {1u, 5u, 300u, 3000u}) {
+        for (int threads : {1, 2}) {
+          SCOPED_TRACE(std::string(testing::Name(policy)) + " " + testing::Name(kind) + " budget " +
+                       std::to_string(budget) + " threads " + std::to_string(threads));
+          BuildTuning spilled = in_ram;
+          spilled.ram_node_objects = budget;
+          spilled.spill_dir = dir.string();
+          spilled.threads = threads;
+          spilled.parallel_task_objects = threads > 1 ? 64 : 0;
+          spilled.cooperative_root_objects = 1;
+          auto r2 = BuildMKTree(recs, p, spilled);
+          ASSERT_TRUE(r2.ok()) << r2.status().ToString();
+          ExpectSameTree(*r1, *r2);
+          EXPECT_TRUE(DirEntries(dir).empty());
+        }
+      }
+    }
+  }
+  // Identical boxes at +0 and -0 (random_tunings found it): a leaf's box from its objects and the one
+  // from the lists' ends differ in the sign of a zero, and a spilled leaf must take the one RAM takes.
+  std::vector<BuildObject> zeros(3000);
+  std::mt19937_64 rng(5);
+  for (size_t i = 0; i < zeros.size(); ++i) {
+    zeros[i].id = static_cast<ObjectId>(i);
+    zeros[i].encoded_bytes = static_cast<uint32_t>(64 + rng() % 3000);
+    for (int a = 0; a < 3; ++a) zeros[i].box.min[a] = zeros[i].box.max[a] = rng() % 2 ? 0.0f : -0.0f;
+  }
+  BuildTuning in_ram;
+  in_ram.threads = 1;
+  auto z1 = BuildMKTree(zeros, BuildParams(), in_ram);
+  ASSERT_TRUE(z1.ok());
+  for (uint32_t budget : {1u, 3u, 40u}) {
+    BuildTuning spilled = in_ram;
+    spilled.ram_node_objects = budget;
+    spilled.spill_dir = dir.string();
+    auto z2 = BuildMKTree(zeros, BuildParams(), spilled);
+    ASSERT_TRUE(z2.ok());
+    ExpectSameTree(*z1, *z2);
+  }
+  std::filesystem::remove_all(dir);
+}
+
+// Lists of 262144 objects and more are mapped: a spilled node's pages are given back (not zeroed) between
+// its sweeps, next to ranges whose pages DoneRanges gives back. Still the in-RAM tree.
+TEST(BuildMKTree, OutOfCoreLargeListsBuildTheSameTree) {
+  auto recs = MakeScene(SceneKind::kShip, 300000, 9);
+  BuildTuning in_ram;
+  in_ram.threads = 1;
+  in_ram.ram_node_objects = kNoIndex;
+  auto r1 = BuildMKTree(recs, BuildParams(), in_ram);
+  ASSERT_TRUE(r1.ok());
+  for (int threads : {1, 2}) {
+    SCOPED_TRACE("threads " + std::to_string(threads));
+    BuildTuning spilled;
+    spilled.threads = threads;
+    spilled.ram_node_objects = 20000;
+    auto r2 = BuildMKTree(recs, BuildParams(), spilled);
+    ASSERT_TRUE(r2.ok()) << r2.status().ToString();
+    ExpectSameTree(*r1, *r2);
+  }
+}
+
+// A spill file that cannot be written (here: past the file size limit) fails the build with an I/O error
+// naming it, on one thread and on two, and leaves nothing behind; so does a spill directory that is not.
+TEST(BuildMKTree, SpillFailuresAreErrorsAndLeaveNothing) {
+  const std::filesystem::path dir = FreshSpillDir("fail");
+  auto recs = MakeScene(SceneKind::kShip, 20000, 3);
+  BuildTuning tuning;
+  tuning.ram_node_objects = 100;
+  tuning.spill_dir = (dir / "missing").string();
+  auto missing = BuildMKTree(recs, BuildParams(), tuning);
+  ASSERT_FALSE(missing.ok());
+  EXPECT_EQ(missing.status().code(), Status::Code::kIOError);
+  EXPECT_NE(missing.status().message().find((dir / "missing").string()), std::string::npos)
+      << missing.status().ToString();
+
+  tuning.spill_dir = dir.string();
+  struct sigaction ignore {
+  }, old{};
+  ignore.sa_handler = SIG_IGN;
+  ASSERT_EQ(sigaction(SIGXFSZ, &ignore, &old), 0);
+  rlimit limit{}, saved{};
+  ASSERT_EQ(getrlimit(RLIMIT_FSIZE, &saved), 0);
+  limit = saved;
+  limit.rlim_cur = 64 * 1024;  // the lists take 6 x 20000 x 4 = 480 kB
+  ASSERT_EQ(setrlimit(RLIMIT_FSIZE, &limit), 0);
+  for (int threads : {1, 2}) {
+    tuning.threads = threads;
+    tuning.cooperative_root_objects = 1;
+    auto r = BuildMKTree(recs, BuildParams(), tuning);
+    EXPECT_FALSE(r.ok());
+    if (!r.ok()) {
+      EXPECT_EQ(r.status().code(), Status::Code::kIOError);
+      EXPECT_NE(r.status().message().find(dir.string()), std::string::npos) << r.status().ToString();
+    }
+  }
+  setrlimit(RLIMIT_FSIZE, &saved);
+  sigaction(SIGXFSZ, &old, nullptr);
+  EXPECT_TRUE(DirEntries(dir).empty());
+  std::filesystem::remove_all(dir);
 }
 
 // Degenerate inputs that would make a quadratic step explode: they must complete quickly (no timing
