@@ -204,7 +204,7 @@ class CallerSource final : public SceneSource {
     return Status::Ok();
   }
 
-  const ObjectSource& source_;
+  ObjectSource source_;
   ObjectId next_id_;
 };
 
@@ -237,13 +237,31 @@ Result<BuildStats> BuildFromObjects(const ObjectSource& source, const std::strin
   const SceneOpener opener = [&source](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
     return std::unique_ptr<SceneSource>(std::make_unique<CallerSource>(source, first));
   };
-  if (options.shards > 0) return BuildSharded({opener}, store_path, opts, options.shards);
+  if (options.shards > 0)
+    return Status::InvalidArgument(
+        store_path +
+        ": a sharded build reads its objects more than once: give them as a vector "
+        "or as files");
   MKTREE_ASSIGN_OR_RETURN(const IngestReport report, BuildStore({opener}, store_path, opts));
   return ToStats(report, opts);
 }
 
 Result<BuildStats> BuildFromObjects(const std::vector<SceneObject>& objects, const std::string& store_path,
                                     const BuildOptions& options) {
+  if (options.shards > 0) {  // each pass of the sharded build reads the vector from its start
+    MKTREE_ASSIGN_OR_RETURN(IngestOptions opts, ToIngestOptions(options));
+    if (store_path.empty()) return Status::InvalidArgument("the store path is empty");
+    opts.input_name = "the objects given";
+    const SceneOpener opener = [&objects](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
+      ObjectSource from_start = [&objects, next = size_t{0}](SceneObject* out) mutable -> Result<bool> {
+        if (next == objects.size()) return false;
+        *out = objects[next++];
+        return true;
+      };
+      return std::unique_ptr<SceneSource>(std::make_unique<CallerSource>(std::move(from_start), first));
+    };
+    return BuildSharded({opener}, store_path, opts, options.shards);
+  }
   size_t next = 0;
   return BuildFromObjects(
       [&](SceneObject* out) -> Result<bool> {
