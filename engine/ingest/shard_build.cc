@@ -75,19 +75,6 @@ class ShardSource final : public SceneSource {
   std::vector<ObjectId>* ids_;
 };
 
-// The files this build made, removed unless it succeeds.
-struct Staged {
-  std::vector<std::string> paths;
-  bool keep = false;
-  ~Staged() {
-    if (keep) return;
-    for (const std::string& p : paths) {
-      std::error_code ec;
-      std::filesystem::remove(p, ec);
-    }
-  }
-};
-
 Status Rename(const std::string& from, const std::string& to) {
   if (std::rename(from.c_str(), to.c_str()) != 0)
     return Status::IOError(to + ": rename from " + from + ": " + std::strerror(errno));
@@ -95,6 +82,81 @@ Status Rename(const std::string& from, const std::string& to) {
 }
 
 }  // namespace
+
+uint64_t NewBuildId() {
+  return std::random_device{}() ^ (uint64_t{std::random_device{}()} << 32) ^
+         static_cast<uint64_t>(Clock::now().time_since_epoch().count());
+}
+
+Result<ShardScan> ScanForShards(const std::vector<SceneOpener>& inputs,
+                                const std::function<bool(ObjectId)>& mine, const IngestOptions& options) {
+  ShardScan scan;
+  AllInputs all(inputs);
+  SceneObject obj;
+  for (;;) {
+    MKTREE_ASSIGN_OR_RETURN(const bool more, all.Next(&obj));
+    if (!more) break;
+    if (scan.objects == 0) scan.first = obj.mesh.Bounds();
+    if (!mine || mine(obj.id)) scan.sample.Add(obj.id, scan.objects == 0 ? scan.first : obj.mesh.Bounds());
+    ++scan.objects;
+    if (options.progress && scan.objects % (1u << 16) == 0)
+      options.progress(IngestStage::kRead, scan.objects, 0);
+  }
+  scan.warnings = std::move(all.warnings());
+  return scan;
+}
+
+void DiscardShard(const std::string& manifest_path, uint32_t s) {
+  std::error_code ec;
+  std::filesystem::remove(ShardStorePath(manifest_path, s) + ".new", ec);
+  std::filesystem::remove(ShardIdsPath(manifest_path, s) + ".new", ec);
+}
+
+Status PublishShard(const std::string& manifest_path, uint32_t s) {
+  const std::string store = ShardStorePath(manifest_path, s), ids = ShardIdsPath(manifest_path, s);
+  MKTREE_RETURN_IF_ERROR(Rename(store + ".new", store));
+  return Rename(ids + ".new", ids);
+}
+
+Result<ShardEntry> BuildShard(const std::vector<SceneOpener>& inputs, const std::string& manifest_path,
+                              const Manifest& m, uint32_t s, const IngestOptions& options,
+                              IngestReport* report) {
+  const std::string store_path = ShardStorePath(manifest_path, s), ids_path = ShardIdsPath(manifest_path, s);
+  const std::string store_new = store_path + ".new", ids_new = ids_path + ".new";
+  struct Discard {
+    const std::string& path;
+    uint32_t s;
+    bool keep = false;
+    ~Discard() {
+      if (!keep) DiscardShard(path, s);
+    }
+  } discard{manifest_path, s};
+  IngestOptions o = options;
+  o.origin = m.origin;
+  o.input_name =
+      (options.input_name.empty() ? std::string() : options.input_name + ": ") + "shard " + std::to_string(s);
+  std::vector<ObjectId> ids;
+  const SceneOpener opener = [&](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
+    ids.clear();
+    return std::unique_ptr<SceneSource>(std::make_unique<ShardSource>(inputs, m.top, s, first, &ids));
+  };
+  MKTREE_ASSIGN_OR_RETURN(*report, BuildStore({opener}, store_new, o));  // names the store or the input
+  if (ids.size() != report->objects)
+    return Status::Internal(store_new + ": id count differs from the store's");
+  ShardEntry e;
+  e.objects = ids.size();
+  {
+    MKTREE_ASSIGN_OR_RETURN(auto reader, StoreReader::Open(store_new));
+    e.box = reader->tree().nodes[0].box;
+  }
+  MKTREE_RETURN_IF_ERROR(WriteShardIds(ids_new, m.build_id, s, ids));
+  MKTREE_ASSIGN_OR_RETURN(e.store, FingerprintFile(store_new));
+  MKTREE_ASSIGN_OR_RETURN(e.ids, FingerprintFile(ids_new));
+  e.store.name = std::filesystem::path(store_path).filename().string();
+  e.ids.name = std::filesystem::path(ids_path).filename().string();
+  discard.keep = true;
+  return e;
+}
 
 Result<ShardedBuildReport> BuildShardedStore(const std::vector<SceneOpener>& inputs,
                                              const std::string& manifest_path, const IngestOptions& options,
@@ -107,85 +169,55 @@ Result<ShardedBuildReport> BuildShardedStore(const std::vector<SceneOpener>& inp
     return Status::InvalidArgument(manifest_path + ": not a regular file");
 
   // 1. The sample and the scene's frame, in one pass.
-  ShardSample sample;
   Manifest& m = report.manifest;
-  {
-    AllInputs all(inputs);
-    SceneObject obj;
-    bool first = true;
-    for (;;) {
-      MKTREE_ASSIGN_OR_RETURN(const bool more, all.Next(&obj));
-      if (!more) break;
-      const Box3d box = obj.mesh.Bounds();
-      if (first) m.origin = options.origin ? *options.origin : ChooseStoreOrigin(box);
-      first = false;
-      sample.Add(obj.id, box);
-      ++m.objects;
-      if (options.progress && m.objects % (1u << 16) == 0) options.progress(IngestStage::kRead, m.objects, 0);
-    }
-    report.warnings = std::move(all.warnings());
-  }
+  MKTREE_ASSIGN_OR_RETURN(ShardScan scan, ScanForShards(inputs, nullptr, options));
+  report.warnings = std::move(scan.warnings);
+  m.objects = scan.objects;
   if (m.objects == 0)
     return Status::InvalidArgument((options.input_name.empty()
                                         ? manifest_path + ": not built"
                                         : options.input_name + ": " + manifest_path + " not built") +
                                    ": empty scene, no object with geometry in the input");
-  report.sample_objects = sample.size();
-  MKTREE_ASSIGN_OR_RETURN(m.top, ChooseTopLevels(sample.Items(), shards));
+  m.origin = options.origin ? *options.origin : ChooseStoreOrigin(scan.first);
+  report.sample_objects = scan.sample.size();
+  MKTREE_ASSIGN_OR_RETURN(m.top, ChooseTopLevels(scan.sample.Items(), shards));
   report.sample_seconds = Seconds(start);
-  // Any 64-bit value that differs between builds: the id files carry it, so a shard of another build is
-  // refused even if its store happens to fingerprint alike.
-  m.build_id = std::random_device{}() ^ (uint64_t{std::random_device{}()} << 32) ^
-               static_cast<uint64_t>(Clock::now().time_since_epoch().count());
+  // The id files carry it, so a shard of another build is refused even if its store fingerprints alike.
+  m.build_id = NewBuildId();
 
   // 2. The shards, one after the other, under staging names.
-  Staged staged;
-  std::vector<std::pair<std::string, std::string>> renames;
-  for (uint32_t s = 0; s < shards; ++s) {
-    const std::string store_path = ShardStorePath(manifest_path, s),
-                      ids_path = ShardIdsPath(manifest_path, s);
-    const std::string store_new = store_path + ".new", ids_new = ids_path + ".new";
-    IngestOptions o = options;
-    o.origin = m.origin;
-    o.input_name = (options.input_name.empty() ? std::string() : options.input_name + ": ") + "shard " +
-                   std::to_string(s);
-    std::vector<ObjectId> ids;
-    const SceneOpener opener = [&](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
-      ids.clear();
-      return std::unique_ptr<SceneSource>(std::make_unique<ShardSource>(inputs, m.top, s, first, &ids));
-    };
-    staged.paths.push_back(store_new);
-    auto built = BuildStore({opener}, store_new, o);
-    if (!built.ok()) return built.status();  // names the shard's store or the input's file and line
-    if (ids.size() != built->objects)
-      return Status::Internal(store_new + ": id count differs from the store's");
-    for (std::string& w : built->warnings) report.warnings.push_back("shard " + std::to_string(s) + ": " + w);
-    ShardEntry e;
-    e.objects = ids.size();
-    {
-      MKTREE_ASSIGN_OR_RETURN(auto reader, StoreReader::Open(store_new));
-      e.box = reader->tree().nodes[0].box;
+  struct DiscardAll {
+    const std::string& path;
+    uint32_t built = 0;
+    bool keep = false;
+    ~DiscardAll() {
+      for (uint32_t s = 0; s < built && !keep; ++s) DiscardShard(path, s);
     }
-    staged.paths.push_back(ids_new);
-    MKTREE_RETURN_IF_ERROR(WriteShardIds(ids_new, m.build_id, s, ids));
-    MKTREE_ASSIGN_OR_RETURN(e.store, FingerprintFile(store_new));
-    MKTREE_ASSIGN_OR_RETURN(e.ids, FingerprintFile(ids_new));
-    e.store.name = std::filesystem::path(store_path).filename().string();
-    e.ids.name = std::filesystem::path(ids_path).filename().string();
+  } discard{manifest_path};
+  for (uint32_t s = 0; s < shards; ++s) {
+    IngestReport shard_report;
+    MKTREE_ASSIGN_OR_RETURN(ShardEntry e, BuildShard(inputs, manifest_path, m, s, options, &shard_report));
+    ++discard.built;
+    for (std::string& w : shard_report.warnings)
+      report.warnings.push_back("shard " + std::to_string(s) + ": " + w);
     report.store_bytes += e.store.bytes + e.ids.bytes;
     m.shards.push_back(std::move(e));
-    report.shards.push_back(std::move(*built));
-    renames.push_back({store_new, store_path});
-    renames.push_back({ids_new, ids_path});
+    report.shards.push_back(std::move(shard_report));
   }
 
   // 3. Into place, the manifest last (atomic: a temporary renamed over the path).
-  for (const auto& [from, to] : renames) {
-    MKTREE_RETURN_IF_ERROR(Rename(from, to));
-    staged.paths.push_back(to);
+  Status st;
+  for (uint32_t s = 0; s < shards && st.ok(); ++s) st = PublishShard(manifest_path, s);
+  if (st.ok()) st = WriteManifest(manifest_path, m);
+  if (!st.ok()) {  // none of this build's files stays
+    for (uint32_t s = 0; s < shards; ++s) {
+      std::error_code ec;
+      std::filesystem::remove(ShardStorePath(manifest_path, s), ec);
+      std::filesystem::remove(ShardIdsPath(manifest_path, s), ec);
+    }
+    return st;
   }
-  MKTREE_RETURN_IF_ERROR(WriteManifest(manifest_path, m));
-  staged.keep = true;
+  discard.keep = true;
   report.total_seconds = Seconds(start);
   return report;
 }

@@ -8,6 +8,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -24,6 +25,28 @@ struct ShardedBuildReport {
   double sample_seconds = 0, total_seconds = 0;
   std::vector<std::string> warnings;
 };
+
+// The steps of BuildShardedStore, for a driver that spreads the shards over processes (tools/mpi):
+// 1. One pass over the inputs: the objects whose ids `mine` accepts go into the sample (all when null);
+//    the scene's object count and its first object's box are counted from every object.
+struct ShardScan {
+  ShardSample sample;
+  uint64_t objects = 0;
+  Box3d first;  // the box of object 0 (the scene's frame comes from it)
+  std::vector<std::string> warnings;
+};
+Result<ShardScan> ScanForShards(const std::vector<SceneOpener>& inputs,
+                                const std::function<bool(ObjectId)>& mine, const IngestOptions& options);
+// 2. Shard s of m (top levels, origin and build id set) under its staging names; the entry names the
+//    final files. On error nothing of it is left.
+Result<ShardEntry> BuildShard(const std::vector<SceneOpener>& inputs, const std::string& manifest_path,
+                              const Manifest& m, uint32_t s, const IngestOptions& options,
+                              IngestReport* report);
+// 3. Shard s's staged files renamed into place, or removed.
+Status PublishShard(const std::string& manifest_path, uint32_t s);
+void DiscardShard(const std::string& manifest_path, uint32_t s);
+// Any 64-bit value that differs between builds.
+uint64_t NewBuildId();
 
 Result<ShardedBuildReport> BuildShardedStore(const std::vector<SceneOpener>& inputs,
                                              const std::string& manifest_path, const IngestOptions& options,
