@@ -9,6 +9,9 @@ namespace mktree {
 
 namespace {
 
+// How far a side's sample share may be from its shards' share.
+constexpr double kShareTolerance = 0.05;
+
 // splitmix64 of the id with a fixed seed: the sample is the same on every run.
 uint64_t SampleHash(ObjectId id) {
   uint64_t z = uint64_t{id} + 0x9e3779b97f4a7c15ull * 0x5eed;
@@ -51,9 +54,10 @@ struct Chooser {
     const uint64_t n = idx.size();
     const double share = static_cast<double>(k1) / shards;
     const uint64_t target = static_cast<uint64_t>(std::llround(share * static_cast<double>(n)));
-    const double lo_f = std::ceil((share - 0.2) * static_cast<double>(n));
+    const double lo_f = std::ceil((share - kShareTolerance) * static_cast<double>(n));
     const uint64_t lo = std::max<uint64_t>({k1, lo_f > 0 ? static_cast<uint64_t>(lo_f) : 0, 1});
-    const uint64_t hi_w = static_cast<uint64_t>(std::floor((share + 0.2) * static_cast<double>(n)));
+    const uint64_t hi_w =
+        static_cast<uint64_t>(std::floor((share + kShareTolerance) * static_cast<double>(n)));
     const uint64_t hi = std::min<uint64_t>(n >= k2 ? n - k2 : 0, hi_w);
     Best best;
     std::vector<uint32_t> order(idx);

@@ -66,7 +66,7 @@ struct TopLevels {
 
 // The top levels for `shards` shards from the sample: at each node the split of the Splitting Overlap
 // Algorithm (docs/design.md §3: axis and key order, fewest objects in the overlap set, then the thinner
-// slab) among cuts that give the two subtrees sample shares within 0.2 of their shard shares. Fails when
+// slab) among cuts that give the two subtrees sample shares within 0.05 of their shard shares. Fails when
 // the sample cannot give every shard an object (fewer distinct keys than shards).
 Result<TopLevels> ChooseTopLevels(const std::vector<ShardSample::Item>& sample, uint32_t shards);
 
