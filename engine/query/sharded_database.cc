@@ -5,6 +5,7 @@
 #include <cmath>
 #include <condition_variable>
 #include <mutex>
+#include <queue>
 #include <thread>
 
 #include "engine/core/guarded.h"
@@ -390,16 +391,21 @@ Result<std::unique_ptr<Database>> OpenShardedDatabase(const std::string& manifes
     shards.push_back(OpenStoreDatabase(std::move(reader), shard_options));
     ids.push_back(std::move(shard_ids));
   }
-  // Every global id in exactly one shard: the shards' increasing ids, merged, are 0, 1, 2, ...
+  // Every global id in exactly one shard: the shards' increasing ids, merged (a heap of the shards' next
+  // ids), are 0, 1, 2, ...
   {
+    using Head = std::pair<ObjectId, uint32_t>;
+    std::priority_queue<Head, std::vector<Head>, std::greater<Head>> heads;
     std::vector<size_t> at(k, 0);
+    for (uint32_t s = 0; s < k; ++s)
+      if (!ids[s].empty()) heads.push({ids[s][0], s});
     for (uint64_t want = 0; want < m.objects; ++want) {
-      uint32_t found = k;
-      for (uint32_t s = 0; s < k && found == k; ++s)
-        if (at[s] < ids[s].size() && ids[s][at[s]] == want) found = s;
-      if (found == k)
-        return Status::Corruption(manifest_path + ": object " + std::to_string(want) + " is in no shard");
-      ++at[found];
+      if (heads.empty() || heads.top().first != want)
+        return Status::Corruption(manifest_path + ": object " + std::to_string(want) +
+                                  " is in no shard, or in two");
+      const uint32_t s = heads.top().second;
+      heads.pop();
+      if (++at[s] < ids[s].size()) heads.push({ids[s][at[s]], s});
     }
   }
   return std::unique_ptr<Database>(

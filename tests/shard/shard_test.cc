@@ -350,6 +350,31 @@ TEST(ShardErrors, ShardOfAnotherBuildIsRefused) {
   ExpectRefusedNaming(c.manifest, ShardStorePath(c.manifest, 1));
 }
 
+TEST(ShardErrors, AnIdInTwoShardsIsRefused) {
+  // Consistent files (checksums and fingerprints rewritten) whose id files claim one object twice.
+  Built b(2);
+  auto m = ReadManifest(b.manifest);
+  ASSERT_TRUE(m.ok());
+  auto ids0 = ReadShardIds(ShardIdsPath(b.manifest, 0), m->build_id, 0, m->objects);
+  auto ids1 = ReadShardIds(ShardIdsPath(b.manifest, 1), m->build_id, 1, m->objects);
+  ASSERT_TRUE(ids0.ok() && ids1.ok());
+  ASSERT_GE(ids1->size(), 2u);
+  ObjectId x = kNoIndex;
+  for (ObjectId id : *ids0)
+    if (id < (*ids1)[1]) x = id;
+  ASSERT_NE(x, kNoIndex);
+  (*ids1)[0] = x;
+  ASSERT_TRUE(WriteShardIds(ShardIdsPath(b.manifest, 1), m->build_id, 1, *ids1).ok());
+  auto fp = FingerprintFile(ShardIdsPath(b.manifest, 1));
+  ASSERT_TRUE(fp.ok());
+  m->shards[1].ids = *fp;
+  ASSERT_TRUE(WriteManifest(b.manifest, *m).ok());
+  auto db = Database::Open(b.manifest);
+  ASSERT_FALSE(db.ok());
+  EXPECT_NE(db.status().message().find("in no shard, or in two"), std::string::npos)
+      << db.status().ToString();
+}
+
 TEST(ShardErrors, DamagedManifestIsRefused) {
   Built b;
   const uint64_t size = std::filesystem::file_size(b.manifest);
