@@ -242,7 +242,7 @@ Result<std::vector<ObjectId>> ReadShardIds(const std::string& path, uint64_t bui
   const uint64_t n = storage_internal::Get<uint64_t>(b.data() + 24);
   if (b.size() != 40 + 4 * n) return bad("wrong size");
   std::vector<ObjectId> ids(n);
-  std::memcpy(ids.data(), b.data() + 32, 4 * n);
+  if (n > 0) std::memcpy(ids.data(), b.data() + 32, 4 * n);
   for (uint64_t i = 0; i < n; ++i)
     if (ids[i] >= total_objects || (i > 0 && ids[i] <= ids[i - 1]))
       return bad("ids not increasing or out of range");
