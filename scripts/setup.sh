@@ -24,6 +24,8 @@ PACKAGES=(
   # CMake package, Python's headers, numpy (its arrays in and out), pytest (python/run_tests.sh).
   pybind11-dev python3-dev python3-numpy python3-pytest
 )
+# The MPI build (CMake -DMKTREE_MPI=ON: mktree-mpi, docs/shards.md), only when asked: MKTREE_MPI=1.
+if [ "${MKTREE_MPI:-0}" = 1 ]; then PACKAGES+=(libopenmpi-dev openmpi-bin); fi
 missing=()
 for p in "${PACKAGES[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
@@ -37,5 +39,5 @@ if ((${#missing[@]})); then
 fi
 
 [ "${1:-}" = "--no-build" ] && exit 0
-cmake -S . -B build -DCMAKE_BUILD_TYPE=Release >/dev/null
+cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DMKTREE_MPI="$([ "${MKTREE_MPI:-0}" = 1 ] && echo ON || echo OFF)" >/dev/null
 cmake --build build -j "$(nproc)"

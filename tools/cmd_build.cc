@@ -27,6 +27,7 @@ struct BuildArgs {
   double r = 0.3;
   uint32_t split_budget = 64;
   std::string split_policy = "compact";
+  uint32_t shards = 0;
   bool quiet = false;
 };
 
@@ -53,6 +54,8 @@ int RunBuild(const BuildArgs& a) {
   opts.blocks_per_page = a.blocks_per_page;
   opts.balance_r = a.r;
   opts.split_budget = a.split_budget;
+  if (a.shards > 65536) return Fail("--shards must be from 1 to 65536");
+  opts.shards = a.shards;
   if (!(a.r >= 0 && a.r < 0.5)) return Fail("--r must be in [0, 0.5)");
   if (a.split_policy == "compact")
     opts.split_policy = BuildOptions::SplitPolicy::kCompact;
@@ -131,6 +134,8 @@ void RegisterBuild(CLI::App& app, CommandRun* run) {
          "How nodes are split: compact (SOA over compact candidates), soa (docs/design.md §3.5, exactly) or "
          "soa-fill (SOA, page fill first near the leaves)")
       ->capture_default_str();
+  AddNumberOption(cmd, "--shards", &args->shards,
+                  "Build a sharded store of K shards (docs/shards.md): -o names its manifest; 0: one store");
   cmd->add_flag("-q,--quiet", args->quiet, "No progress and no summary");
   cmd->callback([run, args] { *run = [args] { return RunBuild(*args); }; });
 }

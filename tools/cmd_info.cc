@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cstdio>
 
+#include "engine/shard/manifest.h"
 #include "engine/store/store_file.h"
 #include "mktree/database.h"
 #include "tools/cli_numbers.h"
@@ -75,8 +76,62 @@ int RunObject(const InfoArgs& a) {
   return 0;
 }
 
+// A sharded store (docs/shards.md): the manifest's top levels and shards, after opening it whole (every
+// shard store and id file checked).
+int RunManifestInfo(const InfoArgs& a) {
+  auto m = ReadManifest(a.store);
+  if (!m.ok()) return Fail(m.status().message());
+  auto db = Database::Open(a.store, {.cache_pages = 0});
+  if (!db.ok()) return Fail(db.status().message());
+  const char* keys[] = {"min", "max"};
+  if (a.json) {
+    std::string top = "[", shards = "[";
+    for (const TopNode& t : m->top.nodes) {
+      top += top.size() > 1 ? ", " : "";
+      top += t.is_leaf() ? "{\"shard\": " + std::to_string(t.shard) + "}"
+                         : "{\"axis\": " + std::to_string(t.axis) + ", \"key\": \"" +
+                               keys[static_cast<int>(t.key)] + "\", \"cut\": " + Real(t.cut) + "}";
+    }
+    for (const ShardEntry& e : m->shards) {
+      shards += shards.size() > 1 ? ", " : "";
+      shards += "{\"file\": \"" + JsonText(e.store.name) +
+                "\", \"file_bytes\": " + std::to_string(e.store.bytes) + ", \"ids_file\": \"" +
+                JsonText(e.ids.name) + "\", \"ids_bytes\": " + std::to_string(e.ids.bytes) +
+                ", \"objects\": " + std::to_string(e.objects) + "}";
+    }
+    std::printf(
+        "{\"manifest\": \"%s\", \"objects\": %llu, \"shards\": %zu, \"origin\": [%.17g, %.17g, %.17g], "
+        "\"bounds\": %s, \"objects_per_page\": %.4f, \"top_levels\": %s], \"shard_files\": %s], \"tree\": "
+        "%s}\n",
+        JsonText(a.store).c_str(), static_cast<unsigned long long>(m->objects), m->shards.size(), m->origin.x,
+        m->origin.y, m->origin.z, JsonBox((*db)->bounds()).c_str(), (*db)->objects_per_page(), top.c_str(),
+        shards.c_str(), (*db)->stats_json().c_str());
+    return 0;
+  }
+  std::printf("sharded store %s: %llu objects in %zu shards\n", a.store.c_str(),
+              static_cast<unsigned long long>(m->objects), m->shards.size());
+  std::printf("store frame   origin (%.17g, %.17g, %.17g)\n", m->origin.x, m->origin.y, m->origin.z);
+  std::printf("bounds        %s (world)\n", TextBox((*db)->bounds()).c_str());
+  for (size_t n = 0; n < m->top.nodes.size(); ++n) {
+    const TopNode& t = m->top.nodes[n];
+    if (t.is_leaf())
+      std::printf("top node %zu   shard %u\n", n, t.shard);
+    else
+      std::printf("top node %zu   box.%s[%c] < %.17g: node %u, else node %u\n", n,
+                  keys[static_cast<int>(t.key)], "xyz"[t.axis], t.cut, t.child[0], t.child[1]);
+  }
+  for (size_t s = 0; s < m->shards.size(); ++s) {
+    const ShardEntry& e = m->shards[s];
+    std::printf("shard %zu      %s (%s), %llu objects, ids %s\n", s, e.store.name.c_str(),
+                HumanBytes(e.store.bytes).c_str(), static_cast<unsigned long long>(e.objects),
+                e.ids.name.c_str());
+  }
+  return 0;
+}
+
 int RunInfo(const InfoArgs& a) {
   if (a.has_object) return RunObject(a);
+  if (IsManifestFile(a.store)) return RunManifestInfo(a);
   auto reader = StoreReader::Open(a.store);  // refuses statistics other than the builder's (printed below)
   if (!reader.ok()) return Fail(reader.status().message());
   const StoreReader& r = **reader;

@@ -2,6 +2,7 @@
 // opened as `mktree build` opens them, and the caller's objects checked as the readers check a file's.
 #include <zstd.h>
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <filesystem>
@@ -10,6 +11,7 @@
 #include <system_error>
 
 #include "engine/generator/tanker_generator.h"
+#include "engine/ingest/shard_build.h"
 #include "engine/ingest/store_builder.h"
 #include "mktree/build.h"
 
@@ -79,6 +81,36 @@ BuildStats ToStats(const IngestReport& r, const IngestOptions& o) {
   s.read_seconds = r.read_seconds;
   s.build_seconds = r.build_seconds;
   s.write_seconds = r.write_seconds;
+  s.total_seconds = r.total_seconds;
+  s.warnings = r.warnings;
+  return s;
+}
+
+// The shards' statistics together: sums, the tallest shard's height, the fill weighted by pages.
+Result<BuildStats> BuildSharded(const std::vector<SceneOpener>& openers, const std::string& path,
+                                const IngestOptions& opts, uint32_t shards) {
+  MKTREE_ASSIGN_OR_RETURN(const ShardedBuildReport r, BuildShardedStore(openers, path, opts, shards));
+  BuildStats s;
+  double fill = 0;
+  for (const IngestReport& shard : r.shards) {
+    const BuildStats one = ToStats(shard, opts);
+    s.objects += one.objects;
+    s.triangles += one.triangles;
+    s.leaves += one.leaves;
+    s.pages += one.pages;
+    s.height = std::max(s.height, one.height);
+    fill += one.mean_page_fill * static_cast<double>(one.pages);
+    s.raw_geometry_bytes += one.raw_geometry_bytes;
+    s.encoded_bytes += one.encoded_bytes;
+    s.read_seconds += one.read_seconds;
+    s.build_seconds += one.build_seconds;
+    s.write_seconds += one.write_seconds;
+  }
+  s.page_bytes = opts.store.params.mem_page();
+  s.mean_page_fill = s.pages ? fill / static_cast<double>(s.pages) : 0;
+  s.origin = r.manifest.origin;
+  s.store_bytes = r.store_bytes;
+  s.read_seconds += r.sample_seconds;
   s.total_seconds = r.total_seconds;
   s.warnings = r.warnings;
   return s;
@@ -172,7 +204,7 @@ class CallerSource final : public SceneSource {
     return Status::Ok();
   }
 
-  const ObjectSource& source_;
+  ObjectSource source_;
   ObjectId next_id_;
 };
 
@@ -191,6 +223,7 @@ Result<BuildStats> BuildFromFiles(const std::vector<std::string>& inputs, const 
   }
   MKTREE_RETURN_IF_ERROR(CheckOutput(store_path, inputs));
   for (const std::string& in : inputs) opts.input_name += (opts.input_name.empty() ? "" : ", ") + in;
+  if (options.shards > 0) return BuildSharded(openers, store_path, opts, options.shards);
   MKTREE_ASSIGN_OR_RETURN(const IngestReport report, BuildStore(openers, store_path, opts));
   return ToStats(report, opts);
 }
@@ -204,12 +237,31 @@ Result<BuildStats> BuildFromObjects(const ObjectSource& source, const std::strin
   const SceneOpener opener = [&source](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
     return std::unique_ptr<SceneSource>(std::make_unique<CallerSource>(source, first));
   };
+  if (options.shards > 0)
+    return Status::InvalidArgument(
+        store_path +
+        ": a sharded build reads its objects more than once: give them as a vector "
+        "or as files");
   MKTREE_ASSIGN_OR_RETURN(const IngestReport report, BuildStore({opener}, store_path, opts));
   return ToStats(report, opts);
 }
 
 Result<BuildStats> BuildFromObjects(const std::vector<SceneObject>& objects, const std::string& store_path,
                                     const BuildOptions& options) {
+  if (options.shards > 0) {  // each pass of the sharded build reads the vector from its start
+    MKTREE_ASSIGN_OR_RETURN(IngestOptions opts, ToIngestOptions(options));
+    if (store_path.empty()) return Status::InvalidArgument("the store path is empty");
+    opts.input_name = "the objects given";
+    const SceneOpener opener = [&objects](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
+      ObjectSource from_start = [&objects, next = size_t{0}](SceneObject* out) mutable -> Result<bool> {
+        if (next == objects.size()) return false;
+        *out = objects[next++];
+        return true;
+      };
+      return std::unique_ptr<SceneSource>(std::make_unique<CallerSource>(std::move(from_start), first));
+    };
+    return BuildSharded({opener}, store_path, opts, options.shards);
+  }
   size_t next = 0;
   return BuildFromObjects(
       [&](SceneObject* out) -> Result<bool> {

@@ -223,7 +223,9 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
   auto got_first = read(&first);
   if (!got_first.ok()) return got_first.status();
   bool first_pending = *got_first;
-  report.origin = first_pending ? ChooseStoreOrigin(first.mesh.Bounds()) : Vec3d{};
+  report.origin = options.origin  ? *options.origin
+                  : first_pending ? ChooseStoreOrigin(first.mesh.Bounds())
+                                  : Vec3d{};
   auto read_all = [&](SceneObject* obj) -> Result<bool> {
     if (!first_pending) return read(obj);
     std::swap(*obj, first);

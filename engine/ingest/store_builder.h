@@ -16,6 +16,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -46,6 +47,9 @@ struct IngestOptions {
   // What the inputs are called in errors that concern the input as a whole (an empty scene); empty: the
   // error names the store.
   std::string input_name;
+  // The store frame's origin; unset: ChooseStoreOrigin of the first object. The shards of a sharded store
+  // share the scene's frame, so that their float32 boxes are the unsharded store's.
+  std::optional<Vec3d> origin;
 };
 
 struct IngestReport {

@@ -21,6 +21,7 @@
 #include "engine/core/guarded.h"
 #include "engine/geometry/exact_geometry.h"
 #include "engine/query/store_database.h"
+#include "engine/shard/manifest.h"
 #include "engine/store/leaf_reader.h"
 #include "engine/store/object_codec.h"
 #include "engine/store/record_codec.h"
@@ -766,6 +767,7 @@ Status Database::RunBatch(const std::vector<Query>& queries, unsigned threads,
 
 Result<std::unique_ptr<Database>> Database::Open(const std::string& path, const OpenOptions& options) {
   return Guarded(path, [&]() -> Result<std::unique_ptr<Database>> {
+    if (IsManifestFile(path)) return OpenShardedDatabase(path, options);
     ReadOptions ro;
     ro.direct_io = options.direct_io;
     MKTREE_ASSIGN_OR_RETURN(auto reader, StoreReader::Open(path, ro));

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <memory>
+#include <string>
 
 #include "engine/store/store_file.h"
 #include "mktree/database.h"
@@ -10,5 +11,8 @@
 namespace mktree {
 
 std::unique_ptr<Database> OpenStoreDatabase(std::unique_ptr<StoreReader> reader, const OpenOptions& options);
+// A sharded store's manifest and its shards (engine/query/sharded_database.cc, docs/shards.md).
+Result<std::unique_ptr<Database>> OpenShardedDatabase(const std::string& manifest_path,
+                                                      const OpenOptions& options);
 
 }  // namespace mktree

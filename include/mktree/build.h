@@ -54,6 +54,11 @@ struct BuildOptions {
   // Where the temporary spill files go (empty: beside the store).
   std::string spill_dir;
   BuildProgress progress;  // optional
+  // 0: one store at the path. K >= 1: a sharded store (docs/shards.md): the path is its manifest, and K
+  // ordinary stores "<path>.shard-<i>.mkt" with their id files "<path>.shard-<i>.ids" lie beside it.
+  // Database::Open opens the manifest and answers as the store of the same scene would. The inputs are
+  // read once for the sample and once per shard: BuildFromObjects over an ObjectSource refuses shards.
+  uint32_t shards = 0;
 };
 
 struct BuildStats {

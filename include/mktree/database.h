@@ -110,6 +110,12 @@ struct ObjectRecord {
   Box3d box;  // world coordinates: the stored float32 box (rounded outward in the store's frame) plus origin
 };
 
+// One shard's part of a query over a sharded store (Database::VisitUntilPerShard, docs/shards.md).
+struct ShardQueryStats {
+  uint32_t shard = 0;  // its index in the manifest
+  QueryStats stats;    // what the query cost in that shard's store
+};
+
 // Receives the ids of a streamed answer (Database::Visit).
 using ObjectVisitor = std::function<void(ObjectId)>;
 // The same, for VisitUntil: returns false to stop the query.
@@ -147,6 +153,12 @@ class Database {
 
   // Opens the store at `path` (HDF5 or paged file, detected from the file). Reads only the header and
   // the in-RAM structure; refuses truncated, foreign or corrupt files with an error naming the file.
+  // `path` may also be a sharded store's manifest (docs/shards.md, BuildOptions::shards): every shard
+  // store and id file is opened and checked at once (a missing, damaged or foreign one is an error naming
+  // it), each shard with a cache of ceil(cache_pages / shards) pages. The Database then answers every
+  // query, batch, Object and ObjectGeometry as the unsharded store of the same scene: the same ids (a
+  // streamed answer visits them shard by shard, so in another order; Run and batches sort them), names,
+  // boxes and meshes. SelfClash and Collide are Unsupported on a sharded store.
   static Result<std::unique_ptr<Database>> Open(const std::string& path, const OpenOptions& options = {});
 
   // Runs `query`, calling `visit` once for each object of the answer: ids in the order their leaves are
@@ -158,6 +170,14 @@ class Database {
   // visited so far are an incomplete answer.
   virtual Result<bool> VisitUntil(const Query& query, const StoppableVisitor& visit,
                                   QueryStats* stats) const = 0;
+  // VisitUntil, with each shard's statistics: `*per_shard` (may be null) is replaced by one entry per
+  // shard that the top levels routed the query to and that it reached before it stopped, in shard order;
+  // `stats` is their sum, plus the top levels' nodes in internal_nodes_visited. An ordinary store has no
+  // shards: per_shard is emptied.
+  virtual Result<bool> VisitUntilPerShard(const Query& query, const StoppableVisitor& visit,
+                                          QueryStats* stats, std::vector<ShardQueryStats>* per_shard) const;
+  // Shards of a sharded store; 0 for an ordinary store.
+  virtual uint32_t shard_count() const { return 0; }
   // VisitUntil with a visitor that never stops.
   Status Visit(const Query& query, const ObjectVisitor& visit, QueryStats* stats) const;
   // Visit, the ids handed to `visit` a span at a time: the same ids in the same order and the same

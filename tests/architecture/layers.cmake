@@ -16,15 +16,16 @@ set(below_engine_scene "mktree/" "storage/" "engine/core/")
 set(below_engine_generator "mktree/" "storage/" "engine/core/" "engine/scene/")
 set(below_engine_tree "mktree/" "storage/" "engine/core/")
 set(below_engine_store "mktree/" "storage/" "engine/core/" "engine/tree/")
+set(below_engine_shard "mktree/" "storage/" "engine/core/")
 set(below_engine_ingest "mktree/" "storage/" "engine/core/" "engine/geometry/" "engine/scene/" "engine/generator/"
-    "engine/tree/" "engine/store/")
+    "engine/tree/" "engine/store/" "engine/shard/")
 set(below_engine_clash "mktree/" "storage/" "engine/core/" "engine/geometry/" "engine/tree/" "engine/store/")
 set(below_engine_query "mktree/" "storage/" "engine/core/" "engine/geometry/" "engine/tree/" "engine/store/"
-    "engine/clash/")
+    "engine/clash/" "engine/shard/")
 set(below_engine_viz "mktree/" "storage/" "engine/core/" "engine/tree/" "engine/store/")
 set(below_tools "mktree/" "storage/" "engine/")
 set(folders include/mktree storage engine/core engine/geometry engine/scene engine/generator engine/tree
-    engine/store engine/ingest engine/clash engine/query engine/viz tools)
+    engine/store engine/shard engine/ingest engine/clash engine/query engine/viz tools)
 
 # A new folder must be placed in the layers above before it can hold code.
 file(GLOB engine_dirs RELATIVE ${ROOT} LIST_DIRECTORIES true ${ROOT}/engine/*)

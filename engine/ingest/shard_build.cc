@@ -1,0 +1,225 @@
+#include "engine/ingest/shard_build.h"
+
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <random>
+
+#include "engine/store/store_file.h"
+
+namespace mktree {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double Seconds(Clock::time_point since) {
+  return std::chrono::duration<double>(Clock::now() - since).count();
+}
+
+// Every input in order, numbered globally from 0, as BuildStore numbers them.
+class AllInputs {
+ public:
+  explicit AllInputs(const std::vector<SceneOpener>& inputs) : inputs_(inputs) {}
+  Result<bool> Next(SceneObject* obj) {
+    for (;;) {
+      if (!source_) {
+        if (input_ == inputs_.size()) return false;
+        MKTREE_ASSIGN_OR_RETURN(source_, inputs_[input_](next_id_));
+      }
+      MKTREE_ASSIGN_OR_RETURN(const bool more, source_->Next(obj));
+      if (more) break;
+      for (std::string& w : source_->TakeWarnings()) warnings_.push_back(std::move(w));
+      source_.reset();
+      ++input_;
+    }
+    if (obj->id != next_id_)
+      return Status::Internal("object '" + obj->name + "': source gave id " + std::to_string(obj->id) +
+                              ", expected " + std::to_string(next_id_));
+    if (next_id_ == kNoIndex) return Status::InvalidArgument("too many objects: ids are 32-bit");
+    ++next_id_;
+    return true;
+  }
+  std::vector<std::string>& warnings() { return warnings_; }
+
+ private:
+  const std::vector<SceneOpener>& inputs_;
+  size_t input_ = 0;
+  ObjectId next_id_ = 0;
+  std::unique_ptr<SceneSource> source_;
+  std::vector<std::string> warnings_;
+};
+
+// The objects of one shard, renumbered from first_id; their global ids go to *ids.
+class ShardSource final : public SceneSource {
+ public:
+  ShardSource(const std::vector<SceneOpener>& inputs, const TopLevels& top, uint32_t shard, ObjectId first_id,
+              std::vector<ObjectId>* ids)
+      : all_(inputs), top_(top), shard_(shard), next_local_(first_id), ids_(ids) {}
+  Result<bool> Next(SceneObject* out) override {
+    for (;;) {
+      MKTREE_ASSIGN_OR_RETURN(const bool more, all_.Next(out));
+      if (!more) return false;
+      if (top_.ShardOf(out->mesh.Bounds()) != shard_) continue;
+      ids_->push_back(out->id);
+      out->id = next_local_++;
+      return true;
+    }
+  }
+
+ private:
+  AllInputs all_;
+  const TopLevels& top_;
+  uint32_t shard_;
+  ObjectId next_local_;
+  std::vector<ObjectId>* ids_;
+};
+
+Status Rename(const std::string& from, const std::string& to) {
+  if (std::rename(from.c_str(), to.c_str()) != 0)
+    return Status::IOError(to + ": rename from " + from + ": " + std::strerror(errno));
+  return Status::Ok();
+}
+
+}  // namespace
+
+uint64_t NewBuildId() {
+  return std::random_device{}() ^ (uint64_t{std::random_device{}()} << 32) ^
+         static_cast<uint64_t>(Clock::now().time_since_epoch().count());
+}
+
+Result<ShardScan> ScanForShards(const std::vector<SceneOpener>& inputs,
+                                const std::function<bool(ObjectId)>& mine, const IngestOptions& options) {
+  ShardScan scan;
+  AllInputs all(inputs);
+  SceneObject obj;
+  for (;;) {
+    MKTREE_ASSIGN_OR_RETURN(const bool more, all.Next(&obj));
+    if (!more) break;
+    if (scan.objects == 0) scan.first = obj.mesh.Bounds();
+    if (!mine || mine(obj.id)) scan.sample.Add(obj.id, scan.objects == 0 ? scan.first : obj.mesh.Bounds());
+    ++scan.objects;
+    if (options.progress && scan.objects % (1u << 16) == 0)
+      options.progress(IngestStage::kRead, scan.objects, 0);
+  }
+  scan.warnings = std::move(all.warnings());
+  return scan;
+}
+
+void DiscardShard(const std::string& manifest_path, uint32_t s) {
+  std::error_code ec;
+  std::filesystem::remove(ShardStorePath(manifest_path, s) + ".new", ec);
+  std::filesystem::remove(ShardIdsPath(manifest_path, s) + ".new", ec);
+}
+
+Status PublishShard(const std::string& manifest_path, uint32_t s) {
+  const std::string store = ShardStorePath(manifest_path, s), ids = ShardIdsPath(manifest_path, s);
+  MKTREE_RETURN_IF_ERROR(Rename(store + ".new", store));
+  return Rename(ids + ".new", ids);
+}
+
+Result<ShardEntry> BuildShard(const std::vector<SceneOpener>& inputs, const std::string& manifest_path,
+                              const Manifest& m, uint32_t s, const IngestOptions& options,
+                              IngestReport* report) {
+  const std::string store_path = ShardStorePath(manifest_path, s), ids_path = ShardIdsPath(manifest_path, s);
+  const std::string store_new = store_path + ".new", ids_new = ids_path + ".new";
+  struct Discard {
+    const std::string& path;
+    uint32_t s;
+    bool keep = false;
+    ~Discard() {
+      if (!keep) DiscardShard(path, s);
+    }
+  } discard{manifest_path, s};
+  IngestOptions o = options;
+  o.origin = m.origin;
+  o.input_name =
+      (options.input_name.empty() ? std::string() : options.input_name + ": ") + "shard " + std::to_string(s);
+  std::vector<ObjectId> ids;
+  const SceneOpener opener = [&](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
+    ids.clear();
+    return std::unique_ptr<SceneSource>(std::make_unique<ShardSource>(inputs, m.top, s, first, &ids));
+  };
+  MKTREE_ASSIGN_OR_RETURN(*report, BuildStore({opener}, store_new, o));  // names the store or the input
+  if (ids.size() != report->objects)
+    return Status::Internal(store_new + ": id count differs from the store's");
+  ShardEntry e;
+  e.objects = ids.size();
+  {
+    MKTREE_ASSIGN_OR_RETURN(auto reader, StoreReader::Open(store_new));
+    e.box = reader->tree().nodes[0].box;
+  }
+  MKTREE_RETURN_IF_ERROR(WriteShardIds(ids_new, m.build_id, s, ids));
+  MKTREE_ASSIGN_OR_RETURN(e.store, FingerprintFile(store_new));
+  MKTREE_ASSIGN_OR_RETURN(e.ids, FingerprintFile(ids_new));
+  e.store.name = std::filesystem::path(store_path).filename().string();
+  e.ids.name = std::filesystem::path(ids_path).filename().string();
+  discard.keep = true;
+  return e;
+}
+
+Result<ShardedBuildReport> BuildShardedStore(const std::vector<SceneOpener>& inputs,
+                                             const std::string& manifest_path, const IngestOptions& options,
+                                             uint32_t shards) {
+  const auto start = Clock::now();
+  ShardedBuildReport report;
+  if (shards == 0 || shards > 65536) return Status::InvalidArgument("shards must be from 1 to 65536");
+  if (manifest_path.empty()) return Status::InvalidArgument("the store path is empty");
+  if (std::filesystem::is_directory(manifest_path))
+    return Status::InvalidArgument(manifest_path + ": not a regular file");
+
+  // 1. The sample and the scene's frame, in one pass.
+  Manifest& m = report.manifest;
+  MKTREE_ASSIGN_OR_RETURN(ShardScan scan, ScanForShards(inputs, nullptr, options));
+  report.warnings = std::move(scan.warnings);
+  m.objects = scan.objects;
+  if (m.objects == 0)
+    return Status::InvalidArgument((options.input_name.empty()
+                                        ? manifest_path + ": not built"
+                                        : options.input_name + ": " + manifest_path + " not built") +
+                                   ": empty scene, no object with geometry in the input");
+  m.origin = options.origin ? *options.origin : ChooseStoreOrigin(scan.first);
+  report.sample_objects = scan.sample.size();
+  MKTREE_ASSIGN_OR_RETURN(m.top, ChooseTopLevels(scan.sample.Items(), shards));
+  report.sample_seconds = Seconds(start);
+  // The id files carry it, so a shard of another build is refused even if its store fingerprints alike.
+  m.build_id = NewBuildId();
+
+  // 2. The shards, one after the other, under staging names.
+  struct DiscardAll {
+    const std::string& path;
+    uint32_t built = 0;
+    bool keep = false;
+    ~DiscardAll() {
+      for (uint32_t s = 0; s < built && !keep; ++s) DiscardShard(path, s);
+    }
+  } discard{manifest_path};
+  for (uint32_t s = 0; s < shards; ++s) {
+    IngestReport shard_report;
+    MKTREE_ASSIGN_OR_RETURN(ShardEntry e, BuildShard(inputs, manifest_path, m, s, options, &shard_report));
+    ++discard.built;
+    for (std::string& w : shard_report.warnings)
+      report.warnings.push_back("shard " + std::to_string(s) + ": " + w);
+    report.store_bytes += e.store.bytes + e.ids.bytes;
+    m.shards.push_back(std::move(e));
+    report.shards.push_back(std::move(shard_report));
+  }
+
+  // 3. Into place, the manifest last (atomic: a temporary renamed over the path).
+  Status st;
+  for (uint32_t s = 0; s < shards && st.ok(); ++s) st = PublishShard(manifest_path, s);
+  if (st.ok()) st = WriteManifest(manifest_path, m);
+  if (!st.ok()) {  // none of this build's files stays
+    for (uint32_t s = 0; s < shards; ++s) {
+      std::error_code ec;
+      std::filesystem::remove(ShardStorePath(manifest_path, s), ec);
+      std::filesystem::remove(ShardIdsPath(manifest_path, s), ec);
+    }
+    return st;
+  }
+  discard.keep = true;
+  report.total_seconds = Seconds(start);
+  return report;
+}
+
+}  // namespace mktree

@@ -1,0 +1,55 @@
+// The sharded build (docs/shards.md), single process: one pass over the inputs samples the objects' boxes
+// and chooses the top levels (engine/shard/top_levels.h); then each shard is an ordinary store built by
+// BuildStore from the objects routed to it (one more pass over the inputs per shard, keeping the objects
+// of that shard), in the scene's frame, with its id file; the manifest is written last. Shards and id files
+// are built under "<name>.new" and renamed into place just before the manifest is committed, so that a
+// failed build leaves neither a manifest nor a shard file of its own, and the previous sharded store at
+// the path stays until the renames.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "engine/ingest/store_builder.h"
+#include "engine/shard/manifest.h"
+
+namespace mktree {
+
+struct ShardedBuildReport {
+  Manifest manifest;
+  std::vector<IngestReport> shards;
+  uint64_t sample_objects = 0;
+  uint64_t store_bytes = 0;  // the shard stores' and id files' bytes
+  double sample_seconds = 0, total_seconds = 0;
+  std::vector<std::string> warnings;
+};
+
+// The steps of BuildShardedStore, for a driver that spreads the shards over processes (tools/mpi):
+// 1. One pass over the inputs: the objects whose ids `mine` accepts go into the sample (all when null);
+//    the scene's object count and its first object's box are counted from every object.
+struct ShardScan {
+  ShardSample sample;
+  uint64_t objects = 0;
+  Box3d first;  // the box of object 0 (the scene's frame comes from it)
+  std::vector<std::string> warnings;
+};
+Result<ShardScan> ScanForShards(const std::vector<SceneOpener>& inputs,
+                                const std::function<bool(ObjectId)>& mine, const IngestOptions& options);
+// 2. Shard s of m (top levels, origin and build id set) under its staging names; the entry names the
+//    final files. On error nothing of it is left.
+Result<ShardEntry> BuildShard(const std::vector<SceneOpener>& inputs, const std::string& manifest_path,
+                              const Manifest& m, uint32_t s, const IngestOptions& options,
+                              IngestReport* report);
+// 3. Shard s's staged files renamed into place, or removed.
+Status PublishShard(const std::string& manifest_path, uint32_t s);
+void DiscardShard(const std::string& manifest_path, uint32_t s);
+// Any 64-bit value that differs between builds.
+uint64_t NewBuildId();
+
+Result<ShardedBuildReport> BuildShardedStore(const std::vector<SceneOpener>& inputs,
+                                             const std::string& manifest_path, const IngestOptions& options,
+                                             uint32_t shards);
+
+}  // namespace mktree

@@ -1,0 +1,415 @@
+// The Database over a sharded store (docs/shards.md): the manifest's top levels route each query to the
+// shards whose stores' root boxes it meets; each shard is an ordinary store's Database, whose local ids
+// the shard's id file maps to global ones.
+#include <algorithm>
+#include <cmath>
+#include <condition_variable>
+#include <mutex>
+#include <queue>
+#include <thread>
+
+#include "engine/core/guarded.h"
+#include "engine/query/store_database.h"
+#include "engine/shard/manifest.h"
+#include "engine/store/store_file.h"
+
+namespace mktree {
+
+Result<bool> Database::VisitUntilPerShard(const Query& query, const StoppableVisitor& visit,
+                                          QueryStats* stats, std::vector<ShardQueryStats>* per_shard) const {
+  if (per_shard) per_shard->clear();
+  return VisitUntil(query, visit, stats);
+}
+
+namespace {
+
+bool FiniteQuery(const Query& q) {
+  if (q.kind == Query::Kind::kPoint)
+    return std::isfinite(q.point.x) && std::isfinite(q.point.y) && std::isfinite(q.point.z);
+  for (int i = 0; i < 3; ++i)
+    if (!std::isfinite(q.box.min[i]) || !std::isfinite(q.box.max[i]) || q.box.min[i] > q.box.max[i])
+      return false;
+  return true;
+}
+
+class ShardedDatabase final : public Database {
+ public:
+  ShardedDatabase(std::string path, Manifest m, std::vector<std::unique_ptr<Database>> shards,
+                  std::vector<std::vector<ObjectId>> ids)
+      : path_(std::move(path)), m_(std::move(m)), shards_(std::move(shards)), ids_(std::move(ids)) {
+    // Each top node's box: the union of its shards' root boxes (children follow their parent in preorder).
+    box_.resize(m_.top.nodes.size());
+    for (size_t n = m_.top.nodes.size(); n-- > 0;) {
+      const TopNode& t = m_.top.nodes[n];
+      if (t.is_leaf()) {
+        box_[n] = m_.shards[t.shard].box;
+      } else {
+        box_[n] = box_[t.child[0]];
+        box_[n].Extend(box_[t.child[1]]);
+      }
+    }
+    stats_json_ = "{\"shards\": [";
+    double pages = 0;
+    for (size_t s = 0; s < shards_.size(); ++s) {
+      stats_json_ += (s ? ", " : "") + shards_[s]->stats_json();
+      const double opp = shards_[s]->objects_per_page();
+      if (opp > 0) pages += static_cast<double>(shards_[s]->object_count()) / opp;
+      bounds_ = Union(bounds_, shards_[s]->bounds());
+    }
+    stats_json_ += "]}";
+    objects_per_page_ = pages > 0 ? static_cast<double>(m_.objects) / pages : 0;
+  }
+
+  uint32_t shard_count() const override { return static_cast<uint32_t>(shards_.size()); }
+
+  Result<bool> VisitUntil(const Query& q, const StoppableVisitor& visit, QueryStats* stats) const override {
+    return VisitUntilPerShard(q, visit, stats, nullptr);
+  }
+
+  Result<bool> VisitUntilPerShard(const Query& q, const StoppableVisitor& visit, QueryStats* stats,
+                                  std::vector<ShardQueryStats>* per_shard) const override {
+    QueryStats total;
+    if (per_shard) per_shard->clear();
+    if (!FiniteQuery(q))
+      return Status::InvalidArgument(q.kind == Query::Kind::kPoint
+                                         ? "point query with a non-finite coordinate"
+                                         : "box query with a non-finite coordinate "
+                                           "or min > max");
+    uint64_t remaining = q.limit;
+    bool complete = true;
+    for (uint32_t s : Route(q, &total)) {
+      Query sq = q;
+      sq.limit = remaining;
+      uint64_t visited = 0;
+      QueryStats st;
+      const std::vector<ObjectId>& ids = ids_[s];
+      MKTREE_ASSIGN_OR_RETURN(const bool whole, shards_[s]->VisitUntil(
+                                                    sq,
+                                                    [&](ObjectId local) {
+                                                      ++visited;
+                                                      return visit(ids[local]);
+                                                    },
+                                                    &st));
+      total += st;
+      if (per_shard) per_shard->push_back({s, st});
+      if (!whole) {
+        complete = false;
+        break;
+      }
+      if (remaining != Query::kNoLimit) remaining -= visited;
+    }
+    if (stats) *stats = total;
+    return complete;
+  }
+
+  Status RunBatchStreamed(const QuerySource& source, const BatchOptions& options,
+                          const ResultVisitor& deliver) const override;
+
+  Status SelfClash(const ClashOptions&, const ClashVisitor&, ClashStats*) const override {
+    return Status::Unsupported(path_ + ": clash detection over a sharded store is not supported yet");
+  }
+  Status Collide(const Mesh&, const std::optional<RigidTransform>&, const ClashOptions&, const ClashVisitor&,
+                 ClashStats*) const override {
+    return Status::Unsupported(path_ + ": clash detection over a sharded store is not supported yet");
+  }
+  void ClearCache() override {
+    for (auto& s : shards_) s->ClearCache();
+  }
+  const std::string& path() const override { return path_; }
+  uint64_t object_count() const override { return m_.objects; }
+  Result<ObjectRecord> Object(ObjectId id, QueryStats* stats) const override {
+    MKTREE_ASSIGN_OR_RETURN(const auto at, Locate(id));
+    MKTREE_ASSIGN_OR_RETURN(ObjectRecord r, shards_[at.first]->Object(at.second, stats));
+    r.id = id;
+    return r;
+  }
+  Result<Mesh> ObjectGeometry(ObjectId id, QueryStats* stats) const override {
+    MKTREE_ASSIGN_OR_RETURN(const auto at, Locate(id));
+    return shards_[at.first]->ObjectGeometry(at.second, stats);
+  }
+  Result<std::string> ObjectName(ObjectId id) const override {
+    MKTREE_ASSIGN_OR_RETURN(const auto at, Locate(id));
+    return shards_[at.first]->ObjectName(at.second);
+  }
+  Box3d bounds() const override { return bounds_; }
+  double objects_per_page() const override { return objects_per_page_; }
+  const std::string& stats_json() const override { return stats_json_; }
+
+ private:
+  static Box3d Union(Box3d a, const Box3d& b) {
+    for (int i = 0; i < 3; ++i) {
+      a.min[i] = std::min(a.min[i], b.min[i]);
+      a.max[i] = std::max(a.max[i], b.max[i]);
+    }
+    return a;
+  }
+
+  // The shards whose root boxes the query meets, in shard order, in the store frame (the same
+  // subtraction as the shards' own routing, so a point on a face stays on it).
+  std::vector<uint32_t> Route(const Query& q, QueryStats* stats) const {
+    const Vec3d& o = m_.origin;
+    Box3d b;
+    if (q.kind == Query::Kind::kPoint) {
+      const Vec3d p{q.point.x - o.x, q.point.y - o.y, q.point.z - o.z};
+      for (int i = 0; i < 3; ++i) b.min[i] = b.max[i] = p[i];
+    } else {
+      for (int i = 0; i < 3; ++i) {
+        b.min[i] = q.box.min[i] - o[i];
+        b.max[i] = q.box.max[i] - o[i];
+      }
+    }
+    std::vector<uint32_t> out;
+    uint32_t stack[128];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+      const uint32_t n = stack[--top];
+      if (!box_[n].Intersects(b)) continue;
+      const TopNode& t = m_.top.nodes[n];
+      if (t.is_leaf()) {
+        out.push_back(t.shard);
+        continue;
+      }
+      ++stats->internal_nodes_visited;
+      stack[top++] = t.child[1];
+      stack[top++] = t.child[0];
+    }
+    return out;
+  }
+
+  // The shard holding global id `id` and its id there.
+  Result<std::pair<uint32_t, ObjectId>> Locate(ObjectId id) const {
+    if (id >= m_.objects)
+      return Status::InvalidArgument(path_ + ": no object " + std::to_string(id) + " (the store has " +
+                                     std::to_string(m_.objects) + ")");
+    for (uint32_t s = 0; s < ids_.size(); ++s) {
+      auto it = std::lower_bound(ids_[s].begin(), ids_[s].end(), id);
+      if (it != ids_[s].end() && *it == id) return std::pair{s, static_cast<ObjectId>(it - ids_[s].begin())};
+    }
+    return Status::Internal(path_ + ": object " + std::to_string(id) + " is in no shard");
+  }
+
+  std::string path_;
+  Manifest m_;
+  std::vector<std::unique_ptr<Database>> shards_;
+  std::vector<std::vector<ObjectId>> ids_;  // per shard: global id of each local id, increasing
+  std::vector<Box3f> box_;                  // per top node
+  Box3d bounds_;
+  std::string stats_json_;
+  double objects_per_page_ = 0;
+};
+
+Status ShardedDatabase::RunBatchStreamed(const QuerySource& source, const BatchOptions& options,
+                                         const ResultVisitor& deliver) const {
+  return Guarded(path_, [&]() -> Status {
+    const unsigned threads =
+        options.threads ? options.threads : std::max(1u, std::thread::hardware_concurrency());
+    const uint64_t window = options.window ? options.window : 4 * uint64_t{threads};
+    // One query: each routed shard runs it as a batch of one (cold: on its own empty cache), ids mapped.
+    auto run = [&](const Query& q, QueryResult* r) -> Status {
+      r->hits.clear();
+      r->stats.Reset();
+      r->truncated = false;
+      if (!FiniteQuery(q)) return Status::InvalidArgument("query with a non-finite coordinate or min > max");
+      BatchOptions one;
+      one.threads = 1;
+      one.cold = options.cold;
+      one.ids = options.ids;
+      uint64_t remaining = q.limit;
+      for (uint32_t s : Route(q, &r->stats)) {
+        Query sq = q;
+        sq.limit = remaining;
+        bool given = false;
+        uint64_t got = 0;
+        MKTREE_RETURN_IF_ERROR(shards_[s]->RunBatchStreamed(
+            [&](Query* next) -> Result<bool> {
+              if (given) return false;
+              given = true;
+              *next = sq;
+              return true;
+            },
+            one,
+            [&](uint64_t, const QueryResult& sr) {
+              for (ObjectId local : sr.hits) r->hits.push_back(ids_[s][local]);
+              r->stats += sr.stats;
+              got = sr.stats.hits;
+              r->truncated = sr.truncated;
+              return Status::Ok();
+            }));
+        if (r->truncated) break;
+        if (remaining != Query::kNoLimit) remaining -= got;
+      }
+      std::sort(r->hits.begin(), r->hits.end());
+      return Status::Ok();
+    };
+    auto prefixed = [](uint64_t i, const Status& st) {
+      const std::string m = "query " + std::to_string(i) + ": " + st.message();
+      switch (st.code()) {
+        case Status::Code::kInvalidArgument:
+          return Status::InvalidArgument(m);
+        case Status::Code::kNotFound:
+          return Status::NotFound(m);
+        case Status::Code::kCorruption:
+          return Status::Corruption(m);
+        case Status::Code::kIOError:
+          return Status::IOError(m);
+        case Status::Code::kUnsupported:
+          return Status::Unsupported(m);
+        default:
+          return Status::Internal(m);
+      }
+    };
+
+    if (threads <= 1) {
+      QueryResult r;
+      Query q;
+      for (uint64_t i = 0;; ++i) {
+        MKTREE_ASSIGN_OR_RETURN(const bool more, source(&q));
+        if (!more) return Status::Ok();
+        if (Status st = run(q, &r); !st.ok()) return prefixed(i, st);
+        MKTREE_RETURN_IF_ERROR(deliver(i, r));
+      }
+    }
+    // The calling thread fills a ring of `window` slots from the source and delivers them in order;
+    // workers run the slots in order.
+    struct Slot {
+      Query query;
+      QueryResult result;
+      Status status;
+      bool done = false;
+    };
+    std::vector<Slot> slots(window);
+    std::mutex mu;
+    std::condition_variable ready, done;
+    uint64_t filled = 0, started = 0;
+    bool stop = false;
+    auto work = [&]() noexcept {
+      std::unique_lock<std::mutex> lock(mu);
+      while (true) {
+        ready.wait(lock, [&] { return stop || started < filled; });
+        if (stop) return;
+        Slot& slot = slots[started++ % window];
+        lock.unlock();
+        Status st;
+        try {
+          st = run(slot.query, &slot.result);
+        } catch (...) {
+          st = StatusOfCurrentException(path_);
+        }
+        lock.lock();
+        slot.status = std::move(st);
+        slot.done = true;
+        done.notify_all();
+      }
+    };
+    std::vector<std::thread> pool;
+    struct Join {
+      std::mutex& mu;
+      bool& stop;
+      std::condition_variable& ready;
+      std::vector<std::thread>& pool;
+      ~Join() {
+        {
+          std::lock_guard<std::mutex> lock(mu);
+          stop = true;
+        }
+        ready.notify_all();
+        for (auto& t : pool) t.join();
+      }
+    } join{mu, stop, ready, pool};
+    for (unsigned t = 0; t < threads; ++t) pool.emplace_back(work);
+    Status source_status;
+    bool source_done = false;
+    for (uint64_t delivered = 0;; ++delivered) {
+      while (!source_done && filled < delivered + window) {
+        Query q;
+        Result<bool> more = source(&q);
+        if (!more.ok() || !*more) {
+          source_status = more.status();
+          source_done = true;
+          break;
+        }
+        {
+          std::lock_guard<std::mutex> lock(mu);
+          Slot& slot = slots[filled % window];
+          slot.query = q;
+          slot.done = false;
+          ++filled;
+        }
+        ready.notify_one();
+      }
+      if (delivered == filled) return source_status;
+      Slot& slot = slots[delivered % window];
+      {
+        std::unique_lock<std::mutex> lock(mu);
+        done.wait(lock, [&] { return slot.done; });
+      }
+      if (!slot.status.ok()) return prefixed(delivered, slot.status);
+      MKTREE_RETURN_IF_ERROR(deliver(delivered, slot.result));
+    }
+  });
+}
+
+}  // namespace
+
+Result<std::unique_ptr<Database>> OpenShardedDatabase(const std::string& manifest_path,
+                                                      const OpenOptions& options) {
+  MKTREE_ASSIGN_OR_RETURN(Manifest m, ReadManifest(manifest_path));
+  const uint32_t k = m.top.shard_count;
+  OpenOptions shard_options = options;
+  shard_options.cache_pages = (options.cache_pages + k - 1) / k;
+  std::vector<std::unique_ptr<Database>> shards;
+  std::vector<std::vector<ObjectId>> ids;
+  for (uint32_t s = 0; s < k; ++s) {
+    const ShardEntry& e = m.shards[s];
+    const std::string store_path = ShardFilePath(manifest_path, e.store.name);
+    const std::string ids_path = ShardFilePath(manifest_path, e.ids.name);
+    const std::string of = " (shard " + std::to_string(s) + " of " + manifest_path + ")";
+    for (const auto& [path, info] : {std::pair{store_path, e.store}, std::pair{ids_path, e.ids}}) {
+      auto fp = FingerprintFile(path);
+      if (!fp.ok()) return fp.status();
+      if (fp->bytes != info.bytes)
+        return Status::Corruption(path + ": " + std::to_string(fp->bytes) + " bytes, the manifest says " +
+                                  std::to_string(info.bytes) + of);
+      if (fp->fingerprint != info.fingerprint)
+        return Status::Corruption(path + ": not the file the manifest was built with (checksum)" + of);
+    }
+    ReadOptions ro;
+    ro.direct_io = options.direct_io;
+    MKTREE_ASSIGN_OR_RETURN(auto reader, StoreReader::Open(store_path, ro));
+    if (reader->object_count() != e.objects || reader->tree().empty() ||
+        !(reader->tree().nodes[0].box == e.box))
+      return Status::Corruption(store_path + ": objects or bounds differ from the manifest's" + of);
+    const Vec3d& o = reader->tree().origin;
+    if (o.x != m.origin.x || o.y != m.origin.y || o.z != m.origin.z)
+      return Status::Corruption(store_path + ": its frame is not the manifest's" + of);
+    MKTREE_ASSIGN_OR_RETURN(std::vector<ObjectId> shard_ids,
+                            ReadShardIds(ids_path, m.build_id, s, m.objects));
+    if (shard_ids.size() != e.objects)
+      return Status::Corruption(ids_path + ": " + std::to_string(shard_ids.size()) + " ids for " +
+                                std::to_string(e.objects) + " objects" + of);
+    shards.push_back(OpenStoreDatabase(std::move(reader), shard_options));
+    ids.push_back(std::move(shard_ids));
+  }
+  // Every global id in exactly one shard: the shards' increasing ids, merged (a heap of the shards' next
+  // ids), are 0, 1, 2, ...
+  {
+    using Head = std::pair<ObjectId, uint32_t>;
+    std::priority_queue<Head, std::vector<Head>, std::greater<Head>> heads;
+    std::vector<size_t> at(k, 0);
+    for (uint32_t s = 0; s < k; ++s)
+      if (!ids[s].empty()) heads.push({ids[s][0], s});
+    for (uint64_t want = 0; want < m.objects; ++want) {
+      if (heads.empty() || heads.top().first != want)
+        return Status::Corruption(manifest_path + ": object " + std::to_string(want) +
+                                  " is in no shard, or in two");
+      const uint32_t s = heads.top().second;
+      heads.pop();
+      if (++at[s] < ids[s].size()) heads.push({ids[s][at[s]], s});
+    }
+  }
+  return std::unique_ptr<Database>(
+      std::make_unique<ShardedDatabase>(manifest_path, std::move(m), std::move(shards), std::move(ids)));
+}
+
+}  // namespace mktree
