@@ -229,19 +229,23 @@ bool PageCache::PinCached(uint64_t first, uint64_t count, bool verified, QuerySt
   }
   for (uint64_t p = first; p < first + count; ++p) {
     PageFrame* f = table_[p].frame;
-    ++counters_.lookups;
-    ++counters_.hits;
-    if (stats) {
-      ++stats->pages_touched;
-      ++stats->cache_hits;
-    }
-    if (f->pins++ == 0) {
-      ++pinned_;
-      table_[p].unpinned_at = 0;
-    }
-    out->push_back(PageHandle(this, f));
+    PinHitLocked(p, f, stats, out);
   }
   return true;
+}
+
+void PageCache::PinHitLocked(uint64_t p, PageFrame* f, QueryStats* stats, std::vector<PageHandle>* out) {
+  ++counters_.lookups;
+  ++counters_.hits;
+  if (stats) {
+    ++stats->pages_touched;
+    ++stats->cache_hits;
+  }
+  if (f->pins++ == 0) {
+    ++pinned_;
+    table_[p].unpinned_at = 0;
+  }
+  out->push_back(PageHandle(this, f));
 }
 
 size_t PageCache::PinCachedPages(std::span<const uint64_t> pages, bool verified, bool attached,
@@ -260,17 +264,7 @@ size_t PageCache::PinCachedPages(std::span<const uint64_t> pages, bool verified,
     if (f == nullptr || f->loading || (verified && !f->verified.load(std::memory_order_acquire)) ||
         (attached && f->attachment.load(std::memory_order_acquire) == nullptr))
       break;
-    ++counters_.lookups;
-    ++counters_.hits;
-    if (stats) {
-      ++stats->pages_touched;
-      ++stats->cache_hits;
-    }
-    if (f->pins++ == 0) {
-      ++pinned_;
-      table_[p].unpinned_at = 0;
-    }
-    out->push_back(PageHandle(this, f));
+    PinHitLocked(p, f, stats, out);
     ++n;
   }
   return n;

@@ -126,6 +126,8 @@ class PageCache {
     uint64_t page;
     uint64_t stamp;
   };
+  // A hit on cached page p (frame f) pinned into `out`; under mu_.
+  void PinHitLocked(uint64_t p, PageFrame* f, QueryStats* stats, std::vector<PageHandle>* out);
   void Unpin(PageFrame* f);
   void UnpinLocked(PageFrame* f);
   PageFrame* NewFrameLocked(uint64_t page);

@@ -20,6 +20,7 @@
 #include "engine/clash/clash_engine.h"
 #include "engine/core/guarded.h"
 #include "engine/geometry/exact_geometry.h"
+#include "engine/query/ordered_batch.h"
 #include "engine/query/store_database.h"
 #include "engine/shard/manifest.h"
 #include "engine/store/leaf_reader.h"
@@ -146,7 +147,8 @@ void SortIds(std::vector<ObjectId>* ids) {
   if (from != ids) ids->swap(other);  // the sorted ids are in `other`
 }
 
-// `st` with `prefix` before its message, its code kept.
+}  // namespace
+
 Status Prefixed(const Status& st, const std::string& prefix) {
   std::string m = prefix + st.message();
   switch (st.code()) {
@@ -167,6 +169,8 @@ Status Prefixed(const Status& st, const std::string& prefix) {
   }
   return Status::Internal(std::move(m));
 }
+
+namespace {
 
 bool Finite(const Vec3d& p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z); }
 
@@ -571,110 +575,7 @@ Status StoreDatabase::RunBatchStreamed(const QuerySource& source, const BatchOpt
     auto own_cache = [&] {
       return options.cold ? std::make_unique<PageCache>(&reader_->pages(), options_.cache_pages) : nullptr;
     };
-    auto failed = [](uint64_t i, const Status& st) {
-      return Prefixed(st, "query " + std::to_string(i) + ": ");
-    };
-
-    // The calling thread reads the source into a ring of `window` slots and delivers them in order;
-    // workers run the slots in order. Slot i % window is refilled only after result i is delivered.
-    struct Slot {
-      Query query;
-      QueryResult result;
-      Status status;
-      bool done = false;
-    };
-    std::vector<Slot> slots(threads > 1 ? window : 0);
-    std::mutex mu;
-    std::condition_variable ready, done;
-    uint64_t filled = 0, started = 0;  // under mu
-    bool stop = false;                 // under mu
-    auto work = [&]() noexcept {
-      std::unique_ptr<PageCache> own;
-      std::unique_lock<std::mutex> lock(mu);
-      while (true) {
-        ready.wait(lock, [&] { return stop || started < filled; });
-        if (stop) return;
-        Slot& slot = slots[started++ % window];
-        lock.unlock();
-        Status st;
-        try {
-          if (options.cold && !own) own = own_cache();
-          st = run(slot.query, own.get(), &slot.result);
-        } catch (...) {
-          st = StatusOfCurrentException(path());
-        }
-        lock.lock();
-        slot.status = std::move(st);
-        slot.done = true;
-        done.notify_all();
-      }
-    };
-    std::vector<std::thread> pool;
-    struct Join {  // on every way out: stop the workers (a running query finishes first) and join them
-      std::mutex& mu;
-      bool& stop;
-      std::condition_variable& ready;
-      std::vector<std::thread>& pool;
-      ~Join() {
-        {
-          std::lock_guard<std::mutex> lock(mu);
-          stop = true;
-        }
-        ready.notify_all();
-        for (auto& t : pool) t.join();
-      }
-    } join{mu, stop, ready, pool};
-    if (threads > 1) {
-      try {
-        pool.reserve(threads);
-        for (unsigned t = 0; t < threads; ++t) pool.emplace_back(work);
-      } catch (...) {
-        // A thread that cannot start leaves its share to the others.
-      }
-    }
-
-    if (pool.empty()) {  // one thread: each query on the calling thread, delivered at once
-      std::unique_ptr<PageCache> own = own_cache();
-      QueryResult r;
-      Query q;
-      for (uint64_t i = 0;; ++i) {
-        MKTREE_ASSIGN_OR_RETURN(const bool more, source(&q));
-        if (!more) return Status::Ok();
-        Status st = run(q, own.get(), &r);
-        if (!st.ok()) return failed(i, st);
-        MKTREE_RETURN_IF_ERROR(deliver(i, r));
-      }
-    }
-
-    Status source_status;
-    bool source_done = false;
-    for (uint64_t delivered = 0;; ++delivered) {
-      while (!source_done && filled < delivered + window) {
-        Query q;
-        Result<bool> more = source(&q);
-        if (!more.ok() || !*more) {
-          source_status = more.status();
-          source_done = true;
-          break;
-        }
-        {
-          std::lock_guard<std::mutex> lock(mu);
-          Slot& slot = slots[filled % window];
-          slot.query = q;
-          slot.done = false;
-          ++filled;
-        }
-        ready.notify_one();
-      }
-      if (delivered == filled) return source_status;  // every query before the source's end or error
-      Slot& slot = slots[delivered % window];
-      {
-        std::unique_lock<std::mutex> lock(mu);
-        done.wait(lock, [&] { return slot.done; });
-      }
-      if (!slot.status.ok()) return failed(delivered, slot.status);
-      MKTREE_RETURN_IF_ERROR(deliver(delivered, slot.result));
-    }
+    return RunOrderedBatch<PageCache>(source, threads, window, path(), own_cache, run, deliver);
   });
 }
 

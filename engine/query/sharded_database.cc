@@ -9,6 +9,7 @@
 #include <thread>
 
 #include "engine/core/guarded.h"
+#include "engine/query/ordered_batch.h"
 #include "engine/query/store_database.h"
 #include "engine/shard/manifest.h"
 #include "engine/store/store_file.h"
@@ -206,7 +207,7 @@ Status ShardedDatabase::RunBatchStreamed(const QuerySource& source, const BatchO
         options.threads ? options.threads : std::max(1u, std::thread::hardware_concurrency());
     const uint64_t window = options.window ? options.window : 4 * uint64_t{threads};
     // One query: each routed shard runs it as a batch of one (cold: on its own empty cache), ids mapped.
-    auto run = [&](const Query& q, QueryResult* r) -> Status {
+    auto run = [&](const Query& q, const void*, QueryResult* r) -> Status {
       r->hits.clear();
       r->stats.Reset();
       r->truncated = false;
@@ -242,111 +243,8 @@ Status ShardedDatabase::RunBatchStreamed(const QuerySource& source, const BatchO
       std::sort(r->hits.begin(), r->hits.end());
       return Status::Ok();
     };
-    auto prefixed = [](uint64_t i, const Status& st) {
-      const std::string m = "query " + std::to_string(i) + ": " + st.message();
-      switch (st.code()) {
-        case Status::Code::kInvalidArgument:
-          return Status::InvalidArgument(m);
-        case Status::Code::kNotFound:
-          return Status::NotFound(m);
-        case Status::Code::kCorruption:
-          return Status::Corruption(m);
-        case Status::Code::kIOError:
-          return Status::IOError(m);
-        case Status::Code::kUnsupported:
-          return Status::Unsupported(m);
-        default:
-          return Status::Internal(m);
-      }
-    };
-
-    if (threads <= 1) {
-      QueryResult r;
-      Query q;
-      for (uint64_t i = 0;; ++i) {
-        MKTREE_ASSIGN_OR_RETURN(const bool more, source(&q));
-        if (!more) return Status::Ok();
-        if (Status st = run(q, &r); !st.ok()) return prefixed(i, st);
-        MKTREE_RETURN_IF_ERROR(deliver(i, r));
-      }
-    }
-    // The calling thread fills a ring of `window` slots from the source and delivers them in order;
-    // workers run the slots in order.
-    struct Slot {
-      Query query;
-      QueryResult result;
-      Status status;
-      bool done = false;
-    };
-    std::vector<Slot> slots(window);
-    std::mutex mu;
-    std::condition_variable ready, done;
-    uint64_t filled = 0, started = 0;
-    bool stop = false;
-    auto work = [&]() noexcept {
-      std::unique_lock<std::mutex> lock(mu);
-      while (true) {
-        ready.wait(lock, [&] { return stop || started < filled; });
-        if (stop) return;
-        Slot& slot = slots[started++ % window];
-        lock.unlock();
-        Status st;
-        try {
-          st = run(slot.query, &slot.result);
-        } catch (...) {
-          st = StatusOfCurrentException(path_);
-        }
-        lock.lock();
-        slot.status = std::move(st);
-        slot.done = true;
-        done.notify_all();
-      }
-    };
-    std::vector<std::thread> pool;
-    struct Join {
-      std::mutex& mu;
-      bool& stop;
-      std::condition_variable& ready;
-      std::vector<std::thread>& pool;
-      ~Join() {
-        {
-          std::lock_guard<std::mutex> lock(mu);
-          stop = true;
-        }
-        ready.notify_all();
-        for (auto& t : pool) t.join();
-      }
-    } join{mu, stop, ready, pool};
-    for (unsigned t = 0; t < threads; ++t) pool.emplace_back(work);
-    Status source_status;
-    bool source_done = false;
-    for (uint64_t delivered = 0;; ++delivered) {
-      while (!source_done && filled < delivered + window) {
-        Query q;
-        Result<bool> more = source(&q);
-        if (!more.ok() || !*more) {
-          source_status = more.status();
-          source_done = true;
-          break;
-        }
-        {
-          std::lock_guard<std::mutex> lock(mu);
-          Slot& slot = slots[filled % window];
-          slot.query = q;
-          slot.done = false;
-          ++filled;
-        }
-        ready.notify_one();
-      }
-      if (delivered == filled) return source_status;
-      Slot& slot = slots[delivered % window];
-      {
-        std::unique_lock<std::mutex> lock(mu);
-        done.wait(lock, [&] { return slot.done; });
-      }
-      if (!slot.status.ok()) return prefixed(delivered, slot.status);
-      MKTREE_RETURN_IF_ERROR(deliver(delivered, slot.result));
-    }
+    auto no_worker = [] { return std::unique_ptr<NoWorker>(); };
+    return RunOrderedBatch<NoWorker>(source, threads, window, path_, no_worker, run, deliver);
   });
 }
 

@@ -93,7 +93,9 @@ void ExpectSameAnswers(const Database& sharded, const Database& plain, const Bru
     EXPECT_EQ(Sorted(visited), truth);
     QueryStats sum;
     for (size_t s = 0; s < per.size(); ++s) {
-      if (s) EXPECT_LT(per[s - 1].shard, per[s].shard);
+      if (s) {
+        EXPECT_LT(per[s - 1].shard, per[s].shard);
+      }
       sum += per[s].stats;
     }
     EXPECT_EQ(sum.pages_touched, total.pages_touched);
