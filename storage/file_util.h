@@ -3,6 +3,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "mktree/status.h"
 #include "storage/file_ops.h"
@@ -25,5 +26,15 @@ Result<size_t> ReadPrefix(const std::string& path, void* buf, size_t n);
 // naming the file, the format, both versions, and what to do.
 Status UnsupportedFormatVersion(const std::string& path, const std::string& format, uint32_t found,
                                 uint32_t reads);
+
+// Checks of the files a caller names, made before any work: inputs must be regular files (a FIFO would
+// block the reader, a directory or device is no scene, store or query file), and an output must not be one
+// of the inputs nor replace anything but a regular file.
+// NotFound if `path` does not exist; InvalidArgument naming what it is if it is not a regular file (after
+// symbolic links).
+Status CheckInputFile(const std::string& path);
+// InvalidArgument if `output` is empty, exists and is not a regular file, or is the same file as one of
+// `inputs` (the same path, a hard link or a symbolic link to it). Inputs that do not exist are skipped.
+Status CheckOutputFile(const std::string& output, const std::vector<std::string>& inputs);
 
 }  // namespace mktree::storage_internal

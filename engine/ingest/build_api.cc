@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
-#include <filesystem>
 #include <optional>
 #include <string_view>
 #include <system_error>
@@ -14,6 +13,7 @@
 #include "engine/ingest/shard_build.h"
 #include "engine/ingest/store_builder.h"
 #include "mktree/build.h"
+#include "storage/file_util.h"
 
 namespace mktree {
 
@@ -142,26 +142,8 @@ Result<SceneOpener> OpenerFor(const std::string& input) {
     });
   }
   // Refused before anything is read (the scene reader would say the same, but only once it got there).
-  if (input.empty()) return Status::InvalidArgument("an input file name is empty");
-  std::error_code ec;
-  const auto st = std::filesystem::status(input, ec);
-  if (st.type() == std::filesystem::file_type::not_found) return Status::NotFound(input + ": no such file");
-  if (ec) return Status::IOError(input + ": " + ec.message());
-  if (st.type() != std::filesystem::file_type::regular)
-    return Status::InvalidArgument(input + ": not a regular file");
+  MKTREE_RETURN_IF_ERROR(storage_internal::CheckInputFile(input));
   return SceneOpener([input](ObjectId first) { return OpenSceneFile(input, first); });
-}
-
-// An output that is one of the inputs would replace it with the store.
-Status CheckOutput(const std::string& store_path, const std::vector<std::string>& inputs) {
-  if (store_path.empty()) return Status::InvalidArgument("the store path is empty");
-  for (const std::string& in : inputs) {
-    std::error_code ec;
-    if (!IsGenerator(in) && std::filesystem::equivalent(in, store_path, ec))
-      return Status::InvalidArgument(store_path + ": the store is the input " + in +
-                                     ": refusing to overwrite it");
-  }
-  return Status::Ok();
 }
 
 // The caller's objects as a scene stream: numbered in order, checked as a reader checks a file.
@@ -221,7 +203,7 @@ Result<BuildStats> BuildFromFiles(const std::vector<std::string>& inputs, const 
     MKTREE_ASSIGN_OR_RETURN(SceneOpener opener, OpenerFor(in));
     openers.push_back(std::move(opener));
   }
-  MKTREE_RETURN_IF_ERROR(CheckOutput(store_path, inputs));
+  MKTREE_RETURN_IF_ERROR(storage_internal::CheckOutputFile(store_path, inputs));
   for (const std::string& in : inputs) opts.input_name += (opts.input_name.empty() ? "" : ", ") + in;
   if (options.shards > 0) return BuildSharded(openers, store_path, opts, options.shards);
   MKTREE_ASSIGN_OR_RETURN(const IngestReport report, BuildStore(openers, store_path, opts));
