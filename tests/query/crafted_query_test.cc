@@ -12,6 +12,7 @@
 #include <fstream>
 #include <functional>
 #include <string>
+#include <vector>
 
 #include "mktree/database.h"
 #include "store/crafted_store.h"
@@ -107,45 +108,61 @@ TEST_F(CraftedQueryTest, RecordNamingAnotherLeafIsCorruptionAtTheObjectsGeometry
 
 // The documented limit of the leaf id digests: a crafted collision. Ids `twice` and `gone` have equal
 // ObjectIdHash sums (found by lattice reduction, scripts/hostile.py mut_digest_collision); each position
-// of a `gone` id holds a `twice` id instead, and the leaves' digests are recomputed. Counts and digests
-// add up and every leaf passes its check, so the store opens; a query that meets both copies of an id is a
-// Corruption, never an answer with the id twice (the `gone` ids cannot be seen).
-TEST_F(CraftedQueryTest, AnIdInTwoLeavesByADigestCollisionIsCorruptionNotTwoHits) {
+// of a `gone` object holds a copy of a `twice` object instead, and the leaves' digests are recomputed.
+// Counts and digests add up and every leaf passes its check, so the store opens; a query that meets both
+// copies of an id, and a clash (the copies meet), are a Corruption, never an answer with the id twice or
+// an object paired with itself (the `gone` ids cannot be seen).
+Status WriteDigestCollision(StoreImage* image, const std::string& path, ObjectId* first_twice) {
   const std::vector<ObjectId> twice = {36, 65, 68, 72, 105, 111, 136, 150, 154, 198, 279};
   const std::vector<ObjectId> gone = {156, 162, 196, 210, 240, 242, 0, 6, 82, 128, 144};
   uint64_t sum_twice = 0, sum_gone = 0;
   for (size_t k = 0; k < twice.size(); ++k)
     sum_twice += ObjectIdHash(twice[k]), sum_gone += ObjectIdHash(gone[k]);
-  ASSERT_EQ(sum_twice, sum_gone);
+  if (sum_twice != sum_gone) return Status::Internal("not a collision");
   const std::vector<SceneObject> objects = testing::MakeObjects(300, 11);
   std::vector<SceneObject> crafted = objects;
-  for (size_t k = 0; k < twice.size(); ++k) crafted[gone[k]].id = twice[k];
-  MemoryPageStore pages(image_.mem_page());
+  for (size_t k = 0; k < twice.size(); ++k) crafted[gone[k]] = objects[twice[k]];
+  MemoryPageStore pages(image->mem_page());
   testing::BuiltStore built;
-  ASSERT_TRUE(
-      testing::BuildTestStore(crafted, image_.contents.codec, image_.contents.params, &pages, &built).ok());
+  MKTREE_RETURN_IF_ERROR(
+      testing::BuildTestStore(crafted, image->contents.codec, image->contents.params, &pages, &built));
   for (size_t k = 0; k < twice.size(); ++k)
-    ASSERT_NE(built.object_leaf[twice[k]], built.object_leaf[gone[k]]);
+    if (built.object_leaf[twice[k]] == built.object_leaf[gone[k]]) return Status::Internal("same leaf");
   for (uint64_t& d : built.objects.leaf_digest) d = 0;
   for (size_t i = 0; i < crafted.size(); ++i)
     built.objects.leaf_digest[built.object_leaf[i]] += ObjectIdHash(crafted[i].id);
-  image_.contents.tree = std::move(built.tree);
-  image_.contents.objects = built.objects;
-  image_.object_leaf = built.object_leaf;
-  image_.pages.resize(pages.page_count());
-  for (uint64_t i = 0; i < image_.pages.size(); ++i)
-    image_.pages[i].assign(pages.mutable_page(i), pages.mutable_page(i) + image_.mem_page());
-  ASSERT_TRUE(testing::SetObjectRecords(&image_, objects).ok());
-  auto db = WriteAndOpen();
+  image->contents.tree = std::move(built.tree);
+  image->contents.objects = built.objects;
+  image->contents.stats_json.clear();
+  image->object_leaf = built.object_leaf;
+  image->pages.resize(pages.page_count());
+  for (uint64_t i = 0; i < image->pages.size(); ++i)
+    image->pages[i].assign(pages.mutable_page(i), pages.mutable_page(i) + image->mem_page());
+  MKTREE_RETURN_IF_ERROR(testing::SetObjectRecords(image, objects));
+  *first_twice = twice[0];
+  return testing::WriteStoreImage(*image, path, Backend::kPagedFile);
+}
+
+TEST_F(CraftedQueryTest, AnIdInTwoLeavesByADigestCollisionIsCorruptionNotTwoHits) {
+  ObjectId twice = 0;
+  ASSERT_TRUE(WriteDigestCollision(&image_, path_, &twice).ok());
+  auto db = Database::Open(path_);
   ASSERT_TRUE(db.ok()) << db.status().ToString();
+  const std::string what = "object " + std::to_string(twice) + " is in two leaves";
   for (QueryMode mode : {QueryMode::kAabb, QueryMode::kExact}) {
     QueryResult r;
     const Status st = (*db)->Run(Query::Box(Everything(image_), mode), &r);
     ExpectCorruptionNamingTheFile(st);
-    EXPECT_NE(st.message().find("object 36 is in two leaves"), std::string::npos) << st.message();
+    EXPECT_NE(st.message().find(what), std::string::npos) << st.message();
     std::vector<QueryResult> results;
     ExpectCorruptionNamingTheFile((*db)->RunBatch({Query::Box(Everything(image_), mode)}, 2, &results));
   }
+  std::vector<ClashPair> pairs;
+  const Status st = (*db)->SelfClash(
+      ClashOptions(), [&](const ClashPair& p) { pairs.push_back(p); }, nullptr);
+  ExpectCorruptionNamingTheFile(st);
+  EXPECT_NE(st.message().find(" is in two leaves"), std::string::npos) << st.message();
+  for (const ClashPair& p : pairs) EXPECT_LT(p.a, p.b);
 }
 
 TEST_F(CraftedQueryTest, GeometryThatDoesNotDecodeIsCorruptionNamingTheStore) {
