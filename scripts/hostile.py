@@ -1148,6 +1148,22 @@ class SetupError(Exception):
 # 1. Corrupt stores
 
 
+def CLASH_ARGS(store):
+    """A self-clash that reads every leaf, and every record page (the names, for --exclude-group)."""
+    return ("clash", store, "--exclude-group", "/", "--threads", "1")
+
+
+def clash_check(want):
+    def f(p):
+        if p.out == want:
+            return None
+        got = [json.loads(x) for x in p.out.splitlines() if x.strip()]
+        selfp = [(x["a"], x["b"]) for x in got if x.get("a") == x.get("b")]
+        return "clash: %d pairs, expected %d%s" % (len(got), len(want.splitlines()),
+                                                   "; objects paired with themselves %s" % selfp[:5] if selfp else "")
+    return f
+
+
 def cat_corrupt(h):
     num = 0
     for backend in ("hdf5", "pagefile"):
@@ -1156,6 +1172,7 @@ def cat_corrupt(h):
         want = h.answers(store, qfile)
         want_exact = h.answers(store, qfile, exact=True)
         info_want = json.loads(h.must("info", store, "--json").out)
+        clash_want = h.must(*CLASH_ARGS(store)).out
         size = store.stat().st_size
         kinds = [("flip", 40), ("truncate", 15), ("zero", 15)]
         for kind, n in kinds:
@@ -1220,6 +1237,9 @@ def cat_corrupt(h):
                 if not c.stopped():
                     c.mk("query", "s.mkt", "--queries", "q.txt", "--exact", names=names, check=q_check(want_exact),
                          protect=["s.mkt"], label="query --exact")
+                if not c.stopped():
+                    c.mk(*CLASH_ARGS("s.mkt"), names=names, check=clash_check(clash_want), protect=["s.mkt"],
+                         label="clash")
                 h.finish_case(c)
 
 
@@ -1788,6 +1808,8 @@ def mut_digest_collision(m, r):
                 for oid in dup + miss:
                     b = ENTRY.unpack_from(raw[oid], 0)[1:7]
                     m.extra_points.append([(b[i] + b[i + 3]) / 2 + m.origin[i] for i in range(3)])
+                # Queries that meet the deleted ids alone (their centres): nothing there is read twice.
+                m.alone_points = m.extra_points[len(dup):]
                 return changed, ("a crafted id digest collision: objects %s each copied into a second leaf, "
                                  "objects %s deleted, leaves %s resealed (digests recomputed, they add up), "
                                  "leaf filter emptied" % (dup, miss, changed))
@@ -1871,6 +1893,11 @@ def cat_crafted(h):
             shutil.copyfile(src, pristine)
             want = parse_answers(h.must("query", pristine, "--queries", qf).out)
             want_exact = parse_answers(h.must("query", pristine, "--queries", qf, "--exact").out)
+            alone_want = None
+            if getattr(m, "alone_points", None):
+                write_queries(c.path("q_alone.txt"), m.alone_points)
+                alone_want = parse_answers(h.must("query", pristine, "--queries", c.path("q_alone.txt")).out)
+            clash_want = h.must(*CLASH_ARGS(pristine)).out if kind != "j" else None
             rec_want = []
             for k in getattr(m, "check_objects", []):
                 other = 1 if k != 1 else 2
@@ -1903,6 +1930,12 @@ def cat_crafted(h):
                 if not c.stopped():
                     c.mk("query", "s.mkt", "--queries", "q.txt", "--exact", names=names, check=q_check(want_exact),
                          protect=["s.mkt"], label="query --exact")
+                if not c.stopped():
+                    c.mk(*CLASH_ARGS("s.mkt"), names=names, check=clash_check(clash_want), protect=["s.mkt"],
+                         label="clash")
+                if alone_want is not None and not c.stopped():
+                    c.mk("query", "s.mkt", "--queries", "q_alone.txt", names=names, check=q_check(alone_want),
+                         protect=["s.mkt"], label="query (deleted ids alone)")
                 for k, pairs, info, png in rec_want:
                     if c.stopped():
                         break
