@@ -454,6 +454,7 @@ Status RunCollide(const ClashStore& st, const Mesh& mesh, const std::optional<Ri
   Chunk chunks[2];
   size_t next_leaf = 0;
   uint64_t candidates = 0, excluded = 0;
+  std::vector<uint64_t> reported((reader.object_count() + 63) / 64);  // one bit an object: ids reported
   // Reads leaves into `c` until it holds kCollideChunk candidates or kCollidePinnedLeaves leaves with
   // candidates, or no leaf is left.
   auto fill = [&](Chunk& c) -> Status {
@@ -512,6 +513,15 @@ Status RunCollide(const ClashStore& st, const Mesh& mesh, const std::optional<Ri
     c.pinned = 0;
     s.narrow_seconds += Since(t);
     MKTREE_RETURN_IF_ERROR(FirstError(errors));
+    // An id reported twice is in two leaves, which only id digests made to collide let through.
+    for (size_t k = 0; k < c.candidates.size(); ++k)
+      for (const ClashPair& p : work[k].found) {
+        const uint64_t bit = uint64_t{1} << (p.a & 63);
+        if (reported[p.a >> 6] & bit)
+          return Status::Corruption(reader.path() + ": object " + std::to_string(p.a) +
+                                    " is in two leaves (their id digests were made to collide)");
+        reported[p.a >> 6] |= bit;
+      }
     for (size_t k = 0; k < c.candidates.size(); ++k) emit.Add(work[k]);
     c.candidates.clear();
     MKTREE_RETURN_IF_ERROR(read_status);

@@ -8,6 +8,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <functional>
@@ -163,6 +164,23 @@ TEST_F(CraftedQueryTest, AnIdInTwoLeavesByADigestCollisionIsCorruptionNotTwoHits
   ExpectCorruptionNamingTheFile(st);
   EXPECT_NE(st.message().find(" is in two leaves"), std::string::npos) << st.message();
   for (const ClashPair& p : pairs) EXPECT_LT(p.a, p.b);
+
+  // A box around the whole scene meets every object: each id once, or the Corruption.
+  const Box3d all = Everything(image_);
+  Mesh box;
+  for (int v = 0; v < 8; ++v)
+    for (int i = 0; i < 3; ++i) box.vertices.push_back((v >> i) & 1 ? all.max[i] : all.min[i]);
+  box.triangles = {0, 2, 3, 0, 3, 1, 4, 5, 7, 4, 7, 6, 0, 1, 5, 0, 5, 4,
+                   2, 6, 7, 2, 7, 3, 0, 4, 6, 0, 6, 2, 1, 3, 7, 1, 7, 5};
+  pairs.clear();
+  const Status collide = (*db)->Collide(
+      box, std::nullopt, ClashOptions(), [&](const ClashPair& p) { pairs.push_back(p); }, nullptr);
+  ExpectCorruptionNamingTheFile(collide);
+  EXPECT_NE(collide.message().find(" is in two leaves"), std::string::npos) << collide.message();
+  std::vector<ObjectId> ids;
+  for (const ClashPair& p : pairs) ids.push_back(p.a);
+  std::sort(ids.begin(), ids.end());
+  EXPECT_EQ(std::adjacent_find(ids.begin(), ids.end()), ids.end());
 }
 
 TEST_F(CraftedQueryTest, GeometryThatDoesNotDecodeIsCorruptionNamingTheStore) {
