@@ -1898,6 +1898,15 @@ def cat_crafted(h):
                 write_queries(c.path("q_alone.txt"), m.alone_points)
                 alone_want = parse_answers(h.must("query", pristine, "--queries", c.path("q_alone.txt")).out)
             clash_want = h.must(*CLASH_ARGS(pristine)).out if kind != "j" else None
+            # collide with a box around the whole scene: every object once
+            lo, hi = json.loads(h.must("info", pristine, "--json").out)["bounds"]
+            corners = [[(hi if (v >> i) & 1 else lo)[i] + (1 if (v >> i) & 1 else -1) for i in range(3)]
+                       for v in range(8)]
+            c.path("all.obj").write_text("o all\n" + "".join("v %r %r %r\n" % tuple(p) for p in corners) + "".join(
+                "f %d %d %d\n" % (a + 1, b + 1, d + 1) for a, b, d in
+                [(0, 2, 3), (0, 3, 1), (4, 5, 7), (4, 7, 6), (0, 1, 5), (0, 5, 4), (2, 6, 7), (2, 7, 3), (0, 4, 6),
+                 (0, 6, 2), (1, 3, 7), (1, 7, 5)]))
+            collide_want = h.must("collide", pristine, "--object", c.path("all.obj"), "--threads", "1").out
             rec_want = []
             for k in getattr(m, "check_objects", []):
                 other = 1 if k != 1 else 2
@@ -1933,6 +1942,10 @@ def cat_crafted(h):
                 if not c.stopped():
                     c.mk(*CLASH_ARGS("s.mkt"), names=names, check=clash_check(clash_want), protect=["s.mkt"],
                          label="clash")
+                if not c.stopped():
+                    c.mk("collide", "s.mkt", "--object", "all.obj", "--threads", "1", names=names, protect=["s.mkt"],
+                         check=lambda p, w=collide_want: None if p.out == w else "collide: %d lines, expected %d" % (
+                             len(p.out.splitlines()), len(w.splitlines())), label="collide")
                 if alone_want is not None and not c.stopped():
                     c.mk("query", "s.mkt", "--queries", "q_alone.txt", names=names, check=q_check(alone_want),
                          protect=["s.mkt"], label="query (deleted ids alone)")
