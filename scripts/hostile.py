@@ -239,14 +239,14 @@ def diff_answers(got, want):
     g, w = got[i][2], want[i][2]
     extra = sorted(set(g) - set(w))[:5]
     missing = sorted(set(w) - set(g))[:5]
-    dup = len(g) != len(set(g))
+    dup = sorted({x for x in g if g.count(x) > 1})[:5]
     desc = "%d of %d queries differ; query %d: %d hits, expected %d" % (len(bad), len(want), got[i][0], len(g), len(w))
     if extra:
         desc += "; extra ids %s" % extra
     if missing:
         desc += "; missing ids %s" % missing
     if dup:
-        desc += "; duplicated ids"
+        desc += "; duplicated ids %s" % dup
     return desc
 
 
@@ -422,8 +422,29 @@ LEAF = struct.Struct("<6f2I2QII")     # 56
 ENTRY = struct.Struct("<I6fBBBBIIII")  # 48
 
 
+MASK64 = (1 << 64) - 1
+
+
+def id_hash(i):
+    """ObjectIdHash (engine/store/tree_codec.h): the splitmix64 finalizer of id + 1."""
+    x = ((i + 1) * 0x9E3779B97F4A7C15) & MASK64
+    x = ((x ^ (x >> 30)) * 0xBF58476D1CE4E5B9) & MASK64
+    x = ((x ^ (x >> 27)) * 0x94D049BB133111EB) & MASK64
+    return x ^ (x >> 31)
+
+
+def reseal_page(pg):
+    """Recomputes a page's XXH3 (leaf and record pages alike)."""
+    struct.pack_into("<Q", pg, 24, 0)
+    struct.pack_into("<Q", pg, 24, xxh3(pg[32:], xxh3(pg[:24])))
+
+
 class Model:
-    """A store's metadata as Python lists; pages as a bytearray per page."""
+    """A store's metadata as Python lists; pages as a bytearray per page.
+
+    Format 5: `digests` (u64 per leaf) replace format 4's object-leaves column; each object's leaf is a u32
+    in its record (record pages after the leaf pages); `obj_leaf` is read from the records, for the cases.
+    """
 
     def node(self, i):
         v = self.nodes[i]
@@ -455,7 +476,44 @@ class Model:
         return b"".join(LEAF.pack(*l) for l in self.leaves)
 
     def enc_obj_leaves(self):
+        if self.version >= 5:
+            return struct.pack("<%dQ" % len(self.digests), *self.digests)
         return struct.pack("<%dI" % len(self.obj_leaf), *self.obj_leaf)
+
+    def record_pages(self):
+        n, total = len(self.rec_dir) // 4, len(self.pages_list())
+        return list(range(total - n, total))
+
+    def record_offsets(self):
+        """{object id: (page, offset of its record's length field)}, groups of one page only."""
+        out = {}
+        for pi in self.record_pages():
+            pg = self.page(pi)
+            first, _, npages = struct.unpack_from("<III", pg, 8)
+            if npages != 1:
+                continue
+            off = 40
+            for k in range(struct.unpack_from("<I", pg, 32)[0]):
+                out[first + k] = (pi, off)
+                off += 4 + struct.unpack_from("<I", pg, off)[0]
+        return out
+
+    def record_leaf(self, oid):
+        pi, off = self.record_offsets()[oid]
+        return struct.unpack_from("<I", self.page(pi), off + 32)[0]
+
+    def set_record_leaf(self, oid, leaf):
+        pi, off = self.record_offsets()[oid]
+        pg = bytearray(self.page(pi))
+        struct.pack_into("<I", pg, off + 32, leaf)
+        reseal_page(pg)
+        self.set_page(pi, pg)
+        return pi
+
+    def load_record_leaves(self):
+        offs = self.record_offsets()
+        self.obj_leaf = [struct.unpack_from("<I", self.page(offs[i][0]), offs[i][1] + 32)[0]
+                         for i in range(self.object_count)]
 
     def name_ends(self):
         ends, e = [], 0
@@ -546,7 +604,10 @@ class PagedModel(Model):
         self.nodes = [NODE.unpack_from(secs[0], o) for o in range(0, len(secs[0]), NODE.size)]
         self.splits = [SPLIT.unpack_from(secs[1], o) for o in range(0, len(secs[1]), SPLIT.size)]
         self.leaves = [LEAF.unpack_from(secs[2], o) for o in range(0, len(secs[2]), LEAF.size)]
-        self.obj_leaf = list(struct.unpack("<%dI" % (len(secs[3]) // 4), secs[3]))
+        if self.version >= 5:
+            self.digests = list(struct.unpack("<%dQ" % (len(secs[3]) // 8), secs[3]))
+        else:
+            self.obj_leaf = list(struct.unpack("<%dI" % (len(secs[3]) // 4), secs[3]))
         if self.version >= 4:  # names live in record pages; the sections are the directory and sources
             self.rec_dir, self.sources, self.names = secs[4], secs[5], None
         else:
@@ -558,6 +619,8 @@ class PagedModel(Model):
         self.stats = secs[6]
         self.leaf_filter = bytearray(secs[7])
         self.origin = struct.unpack_from("<3d", b, 280) if self.version >= 3 else (0.0, 0.0, 0.0)
+        if self.version >= 5:
+            self.load_record_leaves()
 
     def page(self, i):
         return self.pages[i]
@@ -630,7 +693,13 @@ class Hdf5Model(Model):
             self.leaves = [tuple(float(x) for x in tuple(r["box_min"]) + tuple(r["box_max"])) +
                            (int(r["node"]), int(r["object_count"]), int(r["payload_bytes"]), int(r["first_page"]),
                             int(r["page_count"]), 0) for r in f["tree/leaves"][()]]
-            if self.version >= 4:  # format 4: names in record pages
+            if self.version >= 5:  # format 5: leaf id digests; each object's leaf in its record
+                self.digests = [int(x) for x in f["objects/leaf_digest"][()]]
+                self.obj_leaf = None
+                self.names = None
+                self.rec_dir = f["objects/record_directory"][()].astype("<u4").tobytes()
+                self.sources = f["objects/sources"][()].tobytes()
+            elif self.version >= 4:  # format 4: names in record pages
                 self.obj_leaf = [int(x) for x in f["objects/leaf"][()]]
                 self.names = None
                 self.rec_dir = f["objects/record_directory"][()].astype("<u4").tobytes()
@@ -647,14 +716,20 @@ class Hdf5Model(Model):
                 objs = f["objects"][()]
                 self.obj_leaf = [int(x) for x in objs["leaf"]]
                 self.names = [bytes(x).split(b"\0")[0] for x in objs["name"]]
-            self.obj_ids = list(range(len(self.obj_leaf)))
+            if self.version >= 5:
+                self.all_pages = [bytearray(x.tobytes()) for x in f["pages"][()]]
             self.stats = bytes(f["stats_json"][()]).split(b"\0")[0]
             self.leaf_filter = bytearray(f["tree/leaf_filter"][()].tobytes())
-        self.orig = (list(self.nodes), list(self.splits), list(self.leaves), list(self.obj_leaf), list(self.names) if self.names is not None else None,
-                     self.stats, bytes(self.leaf_filter), self.object_count)
         self.page_edits = {}
+        if self.version >= 5:
+            self.load_record_leaves()
+        self.orig = (list(self.nodes), list(self.splits), list(self.leaves), list(self.obj_leaf), list(self.names) if self.names is not None else None,
+                     self.stats, bytes(self.leaf_filter), self.object_count,
+                     list(self.digests) if self.version >= 5 else None)
 
     def page(self, i):
+        if i not in self.page_edits and self.version >= 5:
+            return self.all_pages[i]
         if i not in self.page_edits:
             import h5py
             with h5py.File(self.path, "r") as f:
@@ -687,7 +762,16 @@ class Hdf5Model(Model):
             if self.leaves != self.orig[2]:
                 rewrite("tree/leaves", self.leaf_dtype, [(l[0:3], l[3:6], l[6], l[7], l[8], l[9], l[10])
                                                          for l in self.leaves])
-            if self.names is None and self.obj_leaf != self.orig[3]:
+            if self.version >= 5:
+                if self.digests != self.orig[8]:
+                    arr = np.array(self.digests, dtype="<u8")
+                    if f["objects/leaf_digest"].shape == arr.shape:
+                        f["objects/leaf_digest"][...] = arr
+                    else:
+                        del f["objects/leaf_digest"]
+                        f.create_dataset("objects/leaf_digest", data=arr, chunks=(max(1, min(65536, len(arr))),),
+                                         shuffle=True, compression="gzip")
+            elif self.names is None and self.obj_leaf != self.orig[3]:
                 del f["objects/leaf"]
                 f.create_dataset("objects/leaf", data=np.array(self.obj_leaf, dtype="<u4"),
                                  chunks=(max(1, min(65536, len(self.obj_leaf))),) if self.obj_leaf else None)
@@ -1064,6 +1148,22 @@ class SetupError(Exception):
 # 1. Corrupt stores
 
 
+def CLASH_ARGS(store):
+    """A self-clash that reads every leaf, and every record page (the names, for --exclude-group)."""
+    return ("clash", store, "--exclude-group", "/", "--threads", "1")
+
+
+def clash_check(want):
+    def f(p):
+        if p.out == want:
+            return None
+        got = [json.loads(x) for x in p.out.splitlines() if x.strip()]
+        selfp = [(x["a"], x["b"]) for x in got if x.get("a") == x.get("b")]
+        return "clash: %d pairs, expected %d%s" % (len(got), len(want.splitlines()),
+                                                   "; objects paired with themselves %s" % selfp[:5] if selfp else "")
+    return f
+
+
 def cat_corrupt(h):
     num = 0
     for backend in ("hdf5", "pagefile"):
@@ -1072,6 +1172,7 @@ def cat_corrupt(h):
         want = h.answers(store, qfile)
         want_exact = h.answers(store, qfile, exact=True)
         info_want = json.loads(h.must("info", store, "--json").out)
+        clash_want = h.must(*CLASH_ARGS(store)).out
         size = store.stat().st_size
         kinds = [("flip", 40), ("truncate", 15), ("zero", 15)]
         for kind, n in kinds:
@@ -1136,6 +1237,9 @@ def cat_corrupt(h):
                 if not c.stopped():
                     c.mk("query", "s.mkt", "--queries", "q.txt", "--exact", names=names, check=q_check(want_exact),
                          protect=["s.mkt"], label="query --exact")
+                if not c.stopped():
+                    c.mk(*CLASH_ARGS("s.mkt"), names=names, check=clash_check(clash_want), protect=["s.mkt"],
+                         label="clash")
                 h.finish_case(c)
 
 
@@ -1230,8 +1334,65 @@ def mut_leaf_backref(m, r):
 def mut_object_two_leaves(m, r):
     k = r.randrange(len(m.obj_leaf))
     old = m.obj_leaf[k]
-    m.obj_leaf[k] = r.choice([i for i in range(len(m.leaves)) if i != old])
+    new = r.choice([i for i in range(len(m.leaves)) if i != old])
+    if m.version >= 5:  # the leaf is a field of the object's record: read by `render --focus` (ObjectLeaf)
+        pi = m.set_record_leaf(k, new)
+        m.check_objects = [k]
+        return "object %d's record (page %d, resealed) says leaf %d; its entry is in leaf %d" % (k, pi, new, old)
+    m.obj_leaf[k] = new
     return "object %d's table entry says leaf %d; its page is in leaf %d" % (k, m.obj_leaf[k], old)
+
+
+def mut_record_leaf_range(m, r):
+    if m.version < 5:
+        raise ValueError("format 5 only")
+    k = r.randrange(m.object_count)
+    bad = r.choice([len(m.leaves), len(m.leaves) + 7, 0xFFFFFFFF])
+    pi = m.set_record_leaf(k, bad)
+    m.check_objects = [k]
+    return "object %d's record (page %d, resealed) says leaf %d (%d leaves)" % (k, pi, bad, len(m.leaves))
+
+
+def mut_digest_swap(m, r):
+    if m.version < 5:
+        raise ValueError("format 5 only")
+    i, j = r.sample(range(len(m.leaves)), 2)
+    m.digests[i], m.digests[j] = m.digests[j], m.digests[i]
+    return [i, j], "leaves %d and %d's id digests swapped (the digests still add up)" % (i, j)
+
+
+def mut_digest_total(m, r):
+    if m.version < 5:
+        raise ValueError("format 5 only")
+    i = r.randrange(len(m.leaves))
+    m.digests[i] = (m.digests[i] + 1) & MASK64
+    return "leaf %d's id digest +1 (the digests no longer add up)" % i
+
+
+def mut_count_total(m, r):
+    i = r.randrange(len(m.leaves))
+    a = m.leaf(i)
+    a["count"] += 1
+    m.set_leaf(i, a)
+    return "leaf %d's object count +1 (the counts no longer add up to the object count)" % i
+
+
+def mut_digest_move(m, r):
+    # Object k's id moves from its leaf's digest to another's, counts too: digests and counts add up,
+    # each leaf's record is consistent with the other, but the entries are not where the digests say.
+    if m.version < 5:
+        raise ValueError("format 5 only")
+    k = r.randrange(m.object_count)
+    i = m.obj_leaf[k]
+    j = r.choice([x for x in range(len(m.leaves)) if x != i])
+    m.digests[i] = (m.digests[i] - id_hash(k)) & MASK64
+    m.digests[j] = (m.digests[j] + id_hash(k)) & MASK64
+    a, b = m.leaf(i), m.leaf(j)
+    a["count"] -= 1
+    b["count"] += 1
+    m.set_leaf(i, a)
+    m.set_leaf(j, b)
+    return [i, j], "object %d's id digest and count moved from leaf %d to leaf %d (its entry stays)" % (k, i, j)
 
 
 def mut_count_shift(m, r):
@@ -1343,6 +1504,8 @@ def mut_table_short(m, r):
     # Drop the last object from the object table (and its leaf's count): its entry stays in a page.
     k = len(m.obj_leaf) - 1
     li = m.obj_leaf.pop()
+    if m.version >= 5:  # keep the digests adding up to AllIdsDigest(N - 1): only the page read finds it
+        m.digests[li] = (m.digests[li] - id_hash(k)) & MASK64
     if m.names is not None:
         m.names.pop()
     m.object_count -= 1
@@ -1551,10 +1714,115 @@ def pg_box_away(m, r):
     return li, "leaf %d: entry %d's box moved 1000 units outside its leaf, page resealed" % (li, k)
 
 
+def _fpylll():
+    try:
+        import fpylll
+        return fpylll
+    except ImportError:
+        subprocess.run(["apt-get", "install", "-y", "-q", "python3-fpylll"], capture_output=True, text=True)
+    try:
+        import fpylll
+        return fpylll
+    except ImportError:
+        raise ValueError("python3-fpylll (lattice reduction) is not installed and apt-get could not install it")
+
+
+def _box_within(a, b):
+    return all(b[i] <= a[i] and a[i + 3] <= b[i + 3] for i in range(3))
+
+
+def mut_digest_collision(m, r):
+    """A crafted digest collision (docs/store_format.md: the digest is a checksum, not a proof).
+
+    Finds c in {-1, 0, 1}^n, sum c = 0, sum c_i ObjectIdHash(id_i) = 0 mod 2^64 over n objects that each fit
+    another leaf's box (LLL + BKZ on the knapsack lattice), then copies each c = +1 object into such a leaf
+    and deletes each c = -1 object from its own. Counts and digests (recomputed per leaf) add up and every
+    entry lies in its leaf's box, so only the ids differ: some listed twice, as many missing."""
+    if m.version < 5:
+        raise ValueError("format 5 only")
+    fpylll = _fpylll()
+    entries = {li: m.leaf_entries(li) for li in range(len(m.leaves)) if m.leaf(li)["pages"] == 1}
+    own, raw, hosts = {}, {}, {}
+    for li, es in entries.items():
+        for e, rb in es:
+            own[e[0]], raw[e[0]] = li, rb
+    for oid, li in own.items():
+        box = ENTRY.unpack_from(raw[oid], 0)[1:7]
+        hs = [lj for lj in entries if lj != li and _box_within(box, m.leaf(lj)["box"])]
+        if hs:
+            hosts[oid] = hs
+    room0 = {li: m.P - 32 - m.leaf(li)["payload"] for li in entries}
+    hosts = {oid: [lj for lj in hs if room0[lj] >= len(raw[oid])] for oid, hs in hosts.items()}
+    hosts = {oid: hs for oid, hs in hosts.items() if hs}  # a leaf with room for it too
+    if len(hosts) < 40:
+        raise ValueError("only %d objects fit another leaf's box and page" % len(hosts))
+    for attempt in range(8):
+        ids = r.sample(sorted(hosts), min(60, len(hosts)))
+        n, K = len(ids), 1 << 20
+        rows = [[int(k == j) for j in range(n)] + [K * id_hash(i), K] for k, i in enumerate(ids)]
+        rows.append([0] * n + [K << 64, 0])
+        A = fpylll.IntegerMatrix.from_matrix(rows)
+        fpylll.LLL.reduction(A)
+        fpylll.BKZ.reduction(A, fpylll.BKZ.Param(20))
+        vecs = []
+        for row in range(A.nrows):
+            v = [A[row, j] for j in range(n + 2)]
+            if v[n] == 0 and v[n + 1] == 0 and any(v[:n]) and max(abs(x) for x in v[:n]) == 1:
+                vecs.append(v[:n])
+        vecs.sort(key=lambda v: sum(abs(x) for x in v))
+        for v in vecs:
+            for sign in (1, -1):
+                c = {ids[k]: sign * v[k] for k in range(n) if v[k]}
+                room, add, drop = dict(room0), {}, {}
+                for oid, x in c.items():
+                    if x < 0:
+                        drop.setdefault(own[oid], set()).add(oid)
+                        room[own[oid]] += len(raw[oid])
+                ok = True
+                for oid, x in sorted(c.items()):
+                    if x < 0:
+                        continue
+                    h = [lj for lj in hosts[oid] if room[lj] >= len(raw[oid]) and oid not in add.get(lj, ())]
+                    if not h:
+                        ok = False
+                        break
+                    lj = h[0]
+                    add.setdefault(lj, []).append(oid)
+                    room[lj] -= len(raw[oid])
+                if not ok or any(len(entries[li]) - len(d) + len(add.get(li, ())) < 1 for li, d in drop.items()):
+                    continue
+                changed = sorted(set(add) | set(drop))
+                for li in changed:
+                    keep = [rb for e, rb in entries[li] if e[0] not in drop.get(li, ())]
+                    keep += [raw[oid] for oid in add.get(li, ())]
+                    ids_li = [struct.unpack_from("<I", rb, 0)[0] for rb in keep]
+                    payload = m.reseal(m.leaf(li)["first"], li, keep)
+                    lr = m.leaf(li)
+                    lr["count"], lr["payload"] = len(keep), payload
+                    m.set_leaf(li, lr)
+                    m.digests[li] = sum(id_hash(i) for i in ids_li) & MASK64
+                m.leaf_filter = bytearray()  # its entries follow the leaves' payload order; empty = no filter
+                dup = sorted(o for o, x in c.items() if x > 0)
+                miss = sorted(o for o, x in c.items() if x < 0)
+                m.extra_points = []
+                for oid in dup + miss:
+                    b = ENTRY.unpack_from(raw[oid], 0)[1:7]
+                    m.extra_points.append([(b[i] + b[i + 3]) / 2 + m.origin[i] for i in range(3)])
+                # Queries that meet the deleted ids alone (their centres): nothing there is read twice.
+                m.alone_points = m.extra_points[len(dup):]
+                return changed, ("a crafted id digest collision: objects %s each copied into a second leaf, "
+                                 "objects %s deleted, leaves %s resealed (digests recomputed, they add up), "
+                                 "leaf filter emptied" % (dup, miss, changed))
+    raise ValueError("no collision found that fits the leaves' pages")
+
+
 STRUCT_MUTS = [mut_cycle_to_root, mut_cycle_two, mut_shared_child, mut_both_children_same, mut_orphan_leaf_node,
                mut_orphan_internal, mut_leaf_twice, mut_leaf_backref, mut_object_two_leaves, mut_count_shift,
                mut_pages_overlap, mut_page_count, mut_payload_bytes, mut_depth_lie, mut_chain, mut_chain_dag,
                mut_split_cycle, mut_split_shared, mut_table_short, mut_empty_nodes]
+# format 5: the leaf id digests and the record's leaf field (after the others, so that their case ids stay)
+F5_MUTS = [mut_record_leaf_range, mut_digest_swap, mut_digest_total, mut_count_total, mut_digest_move]
+F5_SEMANTIC_MUTS = [mut_digest_collision]
 STATS_MUTS = [mut_stats_inject, mut_stats_breakout, mut_stats_invalid, mut_stats_controls, mut_stats_deep]
 SEMANTIC_MUTS = [mut_label_flip, mut_node_box_shrink, mut_slab_moved, mut_filter_zero, mut_leaf_box_shrink]
 PAGE_MUTS = [pg_dup_id, pg_foreign_id, pg_transplant, pg_id_range, pg_tri_index, pg_vertex_nan, pg_counts_bomb]
@@ -1576,7 +1844,8 @@ def cat_crafted(h):
     num = 0
     groups = [("s", f, "crafted") for f in STRUCT_MUTS] + [("j", f, "crafted") for f in STATS_MUTS] + \
              [("p", f, "crafted") for f in PAGE_MUTS] + [("s", f, "crafted-semantic") for f in SEMANTIC_MUTS] + \
-             [("p", f, "crafted-semantic") for f in SEMANTIC_PAGE_MUTS]
+             [("p", f, "crafted-semantic") for f in SEMANTIC_PAGE_MUTS] + \
+             [("s", f, "crafted") for f in F5_MUTS] + [("s", f, "crafted-semantic") for f in F5_SEMANTIC_MUTS]
     for backend in ("pagefile", "hdf5"):
         if backend not in backends:
             num += len(groups)
@@ -1601,15 +1870,17 @@ def cat_crafted(h):
                 h.setup_notes.append("crafted %s %s not applicable: %s" % (backend, fn.__name__, e))
                 shutil.rmtree(c.dir)
                 continue
-            if isinstance(res, tuple):  # a tampered leaf, found when it is read
-                li, what = res
-                # A box over the tampered leaf (world coordinates) so that the page is read.
+            if isinstance(res, tuple):  # tampered leaves, found when they are read
+                lis, what = res
                 pm = load_model(str(src))
-                b = pm.leaf(li)["box"]
                 o = pm.origin
-                extra_q.append([b[i] + o[i] for i in range(3)] + [b[i + 3] + o[i] for i in range(3)])
-                for e, _ in pm.leaf_entries(li)[:4]:
-                    extra_q.append([(e[1 + i] + e[4 + i]) / 2 + o[i] for i in range(3)])
+                for li in (lis if isinstance(lis, list) else [lis]):
+                    # A box over the tampered leaf (world coordinates) so that the page is read.
+                    b = pm.leaf(li)["box"]
+                    extra_q.append([b[i] + o[i] for i in range(3)] + [b[i + 3] + o[i] for i in range(3)])
+                    for e, _ in pm.leaf_entries(li)[:4]:
+                        extra_q.append([(e[1 + i] + e[4 + i]) / 2 + o[i] for i in range(3)])
+                extra_q += getattr(m, "extra_points", [])
             else:
                 what = res
             m.save(str(tmp))
@@ -1622,6 +1893,30 @@ def cat_crafted(h):
             shutil.copyfile(src, pristine)
             want = parse_answers(h.must("query", pristine, "--queries", qf).out)
             want_exact = parse_answers(h.must("query", pristine, "--queries", qf, "--exact").out)
+            alone_want = None
+            if getattr(m, "alone_points", None):
+                write_queries(c.path("q_alone.txt"), m.alone_points)
+                alone_want = parse_answers(h.must("query", pristine, "--queries", c.path("q_alone.txt")).out)
+            clash_want = h.must(*CLASH_ARGS(pristine)).out if kind != "j" else None
+            # collide with a box around the whole scene: every object once
+            lo, hi = json.loads(h.must("info", pristine, "--json").out)["bounds"]
+            corners = [[(hi if (v >> i) & 1 else lo)[i] + (1 if (v >> i) & 1 else -1) for i in range(3)]
+                       for v in range(8)]
+            c.path("all.obj").write_text("o all\n" + "".join("v %r %r %r\n" % tuple(p) for p in corners) + "".join(
+                "f %d %d %d\n" % (a + 1, b + 1, d + 1) for a, b, d in
+                [(0, 2, 3), (0, 3, 1), (4, 5, 7), (4, 7, 6), (0, 1, 5), (0, 5, 4), (2, 6, 7), (2, 7, 3), (0, 4, 6),
+                 (0, 6, 2), (1, 3, 7), (1, 7, 5)]))
+            collide_want = h.must("collide", pristine, "--object", c.path("all.obj"), "--threads", "1").out
+            rec_want = []
+            for k in getattr(m, "check_objects", []):
+                other = 1 if k != 1 else 2
+                pairs = c.path("p%d.jsonl" % k)
+                pairs.write_text('{"a": %d, "b": %d, "class": "hard"}\n' % (min(k, other), max(k, other)))
+                info = h.must("info", pristine, "--object", k, "--json").out
+                png = c.dir / "pristine.png"
+                h.must("render", pristine, "--clashes", pairs, "--focus", 1, "--size", "240x200", "-o", png, "-q")
+                rec_want.append((k, pairs.name, info, png.read_bytes()))
+                png.unlink()
             pristine.unlink()
             c.note("made by scripts/hostile.py (crafted, %s) from: $MKTREE build tanker:3000 -o s.mkt --backend %s -q%s"
                    % (fn.__name__, backend, " --codec none" if codec == "none" else ""))
@@ -1644,6 +1939,26 @@ def cat_crafted(h):
                 if not c.stopped():
                     c.mk("query", "s.mkt", "--queries", "q.txt", "--exact", names=names, check=q_check(want_exact),
                          protect=["s.mkt"], label="query --exact")
+                if not c.stopped():
+                    c.mk(*CLASH_ARGS("s.mkt"), names=names, check=clash_check(clash_want), protect=["s.mkt"],
+                         label="clash")
+                if not c.stopped():
+                    c.mk("collide", "s.mkt", "--object", "all.obj", "--threads", "1", names=names, protect=["s.mkt"],
+                         check=lambda p, w=collide_want: None if p.out == w else "collide: %d lines, expected %d" % (
+                             len(p.out.splitlines()), len(w.splitlines())), label="collide")
+                if alone_want is not None and not c.stopped():
+                    c.mk("query", "s.mkt", "--queries", "q_alone.txt", names=names, check=q_check(alone_want),
+                         protect=["s.mkt"], label="query (deleted ids alone)")
+                for k, pairs, info, png in rec_want:
+                    if c.stopped():
+                        break
+                    c.mk("info", "s.mkt", "--object", k, "--json", names=names, protect=["s.mkt"],
+                         check=lambda p, info=info: None if p.out == info else "info --object differs: %r, expected %r"
+                         % (p.out[:200], info[:200]), label="info --object %d" % k)
+                    c.mk("render", "s.mkt", "--clashes", pairs, "--focus", 1, "--size", "240x200", "-o", "o.png", "-q",
+                         names=names, protect=["s.mkt"], outputs=["o.png"],
+                         check=lambda p, png=png: None if c.path("o.png").read_bytes() == png else
+                         "render --focus: a different image than the pristine store's", label="render --focus %d" % k)
             h.finish_case(c, require_error=(kind != "j" and row == "crafted"))
 
 

@@ -167,8 +167,8 @@ uint64_t StorePages(const MKTree& tree) {
 }
 
 // Tests the candidate pairs of leaves p and q (the same leaf: its pairs i < j).
-Status TestLeafPair(const LoadedLeaf& lp, const LoadedLeaf& lq, bool same, const ClashOptions& o,
-                    const clash::Exclusions& ex, const Vec3d& origin, PairWork* w) {
+Status TestLeafPair(const std::string& store, const LoadedLeaf& lp, const LoadedLeaf& lq, bool same,
+                    const ClashOptions& o, const clash::Exclusions& ex, const Vec3d& origin, PairWork* w) {
   const double c = o.clearance;
   const auto& A = lp.objects;
   const auto& B = lq.objects;
@@ -179,6 +179,10 @@ Status TestLeafPair(const LoadedLeaf& lp, const LoadedLeaf& lq, bool same, const
       const LoadedObject* a = &A[i];
       const LoadedObject* b = &B[j];
       if (a->id > b->id) std::swap(a, b);
+      // Ids never repeat within a leaf; across two only if their id digests were made to collide.
+      if (a->id == b->id)
+        return Status::Corruption(store + ": object " + std::to_string(a->id) +
+                                  " is in two leaves (their id digests were made to collide)");
       if (ex.Excluded(a->id, b->id)) {
         ++w->excluded;
         continue;
@@ -325,7 +329,8 @@ Status RunSelfClash(const ClashStore& st, const ClashOptions& o, const ClashVisi
         [&](size_t k) {
           const clash::LeafPair& lp = plan.pairs[b.pair_begin + k];
           work[k].Clear();
-          errors[k] = TestLeafPair(*window[lp.p], *window[lp.q], lp.p == lp.q, o, ex, tree.origin, &work[k]);
+          errors[k] = TestLeafPair(reader.path(), *window[lp.p], *window[lp.q], lp.p == lp.q, o, ex,
+                                   tree.origin, &work[k]);
         },
         [&] { emit_previous(); });
     MKTREE_RETURN_IF_ERROR(FirstError(errors));
@@ -449,6 +454,7 @@ Status RunCollide(const ClashStore& st, const Mesh& mesh, const std::optional<Ri
   Chunk chunks[2];
   size_t next_leaf = 0;
   uint64_t candidates = 0, excluded = 0;
+  std::vector<uint64_t> reported((reader.object_count() + 63) / 64);  // one bit an object: ids reported
   // Reads leaves into `c` until it holds kCollideChunk candidates or kCollidePinnedLeaves leaves with
   // candidates, or no leaf is left.
   auto fill = [&](Chunk& c) -> Status {
@@ -507,6 +513,15 @@ Status RunCollide(const ClashStore& st, const Mesh& mesh, const std::optional<Ri
     c.pinned = 0;
     s.narrow_seconds += Since(t);
     MKTREE_RETURN_IF_ERROR(FirstError(errors));
+    // An id reported twice is in two leaves, which only id digests made to collide let through.
+    for (size_t k = 0; k < c.candidates.size(); ++k)
+      for (const ClashPair& p : work[k].found) {
+        const uint64_t bit = uint64_t{1} << (p.a & 63);
+        if (reported[p.a >> 6] & bit)
+          return Status::Corruption(reader.path() + ": object " + std::to_string(p.a) +
+                                    " is in two leaves (their id digests were made to collide)");
+        reported[p.a >> 6] |= bit;
+      }
     for (size_t k = 0; k < c.candidates.size(); ++k) emit.Add(work[k]);
     c.candidates.clear();
     MKTREE_RETURN_IF_ERROR(read_status);
