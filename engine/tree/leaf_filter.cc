@@ -94,6 +94,15 @@ bool FilterMeetsPoint(const Box3f& leaf, const uint8_t* q, uint32_t count, const
 }
 
 bool FilterMeetsBox(const Box3f& leaf, const uint8_t* q, uint32_t count, const Box3d& box) {
+  // A box holding the leaf's box meets every entry: each level lies in [lo, hi] when the bounds are
+  // finite and lo <= hi (not so in a damaged store).
+  bool holds = true;
+  for (int a = 0; a < 3; ++a) holds &= box.min[a] <= leaf.min[a] && leaf.max[a] <= box.max[a];
+  if (holds) {
+    for (int a = 0; a < 3; ++a)
+      holds &= std::isfinite(leaf.min[a]) && std::isfinite(leaf.max[a]) && leaf.min[a] <= leaf.max[a];
+    if (holds) return count > 0;
+  }
   for (uint32_t i = 0; i < count; ++i, q += kLeafFilterBytesPerObject) {
     const uint64_t v = LoadEntry(q);
     bool meets = true;

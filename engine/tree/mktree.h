@@ -37,6 +37,11 @@ struct TreeNode {
   bool is_leaf() const { return axis == 3; }
 };
 
+// How RouteBox walks the tree. kAuto picks by the tree's size: depth first, no prefetching, for trees the
+// CPU caches hold; breadth first with prefetching for bigger ones. The answer and the statistics are the
+// same either way; the other two force one walk (tests, benchmarks).
+enum class RouteWalk : uint8_t { kAuto, kDepthFirst, kBreadthFirst };
+
 enum class CellLabel : uint8_t { kEmpty = 0, kLeft = 1, kRight = 2, kBoth = 3 };
 
 // One SplitTree node. Inner: axis in {0,1,2}, cut plane at `cut`, child[0] below, child[1] above.
@@ -80,7 +85,8 @@ struct MKTree {
   // Leaves a point query must read, in leaf order, each once; counts internal/SplitTree nodes in stats.
   void RoutePoint(const Vec3d& p, std::vector<uint32_t>* leaves_out, QueryStats* stats) const;
   // Leaves a box query must read, in leaf order, each once.
-  void RouteBox(const Box3d& box, std::vector<uint32_t>* leaves_out, QueryStats* stats) const;
+  void RouteBox(const Box3d& box, std::vector<uint32_t>* leaves_out, QueryStats* stats,
+                RouteWalk walk = RouteWalk::kAuto) const;
   // Bytes of RAM held by nodes, split nodes and leaf infos (the leaf filter is FilterMemoryBytes()).
   uint64_t MemoryBytes() const;
   uint64_t FilterMemoryBytes() const { return leaf_filter.capacity() + 8 * leaf_filter_begin.capacity(); }

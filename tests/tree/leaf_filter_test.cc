@@ -132,6 +132,80 @@ TEST(LeafFilter, RandomPointsAgainstBruteForce) {
   EXPECT_GT(filtered, 0);
 }
 
+// FilterMeetsBox against each entry's dequantized box, for random boxes and boxes that hold the whole
+// leaf (answered without looking at the entries: true exactly when the leaf has one).
+TEST(LeafFilter, RandomBoxesAgainstTheDequantizedEntries) {
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(0, 1);
+  Box3f leaf;
+  leaf.min = {-3.5f, 10, 200};
+  leaf.max = {40, 10.5f, 260};
+  std::vector<uint8_t> q;
+  int met = 0, missed = 0;
+  for (int i = 0; i < 30; ++i) {
+    Box3f obj = RandomBoxIn(leaf, rng);
+    q.resize(q.size() + kLeafFilterBytesPerObject);
+    QuantizeBox(leaf, obj, q.data() + q.size() - kLeafFilterBytesPerObject);
+    const uint32_t count = static_cast<uint32_t>(i + 1);
+    for (int t = 0; t < 400; ++t) {
+      Box3d b;
+      for (int a = 0; a < 3; ++a) {
+        const double e = double{leaf.max[a]} - leaf.min[a];
+        if (t % 3 == 0) {  // holds the leaf, sometimes exactly
+          b.min[a] = leaf.min[a] - (t % 2) * u(rng) * e;
+          b.max[a] = leaf.max[a] + (t % 2) * u(rng) * e;
+        } else {
+          const double c = leaf.min[a] + (1.2 * u(rng) - 0.1) * e, h = e * 0.2 * u(rng);
+          b.min[a] = c - h;
+          b.max[a] = c + h;
+        }
+      }
+      bool want = false;
+      for (uint32_t k = 0; k < count; ++k) {
+        const Box3d d = DequantizeBox(leaf, q.data() + k * kLeafFilterBytesPerObject);
+        bool meets = true;
+        for (int a = 0; a < 3; ++a) meets = meets && d.min[a] <= b.max[a] && b.min[a] <= d.max[a];
+        want = want || meets;
+      }
+      ASSERT_EQ(FilterMeetsBox(leaf, q.data(), count, b), want) << i << " " << t;
+      (want ? met : missed) += 1;
+    }
+  }
+  EXPECT_GT(met, 0);
+  EXPECT_GT(missed, 0);
+  Box3d all;
+  all.min = {-1e9, -1e9, -1e9};
+  all.max = {1e9, 1e9, 1e9};
+  EXPECT_FALSE(FilterMeetsBox(leaf, q.data(), 0, all));  // an empty leaf meets nothing
+}
+
+// A damaged leaf box (inverted, or with an infinite bound) inside the query box does not take the
+// whole-leaf answer: each entry is compared as before, and here none meets.
+TEST(LeafFilter, DamagedLeafBoxesInsideTheQueryCompareEntries) {
+  const float inf = std::numeric_limits<float>::infinity();
+  const uint8_t zero[kLeafFilterBytesPerObject] = {};  // every level 0: the entry is the leaf's min corner
+  auto reference = [&](const Box3f& leaf, const Box3d& q) {
+    const Box3d d = DequantizeBox(leaf, zero);
+    bool meets = true;
+    for (int a = 0; a < 3; ++a) meets = meets && d.min[a] <= q.max[a] && q.min[a] <= d.max[a];
+    return meets;
+  };
+  Box3f inverted;  // min > max on x: level 0 stands for 1, outside the query's [0.6, 0.7]
+  inverted.min = {1, 0, 0};
+  inverted.max = {0, 1, 1};
+  Box3d q;
+  q.min = {0.6, -1, -1};
+  q.max = {0.7, 2, 2};
+  EXPECT_FALSE(reference(inverted, q));
+  EXPECT_FALSE(FilterMeetsBox(inverted, zero, 1, q));
+  Box3f infinite;  // level 0 on x is -inf + inf * 0: NaN, which meets nothing
+  infinite.min = {-inf, 0, 0};
+  infinite.max = {1, 1, 1};
+  q.min = {-inf, -1, -1};
+  EXPECT_FALSE(reference(infinite, q));
+  EXPECT_FALSE(FilterMeetsBox(infinite, zero, 1, q));
+}
+
 // A leaf box with an infinite or NaN bound (only a damaged or crafted store has one; found by
 // tests/fuzz store_open) cannot be quantized into: the point's level was a NaN cast to int (undefined
 // behaviour) and the leaf was filtered out although its entry spans the whole leaf. It must stay

@@ -3,8 +3,10 @@
 #include <gtest/gtest.h>
 
 #include <random>
+#include <tuple>
 #include <unordered_map>
 
+#include "engine/tree/leaf_filter.h"
 #include "engine/tree/mktree_builder.h"
 #include "tree/tree_test_util.h"
 
@@ -190,6 +192,137 @@ INSTANTIATE_TEST_SUITE_P(Scenes, RoutingTest, ::testing::ValuesIn(Cases()), [](c
   return std::string(testing::Name(info.param.policy)) + "_" + testing::Name(info.param.kind) + "_" +
          std::to_string(info.param.n) + "_r" + std::to_string(static_cast<int>(info.param.r * 100));
 });
+
+// The leaf filter as the store builder writes it: each leaf's objects quantized in the leaf's order.
+void AddLeafFilter(Fixture* f) {
+  MKTree& t = f->built.tree;
+  std::unordered_map<ObjectId, size_t> idx;
+  for (size_t i = 0; i < f->recs.size(); ++i) idx[f->recs[i].id] = i;
+  t.leaf_filter.clear();
+  for (uint32_t l = 0; l < t.leaves.size(); ++l) {
+    for (uint64_t k = f->built.leaf_offsets[l]; k < f->built.leaf_offsets[l + 1]; ++k) {
+      t.leaf_filter.resize(t.leaf_filter.size() + kLeafFilterBytesPerObject);
+      QuantizeBox(t.leaves[l].box, f->recs[idx[f->built.leaf_objects[k]]].box,
+                  t.leaf_filter.data() + t.leaf_filter.size() - kLeafFilterBytesPerObject);
+    }
+  }
+  ASSERT_TRUE(t.IndexLeafFilter());
+}
+
+auto StatsTuple(const QueryStats& s) {
+  return std::make_tuple(s.internal_nodes_visited, s.split_nodes_visited, s.leaves_visited, s.leaves_filtered,
+                         s.pages_touched, s.pages_read, s.cache_hits, s.bytes_read, s.candidates_tested,
+                         s.hits, s.leaves_with_hits);
+}
+
+// The depth-first walk (small trees) against the breadth-first one (big trees; the walk every query took
+// before): the same leaves in the same order and the same statistics, with and without the leaf filter,
+// on trees from one leaf to thousands, for random boxes of every size and boxes that hold whole leaves.
+TEST(Routing, DepthFirstAndBreadthFirstWalksAgree) {
+  uint64_t compared = 0, nonempty = 0, filtered = 0;
+  for (SceneKind kind :
+       {SceneKind::kUniform, SceneKind::kClustered, SceneKind::kIdentical, SceneKind::kPlates,
+        SceneKind::kHuge, SceneKind::kOversized, SceneKind::kShip, SceneKind::kGrid}) {
+    for (size_t n : {1u, 2u, 7u, 40u, 300u, 2000u, 20000u}) {
+      Fixture f = Build(MakeScene(kind, n, 77 + n), BuildParams());
+      for (bool filter : {false, true}) {
+        if (filter) AddLeafFilter(&f);
+        const MKTree& t = f.built.tree;
+        const Box3f& root = t.nodes[0].box;
+        std::mt19937_64 rng(n * 31 + static_cast<uint64_t>(kind));
+        auto uni = [&](double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(rng); };
+        for (int i = 0; i < 300; ++i) {
+          Box3d q;
+          if (i % 4 == 0) {  // a leaf's or node's box, grown a little or not: holds whole leaves
+            const Box3f& b =
+                (i % 8 == 0) ? t.leaves[rng() % t.leaves.size()].box : t.nodes[rng() % t.nodes.size()].box;
+            const double grow = (i % 16 == 0) ? 0 : uni(0, 0.1);
+            for (int a = 0; a < 3; ++a) {
+              q.min[a] = b.min[a] - grow * (double{b.max[a]} - b.min[a]);
+              q.max[a] = b.max[a] + grow * (double{b.max[a]} - b.min[a]);
+            }
+          } else {
+            for (int a = 0; a < 3; ++a) {
+              const double e = double{root.max[a]} - double{root.min[a]};
+              const double c = uni(root.min[a] - 0.05 * e, root.max[a] + 0.05 * e);
+              const double h = e * std::exp(uni(std::log(1e-4), std::log(0.7)));
+              q.min[a] = c - h;
+              q.max[a] = c + h;
+            }
+          }
+          std::vector<uint32_t> depth_first{12345}, breadth_first{12345}, automatic{12345};  // appended to
+          QueryStats sd, sb, sa;
+          t.RouteBox(q, &depth_first, &sd, RouteWalk::kDepthFirst);
+          t.RouteBox(q, &breadth_first, &sb, RouteWalk::kBreadthFirst);
+          t.RouteBox(q, &automatic, &sa);
+          ASSERT_EQ(depth_first, breadth_first) << testing::Name(kind) << " " << n << " query " << i;
+          ASSERT_EQ(StatsTuple(sd), StatsTuple(sb)) << testing::Name(kind) << " " << n << " query " << i;
+          ASSERT_EQ(automatic, depth_first);
+          ASSERT_EQ(StatsTuple(sa), StatsTuple(sd));
+          ++compared;
+          nonempty += depth_first.size() > 1;
+          filtered += sd.leaves_filtered;
+        }
+      }
+    }
+  }
+  EXPECT_GT(nonempty, compared / 2);
+  EXPECT_GT(filtered, 0u);
+}
+
+// A tree deeper than the depth-first walk's fixed stack (no store or build has one: the store loader
+// refuses trees of more than 256 levels) still routes, through the growing stack, every leaf in leaf order.
+TEST(Routing, TreesDeeperThanTheFixedStackRouteEveryLeaf) {
+  constexpr uint32_t kDepth = 700;
+  MKTree t;
+  // Internal node i (index 2 i) has the next internal node on the left and a leaf on the right, so a
+  // depth-first walk keeps one pending right leaf per level; the leaves are numbered in depth-first order.
+  Box3f unit;
+  unit.min = {0, 0, 0};
+  unit.max = {1, 1, 1};
+  for (uint32_t i = 0; i < kDepth; ++i) {
+    TreeNode in;
+    in.box = unit;
+    in.axis = 0;
+    in.a = 1;
+    in.b = 0;  // a >= b: no overlap slab, the children's boxes decide
+    in.child[0] = 2 * i + 2;
+    in.child[1] = 2 * i + 1;
+    t.nodes.push_back(in);
+    TreeNode leaf;
+    leaf.box = unit;
+    leaf.leaf = kDepth - i;  // the deepest right leaf comes right after the bottom leaf (0)
+    t.nodes.push_back(leaf);
+  }
+  TreeNode bottom;
+  bottom.box = unit;
+  bottom.leaf = 0;
+  t.nodes.push_back(bottom);
+  t.leaves.resize(kDepth + 1);
+  for (uint32_t i = 0; i < kDepth; ++i) t.leaves[kDepth - i].node = 2 * i + 1;
+  t.leaves[0].node = 2 * kDepth;
+  for (LeafInfo& l : t.leaves) l.box = unit;
+
+  std::vector<uint32_t> all(kDepth + 1);
+  for (uint32_t i = 0; i <= kDepth; ++i) all[i] = i;
+  Box3d q;
+  q.min = {0.2, 0.2, 0.2};
+  q.max = {0.5, 0.5, 0.5};
+  for (RouteWalk walk : {RouteWalk::kAuto, RouteWalk::kDepthFirst, RouteWalk::kBreadthFirst}) {
+    std::vector<uint32_t> leaves;
+    QueryStats st;
+    t.RouteBox(q, &leaves, &st, walk);
+    EXPECT_EQ(leaves, all);
+    EXPECT_EQ(st.internal_nodes_visited, kDepth);
+    EXPECT_EQ(st.leaves_visited, kDepth + 1);
+  }
+  std::vector<uint32_t> leaves;
+  QueryStats st;
+  t.RoutePoint(Vec3d{0.5, 0.5, 0.5}, &leaves, &st);
+  EXPECT_EQ(leaves, all);
+  EXPECT_EQ(st.internal_nodes_visited, kDepth);
+  EXPECT_EQ(st.leaves_visited, kDepth + 1);
+}
 
 TEST(Routing, StatsCountNodesAndPointsOutsideTheSceneReachNothing) {
   Fixture f = Build(MakeScene(SceneKind::kUniform, 5000, 4), BuildParams());
