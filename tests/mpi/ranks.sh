@@ -34,6 +34,26 @@ for line in sys.stdin:
   [[ $(grep -c . "$dir/mpi.mkts.hits") -eq 800 ]]
   [[ $(grep -vc '^\[\[\], \[\]\]$' "$dir/mpi.mkts.hits") -gt 100 ]]
 done
+# The query batch over the ranks (mktree-mpi query, each rank its shards): per query the same ids and the
+# same cold page, leaf and candidate counts as the one-process Database on the manifest.
+for mode in "" --exact; do
+  run "$mpi" query "$dir/mpi.mkts" --queries "$dir/q.txt" --cold --threads 1 $mode >"$dir/batch.mpi"
+  "$m" query "$dir/mpi.mkts" --queries "$dir/q.txt" --cold $mode >"$dir/batch.one"
+  python3 - "$dir/batch.mpi" "$dir/batch.one" <<'PY'
+import json, sys
+a = [json.loads(l) for l in open(sys.argv[1])]
+b = [json.loads(l) for l in open(sys.argv[2])]
+assert len(a) == len(b) == 800, (len(a), len(b))
+keys = ["query", "kind", "hits", "pages_read", "pages_touched", "leaves_visited", "bytes_read",
+        "candidates_tested", "hit_count"]
+for x, y in zip(a, b):
+    for k in keys:
+        assert x[k] == y[k], (x["query"], k, x[k], y[k])
+assert sum(x["pages_read"] for x in a) > 0
+PY
+done
+if run "$mpi" query "$dir/mpi.mkts" --queries "$dir/missing.txt" 2>"$dir/err"; then exit 1; fi
+grep -q "missing.txt" "$dir/err"
 # The same top levels and shard sizes as the single-process build.
 for s in one mpi; do
   "$m" info "$dir/$s.mkts" --json | python3 -c '

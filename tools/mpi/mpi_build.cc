@@ -23,6 +23,7 @@
 #include "engine/generator/tanker_generator.h"
 #include "engine/ingest/shard_build.h"
 #include "engine/scene/scene_source.h"
+#include "tools/mpi/mpi_util.h"
 
 namespace mktree {
 namespace {
@@ -237,65 +238,6 @@ std::string SpillPath(const std::string& manifest, uint32_t shard, int sender) {
   return ShardStorePath(manifest, shard) + ".from-" + std::to_string(sender) + ".new";
 }
 
-// Bytes from one rank to all (root's vector, resized on the others).
-void Broadcast(std::vector<uint8_t>* bytes) {
-  uint64_t n = bytes->size();
-  MPI_Bcast(&n, 1, MPI_UINT64_T, 0, MPI_COMM_WORLD);
-  bytes->resize(n);
-  MPI_Bcast(bytes->data(), static_cast<int>(n), MPI_BYTE, 0, MPI_COMM_WORLD);
-}
-
-// Every rank's bytes, on rank 0, one vector per rank.
-std::vector<std::vector<uint8_t>> Gather(const std::vector<uint8_t>& mine, int rank, int ranks) {
-  const int n = static_cast<int>(mine.size());
-  std::vector<int> sizes(ranks), offsets(ranks);
-  MPI_Gather(&n, 1, MPI_INT, sizes.data(), 1, MPI_INT, 0, MPI_COMM_WORLD);
-  std::vector<uint8_t> all;
-  if (rank == 0) {
-    int at = 0;
-    for (int r = 0; r < ranks; ++r) offsets[r] = std::exchange(at, at + sizes[r]);
-    all.resize(at);
-  }
-  MPI_Gatherv(mine.data(), n, MPI_BYTE, all.data(), sizes.data(), offsets.data(), MPI_BYTE, 0,
-              MPI_COMM_WORLD);
-  std::vector<std::vector<uint8_t>> out;
-  if (rank == 0)
-    for (int r = 0; r < ranks; ++r)
-      out.emplace_back(all.begin() + offsets[r], all.begin() + offsets[r] + sizes[r]);
-  return out;
-}
-
-template <typename T>
-void Put(std::vector<uint8_t>* b, const T& v) {
-  const size_t n = b->size();
-  b->resize(n + sizeof(T));
-  std::memcpy(b->data() + n, &v, sizeof(T));
-}
-template <typename T>
-T Get(const std::vector<uint8_t>& b, size_t* at) {
-  T v;
-  std::memcpy(&v, b.data() + *at, sizeof(T));
-  *at += sizeof(T);
-  return v;
-}
-void PutString(std::vector<uint8_t>* b, const std::string& s) {
-  Put<uint64_t>(b, s.size());
-  b->insert(b->end(), s.begin(), s.end());
-}
-std::string GetString(const std::vector<uint8_t>& b, size_t* at) {
-  const uint64_t n = Get<uint64_t>(b, at);
-  std::string s(reinterpret_cast<const char*>(b.data() + *at), n);
-  *at += n;
-  return s;
-}
-
-// Whether every rank's `ok` holds.
-bool AllOk(bool ok) {
-  int mine = ok ? 1 : 0, all = 0;
-  MPI_Allreduce(&mine, &all, 1, MPI_INT, MPI_MIN, MPI_COMM_WORLD);
-  return all == 1;
-}
-
 using Clock = std::chrono::steady_clock;
 double Since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
@@ -315,7 +257,9 @@ uint64_t SumOf(uint64_t v) {
 // bounds the exchange's RAM, whatever the scene's size.
 constexpr size_t kRoundBytes = size_t{32} << 20;
 
-int Run(int argc, char** argv, int rank, int ranks) {
+}  // namespace
+
+int RunBuild(int argc, char** argv, int rank, int ranks) {
   const auto start = Clock::now();
   Args a;
   std::string err;
@@ -431,11 +375,7 @@ int Run(int argc, char** argv, int rank, int ranks) {
     t.shard = Get<uint32_t>(head, &at);
     m.top.nodes.push_back(t);
   }
-  // Shards in blocks (shard s on rank floor(s R / K)): neighbouring shards on one rank, so an input whose
-  // nearby ids are nearby in space (a model exported deck by deck, the tanker) moves fewer objects.
-  auto rank_of = [&](uint32_t shard) {
-    return static_cast<int>(uint64_t{shard} * static_cast<uint64_t>(ranks) / a.shards);
-  };
+  auto rank_of = [&](uint32_t shard) { return RankOfShard(shard, a.shards, ranks); };
   std::vector<uint32_t> own;
   for (uint32_t s = 0; s < a.shards; ++s)
     if (rank_of(s) == rank) own.push_back(s);
@@ -649,15 +589,4 @@ int Run(int argc, char** argv, int rank, int ranks) {
   return written ? 0 : 1;
 }
 
-}  // namespace
 }  // namespace mktree
-
-int main(int argc, char** argv) {
-  MPI_Init(&argc, &argv);
-  int rank = 0, ranks = 1;
-  MPI_Comm_rank(MPI_COMM_WORLD, &rank);
-  MPI_Comm_size(MPI_COMM_WORLD, &ranks);
-  const int rc = mktree::Run(argc, argv, rank, ranks);
-  MPI_Finalize();
-  return rc;
-}
