@@ -11,9 +11,11 @@ run() { "$mpiexec" -n "$ranks" --allow-run-as-root --oversubscribe "$@"; }
 k=$((ranks + 1))  # more shards than ranks: a rank builds two
 "$m" build tanker:30000:4 -o "$dir/plain.mkt" -q
 "$m" build tanker:30000:4 -o "$dir/one.mkts" --shards $k -q
-run "$mpi" tanker:30000:4 -o "$dir/mpi.mkts" --shards $k --backend pagefile --threads 1 >"$dir/out"
+# Small exchange rounds (64 KiB a sender): many rounds, the receivers' streams still in id order.
+run "$mpi" tanker:30000:4 -o "$dir/mpi.mkts" --shards $k --backend pagefile --threads 1 --round-bytes 65536 >"$dir/out"
 grep -q "disjoint id ranges" "$dir/out"
 grep -q "bytes an object" "$dir/out"
+[[ $(grep -o '[0-9]* rounds' "$dir/out" | cut -d' ' -f1) -gt 10 ]]
 stores="plain.mkt one.mkts mpi.mkts"
 if [[ $ranks == 2 ]]; then
   "$m" generate tanker --objects 30000 --seed 4 -o "$dir/scene.mks" >/dev/null

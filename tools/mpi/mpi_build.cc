@@ -1,5 +1,6 @@
 // mktree-mpi: the sharded build (docs/shards.md) spread over MPI ranks (CMake option MKTREE_MPI).
 //   mpirun -n R mktree-mpi SCENE... -o MANIFEST --shards K [--backend hdf5|pagefile] [--threads N]
+//                          [--round-bytes B]
 // Each rank reads a disjoint part of the scene (tanker:N: the id range [ceil(N r / R), ceil(N (r+1) / R));
 // any other input: rank 0 reads it all and the exchange scatters it) and samples it; rank 0 merges the
 // samples, chooses the top levels and broadcasts them. Each rank then routes its objects (TopLevels::ShardOf)
@@ -28,12 +29,17 @@
 namespace mktree {
 namespace {
 
+// Bytes a rank sends in one exchange round at most (and so receives: each sender sends a rank at most
+// kRoundBytes / R, plus one object), whatever the scene's size and R; the receiver spills them.
+constexpr uint64_t kRoundBytes = uint64_t{32} << 20;
+
 struct Args {
   std::vector<std::string> inputs;
   std::string output;
   uint32_t shards = 0;
   std::string backend = "hdf5";
   uint32_t threads = 0;
+  uint64_t round_bytes = kRoundBytes;
 };
 
 bool ParseU64(const std::string& s, uint64_t* v) {
@@ -60,6 +66,9 @@ bool Parse(int argc, char** argv, Args* a, std::string* err) {
     } else if (arg == "--threads") {
       if (!value(&v) || !ParseU64(v, &n) || n > 65536) return *err = "--threads must be 0 to 65536", false;
       a->threads = static_cast<uint32_t>(n);
+    } else if (arg == "--round-bytes") {  // tests: many exchange rounds on a small scene
+      if (!value(&v) || !ParseU64(v, &n) || n == 0) return *err = "--round-bytes must be positive", false;
+      a->round_bytes = n;
     } else if (arg == "--backend") {
       if (!value(&a->backend) || (a->backend != "hdf5" && a->backend != "pagefile"))
         return *err = "--backend must be hdf5 or pagefile", false;
@@ -70,7 +79,9 @@ bool Parse(int argc, char** argv, Args* a, std::string* err) {
     }
   }
   if (a->inputs.empty() || a->output.empty() || a->shards == 0)
-    return *err = "usage: mktree-mpi SCENE... -o MANIFEST --shards K [--backend hdf5|pagefile] [--threads N]",
+    return *err =
+               "usage: mktree-mpi SCENE... -o MANIFEST --shards K [--backend hdf5|pagefile] [--threads N] "
+               "[--round-bytes B]",
            false;
   return true;
 }
@@ -253,10 +264,6 @@ uint64_t SumOf(uint64_t v) {
   return out;
 }
 
-// Bytes a rank buffers for the other ranks before an exchange round: with the receiver's spill this
-// bounds the exchange's RAM, whatever the scene's size.
-constexpr size_t kRoundBytes = size_t{32} << 20;
-
 }  // namespace
 
 int RunBuild(int argc, char** argv, int rank, int ranks) {
@@ -392,9 +399,9 @@ int RunBuild(int argc, char** argv, int rank, int ranks) {
   };
 
   // 2. The exchange: objects for another rank's shards are encoded (with their shard and length) and sent
-  // in rounds of at most kRoundBytes a sender; the receiver appends them to its (shard, sender) spill.
+  // in rounds of at most --round-bytes a sender; the receiver appends them to its (shard, sender) spill.
   const auto exchange_start = Clock::now();
-  uint64_t sent_bytes = 0, sent_objects = 0;
+  uint64_t sent_bytes = 0, sent_objects = 0, rounds = 1;
   {
     std::vector<std::FILE*> spills(static_cast<size_t>(a.shards) * ranks, nullptr);
     auto spill = [&](uint32_t s, int from) -> std::FILE*& { return spills[size_t{s} * ranks + from]; };
@@ -403,9 +410,10 @@ int RunBuild(int argc, char** argv, int rank, int ranks) {
     std::vector<uint8_t> record;
     SceneObject obj;
     bool done = false;
-    for (;;) {
-      size_t buffered = 0;
-      while (ok && !done && buffered < kRoundBytes) {
+    for (;; ++rounds) {
+      const size_t cap = std::max<uint64_t>(1, a.round_bytes / static_cast<uint64_t>(ranks));
+      bool full = false;
+      while (ok && !done && !full) {
         auto more = source->Next(&obj);
         if (!more.ok()) {
           ok = fail(more.status().message());
@@ -423,7 +431,7 @@ int RunBuild(int argc, char** argv, int rank, int ranks) {
         PutU32(&out[to], s);
         PutU32(&out[to], static_cast<uint32_t>(record.size()));
         PutBytes(&out[to], record.data(), record.size());
-        buffered += record.size() + 8;
+        full = out[to].size() >= cap;
         sent_bytes += record.size() + 8;
         ++sent_objects;
       }
@@ -568,12 +576,13 @@ int RunBuild(int argc, char** argv, int rank, int ranks) {
                   by_range ? "disjoint id ranges" : "read by rank 0");
       std::printf(
           "exchange: %llu objects (%.1f %%) moved, %llu bytes, %.1f bytes an object of the scene, "
-          "%.1f a moved object\n",
+          "%.1f a moved object, %llu rounds\n",
           static_cast<unsigned long long>(all_moved),
           100.0 * static_cast<double>(all_moved) / static_cast<double>(m.objects),
           static_cast<unsigned long long>(all_sent),
           static_cast<double>(all_sent) / static_cast<double>(m.objects),
-          all_moved ? static_cast<double>(all_sent) / static_cast<double>(all_moved) : 0.0);
+          all_moved ? static_cast<double>(all_sent) / static_cast<double>(all_moved) : 0.0,
+          static_cast<unsigned long long>(rounds));
       std::printf("seconds: scan %.2f, exchange %.2f, shards %.2f, total %.2f\n", scan_seconds,
                   exchange_seconds, build_seconds, Since(start));
     }

@@ -1,5 +1,6 @@
 // mktree-mpi: the sharded store over MPI ranks (docs/shards.md, "On MPI ranks").
 //   mpirun -n R mktree-mpi SCENE... -o MANIFEST --shards K [--backend hdf5|pagefile] [--threads N]
+//                          [--round-bytes B]
 //   mpirun -n R mktree-mpi query MANIFEST --queries FILE [--exact] [--cold] [--threads N]
 #include <mpi.h>
 
