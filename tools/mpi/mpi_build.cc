@@ -321,18 +321,27 @@ int RunBuild(int argc, char** argv, int rank, int ranks) {
   for (const std::string& w : scan->warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
   const uint64_t objects = SumOf(scan->objects);
   const double scan_seconds = MaxOf(Since(start));
-  std::vector<uint8_t> mine;
-  for (const ShardSample::Item& i : scan->sample.Items()) {
-    Put(&mine, i.id);
-    for (int k = 0; k < 3; ++k) Put(&mine, i.box.min[k]);
-    for (int k = 0; k < 3; ++k) Put(&mine, i.box.max[k]);
-  }
-  const auto samples = Gather(mine, rank, ranks);
-  Manifest m;
-  std::vector<uint8_t> head;
-  if (rank == 0) {
-    ShardSample merged;
-    for (const auto& b : samples) {
+  // The samples merged up a binary tree (rank r + step into rank r), each step one sample of at most
+  // 2^18 items: rank 0's memory for it does not grow with R.
+  ShardSample merged = std::move(scan->sample);
+  for (int step = 1; step < ranks; step *= 2) {
+    if (rank % (2 * step) == step) {
+      std::vector<uint8_t> bytes;
+      for (const ShardSample::Item& i : merged.Items()) {
+        Put(&bytes, i.id);
+        for (int k = 0; k < 3; ++k) Put(&bytes, i.box.min[k]);
+        for (int k = 0; k < 3; ++k) Put(&bytes, i.box.max[k]);
+      }
+      const uint64_t n = bytes.size();
+      MPI_Send(&n, 1, MPI_UINT64_T, rank - step, 0, MPI_COMM_WORLD);
+      MPI_Send(bytes.data(), static_cast<int>(n), MPI_BYTE, rank - step, 1, MPI_COMM_WORLD);
+      break;
+    }
+    if (rank % (2 * step) == 0 && rank + step < ranks) {
+      uint64_t n = 0;
+      MPI_Recv(&n, 1, MPI_UINT64_T, rank + step, 0, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+      std::vector<uint8_t> b(n);
+      MPI_Recv(b.data(), static_cast<int>(n), MPI_BYTE, rank + step, 1, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
       ShardSample sample;
       for (size_t at = 0; at < b.size();) {
         const ObjectId id = Get<ObjectId>(b, &at);
@@ -343,6 +352,10 @@ int RunBuild(int argc, char** argv, int rank, int ranks) {
       }
       merged.Merge(sample);
     }
+  }
+  Manifest m;
+  std::vector<uint8_t> head;
+  if (rank == 0) {
     auto top = objects == 0 ? Result<TopLevels>(Status::InvalidArgument(
                                   a.output + " not built: empty scene, no object with geometry in the input"))
                             : ChooseTopLevels(merged.Items(), a.shards);
