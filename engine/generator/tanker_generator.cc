@@ -168,20 +168,37 @@ constexpr double kPlateGap = 0.001;  // between neighbouring tiles, so plates do
 
 class TankerSource final : public SceneSource {
  public:
-  TankerSource(uint64_t objects, uint64_t seed, ObjectId first_id)
+  TankerSource(uint64_t objects, uint64_t seed, ObjectId first_id, uint64_t begin, uint64_t end)
       : objects_(objects),
         seed_(seed),
         first_id_(first_id),
+        end_(std::min(end, objects)),
         grid_(GridFor(objects)),
         source_("tanker:" + std::to_string(objects) + ":" + std::to_string(seed)) {
-    Begin(0);
+    if (begin == 0 || begin >= end_) {
+      Begin(0);
+      emitted_ = std::min(begin, end_);
+      return;
+    }
+    // Object `begin` directly: its compartment, its place there, and the class counts before it.
+    uint64_t c = std::min(begin * grid_.count() / objects_, grid_.count() - 1);
+    while (c > 0 && Start(c) > begin) --c;
+    while (Start(c + 1) <= begin) ++c;
+    Begin(c);
+    const uint64_t first = Start(c);
+    local_ = begin - first;
+    emitted_ = begin;
+    plate_number_ = PlatesAmongFirst(first) + std::min(local_, cell_.plates);
+    equipment_number_ = EquipmentAmongFirst(first) +
+                        (local_ > cell_.plates + cell_.pipes ? local_ - cell_.plates - cell_.pipes : 0);
+    pipe_number_ = begin - plate_number_ - equipment_number_;
   }
 
   Result<bool> Next(SceneObject* out) override {
     if (static_cast<uint64_t>(first_id_) + objects_ > (uint64_t{1} << 32))
       return Status::InvalidArgument("tanker: first id " + std::to_string(first_id_) + " + " +
                                      std::to_string(objects_) + " objects exceeds the 32-bit id space");
-    if (emitted_ == objects_) return false;
+    if (emitted_ == end_) return false;
     while (local_ == cell_.count) Begin(cell_.index + 1);
     out->mesh.vertices.clear();
     out->mesh.triangles.clear();
@@ -410,6 +427,7 @@ class TankerSource final : public SceneSource {
   const uint64_t objects_;
   const uint64_t seed_;
   const ObjectId first_id_;
+  const uint64_t end_;  // objects [emitted_ at the start, end_) are produced
   const Grid grid_;
   const std::string source_;  // "tanker:N:SEED", the spec mktree build reads it from
   Compartment cell_;
@@ -436,7 +454,12 @@ TankerClassCounts TankerExpectedCounts(uint64_t objects) {
 }
 
 std::unique_ptr<SceneSource> MakeTankerSource(uint64_t objects, uint64_t seed, ObjectId first_id) {
-  return std::make_unique<TankerSource>(objects, seed, first_id);
+  return std::make_unique<TankerSource>(objects, seed, first_id, 0, objects);
+}
+
+std::unique_ptr<SceneSource> MakeTankerRangeSource(uint64_t objects, uint64_t seed, uint64_t begin,
+                                                   uint64_t end, ObjectId first_id) {
+  return std::make_unique<TankerSource>(objects, seed, first_id, begin, end);
 }
 
 }  // namespace mktree

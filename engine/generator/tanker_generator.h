@@ -55,5 +55,9 @@ TankerClassCounts TankerExpectedCounts(uint64_t objects);
 // REQUIRES: first_id + objects <= 2^32 (ids are 32-bit); otherwise Next() fails with InvalidArgument
 // before producing anything.
 std::unique_ptr<SceneSource> MakeTankerSource(uint64_t objects, uint64_t seed, ObjectId first_id = 0);
+// Objects [begin, end) of the same scene (ids first_id + begin, ...), identical to theirs in the whole
+// scene, generated without the ones before (a reader of a disjoint part: the MPI build, docs/shards.md).
+std::unique_ptr<SceneSource> MakeTankerRangeSource(uint64_t objects, uint64_t seed, uint64_t begin,
+                                                   uint64_t end, ObjectId first_id = 0);
 
 }  // namespace mktree

@@ -18,10 +18,10 @@ double Seconds(Clock::time_point since) {
 }
 
 // Every input in order, numbered globally from 0, as BuildStore numbers them.
-class AllInputs {
+class AllInputs final : public SceneSource {
  public:
   explicit AllInputs(const std::vector<SceneOpener>& inputs) : inputs_(inputs) {}
-  Result<bool> Next(SceneObject* obj) {
+  Result<bool> Next(SceneObject* obj) override {
     for (;;) {
       if (!source_) {
         if (input_ == inputs_.size()) return false;
@@ -41,6 +41,7 @@ class AllInputs {
     return true;
   }
   std::vector<std::string>& warnings() { return warnings_; }
+  std::vector<std::string> TakeWarnings() override { return std::move(warnings_); }
 
  private:
   const std::vector<SceneOpener>& inputs_;
@@ -50,27 +51,44 @@ class AllInputs {
   std::vector<std::string> warnings_;
 };
 
-// The objects of one shard, renumbered from first_id; their global ids go to *ids.
-class ShardSource final : public SceneSource {
+// The objects of one shard (those of `all` that route to it), in order.
+class FilterShard final : public SceneSource {
  public:
-  ShardSource(const std::vector<SceneOpener>& inputs, const TopLevels& top, uint32_t shard, ObjectId first_id,
-              std::vector<ObjectId>* ids)
-      : all_(inputs), top_(top), shard_(shard), next_local_(first_id), ids_(ids) {}
+  FilterShard(std::unique_ptr<SceneSource> all, const TopLevels& top, uint32_t shard)
+      : all_(std::move(all)), top_(top), shard_(shard) {}
   Result<bool> Next(SceneObject* out) override {
     for (;;) {
-      MKTREE_ASSIGN_OR_RETURN(const bool more, all_.Next(out));
+      MKTREE_ASSIGN_OR_RETURN(const bool more, all_->Next(out));
       if (!more) return false;
-      if (top_.ShardOf(out->mesh.Bounds()) != shard_) continue;
-      ids_->push_back(out->id);
-      out->id = next_local_++;
-      return true;
+      if (top_.ShardOf(out->mesh.Bounds()) == shard_) return true;
     }
   }
+  // The input's warnings were reported by the scan (ScanForShards), not once per shard.
 
  private:
-  AllInputs all_;
+  std::unique_ptr<SceneSource> all_;
   const TopLevels& top_;
   uint32_t shard_;
+};
+
+// A shard's objects renumbered from first_id; their global ids go to *ids (increasing, else Internal).
+class Renumber final : public SceneSource {
+ public:
+  Renumber(std::unique_ptr<SceneSource> objects, ObjectId first_id, std::vector<ObjectId>* ids)
+      : objects_(std::move(objects)), next_local_(first_id), ids_(ids) {}
+  Result<bool> Next(SceneObject* out) override {
+    MKTREE_ASSIGN_OR_RETURN(const bool more, objects_->Next(out));
+    if (!more) return false;
+    if (!ids_->empty() && out->id <= ids_->back())
+      return Status::Internal("object '" + out->name + "': shard objects out of global id order");
+    ids_->push_back(out->id);
+    out->id = next_local_++;
+    return true;
+  }
+  std::vector<std::string> TakeWarnings() override { return objects_->TakeWarnings(); }
+
+ private:
+  std::unique_ptr<SceneSource> objects_;
   ObjectId next_local_;
   std::vector<ObjectId>* ids_;
 };
@@ -86,6 +104,27 @@ Status Rename(const std::string& from, const std::string& to) {
 uint64_t NewBuildId() {
   return std::random_device{}() ^ (uint64_t{std::random_device{}()} << 32) ^
          static_cast<uint64_t>(Clock::now().time_since_epoch().count());
+}
+
+std::unique_ptr<SceneSource> ChainInputs(const std::vector<SceneOpener>& inputs) {
+  return std::make_unique<AllInputs>(inputs);
+}
+
+Result<ShardScan> ScanPart(SceneSource* part, const IngestOptions& options) {
+  ShardScan scan;
+  SceneObject obj;
+  for (;;) {
+    MKTREE_ASSIGN_OR_RETURN(const bool more, part->Next(&obj));
+    if (!more) break;
+    const Box3d box = obj.mesh.Bounds();
+    if (scan.objects == 0) scan.first = box;
+    scan.sample.Add(obj.id, box);
+    ++scan.objects;
+    if (options.progress && scan.objects % (1u << 16) == 0)
+      options.progress(IngestStage::kRead, scan.objects, 0);
+  }
+  scan.warnings = part->TakeWarnings();
+  return scan;
 }
 
 Result<ShardScan> ScanForShards(const std::vector<SceneOpener>& inputs,
@@ -121,6 +160,16 @@ Status PublishShard(const std::string& manifest_path, uint32_t s) {
 Result<ShardEntry> BuildShard(const std::vector<SceneOpener>& inputs, const std::string& manifest_path,
                               const Manifest& m, uint32_t s, const IngestOptions& options,
                               IngestReport* report) {
+  return BuildShardFrom(
+      [&]() -> Result<std::unique_ptr<SceneSource>> {
+        return std::unique_ptr<SceneSource>(std::make_unique<FilterShard>(ChainInputs(inputs), m.top, s));
+      },
+      manifest_path, m, s, options, report);
+}
+
+Result<ShardEntry> BuildShardFrom(const ShardObjects& objects, const std::string& manifest_path,
+                                  const Manifest& m, uint32_t s, const IngestOptions& options,
+                                  IngestReport* report) {
   const std::string store_path = ShardStorePath(manifest_path, s), ids_path = ShardIdsPath(manifest_path, s);
   const std::string store_new = store_path + ".new", ids_new = ids_path + ".new";
   struct Discard {
@@ -138,7 +187,8 @@ Result<ShardEntry> BuildShard(const std::vector<SceneOpener>& inputs, const std:
   std::vector<ObjectId> ids;
   const SceneOpener opener = [&](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
     ids.clear();
-    return std::unique_ptr<SceneSource>(std::make_unique<ShardSource>(inputs, m.top, s, first, &ids));
+    MKTREE_ASSIGN_OR_RETURN(auto source, objects());
+    return std::unique_ptr<SceneSource>(std::make_unique<Renumber>(std::move(source), first, &ids));
   };
   MKTREE_ASSIGN_OR_RETURN(*report, BuildStore({opener}, store_new, o));  // names the store or the input
   if (ids.size() != report->objects)

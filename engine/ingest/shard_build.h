@@ -37,11 +37,22 @@ struct ShardScan {
 };
 Result<ShardScan> ScanForShards(const std::vector<SceneOpener>& inputs,
                                 const std::function<bool(ObjectId)>& mine, const IngestOptions& options);
+// The same over a reader's part of the scene (every object it gives is sampled; `first` is the box of the
+// first object it gives, the scene's when the part starts at id 0).
+Result<ShardScan> ScanPart(SceneSource* part, const IngestOptions& options);
+// Every input in order as one source, numbered globally from 0 (as BuildStore numbers them).
+std::unique_ptr<SceneSource> ChainInputs(const std::vector<SceneOpener>& inputs);
 // 2. Shard s of m (top levels, origin and build id set) under its staging names; the entry names the
 //    final files. On error nothing of it is left.
 Result<ShardEntry> BuildShard(const std::vector<SceneOpener>& inputs, const std::string& manifest_path,
                               const Manifest& m, uint32_t s, const IngestOptions& options,
                               IngestReport* report);
+// The same from a source of exactly shard s's objects with their global ids, increasing; `objects` may be
+// called more than once (each call starts over).
+using ShardObjects = std::function<Result<std::unique_ptr<SceneSource>>()>;
+Result<ShardEntry> BuildShardFrom(const ShardObjects& objects, const std::string& manifest_path,
+                                  const Manifest& m, uint32_t s, const IngestOptions& options,
+                                  IngestReport* report);
 // 3. Shard s's staged files renamed into place, or removed.
 Status PublishShard(const std::string& manifest_path, uint32_t s);
 void DiscardShard(const std::string& manifest_path, uint32_t s);

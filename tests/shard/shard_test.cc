@@ -6,6 +6,7 @@
 #include <fstream>
 #include <random>
 
+#include "engine/generator/tanker_generator.h"
 #include "engine/scene/scene_source.h"
 #include "engine/shard/manifest.h"
 #include "mktree/build.h"
@@ -447,6 +448,36 @@ TEST(TopLevels, EveryObjectRoutesToExactlyOneShardAndSamplesMerge) {
     std::vector<uint64_t> count(k);
     for (const SceneObject& o : objs) ++count[top->ShardOf(o.mesh.Bounds())];
     for (uint32_t s = 0; s < k; ++s) EXPECT_GT(count[s], 0u) << "shard " << s << " of " << k;
+  }
+}
+
+// The MPI build's disjoint reads (tools/mpi): the tanker's id ranges, generated without the objects before
+// them, are together exactly the whole scene's objects, for any split.
+TEST(ShardParts, TankerRangesAreTheWholeScenesObjects) {
+  for (const uint64_t n : {1u, 7u, 1000u, 25000u}) {
+    std::vector<SceneObject> whole;
+    auto all = MakeTankerSource(n, 3);
+    for (SceneObject o; *all->Next(&o);) whole.push_back(o);
+    ASSERT_EQ(whole.size(), n);
+    for (const uint64_t parts : {2u, 3u, 5u}) {
+      uint64_t at = 0;
+      for (uint64_t r = 0; r < parts; ++r) {
+        const uint64_t lo = (n * r + parts - 1) / parts, hi = (n * (r + 1) + parts - 1) / parts;
+        ASSERT_EQ(lo, at);
+        auto part = MakeTankerRangeSource(n, 3, lo, hi);
+        for (SceneObject o; *part->Next(&o); ++at) {
+          ASSERT_LT(at, n);
+          const SceneObject& w = whole[at];
+          ASSERT_EQ(o.id, w.id) << "n " << n << " part " << r;
+          ASSERT_EQ(o.name, w.name) << "object " << at;
+          ASSERT_EQ(o.source, w.source);
+          ASSERT_EQ(o.mesh.vertices, w.mesh.vertices) << "object " << at;
+          ASSERT_EQ(o.mesh.triangles, w.mesh.triangles) << "object " << at;
+        }
+        ASSERT_EQ(at, hi);
+      }
+      EXPECT_EQ(at, n);
+    }
   }
 }
 

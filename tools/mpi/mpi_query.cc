@@ -1,0 +1,192 @@
+// mktree-mpi query: a query batch over a sharded store (docs/shards.md), each rank answering for its shards.
+//   mpirun -n R mktree-mpi query MANIFEST --queries FILE [--exact] [--cold] [--threads N]
+// Rank r opens the shards the build wrote there (RankOfShard), each an ordinary store answering with its
+// local ids, checked against the manifest (sizes, fingerprints, id file of the build); every rank reads the
+// query file and runs every query on its shards, in chunks; rank 0 gathers each chunk, maps nothing (the
+// ranks send global ids), merges each query's ids in order, sums the shards' statistics and prints one JSON
+// line a query, as `mktree query` does (query, kind, hits, and the counts).
+#include <algorithm>
+#include <charconv>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "engine/shard/manifest.h"
+#include "mktree/database.h"
+#include "tools/mpi/mpi_util.h"
+#include "tools/query_file.h"
+
+namespace mktree {
+namespace {
+
+// Queries gathered on rank 0 at a time: bounds rank 0's memory by a chunk's answers, not the batch's.
+constexpr size_t kChunk = 1024;
+
+struct QueryArgs {
+  std::string manifest, queries;
+  bool exact = false, cold = false;
+  unsigned threads = 1;  // as `mktree query`: ranks on one machine share its cores
+};
+
+bool ParseQuery(int argc, char** argv, QueryArgs* a, std::string* err) {
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg == "--queries") {
+      if (i + 1 >= argc) return *err = "--queries needs a file", false;
+      a->queries = argv[++i];
+    } else if (arg == "--exact") {
+      a->exact = true;
+    } else if (arg == "--cold") {
+      a->cold = true;
+    } else if (arg == "--threads") {
+      uint64_t n = 0;
+      const std::string v = i + 1 < argc ? argv[++i] : "";
+      auto [end, ec] = std::from_chars(v.data(), v.data() + v.size(), n);
+      if (v.empty() || ec != std::errc() || end != v.data() + v.size() || n > 65536)
+        return *err = "--threads must be 0 to 65536", false;
+      a->threads = static_cast<unsigned>(n);
+    } else if (!arg.empty() && arg[0] == '-') {
+      return *err = "unknown option " + arg, false;
+    } else if (a->manifest.empty()) {
+      a->manifest = arg;
+    } else {
+      return *err = "one manifest only: " + arg, false;
+    }
+  }
+  if (a->manifest.empty() || a->queries.empty())
+    return *err = "usage: mktree-mpi query MANIFEST --queries FILE [--exact] [--cold] [--threads N]", false;
+  return true;
+}
+
+struct OpenShard {
+  uint32_t index = 0;
+  std::unique_ptr<Database> db;
+  std::vector<ObjectId> ids;  // local -> global
+};
+
+// Shard s of the manifest, checked as Database::Open(manifest) checks it before opening its store.
+Result<OpenShard> OpenOneShard(const std::string& manifest, const Manifest& m, uint32_t s) {
+  const ShardEntry& e = m.shards[s];
+  for (const ShardFileInfo* f : {&e.store, &e.ids}) {
+    const std::string path = ShardFilePath(manifest, f->name);
+    MKTREE_ASSIGN_OR_RETURN(const ShardFileInfo got, FingerprintFile(path));
+    if (got.bytes != f->bytes || got.fingerprint != f->fingerprint)
+      return Status::Corruption(path + ": not the file manifest " + manifest + " was built with");
+  }
+  OpenShard o;
+  o.index = s;
+  MKTREE_ASSIGN_OR_RETURN(o.ids, ReadShardIds(ShardFilePath(manifest, e.ids.name), m.build_id, s, m.objects));
+  if (o.ids.size() != e.objects)
+    return Status::Corruption(ShardFilePath(manifest, e.ids.name) +
+                              ": object count differs from the manifest's");
+  const uint64_t cache = (4096 + m.shards.size() - 1) / m.shards.size();  // as the one-process Database
+  MKTREE_ASSIGN_OR_RETURN(o.db,
+                          Database::Open(ShardFilePath(manifest, e.store.name), {.cache_pages = cache}));
+  return o;
+}
+
+constexpr int kStats = 11;
+void PutStats(std::vector<uint8_t>* b, const QueryStats& s) {
+  for (uint64_t v :
+       {s.internal_nodes_visited, s.split_nodes_visited, s.leaves_visited, s.leaves_filtered, s.pages_touched,
+        s.pages_read, s.cache_hits, s.bytes_read, s.candidates_tested, s.hits, s.leaves_with_hits})
+    Put(b, v);
+}
+QueryStats GetStats(const std::vector<uint8_t>& b, size_t* at) {
+  QueryStats s;
+  for (uint64_t* v : {&s.internal_nodes_visited, &s.split_nodes_visited, &s.leaves_visited,
+                      &s.leaves_filtered, &s.pages_touched, &s.pages_read, &s.cache_hits, &s.bytes_read,
+                      &s.candidates_tested, &s.hits, &s.leaves_with_hits})
+    *v = Get<uint64_t>(b, at);
+  return s;
+}
+
+}  // namespace
+
+int RunQuery(int argc, char** argv, int rank, int ranks) {
+  QueryArgs a;
+  std::string err;
+  if (!ParseQuery(argc, argv, &a, &err)) {
+    if (rank == 0) std::fprintf(stderr, "error: %s\n", err.c_str());
+    return 2;
+  }
+  auto fail = [&](const std::string& message) {
+    std::fprintf(stderr, "error: rank %d: %s\n", rank, message.c_str());
+    return false;
+  };
+  bool ok = true;
+  auto m = ReadManifest(a.manifest);
+  if (!m.ok()) ok = fail(m.status().message());
+  auto queries = tools::ReadQueryFile(a.queries);
+  if (!queries.ok()) ok = fail(queries.status().message());
+  if (!AllOk(ok)) return 1;
+  for (Query& q : *queries) q.mode = a.exact ? QueryMode::kExact : QueryMode::kAabb;
+  const uint32_t k = static_cast<uint32_t>(m->shards.size());
+  std::vector<OpenShard> shards;
+  for (uint32_t s = 0; s < k && ok; ++s) {
+    if (RankOfShard(s, k, ranks) != rank) continue;
+    auto o = OpenOneShard(a.manifest, *m, s);
+    if (!o.ok())
+      ok = fail(o.status().message());
+    else
+      shards.push_back(std::move(*o));
+  }
+  if (!AllOk(ok)) return 1;
+
+  const size_t n = queries->size();
+  uint64_t pages = 0, hits = 0;
+  for (size_t first = 0; first < n; first += kChunk) {
+    const size_t count = std::min(kChunk, n - first);
+    const std::vector<Query> chunk(queries->begin() + first, queries->begin() + first + count);
+    std::vector<std::vector<ObjectId>> answer(count);
+    std::vector<QueryStats> stats(count);
+    for (const OpenShard& s : shards) {
+      if (!ok) break;
+      Status st = s.db->RunBatchStreamed(chunk, {.threads = a.threads, .cold = a.cold},
+                                         [&](uint64_t i, const QueryResult& r) {
+                                           for (ObjectId local : r.hits) answer[i].push_back(s.ids[local]);
+                                           stats[i] += r.stats;
+                                           return Status::Ok();
+                                         });
+      if (!st.ok()) ok = fail(st.message());
+    }
+    std::vector<uint8_t> mine;
+    for (size_t i = 0; i < count; ++i) {
+      Put<uint64_t>(&mine, answer[i].size());
+      for (ObjectId id : answer[i]) Put(&mine, id);
+      PutStats(&mine, stats[i]);
+    }
+    if (!AllOk(ok)) return 1;
+    const auto all = Gather(mine, rank, ranks);
+    if (rank != 0) continue;
+    std::vector<size_t> at(all.size(), 0);
+    for (size_t i = 0; i < count; ++i) {
+      std::vector<ObjectId> ids;
+      QueryStats total;
+      for (size_t r = 0; r < all.size(); ++r) {
+        const uint64_t c = Get<uint64_t>(all[r], &at[r]);
+        for (uint64_t j = 0; j < c; ++j) ids.push_back(Get<ObjectId>(all[r], &at[r]));
+        total += GetStats(all[r], &at[r]);
+      }
+      std::sort(ids.begin(), ids.end());  // shards hold disjoint ids
+      pages += total.pages_read;
+      hits += ids.size();
+      std::string line = "{\"query\": " + std::to_string(first + i) + ", \"kind\": \"" +
+                         (chunk[i].kind == Query::Kind::kPoint ? "point" : "box") + "\", \"hits\": [";
+      for (size_t j = 0; j < ids.size(); ++j) line += (j ? ", " : "") + std::to_string(ids[j]);
+      line += "], \"pages_read\": " + std::to_string(total.pages_read) +
+              ", \"pages_touched\": " + std::to_string(total.pages_touched) +
+              ", \"leaves_visited\": " + std::to_string(total.leaves_visited) +
+              ", \"bytes_read\": " + std::to_string(total.bytes_read) +
+              ", \"candidates_tested\": " + std::to_string(total.candidates_tested) +
+              ", \"hit_count\": " + std::to_string(ids.size()) + "}\n";
+      std::fputs(line.c_str(), stdout);
+    }
+  }
+  if (rank == 0)
+    std::fprintf(stderr, "%zu queries on %u shards over %d ranks: %llu hits, %llu pages read\n", n, k, ranks,
+                 static_cast<unsigned long long>(hits), static_cast<unsigned long long>(pages));
+  return 0;
+}
+
+}  // namespace mktree

@@ -1,0 +1,85 @@
+// Helpers of mktree-mpi (tools/mpi): byte vectors gathered and broadcast over MPI_COMM_WORLD, and the
+// little-endian packing of what the ranks send each other.
+#pragma once
+
+#include <mpi.h>
+
+#include <cstdint>
+#include <cstring>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace mktree {
+
+// Bytes from one rank to all (root's vector, resized on the others).
+inline void Broadcast(std::vector<uint8_t>* bytes) {
+  uint64_t n = bytes->size();
+  MPI_Bcast(&n, 1, MPI_UINT64_T, 0, MPI_COMM_WORLD);
+  bytes->resize(n);
+  MPI_Bcast(bytes->data(), static_cast<int>(n), MPI_BYTE, 0, MPI_COMM_WORLD);
+}
+
+// Every rank's bytes, on rank 0, one vector per rank.
+inline std::vector<std::vector<uint8_t>> Gather(const std::vector<uint8_t>& mine, int rank, int ranks) {
+  const int n = static_cast<int>(mine.size());
+  std::vector<int> sizes(ranks), offsets(ranks);
+  MPI_Gather(&n, 1, MPI_INT, sizes.data(), 1, MPI_INT, 0, MPI_COMM_WORLD);
+  std::vector<uint8_t> all;
+  if (rank == 0) {
+    int at = 0;
+    for (int r = 0; r < ranks; ++r) offsets[r] = std::exchange(at, at + sizes[r]);
+    all.resize(at);
+  }
+  MPI_Gatherv(mine.data(), n, MPI_BYTE, all.data(), sizes.data(), offsets.data(), MPI_BYTE, 0,
+              MPI_COMM_WORLD);
+  std::vector<std::vector<uint8_t>> out;
+  if (rank == 0)
+    for (int r = 0; r < ranks; ++r)
+      out.emplace_back(all.begin() + offsets[r], all.begin() + offsets[r] + sizes[r]);
+  return out;
+}
+
+template <typename T>
+void Put(std::vector<uint8_t>* b, const T& v) {
+  const size_t n = b->size();
+  b->resize(n + sizeof(T));
+  std::memcpy(b->data() + n, &v, sizeof(T));
+}
+template <typename T>
+T Get(const std::vector<uint8_t>& b, size_t* at) {
+  T v;
+  std::memcpy(&v, b.data() + *at, sizeof(T));
+  *at += sizeof(T);
+  return v;
+}
+inline void PutString(std::vector<uint8_t>* b, const std::string& s) {
+  Put<uint64_t>(b, s.size());
+  b->insert(b->end(), s.begin(), s.end());
+}
+inline std::string GetString(const std::vector<uint8_t>& b, size_t* at) {
+  const uint64_t n = Get<uint64_t>(b, at);
+  std::string s(reinterpret_cast<const char*>(b.data() + *at), n);
+  *at += n;
+  return s;
+}
+
+// Whether every rank's `ok` holds.
+inline bool AllOk(bool ok) {
+  int mine = ok ? 1 : 0, all = 0;
+  MPI_Allreduce(&mine, &all, 1, MPI_INT, MPI_MIN, MPI_COMM_WORLD);
+  return all == 1;
+}
+
+// The rank of shard s of K on R ranks: shards in blocks, floor(s R / K), so that neighbouring shards are on
+// one rank and an input whose nearby ids are nearby in space (a model exported deck by deck, the tanker)
+// moves few objects in the build's exchange. The query batch uses the same rank, where the build wrote it.
+inline int RankOfShard(uint32_t shard, uint32_t shards, int ranks) {
+  return static_cast<int>(uint64_t{shard} * static_cast<uint64_t>(ranks) / shards);
+}
+
+// The commands (tools/mpi/mpi_build.cc, mpi_query.cc), on every rank after MPI_Init; the exit status.
+int RunBuild(int argc, char** argv, int rank, int ranks);
+int RunQuery(int argc, char** argv, int rank, int ranks);
+
+}  // namespace mktree
