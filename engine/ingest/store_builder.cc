@@ -275,11 +275,22 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
   //    (sorted, neighbours gathered into one preadv) costs ~1 system call per run of nearby entries
   //    instead of one per entry (1M pread calls were ~1 s of a 1M-object build).
   const auto write_start = Clock::now();
-  std::vector<uint64_t> spill_offset(entry_bytes.size());
-  for (size_t id = 1; id < spill_offset.size(); ++id)
-    spill_offset[id] = spill_offset[id - 1] + entry_bytes[id - 1];
-  if (!spill_offset.empty() && spill_offset.back() + entry_bytes.back() != geometry.size())
+  // Every kOffsetStride-th offset is kept, the others summed from the sizes when read (8 bytes an object
+  // in the write stage's peak otherwise).
+  constexpr size_t kOffsetStride = 32;
+  std::vector<uint64_t> spill_offset((entry_bytes.size() + kOffsetStride - 1) / kOffsetStride);
+  uint64_t spilled = 0;
+  for (size_t id = 0; id < entry_bytes.size(); ++id) {
+    if (id % kOffsetStride == 0) spill_offset[id / kOffsetStride] = spilled;
+    spilled += entry_bytes[id];
+  }
+  if (spilled != geometry.size())
     return Status::Internal(geometry.path() + ": spill size does not match its entries");
+  auto offset_of = [&](ObjectId id) {
+    uint64_t at = spill_offset[id / kOffsetStride];
+    for (size_t j = id - id % kOffsetStride; j < id; ++j) at += entry_bytes[j];
+    return at;
+  };
   const uint64_t mem_page = options.store.params.mem_page();
   MKTree& tree = result.tree;
   tree.origin = report.origin;
@@ -314,7 +325,7 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
     uint64_t at = 0;
     for (uint64_t i = result.leaf_offsets[w->begin]; i < result.leaf_offsets[w->end]; ++i) {
       const ObjectId id = result.leaf_objects[i];
-      w->ranges.push_back({spill_offset[id], entry_bytes[id], w->bytes.data() + at});
+      w->ranges.push_back({offset_of(id), entry_bytes[id], w->bytes.data() + at});
       at += entry_bytes[id];
     }
     return geometry.ReadMany(&w->ranges);
@@ -366,8 +377,11 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
   if (!tree.IndexLeafFilter())
     return Status::Internal("leaf filter does not match the leaves' object counts");
   progress(IngestStage::kWritePages, tree.leaves.size(), tree.leaves.size());
-  spill_offset = {};
-  entry_bytes = {};
+  // Freed, not cleared (`v = {}` keeps the capacity), with the leaves' objects (leaf_of has them now):
+  // 16 bytes an object otherwise held through the object table and Commit, the write stage's peak.
+  std::vector<uint64_t>().swap(spill_offset);
+  std::vector<uint32_t>().swap(entry_bytes);
+  std::vector<ObjectId>().swap(result.leaf_objects);
 
   // 4. The object table and record pages, in id order, records streamed from their spill (read in large
   //    blocks), one at a time.
@@ -390,6 +404,7 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
     if (id % kProgressEvery == 0) progress(IngestStage::kWriteTable, id, report.objects);
   }
   progress(IngestStage::kWriteTable, report.objects, report.objects);
+  std::vector<uint32_t>().swap(leaf_of);
   MKTREE_RETURN_IF_ERROR(writer.Commit(std::move(tree), result.stats.ToJson()));
   report.write_seconds = Seconds(write_start);
 
