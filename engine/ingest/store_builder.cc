@@ -257,6 +257,17 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
   // so they are the prefix sums of the sizes, recomputed below.
   std::vector<uint32_t> entry_bytes(records.size());
   for (const BuildObject& r : records) entry_bytes[r.id] = r.encoded_bytes;
+  // They wait at the end of the record spill (past the records its cursor reads) while the tree is built:
+  // 4 bytes an object at that stage's peak.
+  const uint64_t sizes_at = records_spill.size();
+  constexpr size_t kBlock = 1 << 16;  // sizes an Append: the spill's buffer stays bounded
+  for (size_t i = 0; i < entry_bytes.size(); i += kBlock) {
+    const size_t count = std::min(kBlock, entry_bytes.size() - i);
+    if (auto st = records_spill.Append(entry_bytes.data() + i, count * sizeof(uint32_t)); !st.ok())
+      return st.status();
+  }
+  MKTREE_RETURN_IF_ERROR(records_spill.Flush());
+  std::vector<uint32_t>().swap(entry_bytes);
 
   // 2. The tree, from the records alone.
   const auto build_start = Clock::now();
@@ -269,6 +280,9 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
   report.tree_stats = result.stats;
   report.build_seconds = Seconds(build_start);
   progress(IngestStage::kBuildTree, 1, 1);
+  entry_bytes.resize(report.objects);
+  MKTREE_RETURN_IF_ERROR(
+      records_spill.ReadAt(sizes_at, entry_bytes.size() * sizeof(uint32_t), entry_bytes.data()));
 
   // 3. Leaf pages in leaf order, assembled from the spill a window of leaves at a time. The spill is in id
   //    order and leaves are not, so a leaf's entries are scattered: reading a window's entries together
