@@ -260,13 +260,13 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
   // They wait at the end of the record spill (past the records its cursor reads) while the tree is built:
   // 4 bytes an object at that stage's peak.
   const uint64_t sizes_at = records_spill.size();
-  constexpr size_t kBlock = 1 << 16;  // sizes an Append: the spill's buffer stays bounded
+  constexpr size_t kBlock = 1 << 16;  // sizes a write: the spill's buffer holds no copy of them all
   for (size_t i = 0; i < entry_bytes.size(); i += kBlock) {
     const size_t count = std::min(kBlock, entry_bytes.size() - i);
     if (auto st = records_spill.Append(entry_bytes.data() + i, count * sizeof(uint32_t)); !st.ok())
       return st.status();
+    MKTREE_RETURN_IF_ERROR(records_spill.Flush());
   }
-  MKTREE_RETURN_IF_ERROR(records_spill.Flush());
   std::vector<uint32_t>().swap(entry_bytes);
 
   // 2. The tree, from the records alone.
