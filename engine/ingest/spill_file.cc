@@ -67,13 +67,20 @@ Result<uint64_t> SpillFile::Append(const void* data, uint64_t size) {
   buffer_.insert(buffer_.end(), p, p + size);
   size_ += size;
   if (buffer_.size() >= kBufferBytes) {
-    Status st = Flush();
+    Status st = WriteBuffer();
     if (!st.ok()) return st;
   }
   return offset;
 }
 
 Status SpillFile::Flush() {
+  MKTREE_RETURN_IF_ERROR(WriteBuffer());
+  // Reading comes next: the buffer's pages (4-8 MiB) would otherwise stay through the tree build.
+  std::vector<uint8_t>().swap(buffer_);
+  return Status::Ok();
+}
+
+Status SpillFile::WriteBuffer() {
   size_t done = 0;
   while (done < buffer_.size()) {
     ssize_t n =

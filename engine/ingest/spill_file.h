@@ -25,7 +25,7 @@ class SpillFile {
 
   // Appends bytes (buffered); returns the offset they start at.
   Result<uint64_t> Append(const void* data, uint64_t size);
-  // Flushes what Append buffered; call before reading.
+  // Flushes what Append buffered and frees the buffer; call before reading.
   Status Flush();
   // Reads exactly `size` bytes at `offset` (after Flush).
   Status ReadAt(uint64_t offset, uint64_t size, void* out) const;
@@ -46,6 +46,7 @@ class SpillFile {
 
  private:
   SpillFile(int fd, std::string path) : fd_(fd), path_(std::move(path)) {}
+  Status WriteBuffer();  // writes out what Append buffered, keeping the buffer
   int fd_ = -1;
   std::string path_;
   std::vector<uint8_t> buffer_;

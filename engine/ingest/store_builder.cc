@@ -259,6 +259,17 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
   // so they are the prefix sums of the sizes, recomputed below.
   std::vector<uint32_t> entry_bytes(records.size());
   for (const BuildObject& r : records) entry_bytes[r.id] = r.encoded_bytes;
+  // They wait at the end of the record spill (past the records its cursor reads) while the tree is built:
+  // 4 bytes an object at that stage's peak.
+  const uint64_t sizes_at = records_spill.size();
+  constexpr size_t kBlock = 1 << 16;  // sizes a write: the spill's buffer holds no copy of them all
+  for (size_t i = 0; i < entry_bytes.size(); i += kBlock) {
+    const size_t count = std::min(kBlock, entry_bytes.size() - i);
+    if (auto st = records_spill.Append(entry_bytes.data() + i, count * sizeof(uint32_t)); !st.ok())
+      return st.status();
+    MKTREE_RETURN_IF_ERROR(records_spill.Flush());
+  }
+  std::vector<uint32_t>().swap(entry_bytes);
 
   // 2. The tree, from the records alone.
   const auto build_start = Clock::now();
@@ -271,17 +282,31 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
   report.tree_stats = result.stats;
   report.build_seconds = Seconds(build_start);
   progress(IngestStage::kBuildTree, 1, 1);
+  entry_bytes.resize(report.objects);
+  MKTREE_RETURN_IF_ERROR(
+      records_spill.ReadAt(sizes_at, entry_bytes.size() * sizeof(uint32_t), entry_bytes.data()));
 
   // 3. Leaf pages in leaf order, assembled from the spill a window of leaves at a time. The spill is in id
   //    order and leaves are not, so a leaf's entries are scattered: reading a window's entries together
   //    (sorted, neighbours gathered into one preadv) costs ~1 system call per run of nearby entries
   //    instead of one per entry (1M pread calls were ~1 s of a 1M-object build).
   const auto write_start = Clock::now();
-  std::vector<uint64_t> spill_offset(entry_bytes.size());
-  for (size_t id = 1; id < spill_offset.size(); ++id)
-    spill_offset[id] = spill_offset[id - 1] + entry_bytes[id - 1];
-  if (!spill_offset.empty() && spill_offset.back() + entry_bytes.back() != geometry.size())
+  // Every kOffsetStride-th offset is kept, the others summed from the sizes when read (8 bytes an object
+  // in the write stage's peak otherwise).
+  constexpr size_t kOffsetStride = 32;
+  std::vector<uint64_t> spill_offset((entry_bytes.size() + kOffsetStride - 1) / kOffsetStride);
+  uint64_t spilled = 0;
+  for (size_t id = 0; id < entry_bytes.size(); ++id) {
+    if (id % kOffsetStride == 0) spill_offset[id / kOffsetStride] = spilled;
+    spilled += entry_bytes[id];
+  }
+  if (spilled != geometry.size())
     return Status::Internal(geometry.path() + ": spill size does not match its entries");
+  auto offset_of = [&](ObjectId id) {
+    uint64_t at = spill_offset[id / kOffsetStride];
+    for (size_t j = id - id % kOffsetStride; j < id; ++j) at += entry_bytes[j];
+    return at;
+  };
   const uint64_t mem_page = options.store.params.mem_page();
   MKTree& tree = result.tree;
   tree.origin = report.origin;
@@ -316,7 +341,7 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
     uint64_t at = 0;
     for (uint64_t i = result.leaf_offsets[w->begin]; i < result.leaf_offsets[w->end]; ++i) {
       const ObjectId id = result.leaf_objects[i];
-      w->ranges.push_back({spill_offset[id], entry_bytes[id], w->bytes.data() + at});
+      w->ranges.push_back({offset_of(id), entry_bytes[id], w->bytes.data() + at});
       at += entry_bytes[id];
     }
     return geometry.ReadMany(&w->ranges);
@@ -368,8 +393,11 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
   if (!tree.IndexLeafFilter())
     return Status::Internal("leaf filter does not match the leaves' object counts");
   progress(IngestStage::kWritePages, tree.leaves.size(), tree.leaves.size());
-  spill_offset = {};
-  entry_bytes = {};
+  // Freed, not cleared (`v = {}` keeps the capacity), with the leaves' objects (leaf_of has them now):
+  // 16 bytes an object otherwise held through the object table and Commit, the write stage's peak.
+  std::vector<uint64_t>().swap(spill_offset);
+  std::vector<uint32_t>().swap(entry_bytes);
+  std::vector<ObjectId>().swap(result.leaf_objects);
 
   // 4. The object table and record pages, in id order, records streamed from their spill (read in large
   //    blocks), one at a time.
@@ -392,6 +420,7 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
     if (id % kProgressEvery == 0) progress(IngestStage::kWriteTable, id, report.objects);
   }
   progress(IngestStage::kWriteTable, report.objects, report.objects);
+  std::vector<uint32_t>().swap(leaf_of);
   MKTREE_RETURN_IF_ERROR(writer.Commit(std::move(tree), result.stats.ToJson()));
   report.write_seconds = Seconds(write_start);
 

@@ -14,9 +14,10 @@ void TrimHeap() {
 #endif
 }
 
-void DoneRanges::Init(uint32_t n, std::array<BuildVector<uint32_t>, 6>* lists) {
+void DoneRanges::Init(uint32_t n, std::array<BuildVector<uint32_t>, 6>* lists, ListSpill* spill) {
   if (size_t{n} * sizeof(uint32_t) < BuildAllocator<uint32_t>::kMapBytes) return;
   lists_ = lists;
+  spill_ = spill;
   n_ = n;
   const uint32_t chunks = (n + kChunk - 1) / kChunk;
   done_ = std::make_unique<std::atomic<uint32_t>[]>(chunks);
@@ -29,6 +30,7 @@ void DoneRanges::LeafDone(uint32_t lo, uint32_t hi) {
     const uint32_t start = c * kChunk, end = std::min(n_, start + kChunk);
     const uint32_t here = std::min(hi, end) - std::max(lo, start);
     if (done_[c].fetch_add(here, std::memory_order_acq_rel) + here != end - start) continue;
+    if (spill_ != nullptr) spill_->StoreAt(0, kDoneList0, start, end);
 #ifdef __linux__
     // Whole pages only: a chunk starts on a page (the lists are mapped), the last one ends in the
     // mapping's last page, which holds nothing else.

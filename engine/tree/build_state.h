@@ -18,19 +18,27 @@
 
 namespace mktree::build {
 
-// Gives back the pages of lists 1-5 over positions whose leaves are all built: nothing reads them again
-// (list 0 gives the leaves' objects at the end), and in DFS order the built leaves' positions fill whole
-// chunks long before the build ends, when the tree it has built adds to the peak. Thread-safe.
+// Gives back the pages of lists 1-5 over positions whose leaves are all built: nothing reads them again,
+// and in DFS order the built leaves' positions fill whole chunks long before the build ends, when the tree
+// it has built adds to the peak. List 0 gives the leaves' objects at the end: with a spill file its
+// chunks go there first (Finish reads them back once the records are freed). Thread-safe.
 class DoneRanges {
  public:
   static constexpr uint32_t kChunk = 1u << 14;  // positions: 64 KiB of each list
-  // Only for lists mapped on their own (BuildAllocator): n * 4 bytes of at least kMapBytes.
-  void Init(uint32_t n, std::array<BuildVector<uint32_t>, 6>* lists);
+  // Only for lists mapped on their own (BuildAllocator): n * 4 bytes of at least kMapBytes. `spill`:
+  // null, or the open spill file of these lists (list_spill.h).
+  void Init(uint32_t n, std::array<BuildVector<uint32_t>, 6>* lists, ListSpill* spill);
   // The leaf over positions [lo, hi) is built.
   void LeafDone(uint32_t lo, uint32_t hi);
+  // Where the spill file keeps list 0's built chunks (after the lists and the ids, so that the first
+  // chunk's write extends the file: SpillFailuresAreErrorsAndLeaveNothing fails it there).
+  static constexpr int kDoneList0 = 7;
+  // List 0 is in stretch kDoneList0 of the spill file, not in RAM (once every leaf is built).
+  bool list0_spilled() const { return done_ != nullptr && spill_ != nullptr; }
 
  private:
   std::array<BuildVector<uint32_t>, 6>* lists_ = nullptr;
+  ListSpill* spill_ = nullptr;
   uint32_t n_ = 0;
   std::unique_ptr<std::atomic<uint32_t>[]> done_;  // per chunk: positions built
 };

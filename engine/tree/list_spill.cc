@@ -47,8 +47,8 @@ Status ListSpill::Open(const std::string& dir, uint32_t n, std::array<BuildVecto
   return Status::Ok();
 }
 
-void ListSpill::Store(int l, uint32_t lo, uint32_t hi) {
-  Write(l, lo, hi, (*lists_)[l].data() + lo);
+void ListSpill::StoreAt(int l, int at, uint32_t lo, uint32_t hi) {
+  Write(at, lo, hi, (*lists_)[l].data() + lo);
   Evict(l, lo, hi);
 }
 

@@ -2,7 +2,9 @@
 // of more than BuildTuning::ram_node_objects objects live in a spill file, which the node's sweeps read one
 // list at a time into a window (SplitChooser::Range) and its list partitions write back. A node small
 // enough is loaded into the lists' own storage and built in RAM. The file holds list l's position p at
-// (l * n + p) * 4, as RAM does, so a node's range is one stretch of each list. Internal to engine/tree.
+// (l * n + p) * 4, as RAM does, so a node's range is one stretch of each list; after the six lists come
+// stretches 6 and 7 of n positions each, which BuildMKTree and DoneRanges (build_state.h) use: the ids and
+// the final list 0 wait there for Finish. Internal to engine/tree.
 #pragma once
 
 #include <array>
@@ -37,7 +39,9 @@ class ListSpill {
 
   // Writes list l's positions [lo, hi) from RAM to the file and gives their RAM back (whole pages inside
   // the range are unmapped, the rest zeroed: a read without Load finds zeros, never stale values).
-  void Store(int l, uint32_t lo, uint32_t hi);
+  void Store(int l, uint32_t lo, uint32_t hi) { StoreAt(l, l, lo, hi); }
+  // The same, into stretch `at` of the file (6 or 7: after the lists).
+  void StoreAt(int l, int at, uint32_t lo, uint32_t hi);
   // Reads list l's positions [lo, hi) from the file into RAM.
   void Load(int l, uint32_t lo, uint32_t hi) { Read(l, lo, hi, (*lists_)[l].data() + lo); }
   // List l's positions [lo, hi) from the file to `to` / from `from` to the file.

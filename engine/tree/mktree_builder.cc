@@ -21,6 +21,9 @@ namespace {
 
 // Below this many objects no node is spilled by default (BuildTuning::ram_node_objects).
 constexpr uint32_t kSpillMinObjects = 1u << 18;
+// Where the ids wait in the spill file during the nodes phase: the stretch after the six lists
+// (list_spill.h).
+constexpr int kSpilledIds = 6;
 
 uint64_t PeakRss() {
   rusage u{};
@@ -126,18 +129,29 @@ Result<BuildResult> BuildMKTree(std::vector<BuildObject> records, const BuildPar
   }
   SubtreeOut out;
   try {
+    // The ids are read only by Finish: with a spill file they wait there (after the six lists).
+    if (state.spill != nullptr) {
+      spill.Write(kSpilledIds, 0, n, ids.data());
+      BuildVector<ObjectId>().swap(ids);
+    }
     build::SortKeyOrders(rec.box, &state.lists, [&](int l) {
       if (state.spill != nullptr) state.spill->Store(l, 0, n);
     });
     build::TrimHeap();
     lap(&result.timings.sorts, &result.timings.peak_sorts);
     state.side.assign(n, 0);
-    state.done.Init(n, &state.lists);
+    state.done.Init(n, &state.lists, state.spill);
     uint64_t total_bytes = 0;
     for (uint32_t b : rec.bytes) total_bytes += b;
 
     result.timings.stitch = BuildNodes(&state, n, total_bytes, threads, &out);
     lap(&result.timings.nodes, &result.timings.peak_nodes);
+    // Back for Finish, now that the records are freed (BuildNodes).
+    if (state.spill != nullptr) {
+      ids.resize(n);
+      spill.Read(kSpilledIds, 0, n, ids.data());
+    }
+    if (state.done.list0_spilled()) spill.Read(build::DoneRanges::kDoneList0, 0, n, state.lists[0].data());
   } catch (const build::SpillError& e) {
     return Status::IOError(e.what());
   }

@@ -108,9 +108,10 @@ struct BuildTuning {
   // between its sweeps, which load one list (two on a cooperative root) at a time; smaller nodes are built
   // in RAM as before. The tree is the same whatever the budget. 0: N / 8 for N of at least 2^18 objects,
   // else no spill (kNoIndex: never). Contract: the peak is then at most about 60 bytes an object plus the
-  // process's fixed part (the records 28, ids 4, side flags 1, the root's sweeps about 16 of which 4 for
-  // the list loaded, the lists of the nodes in RAM at most 3, and the tree as it grows), and the file holds
-  // 24 bytes an object until the build returns. It has no name (list_spill.h), so nothing is left behind.
+  // process's fixed part (the records 28, side flags 1, the root's sweeps about 16 of which 4 for the list
+  // loaded, the lists of the nodes in RAM at most 3 a thread, and the tree as it grows; the ids and the
+  // built part of list 0 wait in the file), and the file holds 32 bytes an object until the build
+  // returns. It has no name (list_spill.h), so nothing is left behind.
   // "": $TMPDIR, else /tmp (BuildStore passes the directory of its own spill files).
   uint32_t ram_node_objects = 0;
   std::string spill_dir;

@@ -445,6 +445,41 @@ TEST(BuildMKTree, SpillFailuresAreErrorsAndLeaveNothing) {
   std::filesystem::remove_all(dir);
 }
 
+// A spill write that fails inside the node tasks, on a worker thread with two threads, fails the build
+// the same way. The limit lets the lists and the ids in; list 0's first built chunk, written by whichever
+// worker builds its last leaf (DoneRanges), is the first write past it.
+TEST(BuildMKTree, SpillFailureInANodeTaskIsAnError) {
+  const std::filesystem::path dir = FreshSpillDir("task");
+  const size_t n = 300000;  // lists of 262144 objects and more are mapped: DoneRanges works on them
+  auto recs = MakeScene(SceneKind::kShip, n, 9);
+  BuildTuning tuning;
+  tuning.ram_node_objects = 20000;
+  tuning.spill_dir = dir.string();
+  struct sigaction ignore {
+  }, old{};
+  ignore.sa_handler = SIG_IGN;
+  ASSERT_EQ(sigaction(SIGXFSZ, &ignore, &old), 0);
+  rlimit limit{}, saved{};
+  ASSERT_EQ(getrlimit(RLIMIT_FSIZE, &saved), 0);
+  limit = saved;
+  limit.rlim_cur = 7 * n * sizeof(uint32_t);  // six lists and the ids
+  ASSERT_EQ(setrlimit(RLIMIT_FSIZE, &limit), 0);
+  for (int threads : {1, 2}) {
+    SCOPED_TRACE("threads " + std::to_string(threads));
+    tuning.threads = threads;
+    auto r = BuildMKTree(recs, BuildParams(), tuning);
+    EXPECT_FALSE(r.ok());
+    if (!r.ok()) {
+      EXPECT_EQ(r.status().code(), Status::Code::kIOError);
+      EXPECT_NE(r.status().message().find(dir.string()), std::string::npos) << r.status().ToString();
+    }
+  }
+  setrlimit(RLIMIT_FSIZE, &saved);
+  sigaction(SIGXFSZ, &old, nullptr);
+  EXPECT_TRUE(DirEntries(dir).empty());
+  std::filesystem::remove_all(dir);
+}
+
 // Degenerate inputs that would make a quadratic step explode: they must complete quickly (no timing
 // assertion: the test time limit is the guard) and still be correct.
 TEST(BuildMKTree, DegenerateLargeInputsBuildFast) {
