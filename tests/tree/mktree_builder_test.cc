@@ -405,21 +405,10 @@ TEST(BuildMKTree, OutOfCoreLargeListsBuildTheSameTree) {
   }
 }
 
-// A spill file that cannot be written (here: past the file size limit) fails the build with an I/O error
-// naming it, on one thread and on two, and leaves nothing behind; so does a spill directory that is not.
-TEST(BuildMKTree, SpillFailuresAreErrorsAndLeaveNothing) {
-  const std::filesystem::path dir = FreshSpillDir("fail");
-  auto recs = MakeScene(SceneKind::kShip, 20000, 3);
-  BuildTuning tuning;
-  tuning.ram_node_objects = 100;
-  tuning.spill_dir = (dir / "missing").string();
-  auto missing = BuildMKTree(recs, BuildParams(), tuning);
-  ASSERT_FALSE(missing.ok());
-  EXPECT_EQ(missing.status().code(), Status::Code::kIOError);
-  EXPECT_NE(missing.status().message().find((dir / "missing").string()), std::string::npos)
-      << missing.status().ToString();
-
-  tuning.spill_dir = dir.string();
+// Builds `recs` on one and two threads with files limited to `limit` bytes: each build must fail with an
+// I/O error naming `dir` and leave nothing in it.
+void ExpectSpillFailsUnderFileLimit(const std::vector<BuildObject>& recs, BuildTuning tuning,
+                                    const std::filesystem::path& dir, rlim_t limit_bytes) {
   struct sigaction ignore {
   }, old{};
   ignore.sa_handler = SIG_IGN;
@@ -427,42 +416,7 @@ TEST(BuildMKTree, SpillFailuresAreErrorsAndLeaveNothing) {
   rlimit limit{}, saved{};
   ASSERT_EQ(getrlimit(RLIMIT_FSIZE, &saved), 0);
   limit = saved;
-  limit.rlim_cur = 64 * 1024;  // the lists take 6 x 20000 x 4 = 480 kB
-  ASSERT_EQ(setrlimit(RLIMIT_FSIZE, &limit), 0);
-  for (int threads : {1, 2}) {
-    tuning.threads = threads;
-    tuning.cooperative_root_objects = 1;
-    auto r = BuildMKTree(recs, BuildParams(), tuning);
-    EXPECT_FALSE(r.ok());
-    if (!r.ok()) {
-      EXPECT_EQ(r.status().code(), Status::Code::kIOError);
-      EXPECT_NE(r.status().message().find(dir.string()), std::string::npos) << r.status().ToString();
-    }
-  }
-  setrlimit(RLIMIT_FSIZE, &saved);
-  sigaction(SIGXFSZ, &old, nullptr);
-  EXPECT_TRUE(DirEntries(dir).empty());
-  std::filesystem::remove_all(dir);
-}
-
-// A spill write that fails inside the node tasks, on a worker thread with two threads, fails the build
-// the same way. The limit lets the lists and the ids in; list 0's first built chunk, written by whichever
-// worker builds its last leaf (DoneRanges), is the first write past it.
-TEST(BuildMKTree, SpillFailureInANodeTaskIsAnError) {
-  const std::filesystem::path dir = FreshSpillDir("task");
-  const size_t n = 300000;  // lists of 262144 objects and more are mapped: DoneRanges works on them
-  auto recs = MakeScene(SceneKind::kShip, n, 9);
-  BuildTuning tuning;
-  tuning.ram_node_objects = 20000;
-  tuning.spill_dir = dir.string();
-  struct sigaction ignore {
-  }, old{};
-  ignore.sa_handler = SIG_IGN;
-  ASSERT_EQ(sigaction(SIGXFSZ, &ignore, &old), 0);
-  rlimit limit{}, saved{};
-  ASSERT_EQ(getrlimit(RLIMIT_FSIZE, &saved), 0);
-  limit = saved;
-  limit.rlim_cur = 7 * n * sizeof(uint32_t);  // six lists and the ids
+  limit.rlim_cur = limit_bytes;
   ASSERT_EQ(setrlimit(RLIMIT_FSIZE, &limit), 0);
   for (int threads : {1, 2}) {
     SCOPED_TRACE("threads " + std::to_string(threads));
@@ -478,6 +432,38 @@ TEST(BuildMKTree, SpillFailureInANodeTaskIsAnError) {
   sigaction(SIGXFSZ, &old, nullptr);
   EXPECT_TRUE(DirEntries(dir).empty());
   std::filesystem::remove_all(dir);
+}
+
+// A spill file that cannot be written (here: past the file size limit) fails the build with an I/O error
+// naming it, on one thread and on two, and leaves nothing behind; so does a spill directory that is not.
+TEST(BuildMKTree, SpillFailuresAreErrorsAndLeaveNothing) {
+  const std::filesystem::path dir = FreshSpillDir("fail");
+  auto recs = MakeScene(SceneKind::kShip, 20000, 3);
+  BuildTuning tuning;
+  tuning.ram_node_objects = 100;
+  tuning.spill_dir = (dir / "missing").string();
+  auto missing = BuildMKTree(recs, BuildParams(), tuning);
+  ASSERT_FALSE(missing.ok());
+  EXPECT_EQ(missing.status().code(), Status::Code::kIOError);
+  EXPECT_NE(missing.status().message().find((dir / "missing").string()), std::string::npos)
+      << missing.status().ToString();
+
+  tuning.spill_dir = dir.string();
+  tuning.cooperative_root_objects = 1;
+  ExpectSpillFailsUnderFileLimit(recs, tuning, dir, 64 * 1024);  // the lists take 6 x 20000 x 4 = 480 kB
+}
+
+// A spill write that fails inside the node tasks, on a worker thread with two threads, fails the build
+// the same way. The limit lets the lists and the ids in; list 0's first built chunk, written by whichever
+// worker builds its last leaf (DoneRanges), is the first write past it.
+TEST(BuildMKTree, SpillFailureInANodeTaskIsAnError) {
+  const std::filesystem::path dir = FreshSpillDir("task");
+  const size_t n = 300000;  // lists of 262144 objects and more are mapped: DoneRanges works on them
+  auto recs = MakeScene(SceneKind::kShip, n, 9);
+  BuildTuning tuning;
+  tuning.ram_node_objects = 20000;
+  tuning.spill_dir = dir.string();
+  ExpectSpillFailsUnderFileLimit(recs, tuning, dir, 7 * n * sizeof(uint32_t));  // six lists and the ids
 }
 
 // Degenerate inputs that would make a quadratic step explode: they must complete quickly (no timing
