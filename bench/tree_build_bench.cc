@@ -17,8 +17,7 @@
 //                    objects (uniform, gridded with many ties, clustered with long objects, all identical at
 //                    +-0) under random BuildParams / BuildTuning (r, page size, fill slack, fill pages, kSoa,
 //                    axis ratio 0), so that a change meant to keep the tree (a speed-up) is checked beyond
-//                    the default tuning of the workloads above. Hash 2b8f318b586d54fc (the same from cbcf6d9
-//                    on)
+//                    the default tuning of the workloads above (its hash: bench/README.md, tree_build_bench)
 //   random_tunings_spilled  (only when named) the same 400 builds with the out-of-core top levels forced
 //                    (BuildTuning::ram_node_objects 1 to 400): the same hash as random_tunings
 // Usage: tree_build_bench [workload...]   (default: all of them)
