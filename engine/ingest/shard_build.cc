@@ -110,6 +110,11 @@ std::unique_ptr<SceneSource> ChainInputs(const std::vector<SceneOpener>& inputs)
   return std::make_unique<AllInputs>(inputs);
 }
 
+std::unique_ptr<SceneSource> ShardObjectsOf(std::unique_ptr<SceneSource> all, const TopLevels& top,
+                                            uint32_t shard) {
+  return std::make_unique<FilterShard>(std::move(all), top, shard);
+}
+
 Result<ShardScan> ScanPart(SceneSource* part, const IngestOptions& options) {
   ShardScan scan;
   SceneObject obj;
@@ -161,9 +166,7 @@ Result<ShardEntry> BuildShard(const std::vector<SceneOpener>& inputs, const std:
                               const Manifest& m, uint32_t s, const IngestOptions& options,
                               IngestReport* report) {
   return BuildShardFrom(
-      [&]() -> Result<std::unique_ptr<SceneSource>> {
-        return std::unique_ptr<SceneSource>(std::make_unique<FilterShard>(ChainInputs(inputs), m.top, s));
-      },
+      [&]() -> Result<std::unique_ptr<SceneSource>> { return ShardObjectsOf(ChainInputs(inputs), m.top, s); },
       manifest_path, m, s, options, report);
 }
 

@@ -114,25 +114,6 @@ class EmptySource final : public SceneSource {
   Result<bool> Next(SceneObject*) override { return false; }
 };
 
-// The objects of `part` that route to `shard`, in order.
-class OwnShardObjects final : public SceneSource {
- public:
-  OwnShardObjects(std::unique_ptr<SceneSource> part, const TopLevels& top, uint32_t shard)
-      : part_(std::move(part)), top_(top), shard_(shard) {}
-  Result<bool> Next(SceneObject* out) override {
-    for (;;) {
-      MKTREE_ASSIGN_OR_RETURN(const bool more, part_->Next(out));
-      if (!more) return false;
-      if (top_.ShardOf(out->mesh.Bounds()) == shard_) return true;
-    }
-  }
-
- private:
-  std::unique_ptr<SceneSource> part_;
-  const TopLevels& top_;
-  uint32_t shard_;
-};
-
 // The wire and spill encoding of an object: u32 id, name, source, u32 attribute count, (key, value)...,
 // u32 vertex count, f64 xyz..., u32 triangle count, u32 abc... (strings: u32 length, bytes). World
 // coordinates in float64, so the receiver's store is bit for bit the one a single process builds.
@@ -507,9 +488,8 @@ int RunBuild(int argc, char** argv, int rank, int ranks) {
     std::vector<ShardObjects> streams;
     for (int from = 0; from < ranks; ++from) {
       if (from == rank) {
-        streams.push_back([&, s]() -> Result<std::unique_ptr<SceneSource>> {
-          return std::unique_ptr<SceneSource>(std::make_unique<OwnShardObjects>(part(), m.top, s));
-        });
+        streams.push_back(
+            [&, s]() -> Result<std::unique_ptr<SceneSource>> { return ShardObjectsOf(part(), m.top, s); });
       } else if (std::filesystem::exists(SpillPath(a.output, s, from))) {
         streams.push_back([path = SpillPath(a.output, s, from)] { return SpillSource::Open(path); });
       }
