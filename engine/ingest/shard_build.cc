@@ -1,10 +1,16 @@
 #include "engine/ingest/shard_build.h"
 
+#include <fcntl.h>
+#include <sys/file.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <chrono>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <random>
+#include <string_view>
 
 #include "engine/store/store_file.h"
 
@@ -100,6 +106,69 @@ Status Rename(const std::string& from, const std::string& to) {
 }
 
 }  // namespace
+
+Result<std::unique_ptr<ShardBuildLock>> ShardBuildLock::Acquire(const std::string& manifest_path) {
+  const std::string path = manifest_path + ".build-lock";
+  // A releasing build unlinks the file; if we locked a file that has just been unlinked, retry.
+  for (int attempt = 0; attempt < 8; ++attempt) {
+    const int fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, 0644);
+    if (fd < 0) return Status::IOError(path + ": create lock file: " + std::strerror(errno));
+    if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
+      const int err = errno;
+      ::close(fd);
+      if (err == EWOULDBLOCK)
+        return Status::IOError(manifest_path + ": another build of this sharded store is running (lock " +
+                               path + " is held)");
+      return Status::IOError(path + ": lock: " + std::strerror(err));
+    }
+    struct stat a {
+    }, b{};
+    if (::fstat(fd, &a) == 0 && ::stat(path.c_str(), &b) == 0 && a.st_ino == b.st_ino && a.st_dev == b.st_dev)
+      return std::unique_ptr<ShardBuildLock>(new ShardBuildLock(path, fd));
+    ::close(fd);
+  }
+  return Status::IOError(path + ": lock file keeps being replaced");
+}
+
+ShardBuildLock::~ShardBuildLock() {
+  ::unlink(path_.c_str());  // while still locked: a waiting build retries on the unlinked file
+  ::close(fd_);
+}
+
+size_t RemoveShardLeftovers(const std::string& manifest_path) {
+  namespace fs = std::filesystem;
+  const fs::path m(manifest_path);
+  const fs::path dir = m.has_parent_path() ? m.parent_path() : fs::path(".");
+  const std::string prefix = m.filename().string() + ".shard-";
+  auto digits = [](std::string_view s) {
+    return !s.empty() && s.find_first_not_of("0123456789") == std::string_view::npos;
+  };
+  // What follows "<manifest>.shard-N.": a staged file, its temporary or store lock, or a spill.
+  auto leftover = [&](std::string_view rest) {
+    for (std::string_view staged : {"mkt.new", "ids.new"}) {
+      if (rest.substr(0, staged.size()) != staged) continue;
+      const std::string_view tail = rest.substr(staged.size());
+      if (tail.empty() || tail == ".lock" || (tail.substr(0, 5) == ".tmp." && digits(tail.substr(5))))
+        return true;
+    }
+    return rest.substr(0, 9) == "mkt.from-" && rest.size() > 13 && rest.substr(rest.size() - 4) == ".new" &&
+           digits(rest.substr(9, rest.size() - 13));
+  };
+  size_t removed = 0;
+  std::error_code ec;
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (name.size() <= prefix.size() || name.compare(0, prefix.size(), prefix) != 0) continue;
+    const std::string_view rest = std::string_view(name).substr(prefix.size());
+    const size_t dot = rest.find('.');
+    if (dot == std::string_view::npos || !digits(rest.substr(0, dot)) || !leftover(rest.substr(dot + 1)))
+      continue;
+    std::error_code type_ec;
+    if (!it->is_symlink(type_ec) && !it->is_regular_file(type_ec)) continue;  // not a file a build made
+    if (::unlink(it->path().c_str()) == 0) ++removed;
+  }
+  return removed;
+}
 
 uint64_t NewBuildId() {
   return std::random_device{}() ^ (uint64_t{std::random_device{}()} << 32) ^
@@ -220,6 +289,9 @@ Result<ShardedBuildReport> BuildShardedStore(const std::vector<SceneOpener>& inp
   if (manifest_path.empty()) return Status::InvalidArgument("the store path is empty");
   if (std::filesystem::is_directory(manifest_path))
     return Status::InvalidArgument(manifest_path + ": not a regular file");
+  // Before anything is staged: what killed builds of this path left is removed under the lock.
+  MKTREE_ASSIGN_OR_RETURN(const std::unique_ptr<ShardBuildLock> lock, ShardBuildLock::Acquire(manifest_path));
+  RemoveShardLeftovers(manifest_path);
 
   // 1. The sample and the scene's frame, in one pass.
   Manifest& m = report.manifest;

@@ -9,6 +9,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -59,6 +60,26 @@ Result<ShardEntry> BuildShardFrom(const ShardObjects& objects, const std::string
 // 3. Shard s's staged files renamed into place, or removed.
 Status PublishShard(const std::string& manifest_path, uint32_t s);
 void DiscardShard(const std::string& manifest_path, uint32_t s);
+// The lock of a sharded build of one manifest path, held for the whole build (in mktree-mpi by rank 0): an
+// flock(2) on "<manifest>.build-lock", which the kernel drops when the holder dies; the file is removed on
+// release. Acquire fails with IOError naming the manifest while a live build holds it.
+class ShardBuildLock {
+ public:
+  static Result<std::unique_ptr<ShardBuildLock>> Acquire(const std::string& manifest_path);
+  ~ShardBuildLock();
+  ShardBuildLock(const ShardBuildLock&) = delete;
+  ShardBuildLock& operator=(const ShardBuildLock&) = delete;
+
+ private:
+  ShardBuildLock(std::string path, int fd) : path_(std::move(path)), fd_(fd) {}
+  std::string path_;
+  int fd_;
+};
+// With the lock held, so that they can only be a dead build's: removes the staging files killed builds of
+// manifest_path left, "<manifest>.shard-N.mkt.new" and ".ids.new", their temporaries (".tmp.PID") and
+// store locks (".lock"), and exchanged objects "<manifest>.shard-N.mkt.from-R.new". Regular files only
+// (and links); returns how many it removed.
+size_t RemoveShardLeftovers(const std::string& manifest_path);
 // Any 64-bit value that differs between builds.
 uint64_t NewBuildId();
 

@@ -4,6 +4,7 @@
 #include <unistd.h>
 #include <xxhash.h>
 
+#include <algorithm>
 #include <bit>
 #include <cerrno>
 #include <cmath>
@@ -79,13 +80,16 @@ void LoadArray(const uint8_t* p, size_t count, std::vector<T>* out) {
 
 class MkSceneSource final : public SceneSource {
  public:
-  MkSceneSource(std::string path, std::FILE* file, uint64_t file_size, ObjectId first_id, uint32_t version)
+  MkSceneSource(std::string path, std::FILE* file, uint64_t file_size, ObjectId first_id, uint32_t version,
+                uint64_t begin = kHeaderBytes, uint64_t first_index = 0, uint64_t limit = UINT64_MAX)
       : path_(std::move(path)),
         file_(file),
         file_size_(file_size),
         first_id_(first_id),
         coordinate_bytes_(version == 1 ? 4 : 8),
-        offset_(kHeaderBytes) {}
+        offset_(begin),
+        first_index_(first_index),
+        limit_(limit) {}
   ~MkSceneSource() override { std::fclose(file_); }
 
   Result<bool> Next(SceneObject* out) override {
@@ -98,7 +102,7 @@ class MkSceneSource final : public SceneSource {
 
  private:
   Status Corrupt(const std::string& what) const {
-    return Status::Corruption(path_ + ": object " + std::to_string(objects_) + " (offset " +
+    return Status::Corruption(path_ + ": object " + std::to_string(first_index_ + objects_) + " (offset " +
                               std::to_string(offset_) + "): " + what);
   }
 
@@ -121,6 +125,10 @@ class MkSceneSource final : public SceneSource {
 
   Result<bool> ReadRecord(SceneObject* out) {
     record_.clear();
+    if (objects_ == limit_) {  // a part (OpenMkScenePart): the end record was checked by ReadMkSceneLayout
+      done_ = true;
+      return false;
+    }
     if (file_size_ == offset_) return Corrupt("truncated: end record missing");
     MKTREE_RETURN_IF_ERROR(Read(4));
     const uint32_t tag = Load<uint32_t>(record_.data());
@@ -184,6 +192,8 @@ class MkSceneSource final : public SceneSource {
   const ObjectId first_id_;
   const uint64_t coordinate_bytes_;  // 4 (version 1) or 8
   uint64_t offset_;                  // file offset of the current record
+  const uint64_t first_index_;       // the file's index of the first record read
+  const uint64_t limit_;             // records to read (a part), or UINT64_MAX: to the end record
   uint64_t objects_ = 0;             // records read so far
   bool done_ = false;
   bool failed_ = false;
@@ -193,7 +203,16 @@ class MkSceneSource final : public SceneSource {
 
 }  // namespace
 
-Result<std::unique_ptr<SceneSource>> OpenMkSceneFile(const std::string& path, ObjectId first_id) {
+namespace {
+
+struct OpenedScene {
+  std::FILE* file = nullptr;
+  uint64_t size = 0;
+  uint32_t version = 0;
+};
+
+// Opens an .mks file and checks its header; the stream is left just after it.
+Result<OpenedScene> OpenScene(const std::string& path) {
   auto fd = OpenSceneInput(path);
   if (!fd.ok()) return fd.status();
   std::FILE* f = ::fdopen(*fd, "rb");
@@ -223,8 +242,192 @@ Result<std::unique_ptr<SceneSource>> OpenMkSceneFile(const std::string& path, Ob
     std::fclose(f);
     return bad;
   }
+  return OpenedScene{f, static_cast<uint64_t>(st.st_size), Load<uint32_t>(header + 8)};
+}
+
+// Positional reads through a window of the file: walking small records reads each byte once, a large
+// record is skipped.
+class WindowReader {
+ public:
+  static constexpr size_t kWindow = size_t{1} << 20;
+  WindowReader(const std::string& path, std::FILE* f, uint64_t size) : path_(path), f_(f), size_(size) {}
+  ~WindowReader() { std::fclose(f_); }
+  // n <= kWindow bytes at `offset`, valid until the next call.
+  Result<const uint8_t*> At(uint64_t offset, size_t n) {
+    if (offset < begin_ || offset + n > begin_ + buf_.size()) {
+      if (offset > size_ || n > size_ - offset)
+        return Status::Corruption(path_ + ": truncated at offset " + std::to_string(offset));
+      buf_.resize(std::max<uint64_t>(n, std::min<uint64_t>(kWindow, size_ - offset)));
+      begin_ = offset;
+      for (size_t got = 0; got < buf_.size();) {
+        const ssize_t r =
+            ::pread(::fileno(f_), buf_.data() + got, buf_.size() - got, static_cast<off_t>(offset + got));
+        if (r < 0 && errno == EINTR) continue;
+        if (r <= 0)
+          return Status::IOError(path_ + ": read failed at offset " + std::to_string(offset + got) +
+                                 (r < 0 ? ": " + ErrnoText() : ": file shrank"));
+        got += static_cast<size_t>(r);
+      }
+    }
+    return buf_.data() + (offset - begin_);
+  }
+
+ private:
+  const std::string& path_;
+  std::FILE* f_;
+  uint64_t size_;
+  uint64_t begin_ = 0;
+  std::vector<uint8_t> buf_;
+};
+
+// The size of the record at `p` from its header, or 0 when it is not an object record (wrong tag, or
+// lengths that run past `limit`).
+Result<uint64_t> RecordBytes(WindowReader& r, uint64_t p, uint64_t limit, uint64_t coordinate_bytes) {
+  if (limit - p < 16 + 8) return uint64_t{0};
+  MKTREE_ASSIGN_OR_RETURN(const uint8_t* h, r.At(p, 8));
+  if (Load<uint32_t>(h) != kObjectTag) return uint64_t{0};
+  const uint64_t name_bytes = Load<uint32_t>(h + 4);
+  if (limit - p < 16 + 8 + name_bytes) return uint64_t{0};
+  MKTREE_ASSIGN_OR_RETURN(const uint8_t* c, r.At(p + 8 + name_bytes, 8));
+  const uint64_t bytes =
+      24 + name_bytes + 3 * coordinate_bytes * Load<uint32_t>(c) + 12 * uint64_t{Load<uint32_t>(c + 4)};
+  return bytes <= limit - p ? bytes : 0;
+}
+
+}  // namespace
+
+Result<std::unique_ptr<SceneSource>> OpenMkSceneFile(const std::string& path, ObjectId first_id) {
+  MKTREE_ASSIGN_OR_RETURN(OpenedScene o, OpenScene(path));
+  return std::unique_ptr<SceneSource>(
+      std::make_unique<MkSceneSource>(path, o.file, o.size, first_id, o.version));
+}
+
+Result<MkSceneLayout> ReadMkSceneLayout(const std::string& path) {
+  MKTREE_ASSIGN_OR_RETURN(OpenedScene o, OpenScene(path));
+  WindowReader r(path, o.file, o.size);
+  MkSceneLayout l;
+  l.file_size = o.size;
+  l.version = o.version;
+  l.body_begin = kHeaderBytes;
+  if (o.size < kHeaderBytes + kEndBytes) return Status::Corruption(path + ": truncated: end record missing");
+  l.body_end = o.size - kEndBytes;
+  MKTREE_ASSIGN_OR_RETURN(const uint8_t* e, r.At(l.body_end, kEndBytes));
+  auto bad = [&](const std::string& what) {
+    return Status::Corruption(path + ": end record (offset " + std::to_string(l.body_end) + "): " + what);
+  };
+  if (Load<uint32_t>(e) != kEndTag) return bad("missing (bad tag): truncated or damaged");
+  if (XXH3_64bits(e, 16) != Load<uint64_t>(e + 16)) return bad("checksum mismatch");
+  l.objects = Load<uint64_t>(e + 8);
+  return l;
+}
+
+Result<MkScenePart> FindMkScenePart(const std::string& path, const MkSceneLayout& layout,
+                                    uint64_t range_begin, uint64_t range_end) {
+  MKTREE_ASSIGN_OR_RETURN(OpenedScene o, OpenScene(path));
+  WindowReader r(path, o.file, o.size);
+  const uint64_t cb = layout.version == 1 ? 4 : 8, limit = layout.body_end;
+  const uint64_t lo = std::max(range_begin, layout.body_begin), hi = std::min(range_end, limit);
+  MkScenePart part;
+  if (lo >= hi) return part;
+  // The walk: record after record by their headers, to the first one at or past the range's end; 0 when
+  // a header is not a record's.
+  auto walk = [&](uint64_t p, uint64_t* objects) -> Result<uint64_t> {
+    for (*objects = 0; p < hi; ++*objects) {
+      MKTREE_ASSIGN_OR_RETURN(const uint64_t bytes, RecordBytes(r, p, limit, cb));
+      if (bytes == 0) return uint64_t{0};
+      p += bytes;
+    }
+    return p;
+  };
+  if (lo == layout.body_begin) {
+    MKTREE_ASSIGN_OR_RETURN(part.end, walk(lo, &part.objects));
+    if (part.end == 0)
+      return Status::Corruption(path + ": the records from offset " + std::to_string(lo) +
+                                " do not chain: a bad tag or lengths past the end record");
+    part.found = true;
+    part.begin = lo;
+    return part;
+  }
+  // Resync: the first offset in [lo, hi) holding a tag whose record fits and checks out, and from which
+  // the walk reaches the range's end (a forged record inside a name is followed by no record).
+  for (uint64_t pos = lo; pos < hi;) {
+    const size_t m = static_cast<size_t>(std::min<uint64_t>(WindowReader::kWindow, limit - pos));
+    if (m < 4) break;
+    MKTREE_ASSIGN_OR_RETURN(const uint8_t* d, r.At(pos, m));
+    const void* q = ::memmem(d, m, "MKOB", 4);
+    if (!q) {
+      pos += m - 3;
+      continue;
+    }
+    const uint64_t c = pos + static_cast<uint64_t>(static_cast<const uint8_t*>(q) - d);
+    if (c >= hi) break;
+    pos = c + 1;
+    MKTREE_ASSIGN_OR_RETURN(const uint64_t bytes, RecordBytes(r, c, limit, cb));
+    if (bytes == 0) continue;
+    XXH3_state_t* state = XXH3_createState();
+    XXH3_64bits_reset(state);
+    Status st;
+    for (uint64_t at = c; at < c + bytes - 8 && st.ok();) {
+      const size_t n = static_cast<size_t>(std::min<uint64_t>(WindowReader::kWindow, c + bytes - 8 - at));
+      auto chunk = r.At(at, n);
+      if (!chunk.ok())
+        st = chunk.status();
+      else
+        XXH3_64bits_update(state, *chunk, n);
+      at += n;
+    }
+    const uint64_t sum = XXH3_64bits_digest(state);
+    XXH3_freeState(state);
+    MKTREE_RETURN_IF_ERROR(st);
+    MKTREE_ASSIGN_OR_RETURN(const uint8_t* stored, r.At(c + bytes - 8, 8));
+    if (sum != Load<uint64_t>(stored)) continue;
+    MKTREE_ASSIGN_OR_RETURN(part.end, walk(c, &part.objects));
+    if (part.end == 0) continue;
+    part.found = true;
+    part.begin = c;
+    return part;
+  }
+  part.objects = 0;
+  return part;
+}
+
+Status CheckMkSceneParts(const std::string& path, const MkSceneLayout& layout,
+                         const std::vector<uint64_t>& range_begins, const std::vector<MkScenePart>& parts) {
+  uint64_t expected = layout.body_begin, objects = 0;
+  for (size_t i = 0; i < parts.size(); ++i) {
+    const uint64_t hi =
+        std::min(i + 1 < range_begins.size() ? range_begins[i + 1] : layout.body_end, layout.body_end);
+    if (parts[i].found) {
+      if (parts[i].begin != expected)
+        return Status::Corruption(path + ": the records do not chain: one ends at offset " +
+                                  std::to_string(expected) + ", a part was found to start at " +
+                                  std::to_string(parts[i].begin));
+      expected = parts[i].end;
+      objects += parts[i].objects;
+    } else if (expected < hi) {
+      return Status::Corruption(path + ": no record found where one starts, at offset " +
+                                std::to_string(expected));
+    }
+  }
+  if (expected != layout.body_end || objects != layout.objects)
+    return Status::Corruption(path + ": the records end at offset " + std::to_string(expected) + " with " +
+                              std::to_string(objects) + " objects; the end record is at " +
+                              std::to_string(layout.body_end) + " and says " +
+                              std::to_string(layout.objects));
+  return Status::Ok();
+}
+
+Result<std::unique_ptr<SceneSource>> OpenMkScenePart(const std::string& path, const MkSceneLayout& layout,
+                                                     const MkScenePart& part, uint64_t first_index,
+                                                     ObjectId first_id) {
+  MKTREE_ASSIGN_OR_RETURN(OpenedScene o, OpenScene(path));
+  const uint64_t begin = part.found ? part.begin : layout.body_begin;
+  if (::fseeko(o.file, static_cast<off_t>(begin), SEEK_SET) != 0) {
+    std::fclose(o.file);
+    return Status::IOError(path + ": seek to " + std::to_string(begin) + ": " + ErrnoText());
+  }
   return std::unique_ptr<SceneSource>(std::make_unique<MkSceneSource>(
-      path, f, static_cast<uint64_t>(st.st_size), first_id, Load<uint32_t>(header + 8)));
+      path, o.file, o.size, first_id, o.version, begin, first_index, part.found ? part.objects : 0));
 }
 
 MkSceneWriter::MkSceneWriter(std::string path, std::unique_ptr<AtomicFile> file)

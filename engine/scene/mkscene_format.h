@@ -40,6 +40,41 @@ namespace mktree {
 // Thread-safety: a source is used by one thread at a time.
 Result<std::unique_ptr<SceneSource>> OpenMkSceneFile(const std::string& path, ObjectId first_id = 0);
 
+// Reading an .mks file in byte ranges, each by its own process (mktree-mpi): a part holds the records whose
+// first byte lies in its range. FindMkScenePart finds the first by resync (the tag "MKOB" at any offset,
+// accepted only when the record's lengths fit the file and its XXH3-64 matches) and walks the record
+// headers to the first record at or past the range's end, counting. A byte pattern inside a record can
+// fool the resync only with a matching 64-bit checksum; CheckMkSceneParts proves the parts anyway: the
+// first part starts at the header, so each part's end, walked from a true record, is the next part's true
+// begin, and the last must reach the end record with its object count.
+struct MkSceneLayout {
+  uint64_t file_size = 0;
+  uint64_t body_begin = 0;  // the first record
+  uint64_t body_end = 0;    // the end record
+  uint64_t objects = 0;     // the end record's count
+  uint32_t version = 0;
+};
+// Reads the header and the end record (verified). Errors name the file.
+Result<MkSceneLayout> ReadMkSceneLayout(const std::string& path);
+struct MkScenePart {
+  bool found = false;    // a record starts in the range
+  uint64_t begin = 0;    // that record's offset
+  uint64_t end = 0;      // the first record at or past the range's end (body_end when none)
+  uint64_t objects = 0;  // records from begin to end
+};
+// The part of [range_begin, range_end) (clamped to the body); range_begin == body_begin needs no resync.
+Result<MkScenePart> FindMkScenePart(const std::string& path, const MkSceneLayout& layout,
+                                    uint64_t range_begin, uint64_t range_end);
+// Whether parts found for consecutive ranges covering the body chain into the whole file: Corruption
+// naming the file and the offset where they do not.
+Status CheckMkSceneParts(const std::string& path, const MkSceneLayout& layout,
+                         const std::vector<uint64_t>& range_begins, const std::vector<MkScenePart>& parts);
+// Streams a part's records (each verified as OpenMkSceneFile does); the first gets id first_id and is
+// named in errors as object `first_index` of the file.
+Result<std::unique_ptr<SceneSource>> OpenMkScenePart(const std::string& path, const MkSceneLayout& layout,
+                                                     const MkScenePart& part, uint64_t first_index,
+                                                     ObjectId first_id);
+
 // Streams objects into an .mks file. The file is an AtomicFile (storage/atomic_file.h): written as
 // `<path>.tmp.<pid>`, which Finish() makes durable and renames onto `path`, so an interrupted run leaves no
 // partial scene; the destructor removes the temporary if Finish() was not reached. Thread-safety: one thread

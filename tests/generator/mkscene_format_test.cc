@@ -258,5 +258,137 @@ TEST_F(MkSceneFormatTest, UnfinishedWriterLeavesNoFile) {
   EXPECT_FALSE(MkSceneWriter::Create((dir_ / "no_such_dir" / "x.mks").string()).ok());
 }
 
+// The objects of a part, read as mktree-mpi reads them; the first error fails the test.
+std::vector<SceneObject> ReadPart(const std::string& path, const MkSceneLayout& l, const MkScenePart& p,
+                                  uint64_t first) {
+  auto source = OpenMkScenePart(path, l, p, first, static_cast<ObjectId>(first));
+  EXPECT_TRUE(source.ok()) << source.status().ToString();
+  return source.ok() ? Drain(source->get()) : std::vector<SceneObject>{};
+}
+
+TEST_F(MkSceneFormatTest, PartsCutAtEveryByteChainAndReadAsTheWhole) {
+  const std::string path = dir_ / "scene.mks";
+  const std::vector<SceneObject> objects = WriteTanker(path, 6);
+  auto layout = ReadMkSceneLayout(path);
+  ASSERT_TRUE(layout.ok()) << layout.status().ToString();
+  EXPECT_EQ(layout->objects, 6u);
+  EXPECT_EQ(layout->body_end + 24, fs::file_size(path));
+  // Two parts cut at every byte of the body, and three parts at a stride.
+  for (uint64_t cut = layout->body_begin; cut <= layout->body_end; ++cut) {
+    std::vector<uint64_t> begins = {layout->body_begin, cut};
+    std::vector<MkScenePart> parts;
+    for (size_t i = 0; i < 2; ++i) {
+      auto p = FindMkScenePart(path, *layout, begins[i], i ? layout->body_end : cut);
+      ASSERT_TRUE(p.ok()) << p.status().ToString();
+      parts.push_back(*p);
+    }
+    ASSERT_TRUE(CheckMkSceneParts(path, *layout, begins, parts).ok()) << cut;
+    std::vector<SceneObject> got = ReadPart(path, *layout, parts[0], 0);
+    for (SceneObject& o : ReadPart(path, *layout, parts[1], parts[0].objects)) got.push_back(std::move(o));
+    ASSERT_EQ(got.size(), objects.size()) << cut;
+    for (size_t i = 0; i < got.size(); ++i) {
+      EXPECT_EQ(got[i].id, i);
+      EXPECT_EQ(got[i].name, objects[i].name);
+      EXPECT_EQ(got[i].mesh.vertices, objects[i].mesh.vertices);
+      EXPECT_EQ(got[i].mesh.triangles, objects[i].mesh.triangles);
+    }
+  }
+  const uint64_t body = layout->body_end - layout->body_begin;
+  for (uint64_t r : {3u, 5u, 17u}) {
+    std::vector<uint64_t> begins;
+    std::vector<MkScenePart> parts;
+    uint64_t sum = 0;
+    for (uint64_t q = 0; q < r; ++q) begins.push_back(layout->body_begin + body * q / r);
+    for (uint64_t q = 0; q < r; ++q) {
+      auto p = FindMkScenePart(path, *layout, begins[q], q + 1 < r ? begins[q + 1] : layout->body_end);
+      ASSERT_TRUE(p.ok());
+      parts.push_back(*p);
+      sum += p->objects;
+    }
+    EXPECT_TRUE(CheckMkSceneParts(path, *layout, begins, parts).ok());
+    EXPECT_EQ(sum, 6u);
+  }
+}
+
+TEST_F(MkSceneFormatTest, ARecordForgedInsideANameIsCaughtByTheChain) {
+  // A whole valid record (its checksum right) as the name of object 1: a resync inside the name accepts it,
+  // and the parts then do not chain.
+  const std::string inner = dir_ / "inner.mks";
+  WriteTanker(inner, 1);
+  const std::string bytes = Slurp(inner);
+  const std::string forged = bytes.substr(16, bytes.size() - 16 - 24);
+  const std::string path = dir_ / "scene.mks";
+  std::vector<SceneObject> objects = Drain(MakeTankerSource(3, 5).get());
+  objects[1].name = forged;
+  {
+    auto writer = MkSceneWriter::Create(path);
+    ASSERT_TRUE(writer.ok());
+    for (const SceneObject& o : objects) ASSERT_TRUE((*writer)->Write(o).ok());
+    ASSERT_TRUE((*writer)->Finish().ok());
+  }
+  auto layout = ReadMkSceneLayout(path);
+  ASSERT_TRUE(layout.ok());
+  const uint64_t record0 = 24 + objects[0].name.size() + 24 * objects[0].mesh.vertex_count() +
+                           12 * objects[0].mesh.triangle_count();
+  const uint64_t cut = layout->body_begin + record0 + 8;  // the first byte of object 1's name
+  const uint64_t record2 =
+      layout->body_end - (24 + objects[2].name.size() + 24 * objects[2].mesh.vertex_count() +
+                          12 * objects[2].mesh.triangle_count());
+  // Two parts: the forged record checks out, but no record follows it, so the resync goes on to object 2.
+  auto p0 = FindMkScenePart(path, *layout, layout->body_begin, cut);
+  auto p1 = FindMkScenePart(path, *layout, cut, layout->body_end);
+  ASSERT_TRUE(p0.ok() && p1.ok()) << p0.status().ToString() << p1.status().ToString();
+  EXPECT_EQ(p0->objects, 2u);
+  EXPECT_TRUE(p1->found);
+  EXPECT_EQ(p1->begin, record2);
+  EXPECT_TRUE(CheckMkSceneParts(path, *layout, {layout->body_begin, cut}, {*p0, *p1}).ok());
+  // Three parts, the middle one ending inside the forged record: it is fooled, and the chain says so.
+  const std::vector<uint64_t> begins = {layout->body_begin, cut, cut + 16};
+  std::vector<MkScenePart> parts = {*p0};
+  for (size_t i = 1; i < 3; ++i) {
+    auto p = FindMkScenePart(path, *layout, begins[i], i == 1 ? begins[2] : layout->body_end);
+    ASSERT_TRUE(p.ok());
+    parts.push_back(*p);
+  }
+  EXPECT_EQ(parts[1].begin, cut);  // fooled
+  const Status st = CheckMkSceneParts(path, *layout, begins, parts);
+  EXPECT_EQ(st.code(), Status::Code::kCorruption);
+  EXPECT_NE(st.message().find("do not chain"), std::string::npos) << st.ToString();
+  EXPECT_NE(st.message().find(path), std::string::npos);
+}
+
+TEST_F(MkSceneFormatTest, DamageInAPartIsAnErrorNamingTheObjectOfTheFile) {
+  const std::string path = dir_ / "scene.mks";
+  WriteTanker(path, 8);
+  auto layout = ReadMkSceneLayout(path);
+  ASSERT_TRUE(layout.ok());
+  const uint64_t cut = (layout->body_begin + layout->body_end) / 2;
+  auto p1 = FindMkScenePart(path, *layout, cut, layout->body_end);
+  auto p0 = FindMkScenePart(path, *layout, layout->body_begin, cut);
+  ASSERT_TRUE(p0.ok() && p1.ok() && p1->found && p1->objects > 1);
+  std::string bytes = Slurp(path);
+  bytes[p1->end - 12] ^= 0x10;  // inside the last record's triangles: the walk still chains
+  Spit(path, bytes);
+  ASSERT_TRUE(CheckMkSceneParts(path, *layout, {layout->body_begin, cut}, {*p0, *p1}).ok());
+  auto source = OpenMkScenePart(path, *layout, *p1, p0->objects, static_cast<ObjectId>(p0->objects));
+  ASSERT_TRUE(source.ok());
+  SceneObject o;
+  Status st;
+  for (;;) {
+    auto more = (*source)->Next(&o);
+    if (!more.ok()) {
+      st = more.status();
+      break;
+    }
+    ASSERT_TRUE(*more) << "damage not found";
+  }
+  EXPECT_EQ(st.code(), Status::Code::kCorruption);
+  EXPECT_NE(st.message().find(path + ": object 7 "), std::string::npos) << st.ToString();
+  // A damaged end record is refused before any part is read.
+  bytes[bytes.size() - 10] ^= 1;
+  Spit(path, bytes);
+  EXPECT_EQ(ReadMkSceneLayout(path).status().code(), Status::Code::kCorruption);
+}
+
 }  // namespace
 }  // namespace mktree

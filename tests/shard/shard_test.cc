@@ -7,6 +7,7 @@
 #include <random>
 
 #include "engine/generator/tanker_generator.h"
+#include "engine/ingest/shard_build.h"
 #include "engine/scene/scene_source.h"
 #include "engine/shard/manifest.h"
 #include "mktree/build.h"
@@ -416,6 +417,47 @@ TEST(ShardBuild, FailedBuildLeavesNothingAndKeepsThePrevious) {
   auto db = Database::Open(b.manifest);
   ASSERT_TRUE(db.ok()) << db.status().ToString();
   EXPECT_EQ((*db)->object_count(), objs.size());
+}
+
+TEST(ShardBuild, LeftoversOfKilledBuildsAreRemovedUnderTheBuildLock) {
+  Built b(2);
+  namespace fs = std::filesystem;
+  const fs::path dir = b.dir.path();
+  // What killed builds of s.mkts leave (tests/mpi/ranks.sh kills real ones), and names that are not theirs.
+  const std::vector<std::string> leftovers = {
+      "s.mkts.shard-0.mkt.new",       "s.mkts.shard-1.ids.new",      "s.mkts.shard-7.mkt.new.tmp.4242",
+      "s.mkts.shard-2.ids.new.tmp.1", "s.mkts.shard-2.mkt.new.lock", "s.mkts.shard-0.mkt.from-3.new"};
+  const std::vector<std::string> others = {"s.mkts.shard-0.mkt.new.tmp.x", "t.mkts.shard-0.mkt.new",
+                                           "s.mkts.shard-x.mkt.new", "s.mkts.shard-0.mkt.from-.new",
+                                           "s.mkts.shard-1.ids.new.bak"};
+  for (const auto& n : leftovers) std::ofstream(dir / n) << "x";
+  for (const auto& n : others) std::ofstream(dir / n) << "x";
+  fs::create_directory(dir / "s.mkts.shard-5.mkt.new");  // not a file a build made
+  BuildOptions o;
+  o.shards = 3;
+  {
+    // A live build holds the lock: another is refused and removes nothing.
+    auto lock = ShardBuildLock::Acquire(b.manifest);
+    ASSERT_TRUE(lock.ok()) << lock.status().ToString();
+    auto again = ShardBuildLock::Acquire(b.manifest);
+    ASSERT_FALSE(again.ok());
+    auto r = BuildFromObjects(b.objs, b.manifest, o);
+    ASSERT_FALSE(r.ok());
+    EXPECT_NE(r.status().message().find("another build of this sharded store is running"), std::string::npos)
+        << r.status().ToString();
+    for (const auto& n : leftovers) EXPECT_TRUE(fs::exists(dir / n)) << n;
+  }
+  EXPECT_FALSE(fs::exists(b.manifest + ".build-lock"));  // released: removed
+  auto r = BuildFromObjects(b.objs, b.manifest, o);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  for (const auto& n : leftovers) EXPECT_FALSE(fs::exists(dir / n)) << n;
+  for (const auto& n : others) EXPECT_TRUE(fs::exists(dir / n)) << n;
+  EXPECT_TRUE(fs::is_directory(dir / "s.mkts.shard-5.mkt.new"));
+  EXPECT_FALSE(fs::exists(b.manifest + ".build-lock"));
+  auto db = Database::Open(b.manifest);
+  ASSERT_TRUE(db.ok()) << db.status().ToString();
+  EXPECT_EQ((*db)->shard_count(), 3u);
+  EXPECT_EQ((*db)->object_count(), b.objs.size());
 }
 
 TEST(ShardBuild, TooFewObjectsForTheShardsIsAnError) {

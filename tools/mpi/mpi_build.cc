@@ -2,19 +2,24 @@
 //   mpirun -n R mktree-mpi SCENE... -o MANIFEST --shards K [--backend hdf5|pagefile] [--threads N]
 //                          [--round-bytes B]
 // Each rank reads a disjoint part of the scene (tanker:N: the id range [ceil(N r / R), ceil(N (r+1) / R));
-// any other input: rank 0 reads it all and the exchange scatters it) and samples it; rank 0 merges the
+// one .mks: the records starting in bytes [floor(B r / R), floor(B (r+1) / R)) of its body, found by resync,
+// the parts checked to chain and numbered after MPI_Exscan of their counts; any other input: rank 0 reads
+// it all and the exchange scatters it) and samples it; rank 0 merges the
 // samples, chooses the top levels and broadcasts them. Each rank then routes its objects (TopLevels::ShardOf)
 // to the rank of their shard (shard s on rank floor(s R / K)) in bounded MPI_Alltoallv rounds; the receiver
 // spills them per (shard, sender) and builds its shards from the senders' streams in rank order, which is
 // global id order (the parts are increasing id ranges); its own objects are read again rather than spilled.
 // Rank 0 writes the manifest after every rank has put its shards in place; a failed rank makes every rank
-// remove its staged files, and no manifest is written.
+// remove its staged files, and no manifest is written. Rank 0 holds the build's lock (ShardBuildLock)
+// throughout and first removes what killed builds of the path left.
 #include <mpi.h>
 
 #include <algorithm>
 #include <charconv>
 #include <chrono>
+#include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <memory>
@@ -23,6 +28,7 @@
 
 #include "engine/generator/tanker_generator.h"
 #include "engine/ingest/shard_build.h"
+#include "engine/scene/mkscene_format.h"
 #include "engine/scene/scene_source.h"
 #include "tools/mpi/mpi_util.h"
 
@@ -86,9 +92,11 @@ bool Parse(int argc, char** argv, Args* a, std::string* err) {
   return true;
 }
 
-// One input: a tanker spec (read by id range) or a scene file.
+// One input: a tanker spec (read by id range), an .mks (by byte range) or another scene file.
 struct Input {
   bool tanker = false;
+  bool mks = false;
+  std::string path;
   uint64_t n = 0, seed = 1;
   SceneOpener opener;
 };
@@ -105,6 +113,11 @@ Result<Input> InputFor(const std::string& input) {
     in.opener = [n = in.n, seed = in.seed](ObjectId first) { return MakeTankerSource(n, seed, first); };
   } else {
     in.opener = [input](ObjectId first) { return OpenSceneFile(input, first); };
+    in.path = input;
+    const std::string ext = std::filesystem::path(input).extension().string();
+    in.mks = ext.size() == 4 && std::tolower(static_cast<unsigned char>(ext[1])) == 'm' &&
+             std::tolower(static_cast<unsigned char>(ext[2])) == 'k' &&
+             std::tolower(static_cast<unsigned char>(ext[3])) == 's';
   }
   return in;
 }
@@ -113,6 +126,33 @@ class EmptySource final : public SceneSource {
  public:
   Result<bool> Next(SceneObject*) override { return false; }
 };
+
+// A part that could not be opened: its error at the first Next().
+class ErrorSource final : public SceneSource {
+ public:
+  explicit ErrorSource(Status st) : st_(std::move(st)) {}
+  Result<bool> Next(SceneObject*) override { return st_; }
+
+ private:
+  Status st_;
+};
+
+// Tests (tests/mpi/ranks.sh): MKTREE_MPI_TEST_KILL="RANK:POINT" kills that rank with SIGKILL at that point of
+// the build, "exchanged" (the spills received) or "staged" (its first shard built under its staging names).
+void KillForTest(int rank, const char* point) {
+  const char* k = std::getenv("MKTREE_MPI_TEST_KILL");
+  if (k && std::to_string(rank) + ":" + point == k) std::raise(SIGKILL);
+}
+
+// Bytes this process has read through read(2) and pread(2) (/proc/self/io rchar), or 0.
+uint64_t BytesRead() {
+  std::FILE* f = std::fopen("/proc/self/io", "r");
+  if (!f) return 0;
+  unsigned long long v = 0;
+  const bool got = std::fscanf(f, "rchar: %llu", &v) == 1;
+  std::fclose(f);
+  return got ? v : 0;
+}
 
 // The wire and spill encoding of an object: u32 id, name, source, u32 attribute count, (key, value)...,
 // u32 vertex count, f64 xyz..., u32 triangle count, u32 abc... (strings: u32 length, bytes). World
@@ -272,24 +312,84 @@ int RunBuild(int argc, char** argv, int rank, int ranks) {
     }
   }
   if (std::filesystem::is_directory(a.output)) ok = fail(a.output + ": not a regular file");
+  // Rank 0 holds the build's lock to the end, and removes what killed builds of this path left before any
+  // rank stages a file (the next collective).
+  std::unique_ptr<ShardBuildLock> lock;
+  if (rank == 0 && ok) {
+    auto l = ShardBuildLock::Acquire(a.output);
+    if (!l.ok())
+      ok = fail(l.status().message());
+    else
+      lock = std::move(*l);
+    if (ok) RemoveShardLeftovers(a.output);
+  }
   if (!AllOk(ok)) return 1;
   IngestOptions opts;
   opts.store.backend = a.backend == "pagefile" ? Backend::kPagedFile : Backend::kHdf5;
   opts.threads = a.threads;
   opts.tuning.threads = static_cast<int>(a.threads);
 
-  // This rank's part: a tanker by id range; anything else is read by rank 0 and scattered by the exchange.
+  // This rank's part: a tanker by id range, one .mks by byte range; anything else is read by rank 0 and
+  // scattered by the exchange.
   const bool by_range = inputs.size() == 1 && inputs[0].tanker;
+  bool by_bytes = inputs.size() == 1 && inputs[0].mks;
   const uint64_t n = inputs[0].n, seed = inputs[0].seed, r = static_cast<uint64_t>(rank),
                  nr = static_cast<uint64_t>(ranks);
   const uint64_t lo = (n * r + nr - 1) / nr, hi = (n * (r + 1) + nr - 1) / nr;
+  MkSceneLayout layout;
+  MkScenePart mks;
+  uint64_t mks_first = 0;  // the file index (and id) of this rank's first record
+  if (by_bytes) {
+    const std::string& path = inputs[0].path;
+    auto l = ReadMkSceneLayout(path);
+    if (!l.ok())
+      ok = fail(l.status().message());
+    else if (l->objects > uint64_t{kNoIndex})
+      ok = fail(path + ": too many objects: ids are 32-bit");
+    else
+      layout = *l;
+    if (!AllOk(ok)) return 1;
+    const uint64_t body = layout.body_end - layout.body_begin;
+    auto range_begin = [&](uint64_t q) {
+      return layout.body_begin + static_cast<uint64_t>(static_cast<unsigned __int128>(body) * q / nr);
+    };
+    auto p = FindMkScenePart(path, layout, range_begin(r), range_begin(r + 1));
+    if (!p.ok())
+      ok = fail(p.status().message());
+    else
+      mks = *p;
+    if (!AllOk(ok)) return 1;
+    const uint64_t mine[4] = {mks.found ? 1u : 0u, mks.begin, mks.end, mks.objects};
+    std::vector<uint64_t> all(4 * static_cast<size_t>(ranks));
+    MPI_Allgather(mine, 4, MPI_UINT64_T, all.data(), 4, MPI_UINT64_T, MPI_COMM_WORLD);
+    std::vector<MkScenePart> parts(ranks);
+    std::vector<uint64_t> begins(ranks);
+    for (int q = 0; q < ranks; ++q) {
+      parts[q] = {all[4 * q] != 0, all[4 * q + 1], all[4 * q + 2], all[4 * q + 3]};
+      begins[q] = range_begin(static_cast<uint64_t>(q));
+    }
+    // Every rank sees the same parts and decides alike. Parts that do not chain (a damaged file, or a
+    // record-like pattern with a matching checksum inside a record) fall back to rank 0's whole read,
+    // which reports damage with the object and offset.
+    if (Status st = CheckMkSceneParts(path, layout, begins, parts); !st.ok()) {
+      if (rank == 0) std::printf("note: %s; rank 0 reads the input whole\n", st.message().c_str());
+      by_bytes = false;
+    }
+    MPI_Exscan(&mks.objects, &mks_first, 1, MPI_UINT64_T, MPI_SUM, MPI_COMM_WORLD);
+    if (rank == 0) mks_first = 0;  // MPI_Exscan leaves rank 0's undefined
+  }
   auto part = [&]() -> std::unique_ptr<SceneSource> {
     if (by_range) return MakeTankerRangeSource(n, seed, lo, hi);
+    if (by_bytes) {
+      auto source = OpenMkScenePart(inputs[0].path, layout, mks, mks_first, static_cast<ObjectId>(mks_first));
+      if (!source.ok()) return std::make_unique<ErrorSource>(source.status());
+      return std::move(*source);
+    }
     if (rank == 0) return ChainInputs(openers);
     return std::make_unique<EmptySource>();
   };
-  if (!by_range && rank == 0 && ranks > 1)
-    std::printf("note: only tanker:N is read by id range; rank 0 reads %s and scatters it\n",
+  if (!by_range && !by_bytes && rank == 0 && ranks > 1)
+    std::printf("note: only tanker:N and one .mks are read in parts; rank 0 reads %s and scatters it\n",
                 inputs.size() == 1 ? "the input" : "the inputs");
 
   // 1. Samples of the ranks' parts, merged on rank 0, which chooses the top levels.
@@ -478,6 +578,7 @@ int RunBuild(int argc, char** argv, int rank, int ranks) {
     discard();
     return 1;
   }
+  KillForTest(rank, "exchanged");
   const double exchange_seconds = MaxOf(Since(exchange_start));
   const uint64_t all_sent = SumOf(sent_bytes), all_moved = SumOf(sent_objects);
 
@@ -510,6 +611,7 @@ int RunBuild(int argc, char** argv, int rank, int ranks) {
     }
     for (const std::string& w : report.warnings)
       std::fprintf(stderr, "warning: shard %u: %s\n", s, w.c_str());
+    KillForTest(rank, "staged");
     Put(&entries, s);
     for (const ShardFileInfo* f : {&e->store, &e->ids}) {
       PutString(&entries, f->name);
@@ -526,6 +628,9 @@ int RunBuild(int argc, char** argv, int rank, int ranks) {
   }
   const double build_seconds = MaxOf(Since(build_start));
   const auto gathered = Gather(entries, rank, ranks);
+  std::vector<uint64_t> reads(ranks);
+  const uint64_t my_reads = BytesRead();
+  MPI_Gather(&my_reads, 1, MPI_UINT64_T, reads.data(), 1, MPI_UINT64_T, 0, MPI_COMM_WORLD);
   if (rank == 0) {
     m.shards.resize(a.shards);
     for (const auto& b : gathered) {
@@ -566,7 +671,9 @@ int RunBuild(int argc, char** argv, int rank, int ranks) {
     } else {
       std::printf("built %s: %llu objects in %u shards on %d ranks (%s)\n", a.output.c_str(),
                   static_cast<unsigned long long>(m.objects), a.shards, ranks,
-                  by_range ? "disjoint id ranges" : "read by rank 0");
+                  by_range   ? "disjoint id ranges"
+                  : by_bytes ? "disjoint byte ranges"
+                             : "read by rank 0");
       std::printf(
           "exchange: %llu objects (%.1f %%) moved, %llu bytes, %.1f bytes an object of the scene, "
           "%.1f a moved object, %llu rounds\n",
@@ -578,6 +685,9 @@ int RunBuild(int argc, char** argv, int rank, int ranks) {
           static_cast<unsigned long long>(rounds));
       std::printf("seconds: scan %.2f, exchange %.2f, shards %.2f, total %.2f\n", scan_seconds,
                   exchange_seconds, build_seconds, Since(start));
+      std::printf("bytes read per rank (rchar: input, spills, store checks):");
+      for (uint64_t b : reads) std::printf(" %llu", static_cast<unsigned long long>(b));
+      std::printf("\n");
     }
   }
   MPI_Bcast(&written, 1, MPI_INT, 0, MPI_COMM_WORLD);
