@@ -468,7 +468,7 @@ class StoreDatabase final : public Database {
         Box3d at;
         at.min = at.max = {p.x, p.y, p.z};
         return Answer<kCanStop>(
-            cache, [&](std::vector<uint32_t>* leaves) { tree.RoutePoint(p, leaves, &s); }, q, FloatQuery(at),
+            cache, [&](std::vector<uint32_t>* leaves) { tree.RoutePoint(p, leaves, &s); }, q, at,
             [&](const SolidClassifier& solid) { return solid.Contains(p); }, sink, &s);
       }
       Box3d box;
@@ -477,17 +477,18 @@ class StoreDatabase final : public Database {
         box.max[i] = q.box.max[i] - tree.origin[i];
       }
       return Answer<kCanStop>(
-          cache, [&](std::vector<uint32_t>* leaves) { tree.RouteBox(box, leaves, &s); }, q, FloatQuery(box),
+          cache, [&](std::vector<uint32_t>* leaves) { tree.RouteBox(box, leaves, &s); }, q, box,
           [&](const SolidClassifier& solid) { return solid.MeetsBox(box); }, sink, &s);
     });
   }
 
-  // One query: `route` lists the leaves to read; `fq` tests an entry's box (AABB mode, and the first test
-  // of exact mode); `meets_solid` tests the object's solid (exact mode). Each leaf's answers go to `sink`
-  // once the leaf is released. Under a limit, leaves are scanned for one id more than the limit leaves
-  // room for, which tells whether the answer goes on without reading further.
+  // One query: `route` lists the leaves to read; `box` (the query in the store frame, a point's box for a
+  // point) tests an entry's box (AABB mode, and the first test of exact mode); `meets_solid` tests the
+  // object's solid (exact mode). Each leaf's answers go to `sink` once the leaf is released. Under a limit,
+  // leaves are scanned for one id more than the limit leaves room for, which tells whether the answer goes on
+  // without reading further.
   template <bool kCanStop, typename Route, typename MeetsSolid, typename Sink>
-  Result<bool> Answer(PageCache& cache, Route&& route, const Query& q, const FloatQuery& fq,
+  Result<bool> Answer(PageCache& cache, Route&& route, const Query& q, const Box3d& box,
                       MeetsSolid&& meets_solid, Sink&& sink, QueryStats* s) const {
     thread_local std::vector<uint32_t> t_leaves;
     std::vector<uint32_t> leaves = std::exchange(t_leaves, {});
@@ -502,6 +503,8 @@ class StoreDatabase final : public Database {
     } restore{leaves, found};
     leaves.clear();
     route(&leaves);
+    if (leaves.empty()) return true;  // most points, in a scene of free space
+    const FloatQuery fq(box);
     // The routing counted every leaf it let through as visited; a query that stops early reads fewer.
     struct Unvisited {
       QueryStats* s;
