@@ -270,6 +270,56 @@ size_t PageCache::PinCachedPages(std::span<const uint64_t> pages, bool verified,
   return n;
 }
 
+size_t PageCache::VisitCachedRuns(std::span<const PageRun> runs, bool verified,
+                                  CallbackRef<bool(const PageAttachment*, std::span<const uint64_t>)> accept,
+                                  CallbackRef<void(std::span<const PageAttachment* const>)> use,
+                                  QueryStats* stats) {
+  const PageAttachment* attached[kMaxVisitedRuns];
+  uint64_t later[kMaxRunPages];
+  const size_t m = std::min(runs.size(), kMaxVisitedRuns);
+  std::lock_guard<std::mutex> lock(mu_);
+  for (size_t k = 0; k < m; ++k)
+    if (runs[k].first < table_.size() && table_[runs[k].first].frame != nullptr)
+      __builtin_prefetch(table_[runs[k].first].frame);
+  size_t n = 0;
+  for (; n < m; ++n) {
+    const PageRun& r = runs[n];
+    if (r.count == 0 || r.count > kMaxRunPages || r.first >= table_.size() ||
+        r.count > table_.size() - r.first)
+      break;
+    bool cached = true;
+    for (uint64_t k = 0; cached && k < r.count; ++k) {
+      const PageFrame* f = table_[r.first + k].frame;
+      cached = f != nullptr && !f->loading && (!verified || f->verified.load(std::memory_order_acquire));
+      if (cached && k > 0) later[k - 1] = f->load_id;
+    }
+    if (!cached) break;
+    const PageAttachment* a = table_[r.first].frame->attachment.load(std::memory_order_acquire);
+    if (a == nullptr || !accept(a, std::span<const uint64_t>(later, r.count - 1))) break;
+    attached[n] = a;
+  }
+  if (n == 0) return 0;
+  use(std::span<const PageAttachment* const>(attached, n));
+  // Pinning and unpinning again leaves a page pinned by others as it was and gives an unpinned one the
+  // next unpin stamp, in the order of the unpins.
+  for (size_t k = 0; k < n; ++k) {
+    const PageRun& r = runs[k];
+    counters_.lookups += r.count;
+    counters_.hits += r.count;
+    if (stats) {
+      stats->pages_touched += r.count;
+      stats->cache_hits += r.count;
+    }
+    for (uint64_t p = r.first; p < r.first + r.count; ++p) {
+      if (table_[p].frame->pins > 0) continue;
+      table_[p].unpinned_at = ++stamps_;
+      lru_.push_back({p, stamps_});
+    }
+  }
+  EvictLocked();
+  return n;
+}
+
 void PageCache::Release(std::span<PageHandle> handles) {
   if (handles.empty()) return;
   std::lock_guard<std::mutex> lock(mu_);

@@ -28,6 +28,8 @@
 #include <memory>
 #include <mutex>
 #include <span>
+#include <type_traits>
+#include <utility>
 #include <vector>
 
 #include "mktree/query_stats.h"
@@ -38,6 +40,25 @@ namespace mktree {
 
 class PageCache;
 struct PageFrame;  // one cached page; private to page_cache.cc
+
+// A reference to a callable that outlives the call it is passed to: no copy, no allocation.
+template <typename Signature>
+class CallbackRef;
+template <typename R, typename... Args>
+class CallbackRef<R(Args...)> {
+ public:
+  template <typename F>
+  requires(!std::is_same_v<std::remove_cvref_t<F>, CallbackRef>)
+      CallbackRef(F&& f)  // NOLINT(google-explicit-constructor): passed as a lambda
+      : object_(const_cast<void*>(static_cast<const void*>(&f))), call_([](void* o, Args... a) -> R {
+          return (*static_cast<std::remove_reference_t<F>*>(o))(std::forward<Args>(a)...);
+        }) {}
+  R operator()(Args... a) const { return call_(object_, std::forward<Args>(a)...); }
+
+ private:
+  void* object_;
+  R (*call_)(void*, Args...);
+};
 
 // What a reader attaches to a cached page (PageHandle::Attach). Deleted by the cache when the page's copy
 // leaves it, never while the page is pinned.
@@ -104,6 +125,24 @@ class PageCache {
   // lock for the lot, the frames prefetched first.
   size_t PinCachedPages(std::span<const uint64_t> pages, bool verified, bool attached, QueryStats* stats,
                         std::vector<PageHandle>* out);
+  // Pages [first, first + count) that a reader reads together (a leaf's).
+  struct PageRun {
+    uint64_t first = 0;
+    uint64_t count = 0;
+  };
+  static constexpr size_t kMaxVisitedRuns = 16;
+  static constexpr size_t kMaxRunPages = 64;
+  // The warm path of reading a few runs without pinning them: from runs[0] on, up to kMaxVisitedRuns runs of
+  // at most kMaxRunPages pages, as long as every page of a run is cached and loaded (with `verified`,
+  // marked verified), its first page carries an attachment and accept(attachment, load ids of the run's
+  // later pages) says it is current; then calls use(their attachments) once, with the cache's lock held,
+  // and counts each page of those runs as Pin counts a hit. Counters, statistics and the LRU order are
+  // those of pinning the runs' pages in order and then unpinning them in the same order. `use` must not
+  // call into the cache; the attachments are valid only during it. Returns how many runs it visited; 0
+  // (nothing counted, `use` not called) when the first run fails.
+  size_t VisitCachedRuns(std::span<const PageRun> runs, bool verified,
+                         CallbackRef<bool(const PageAttachment*, std::span<const uint64_t>)> accept,
+                         CallbackRef<void(std::span<const PageAttachment* const>)> use, QueryStats* stats);
   // Unpins `handles` (this cache's, or empty) in order under one lock, as their Release() one after
   // another would, leaving them empty.
   void Release(std::span<PageHandle> handles);

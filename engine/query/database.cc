@@ -372,17 +372,17 @@ class StoreDatabase final : public Database {
   }
 
   // The warm path of an AABB query without a limit whose ids go to a sink that never stops: from leaf
-  // *next on, the single-page leaves whose page is cached, verified and carries its DecodedLeaf, up to
-  // kWindow of them, pinned under one lock (PageCache::PinCachedPages; the counts and the LRU order are
-  // those of reading them one at a time, as no page is read from the store), scanned with the next
-  // leaves' arrays prefetched, and released in order under one lock. Else one leaf whose pages are all
-  // cached (ReadCachedLeaf: several pages, or not decoded yet). Appends their answers to `found`, counts
-  // *leaves_with_hits and advances *next past the leaves read. Reads nothing (and returns OK) when the
-  // first leaf is not cached.
+  // *next on, up to PageCache::kMaxVisitedRuns leaves whose pages are all cached (and verified) and whose
+  // first page carries the DecodedLeaf of those very copies, scanned under one lock of the cache without
+  // pinning them (PageCache::VisitCachedRuns: the counts and the LRU order are those of reading them one
+  // at a time, as no page is read from the store), the next leaves' arrays prefetched. Else one leaf
+  // whose pages are all cached (ReadCachedLeaf: not decoded yet, or decoded from older copies). Appends
+  // their answers to `found`, counts *leaves_with_hits and advances *next past the leaves read. Reads
+  // nothing (and returns OK) when the first leaf is not cached.
   Status ScanCachedWindow(PageCache& cache, const std::vector<uint32_t>& leaves, size_t* next,
                           const FloatQuery& fq, QueryStats* s, std::vector<ObjectId>* found,
                           uint64_t* leaves_with_hits) const {
-    constexpr size_t kWindow = 16;
+    constexpr size_t kWindow = PageCache::kMaxVisitedRuns;
     const MKTree& tree = reader_->tree();
     const DecodedLeaf* decoded[kWindow];
     // A leaf inside the query needs its ids only.
@@ -399,32 +399,24 @@ class StoreDatabase final : public Database {
       }
       *next += n;
     };
-    uint64_t pages[kWindow];
+    PageCache::PageRun runs[kWindow];
     size_t m = 0;
     for (; m < kWindow && *next + m < leaves.size(); ++m) {
       const LeafInfo& info = tree.leaves[leaves[*next + m]];
-      if (info.page_count != 1) break;
-      pages[m] = info.first_page;
+      runs[m] = {info.first_page, info.page_count};
     }
-    if (m > 0) {
-      thread_local std::vector<PageHandle> handles;
-      handles.clear();
-      struct Unpin {
-        PageCache& cache;
-        ~Unpin() {
-          cache.Release(handles);
-          handles.clear();
-        }
-      } unpin{cache};
-      const size_t n = cache.PinCachedPages(std::span<const uint64_t>(pages, m), options_.verify_checksums,
-                                            /*attached=*/true, s, &handles);
-      if (n > 0) {
-        // A single-page leaf's page carries only its own DecodedLeaf, built from this copy once checked.
-        for (size_t k = 0; k < n; ++k) decoded[k] = static_cast<const DecodedLeaf*>(handles[k].attachment());
-        scan(n);
-        return Status::Ok();
-      }
-    }
+    // A leaf's first page carries only its DecodedLeaf, current if built from these copies of the others.
+    auto current = [](const PageAttachment* a, std::span<const uint64_t> later_loads) {
+      const std::vector<uint64_t>& built_from = static_cast<const DecodedLeaf*>(a)->later_page_loads();
+      return std::equal(built_from.begin(), built_from.end(), later_loads.begin(), later_loads.end());
+    };
+    auto use = [&](std::span<const PageAttachment* const> attached) {
+      for (size_t k = 0; k < attached.size(); ++k) decoded[k] = static_cast<const DecodedLeaf*>(attached[k]);
+      scan(attached.size());
+    };
+    if (m > 0 && cache.VisitCachedRuns(std::span<const PageCache::PageRun>(runs, m),
+                                       options_.verify_checksums, current, use, s) > 0)
+      return Status::Ok();
     thread_local PinnedLeaf one;
     struct Release {
       ~Release() { one.Release(); }
@@ -476,7 +468,7 @@ class StoreDatabase final : public Database {
         Box3d at;
         at.min = at.max = {p.x, p.y, p.z};
         return Answer<kCanStop>(
-            cache, [&](std::vector<uint32_t>* leaves) { tree.RoutePoint(p, leaves, &s); }, q, FloatQuery(at),
+            cache, [&](std::vector<uint32_t>* leaves) { tree.RoutePoint(p, leaves, &s); }, q, at,
             [&](const SolidClassifier& solid) { return solid.Contains(p); }, sink, &s);
       }
       Box3d box;
@@ -485,17 +477,18 @@ class StoreDatabase final : public Database {
         box.max[i] = q.box.max[i] - tree.origin[i];
       }
       return Answer<kCanStop>(
-          cache, [&](std::vector<uint32_t>* leaves) { tree.RouteBox(box, leaves, &s); }, q, FloatQuery(box),
+          cache, [&](std::vector<uint32_t>* leaves) { tree.RouteBox(box, leaves, &s); }, q, box,
           [&](const SolidClassifier& solid) { return solid.MeetsBox(box); }, sink, &s);
     });
   }
 
-  // One query: `route` lists the leaves to read; `fq` tests an entry's box (AABB mode, and the first test
-  // of exact mode); `meets_solid` tests the object's solid (exact mode). Each leaf's answers go to `sink`
-  // once the leaf is released. Under a limit, leaves are scanned for one id more than the limit leaves
-  // room for, which tells whether the answer goes on without reading further.
+  // One query: `route` lists the leaves to read; `box` (the query in the store frame, a point's box for a
+  // point) tests an entry's box (AABB mode, and the first test of exact mode); `meets_solid` tests the
+  // object's solid (exact mode). Each leaf's answers go to `sink` once the leaf is released. Under a limit,
+  // leaves are scanned for one id more than the limit leaves room for, which tells whether the answer goes on
+  // without reading further.
   template <bool kCanStop, typename Route, typename MeetsSolid, typename Sink>
-  Result<bool> Answer(PageCache& cache, Route&& route, const Query& q, const FloatQuery& fq,
+  Result<bool> Answer(PageCache& cache, Route&& route, const Query& q, const Box3d& box,
                       MeetsSolid&& meets_solid, Sink&& sink, QueryStats* s) const {
     thread_local std::vector<uint32_t> t_leaves;
     std::vector<uint32_t> leaves = std::exchange(t_leaves, {});
@@ -510,6 +503,8 @@ class StoreDatabase final : public Database {
     } restore{leaves, found};
     leaves.clear();
     route(&leaves);
+    if (leaves.empty()) return true;  // most points, in a scene of free space
+    const FloatQuery fq(box);
     // The routing counted every leaf it let through as visited; a query that stops early reads fewer.
     struct Unvisited {
       QueryStats* s;

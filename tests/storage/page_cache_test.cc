@@ -515,6 +515,124 @@ TEST(PageCacheTest, PinCachedCanRequireVerifiedPages) {
   EXPECT_EQ(cache.pinned_pages(), 0u);
 }
 
+// VisitCachedRuns leaves a cache as pinning the visited runs' pages in order and releasing them in order
+// does: two caches, one visiting and one pinning, take the same random lookups, attachments, held pins and
+// visits, and agree on every hit, read and statistic, so they evict the same pages in the same order.
+TEST(PageCacheTest, VisitCachedRunsCountsAndOrdersAsPinAndRelease) {
+  constexpr uint64_t kPages = 24;
+  struct Tag : PageAttachment {
+    explicit Tag(uint64_t p) : page(p) {}
+    uint64_t page;
+  };
+  for (size_t capacity : {size_t{0}, size_t{3}, size_t{7}, size_t{30}}) {
+    SCOPED_TRACE("capacity " + std::to_string(capacity));
+    CountingStore store_a(kPages), store_b(kPages);
+    PageCache a(&store_a, capacity), b(&store_b, capacity);
+    std::mt19937 g(static_cast<unsigned>(capacity) + 7);
+    std::vector<PageHandle> held_a, held_b;  // pins others hold while runs are visited
+    for (int step = 0; step < 3000; ++step) {
+      const unsigned op = g() % 10;
+      if (op < 4) {  // a lookup, perhaps leaving an attachment (the first page of a run, as a reader would)
+        const uint64_t p = g() % kPages;
+        QueryStats sa, sb;
+        auto ha = a.Pin(p, &sa);
+        auto hb = b.Pin(p, &sb);
+        ASSERT_TRUE(ha.ok() && hb.ok());
+        ASSERT_EQ(sa.pages_read, sb.pages_read) << "step " << step;
+        if (g() % 3 != 0) {
+          ha->Attach(std::make_unique<Tag>(p));
+          hb->Attach(std::make_unique<Tag>(p));
+        }
+        if (op == 0 && held_a.size() < 3) {
+          held_a.push_back(std::move(*ha));
+          held_b.push_back(std::move(*hb));
+        }
+      } else if (op < 5 && !held_a.empty()) {
+        a.Release(held_a);
+        b.Release(held_b);
+        held_a.clear();
+        held_b.clear();
+      } else {  // 1-5 runs of 1-3 pages
+        PageCache::PageRun runs[5];
+        const size_t m = 1 + g() % 5;
+        for (size_t k = 0; k < m; ++k) {
+          runs[k].first = g() % kPages;
+          runs[k].count = std::min<uint64_t>(1 + g() % 3, kPages - runs[k].first);
+        }
+        QueryStats sa, sb;
+        std::vector<uint64_t> seen;
+        auto accept = [&](const PageAttachment* t, std::span<const uint64_t> later) {
+          EXPECT_EQ(later.size(), runs[seen.size()].count - 1);
+          seen.push_back(static_cast<const Tag*>(t)->page);
+          return true;
+        };
+        size_t used = 0;
+        auto use = [&](std::span<const PageAttachment* const> ts) { used = ts.size(); };
+        const size_t n =
+            a.VisitCachedRuns(std::span<const PageCache::PageRun>(runs, m), false, accept, use, &sa);
+        ASSERT_EQ(used, n);
+        std::vector<PageHandle> hs;
+        for (size_t k = 0; k < n; ++k) {
+          EXPECT_EQ(seen[k], runs[k].first);
+          ASSERT_TRUE(b.PinCached(runs[k].first, runs[k].count, false, &sb, &hs)) << "step " << step;
+          ASSERT_NE(hs[hs.size() - runs[k].count].attachment(), nullptr);
+        }
+        b.Release(hs);
+        EXPECT_EQ(sa.pages_touched, sb.pages_touched);
+        EXPECT_EQ(sa.cache_hits, sb.cache_hits);
+        EXPECT_EQ(sa.pages_read, 0u);
+      }
+      ASSERT_EQ(a.resident_pages(), b.resident_pages()) << "step " << step;
+      ASSERT_EQ(a.pinned_pages(), b.pinned_pages()) << "step " << step;
+      ASSERT_EQ(store_a.reads.load(), store_b.reads.load()) << "step " << step;
+      const auto ka = a.counters(), kb = b.counters();
+      ASSERT_EQ(ka.lookups, kb.lookups);
+      ASSERT_EQ(ka.hits, kb.hits);
+    }
+    a.Release(held_a);
+    b.Release(held_b);
+    for (uint64_t p = 0; p < kPages; ++p) EXPECT_EQ(Resident(a, p), Resident(b, p)) << p;
+    ExpectInvariants(a);
+  }
+}
+
+// VisitCachedRuns stops at the first run with a page not cached or not verified (as asked), a first page
+// without an attachment, or an attachment `accept` refuses; a failing first run counts nothing.
+TEST(PageCacheTest, VisitCachedRunsStopsAtTheFirstRunItCannotUse) {
+  CountingStore store(8);
+  PageCache cache(&store, 8);
+  for (uint64_t p = 0; p < 6; ++p) {
+    auto h = cache.Pin(p, nullptr);
+    ASSERT_TRUE(h.ok());
+    if (p != 3) h->MarkVerified();
+    if (p % 2 == 0) h->Attach(std::make_unique<PageAttachment>());
+  }
+  const auto before = cache.counters();
+  auto yes = [](const PageAttachment*, std::span<const uint64_t>) { return true; };
+  auto no = [](const PageAttachment*, std::span<const uint64_t>) { return false; };
+  size_t used = 0;
+  auto use = [&](std::span<const PageAttachment* const> ts) { used = ts.size(); };
+  using Run = PageCache::PageRun;
+  QueryStats s;
+  EXPECT_EQ(cache.VisitCachedRuns(std::vector<Run>{{0, 2}, {2, 2}, {4, 2}}, true, yes, use, &s), 1u);  // 3
+  EXPECT_EQ(used, 1u);
+  EXPECT_EQ(s.cache_hits, 2u);
+  EXPECT_EQ(cache.VisitCachedRuns(std::vector<Run>{{0, 2}, {2, 2}, {4, 2}}, false, yes, use, &s), 3u);
+  EXPECT_EQ(s.cache_hits, 8u);
+  EXPECT_EQ(s.pages_touched, 8u);
+  EXPECT_EQ(cache.VisitCachedRuns(std::vector<Run>{{0, 2}, {4, 3}}, false, yes, use, &s), 1u);  // 6 missing
+  EXPECT_EQ(cache.VisitCachedRuns(std::vector<Run>{{1, 1}, {2, 1}}, false, yes, use, &s), 0u);  // 1: none
+  EXPECT_EQ(cache.VisitCachedRuns(std::vector<Run>{{7, 1}}, false, yes, use, &s), 0u);          // not cached
+  EXPECT_EQ(cache.VisitCachedRuns(std::vector<Run>{{6, 9}}, false, yes, use, &s), 0u);  // past the end
+  used = 99;
+  EXPECT_EQ(cache.VisitCachedRuns(std::vector<Run>{{0, 1}}, false, no, use, &s), 0u);
+  EXPECT_EQ(used, 99u);  // not called
+  EXPECT_EQ(s.cache_hits, 10u);
+  EXPECT_EQ(cache.counters().lookups - before.lookups, 10u);
+  EXPECT_EQ(cache.pinned_pages(), 0u);
+  ExpectInvariants(cache);
+}
+
 // Threads pin runs with PinCached and PinCachedPages and release in batches while others miss and evict.
 TEST(PageCacheTest, ConcurrentPinCachedAndBatchReleases) {
   CountingStore store(40);

@@ -1,0 +1,149 @@
+// The warm window over leaves of several pages (PageCache::VisitCachedRuns through Run): on random scenes
+// whose big objects make leaves span several pages, in both backends, with and without checksums, at
+// cache sizes 0, one page, a few pages, a few leaves and the whole store, Run gives brute force's answers
+// and, query after query, the statistics of reading one leaf at a time (VisitUntil): the same pages read,
+// hit and evicted in the same order.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <random>
+
+#include "engine/ingest/store_builder.h"
+#include "engine/store/store_file.h"
+#include "mktree/database.h"
+#include "query/query_oracle.h"
+#include "query/scene_fixtures.h"
+#include "test_dirs.h"
+
+namespace mktree {
+namespace {
+
+std::string TempPath(const std::string& name) {
+  static const testing::TempDir dir("mktree_warm_runs");
+  return dir.file(name);
+}
+
+// ClusteredScene with every seventh object a pipe of many sides: entries of several KiB, leaves of
+// several 2 KiB pages.
+std::vector<SceneObject> ScenesWithBigObjects(size_t n, uint64_t seed) {
+  std::vector<SceneObject> objs = testing::ClusteredScene(n, seed);
+  std::mt19937_64 rng(seed + 1);
+  std::uniform_real_distribution<double> unit(0, 1);
+  for (size_t i = 0; i < objs.size(); i += 7) {
+    const Box3f b = objs[i].Aabb();
+    const int axis = static_cast<int>(rng() % 3);
+    objs[i].mesh =
+        testing::PrismMesh(axis, b.min[(axis + 1) % 3], b.min[(axis + 2) % 3], 0.1 + unit(rng), b.min[axis],
+                           b.min[axis] + 1 + 8 * unit(rng), 100 + static_cast<int>(rng() % 300));
+  }
+  return objs;
+}
+
+std::vector<Query> Queries(const std::vector<SceneObject>& objs, size_t n, uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> unit(0, 1);
+  Box3f scene;
+  for (const SceneObject& o : objs) scene.Extend(o.Aabb());
+  std::vector<Query> qs;
+  for (size_t i = 0; i < n; ++i) {
+    const Box3f b = objs[rng() % objs.size()].Aabb();
+    Vec3d p;
+    for (int a = 0; a < 3; ++a) p[a] = (i % 4 == 0) ? b.max[a] : b.min[a] + unit(rng) * (b.max[a] - b.min[a]);
+    if (i % 3 == 0) {
+      qs.push_back(Query::Point(p));
+      continue;
+    }
+    const double side = std::pow(10.0, -1.5 + 3 * unit(rng));
+    Box3d box;
+    for (int a = 0; a < 3; ++a) {
+      box.min[a] = i % 5 == 1 ? static_cast<double>(b.min[a]) : p[a] - side * unit(rng);
+      box.max[a] = i % 5 == 1 ? static_cast<double>(b.max[a]) : p[a] + side * unit(rng);
+    }
+    if (i % 23 == 0)
+      for (int a = 0; a < 3; ++a) {
+        box.min[a] = scene.min[a];
+        box.max[a] = scene.max[a];
+      }
+    qs.push_back(Query::Box(box));
+  }
+  return qs;
+}
+
+class WarmRunsTest : public ::testing::TestWithParam<Backend> {};
+
+TEST_P(WarmRunsTest, MultiPageLeavesKeepAnswersAndCountsOfOneLeafAtATime) {
+  const Backend backend = GetParam();
+  for (uint64_t seed : {3u, 11u}) {
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    const std::vector<SceneObject> objs = ScenesWithBigObjects(900, seed);
+    const std::string path =
+        TempPath(std::string(backend == Backend::kHdf5 ? "h5_" : "pf_") + std::to_string(seed) + ".mkt");
+    IngestOptions o;
+    o.store.backend = backend;
+    o.store.params.block_size = 1024;
+    o.store.params.blocks_per_page = 2;
+    ASSERT_TRUE(testing::BuildFromObjects(objs, path, o).ok());
+    uint64_t multi = 0, pages = 0;
+    {
+      auto reader = StoreReader::Open(path);
+      ASSERT_TRUE(reader.ok());
+      for (const LeafInfo& l : (*reader)->tree().leaves) {
+        multi += l.page_count > 1;
+        pages += l.page_count;
+      }
+    }
+    ASSERT_GE(multi, 10u);  // leaves of several pages, the case under test
+    const testing::BruteForce brute(objs);
+    const std::vector<Query> qs = Queries(objs, 240, seed * 5);
+    std::vector<std::vector<ObjectId>> expected;
+    for (const Query& q : qs) expected.push_back(brute.Answer(q));
+    for (bool verify : {true, false}) {
+      for (uint64_t cache : {uint64_t{0}, uint64_t{1}, uint64_t{5}, uint64_t{24}, pages / 3, pages + 10}) {
+        SCOPED_TRACE("cache " + std::to_string(cache) + (verify ? " verified" : ""));
+        const OpenOptions oo{.cache_pages = cache, .verify_checksums = verify};
+        auto windowed = Database::Open(path, oo);
+        auto single = Database::Open(path, oo);
+        ASSERT_TRUE(windowed.ok() && single.ok());
+        for (int pass = 0; pass < 3; ++pass) {
+          for (size_t i = 0; i < qs.size(); ++i) {
+            QueryResult r;
+            ASSERT_TRUE((*windowed)->Run(qs[i], &r).ok());
+            ASSERT_EQ(r.hits, expected[i]) << "pass " << pass << " query " << i;
+            std::vector<ObjectId> one;
+            QueryStats s;
+            auto complete = (*single)->VisitUntil(
+                qs[i],
+                [&](ObjectId id) {
+                  one.push_back(id);
+                  return true;
+                },
+                &s);
+            ASSERT_TRUE(complete.ok() && *complete);
+            std::sort(one.begin(), one.end());
+            ASSERT_EQ(one, expected[i]);
+            const QueryStats& w = r.stats;
+            ASSERT_EQ(w.pages_read, s.pages_read) << "pass " << pass << " query " << i;
+            EXPECT_EQ(w.pages_touched, s.pages_touched) << i;
+            EXPECT_EQ(w.cache_hits, s.cache_hits) << i;
+            EXPECT_EQ(w.bytes_read, s.bytes_read) << i;
+            EXPECT_EQ(w.leaves_visited, s.leaves_visited) << i;
+            EXPECT_EQ(w.leaves_filtered, s.leaves_filtered) << i;
+            EXPECT_EQ(w.leaves_with_hits, s.leaves_with_hits) << i;
+            EXPECT_EQ(w.candidates_tested, s.candidates_tested) << i;
+            EXPECT_EQ(w.internal_nodes_visited, s.internal_nodes_visited) << i;
+            EXPECT_EQ(w.split_nodes_visited, s.split_nodes_visited) << i;
+            EXPECT_EQ(w.hits, s.hits) << i;
+          }
+        }
+      }
+    }
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Backends, WarmRunsTest, ::testing::Values(Backend::kPagedFile, Backend::kHdf5),
+                         [](const auto& info) {
+                           return info.param == Backend::kHdf5 ? "Hdf5" : "PagedFile";
+                         });
+
+}  // namespace
+}  // namespace mktree
