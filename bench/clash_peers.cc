@@ -7,7 +7,9 @@
 //
 // Pair lines follow docs/clash.md's JSON contract as far as the peer knows: {"a", "b", "meeting",
 // "class"?, "distance"?}; collide (--object) lines name the scene object as "b" and the object as a = -1.
-// The last line is a summary: objects, triangles, pairs, load and clash seconds, peak RSS.
+// The last line is a summary: objects, triangles, pairs, load and clash seconds (clash = find + write:
+// finding the pairs, then sorting and writing their lines, as mktree's clash time includes its visitor), peak
+// RSS.
 //
 // Geometry: by default every object goes through the store's encoding (engine/store/object_codec.h) and
 // back, so the peers test the very float32-local vertices mktree decodes; --world keeps the input's doubles.
@@ -534,19 +536,23 @@ int Main(int argc, char** argv) {
             ", \"side_meshes\": " + std::to_string(run.side_meshes) +
             ", \"side_mesh_failures\": " + std::to_string(run.side_failures);
   }
+  // Writing the pairs is timed too: mktree's clash time includes its visitor writing every pair's line.
+  const auto t2 = Clock::now();
   std::sort(found.begin(), found.end(),
             [](const Pair& x, const Pair& y) { return x.a != y.a ? x.a < y.a : x.b < y.b; });
   for (const Pair& p : found) out.Add(p);
+  const double write_s = Since(t2);
   std::fflush(stdout);
   std::printf(
       "{\"engine\": \"%s\", \"objects\": %zu, \"triangles\": %llu, \"clearance\": %.17g, \"candidates\": "
       "%llu, "
       "\"pairs\": %zu, \"meeting\": %llu, \"clearance_pairs\": %llu, \"load_seconds\": %.3f, "
-      "\"clash_seconds\": %.3f, \"peak_rss_kib\": %ld%s%s}\n",
+      "\"clash_seconds\": %.4f, \"find_seconds\": %.4f, \"write_seconds\": %.4f, \"peak_rss_kib\": "
+      "%ld%s%s}\n",
       opt.engine.c_str(), objs.size(), static_cast<unsigned long long>(triangles), opt.clearance,
       static_cast<unsigned long long>(candidates), found.size(), static_cast<unsigned long long>(out.meeting),
-      static_cast<unsigned long long>(out.clearance), load_s, clash_s, PeakRssKib(), extra.c_str(),
-      bounds_json);
+      static_cast<unsigned long long>(out.clearance), load_s, clash_s + write_s, clash_s, write_s,
+      PeakRssKib(), extra.c_str(), bounds_json);
   return 0;
 }
 

@@ -227,7 +227,9 @@ def main():
         "- Scenes: the synthetic tanker seed 1 (`tanker:N:1`, the same generator for every engine), and the real "
         "scenes of shared/data. The peers test the float32 vertices a store decodes (bench/clash_peers.cc).",
         "- Time: wall seconds of the whole process (load + index + clash) and the clash alone as the engine "
-        "reports it; RSS: the process's peak (/usr/bin/time %M, i.e. wait4's ru_maxrss of a child forked by a small process).", ""]
+        "reports it: for mktree from the routing to the last pair handed to its visitor (which writes the pair "
+        "lines), for the peers finding the pairs plus sorting and writing their lines (bench/clash_peers.cc); the "
+        "collide workload also runs mktree on one thread (mktree-1t), as the peers run; RSS: the process's peak (/usr/bin/time %M, i.e. wait4's ru_maxrss of a child forked by a small process).", ""]
 
     scenes = []
     if not args.no_tanker:
@@ -288,18 +290,21 @@ def main():
                 common = ["--cache-pages", str(cache), "--clearance", repr(args.clearance), "--touch-tolerance",
                           repr(args.touch_tolerance)]
                 cmd = [mktree_bin, "clash", store] if wl == "self" else [mktree_bin, "collide", store, "--object", obj_path]
-                pairs_path = os.path.join(work, f"{name}_{wl}_mktree.jsonl")
-                # One run, pairs and the summary line to a file (as the peers write theirs): a 1M tanker's
-                # 10M pairs are 3.7 GB of text, not to be held in this process.
-                rc, wall, rss, _ = run_measured(cmd + common + ["--summary"], pairs_path)
-                if rc != 0:
-                    status = 1
-                else:
+                # Collide also on one thread, as the peers run (the default uses every core).
+                variants = [("mktree", [])] + ([("mktree-1t", ["--threads", "1"])] if wl == "collide" else [])
+                for engine, extra in variants:
+                    pairs_path = os.path.join(work, f"{name}_{wl}_{engine}.jsonl")
+                    # One run, pairs and the summary line to a file (as the peers write theirs): a 1M tanker's
+                    # 10M pairs are 3.7 GB of text, not to be held in this process.
+                    rc, wall, rss, _ = run_measured(cmd + common + extra + ["--summary"], pairs_path)
+                    if rc != 0:
+                        status = 1
+                        continue
                     summary = json.loads(last_line(pairs_path))
-                    results["mktree"] = {"wall": wall, "rss": rss, "clash": summary.get("seconds", wall),
-                                         "pairs": read_pairs(pairs_path, wl == "collide"), "summary": summary,
-                                         "pages": f"{summary.get('pages_read')} / {summary.get('store_pages')}",
-                                         }
+                    results[engine] = {"wall": wall, "rss": rss, "clash": summary.get("seconds", wall),
+                                       "pairs": read_pairs(pairs_path, wl == "collide"), "summary": summary,
+                                       "pages": f"{summary.get('pages_read')} / {summary.get('store_pages')}",
+                                       }
             elif "mktree" in engines:
                 results["mktree"] = None
             # Table rows.

@@ -483,49 +483,65 @@ Status RunCollide(const ClashStore& st, const Mesh& mesh, const std::optional<Ri
     s.read_seconds += Since(t);
     return Status::Ok();
   };
-  std::vector<PairWork> work;
+  // A chunk's pairs go to the visitor while the next chunk is tested (this thread, before it joins the
+  // loop), in chunk order: the same calls in the same order. Two sets of results, one a chunk.
+  std::vector<PairWork> work[2];
+  size_t pending = 0;  // candidates of the chunk before `cur` whose pairs the visitor has not had
+  auto emit_pending = [&](const std::vector<PairWork>& w) {
+    for (size_t k = 0; k < pending; ++k) emit.Add(w[k]);
+    pending = 0;
+  };
   std::vector<Status> errors;
   MKTREE_RETURN_IF_ERROR(fill(chunks[0]));
-  for (size_t cur = 0; !chunks[cur].candidates.empty(); cur ^= 1) {
+  size_t cur = 0;
+  for (; !chunks[cur].candidates.empty(); cur ^= 1) {
     Chunk& c = chunks[cur];
+    std::vector<PairWork>& w = work[cur];
     const Clock::time_point t = Clock::now();
-    work.resize(std::max(work.size(), c.candidates.size()));
+    w.resize(std::max(w.size(), c.candidates.size()));
     errors.assign(c.candidates.size(), Status::Ok());
     Status read_status;
     pool.For(
         c.candidates.size(),
         [&](size_t k) {
-          work[k].Clear();
+          w[k].Clear();
           const ObjectEntryView& e = c.pins[c.candidates[k].pin].view.entry(c.candidates[k].pos);
           Mesh mesh;
           errors[k] = DecodeStoredMesh(reader.path(), e, &mesh);
           if (!errors[k].ok()) return;
           const ClashShape other(mesh, StoredEdges(e));
           const double r = CoordinateResolution(e.box);
-          const Separation sep = Separate(other, shape, clash::NarrowMaxDistance(o, r), &work[k].narrow,
+          const Separation sep = Separate(other, shape, clash::NarrowMaxDistance(o, r), &w[k].narrow,
                                           clash::NarrowOptions(o, r));
           ClashPair pair;
           if (clash::Classify(sep, o, r, e.id, kCollideObject, tree.origin, &pair))
-            work[k].found.push_back(pair);
+            w[k].found.push_back(pair);
         },
-        [&] { read_status = fill(chunks[cur ^ 1]); });
+        [&] {
+          emit_pending(work[cur ^ 1]);
+          read_status = fill(chunks[cur ^ 1]);
+        });
     for (size_t i = 0; i < c.pinned; ++i) c.pins[i].Release();
     c.pinned = 0;
     s.narrow_seconds += Since(t);
     MKTREE_RETURN_IF_ERROR(FirstError(errors));
     // An id reported twice is in two leaves, which only id digests made to collide let through.
     for (size_t k = 0; k < c.candidates.size(); ++k)
-      for (const ClashPair& p : work[k].found) {
+      for (const ClashPair& p : w[k].found) {
         const uint64_t bit = uint64_t{1} << (p.a & 63);
         if (reported[p.a >> 6] & bit)
           return Status::Corruption(reader.path() + ": object " + std::to_string(p.a) +
                                     " is in two leaves (their id digests were made to collide)");
         reported[p.a >> 6] |= bit;
       }
-    for (size_t k = 0; k < c.candidates.size(); ++k) emit.Add(work[k]);
+    pending = c.candidates.size();
     c.candidates.clear();
-    MKTREE_RETURN_IF_ERROR(read_status);
+    if (!read_status.ok()) {
+      emit_pending(w);
+      return read_status;
+    }
   }
+  emit_pending(work[cur ^ 1]);  // the last chunk's (chunks[cur] came out empty)
   s.candidate_pairs = candidates;
   s.excluded_pairs = excluded;
   io.Fill(&s);

@@ -1,6 +1,7 @@
 #include "engine/geometry/mesh_separation.h"
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cfloat>
 #include <cmath>
@@ -71,6 +72,14 @@ struct ClashShape::Impl {
     if (mesh.triangle_count() > kMaxDepthDirectionTriangles ||
         mesh.vertex_count() > kMaxDepthDirectionVertices)
       return;
+    // The directions' x components ascending, with their index: a direction within 1e-9 (L1) of n has
+    // its x within 1e-9 of n.x, so only a short run of them is compared (the same set as comparing all).
+    struct ByX {
+      double x;
+      uint32_t k;
+    };
+    std::array<ByX, kMaxDepthDirections> by_x;
+    size_t n_dirs = 0;
     for (size_t t = 0; t < mesh.triangle_count() && directions.size() < kMaxDepthDirections; ++t) {
       const Vec3d a = At(mesh.triangles[3 * t]), b = At(mesh.triangles[3 * t + 1]),
                   c = At(mesh.triangles[3 * t + 2]);
@@ -81,19 +90,49 @@ struct ClashShape::Impl {
       n = {n.x / len, n.y / len, n.z / len};
       // Opposite normals give the same intervals.
       if (n.x < 0 || (n.x == 0 && (n.y < 0 || (n.y == 0 && n.z < 0)))) n = {-n.x, -n.y, -n.z};
-      const bool seen = std::any_of(directions.begin(), directions.end(), [&](const Vec3d& d) {
-        return std::fabs(d.x - n.x) + std::fabs(d.y - n.y) + std::fabs(d.z - n.z) < 1e-9;
-      });
-      if (!seen) directions.push_back(n);
+      const double from = n.x - 2e-9, to = n.x + 2e-9;  // wider than 1e-9: rounding of the difference
+      auto it = std::lower_bound(by_x.begin(), by_x.begin() + n_dirs, from,
+                                 [](const ByX& e, double x) { return e.x < x; });
+      bool seen = false;
+      for (auto j = it; j != by_x.begin() + n_dirs && j->x <= to && !seen; ++j) {
+        const Vec3d& d = directions[j->k];
+        seen = std::fabs(d.x - n.x) + std::fabs(d.y - n.y) + std::fabs(d.z - n.z) < 1e-9;
+      }
+      if (seen) continue;
+      auto at = std::lower_bound(by_x.begin(), by_x.begin() + n_dirs, n.x,
+                                 [](const ByX& e, double x) { return e.x < x; });
+      std::move_backward(at, by_x.begin() + n_dirs, by_x.begin() + n_dirs + 1);
+      *at = {n.x, static_cast<uint32_t>(directions.size())};
+      ++n_dirs;
+      directions.push_back(n);
     }
     // Kept for the object's life: no growth slack.
     directions.shrink_to_fit();
-    direction_lo.reserve(directions.size());
-    direction_hi.reserve(directions.size());
-    for (const Vec3d& d : directions) {
-      const auto [lo, hi] = ProjectionInterval(d);
-      direction_lo.push_back(lo);
-      direction_hi.push_back(hi);
+    // All intervals in one pass over the vertices (each position once when known: the same intervals).
+    const size_t nd = directions.size();
+    direction_lo.assign(nd, std::numeric_limits<double>::infinity());
+    direction_hi.assign(nd, -std::numeric_limits<double>::infinity());
+    std::array<double, kMaxDepthDirections> dx, dy, dz;
+    for (size_t k = 0; k < nd; ++k) {
+      dx[k] = directions[k].x;
+      dy[k] = directions[k].y;
+      dz[k] = directions[k].z;
+    }
+    double* lo = direction_lo.data();
+    double* hi = direction_hi.data();
+    auto add = [&](size_t i) {
+      const double* p = &mesh.vertices[3 * i];
+      const double x = p[0], y = p[1], z = p[2];
+      for (size_t k = 0; k < nd; ++k) {
+        const double q = x * dx[k] + y * dy[k] + z * dz[k];
+        lo[k] = std::min(lo[k], q);
+        hi[k] = std::max(hi[k], q);
+      }
+    };
+    if (vertices_built.load(std::memory_order_acquire)) {
+      for (uint32_t i : distinct_vertices) add(i);
+    } else {
+      for (size_t i = 0; i < mesh.vertex_count(); ++i) add(i);
     }
   }
 

@@ -1,6 +1,7 @@
 #include "engine/geometry/triangle_hierarchy.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <numeric>
@@ -55,14 +56,22 @@ TriangleHierarchy::TriangleHierarchy(const Mesh& mesh)
   const size_t n = mesh.triangle_count();
   if (n == 0) return;
   mesh_index_.resize(n);
-  std::vector<Vec3d> centroids(n);
+  // Centroid coordinates by axis (centroids[axis * n + t]): the median splits compare them directly.
+  // Small meshes (most clash candidates) reuse this thread's scratch: one allocation less per object.
+  constexpr size_t kScratchTriangles = 4096;
+  thread_local std::vector<double> scratch;
+  std::vector<double> own;
+  std::vector<double>& centroids = n <= kScratchTriangles ? scratch : own;
+  centroids.resize(3 * n);
   for (size_t t = 0; t < n; ++t) {
     Vec3d c{0, 0, 0};
     for (int k = 0; k < 3; ++k) {
       const double* v = &mesh.vertices[3 * size_t{mesh.triangles[3 * t + k]}];
       c = {c.x + v[0], c.y + v[1], c.z + v[2]};
     }
-    centroids[t] = {c.x / 3, c.y / 3, c.z / 3};
+    centroids[t] = c.x / 3;
+    centroids[n + t] = c.y / 3;
+    centroids[2 * n + t] = c.z / 3;
     mesh_index_[t] = static_cast<uint32_t>(t);
   }
   // The exact node count: a reserve that falls short would double the array (MemoryBytes must be true).
@@ -86,24 +95,32 @@ TriangleHierarchy::TriangleHierarchy(const Mesh& mesh)
 }
 
 // Builds the subtree of node `self` over mesh_index_[first, first + count).
-void TriangleHierarchy::Build(uint32_t self, uint32_t first, uint32_t count, std::vector<Vec3d>& centroids) {
+void TriangleHierarchy::Build(uint32_t self, uint32_t first, uint32_t count,
+                              const std::vector<double>& centroids) {
   if (count <= kLeafTriangles) {
     nodes_[self].first = first;
     nodes_[self].count = count;
     return;
   }
-  Box3d cb;
-  for (uint32_t i = first; i < first + count; ++i) {
-    const Vec3d& c = centroids[mesh_index_[i]];
-    cb.Extend(c.x, c.y, c.z);
+  const size_t n = mesh_index_.size();
+  double extent[3];
+  for (int k = 0; k < 3; ++k) {
+    const double* c = centroids.data() + k * n;
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    for (uint32_t i = first; i < first + count; ++i) {
+      lo = std::min(lo, c[mesh_index_[i]]);
+      hi = std::max(hi, c[mesh_index_[i]]);
+    }
+    extent[k] = hi - lo;
   }
   int axis = 0;
   for (int k = 1; k < 3; ++k)
-    if (cb.max[k] - cb.min[k] > cb.max[axis] - cb.min[axis]) axis = k;
+    if (extent[k] > extent[axis]) axis = k;
   const uint32_t half = count / 2;
   uint32_t* begin = mesh_index_.data() + first;
+  const double* key = centroids.data() + axis * n;
   std::nth_element(begin, begin + half, begin + count,
-                   [&](uint32_t x, uint32_t y) { return centroids[x][axis] < centroids[y][axis]; });
+                   [key](uint32_t x, uint32_t y) { return key[x] < key[y]; });
   const uint32_t left = static_cast<uint32_t>(nodes_.size());
   nodes_[self].first = left;
   nodes_[self].count = 0;
@@ -175,16 +192,24 @@ bool TriangleHierarchy::FindMeeting(const TriangleHierarchy& a, const TriangleHi
     const Node& nb = b.nodes_[p.b];
     if (!BoxesMeet(na.box, nb.box)) continue;
     if (na.leaf() && nb.leaf()) {
+      // b's triangles and boxes once per leaf pair, not once per triangle of a (the same tests in the
+      // same order).
+      std::array<Triangle, kLeafTriangles> tb;
+      std::array<Box3d, kLeafTriangles> boxes_b;
+      uint32_t nb_ready = 0;
       for (uint32_t i = na.first; i < na.first + na.count && !met; ++i) {
         const Triangle ti = a.triangle(i);
         const Box3d bi = TriangleBox(ti);
         if (!BoxesMeet(bi, nb.box)) continue;
-        for (uint32_t j = nb.first; j < nb.first + nb.count; ++j) {
-          const Triangle tj = b.triangle(j);
-          if (!BoxesMeet(bi, TriangleBox(tj))) continue;
+        for (; nb_ready < nb.count; ++nb_ready) {
+          tb[nb_ready] = b.triangle(nb.first + nb_ready);
+          boxes_b[nb_ready] = TriangleBox(tb[nb_ready]);
+        }
+        for (uint32_t j = 0; j < nb.count; ++j) {
+          if (!BoxesMeet(bi, boxes_b[j])) continue;
           ++n_tests;
-          if (TrianglesMeet(ti.data(), tj.data())) {
-            *found = {i, j};
+          if (TrianglesMeet(ti.data(), tb[j].data())) {
+            *found = {i, nb.first + j};
             met = true;
             break;
           }

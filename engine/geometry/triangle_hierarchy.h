@@ -72,7 +72,7 @@ class TriangleHierarchy {
   void SegmentCrossings(const Vec3d& p, const Vec3d& q, std::vector<double>* t) const;
 
  private:
-  void Build(uint32_t self, uint32_t first, uint32_t count, std::vector<Vec3d>& centroids);
+  void Build(uint32_t self, uint32_t first, uint32_t count, const std::vector<double>& centroids);
 
   std::vector<Node> nodes_;
   Vec3d At(uint32_t v) const {

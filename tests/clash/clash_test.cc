@@ -12,6 +12,7 @@
 #include <map>
 #include <random>
 #include <string>
+#include <thread>
 #include <tuple>
 #include <vector>
 
@@ -338,6 +339,63 @@ TEST(Clash, CollideSameOutputInTheSameOrderForAnyThreadCount) {
     EXPECT_EQ(st.distinct_pages, s1.distinct_pages);
     EXPECT_EQ(st.candidate_pairs, s1.candidate_pairs);
     EXPECT_EQ(st.triangle_tests, s1.triangle_tests);
+  }
+}
+
+// Collide hands one chunk's pairs to the visitor while the next chunk is tested: the visitor still runs on
+// the calling thread only, sees the pairs in the same order, and the cap counts what it left out.
+TEST(Clash, CollideVisitsOnTheCallingThreadInOrderWithTheCap) {
+  const auto scene = PlantedScene(900, 12);
+  const std::string path = TempPath("collide_visitor");
+  ASSERT_TRUE(Build(scene, path, Backend::kPagedFile).ok());
+  Box3d all;
+  for (const SceneObject& x : scene) {
+    const Box3d b = x.mesh.Bounds();
+    all.Extend(b.min[0], b.min[1], b.min[2]);
+    all.Extend(b.max[0], b.max[1], b.max[2]);
+  }
+  Box3d big;  // the middle 80 % of the scene on each axis: several chunks of candidates
+  for (int k = 0; k < 3; ++k) {
+    const double w = all.max[k] - all.min[k];
+    big.min[k] = all.min[k] + 0.1 * w;
+    big.max[k] = all.max[k] - 0.1 * w;
+  }
+  const Mesh box = BoxMesh(big);
+  auto run = [&](unsigned threads, uint64_t cap, ClashStats* s) {
+    auto db = Database::Open(path, {.cache_pages = 4});
+    EXPECT_TRUE(db.ok());
+    ClashOptions o;
+    o.threads = threads;
+    o.max_pairs = cap;
+    const std::thread::id caller = std::this_thread::get_id();
+    std::vector<ClashPair> got;
+    size_t elsewhere = 0;
+    EXPECT_TRUE((*db)
+                    ->Collide(
+                        box, std::nullopt, o,
+                        [&](const ClashPair& p) {
+                          if (std::this_thread::get_id() != caller) ++elsewhere;
+                          got.push_back(p);
+                        },
+                        s)
+                    .ok());
+    EXPECT_EQ(elsewhere, 0u);
+    return got;
+  };
+  ClashStats full;
+  const auto all_pairs = run(1, std::numeric_limits<uint64_t>::max(), &full);
+  ASSERT_GT(full.candidate_pairs, 512u);
+  ASSERT_GT(all_pairs.size(), 200u);
+  for (unsigned t : {2u, 4u}) {
+    ClashStats st;
+    const auto capped = run(t, 150, &st);
+    ASSERT_EQ(capped.size(), 150u);
+    ExpectSame(capped, std::vector<ClashPair>(all_pairs.begin(), all_pairs.begin() + 150));
+    EXPECT_EQ(st.reported_pairs, 150u);
+    EXPECT_EQ(st.capped_pairs, full.reported_pairs - 150);
+    EXPECT_EQ(st.hard, full.hard);
+    EXPECT_EQ(st.touch, full.touch);
+    EXPECT_EQ(st.pages_read, full.pages_read);
   }
 }
 
