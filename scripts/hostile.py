@@ -597,8 +597,11 @@ class PagedModel(Model):
         self.page_count, self.object_count = struct.unpack_from("<QQ", b, 48)
         self.header = bytearray(b[:P])
         self.pages = [bytearray(b[P * (1 + i):P * (2 + i)]) for i in range(self.page_count)]
+        # format 6: a ninth section, the codec dictionary; the header checksum and origin follow the table
+        self.nsec = 9 if self.version >= 6 else 8
+        self.sum_at = 80 + 24 * self.nsec
         secs = []
-        for i in range(8):
+        for i in range(self.nsec):
             off, n, _ = struct.unpack_from("<QQQ", b, 80 + 24 * i)
             secs.append(bytes(b[off:off + n]))
         self.nodes = [NODE.unpack_from(secs[0], o) for o in range(0, len(secs[0]), NODE.size)]
@@ -618,7 +621,8 @@ class PagedModel(Model):
                 s = e
         self.stats = secs[6]
         self.leaf_filter = bytearray(secs[7])
-        self.origin = struct.unpack_from("<3d", b, 280) if self.version >= 3 else (0.0, 0.0, 0.0)
+        self.dictionary = bytearray(secs[8]) if self.nsec > 8 else None
+        self.origin = struct.unpack_from("<3d", b, self.sum_at + 8) if self.version >= 3 else (0.0, 0.0, 0.0)
         if self.version >= 5:
             self.load_record_leaves()
 
@@ -638,13 +642,15 @@ class PagedModel(Model):
             objs = [self.enc_name_ends(), b"".join(self.names)]
         secs = [self.enc_nodes(), self.enc_splits(), self.enc_leaves(), self.enc_obj_leaves()] + objs + \
             [bytes(self.stats), bytes(self.leaf_filter)]
+        if self.dictionary is not None:
+            secs.append(bytes(self.dictionary))
         off = P * (1 + len(self.pages))
         for i, s in enumerate(secs):
             struct.pack_into("<QQQ", h, 80 + 24 * i, off, len(s), xxh3(s))
             off += len(s)
         struct.pack_into("<Q", h, 64, off)
-        struct.pack_into("<Q", h, 272, 0)
-        struct.pack_into("<Q", h, 272, xxh3(h))
+        struct.pack_into("<Q", h, self.sum_at, 0)
+        struct.pack_into("<Q", h, self.sum_at, xxh3(h))
         with open(path, "wb") as f:
             f.write(h)
             for pg in self.pages:
@@ -1816,6 +1822,24 @@ def mut_digest_collision(m, r):
     raise ValueError("no collision found that fits the leaves' pages")
 
 
+def _dictionary(m):
+    if getattr(m, "dictionary", None) is None or len(m.dictionary) < 16:
+        raise ValueError("paged-file stores of format 6 with a codec dictionary only")
+    return m.dictionary
+
+
+def mut_dict_magic(m, r):
+    d = _dictionary(m)
+    d[0:4] = bytes(4)  # no longer a zstd dictionary: zstd would take it as raw content
+    return "codec dictionary magic zeroed (section checksum recomputed)"
+
+
+def mut_dict_truncated(m, r):
+    d = _dictionary(m)
+    del d[8 + r.randrange(8):]  # magic and id kept, entropy tables cut
+    return "codec dictionary cut to %d bytes (section checksum recomputed)" % len(d)
+
+
 STRUCT_MUTS = [mut_cycle_to_root, mut_cycle_two, mut_shared_child, mut_both_children_same, mut_orphan_leaf_node,
                mut_orphan_internal, mut_leaf_twice, mut_leaf_backref, mut_object_two_leaves, mut_count_shift,
                mut_pages_overlap, mut_page_count, mut_payload_bytes, mut_depth_lie, mut_chain, mut_chain_dag,
@@ -1823,6 +1847,8 @@ STRUCT_MUTS = [mut_cycle_to_root, mut_cycle_two, mut_shared_child, mut_both_chil
 # format 5: the leaf id digests and the record's leaf field (after the others, so that their case ids stay)
 F5_MUTS = [mut_record_leaf_range, mut_digest_swap, mut_digest_total, mut_count_total, mut_digest_move]
 F5_SEMANTIC_MUTS = [mut_digest_collision]
+# format 6: the codec dictionary section (after the others, so that their case ids stay)
+F6_MUTS = [mut_dict_magic, mut_dict_truncated]
 STATS_MUTS = [mut_stats_inject, mut_stats_breakout, mut_stats_invalid, mut_stats_controls, mut_stats_deep]
 SEMANTIC_MUTS = [mut_label_flip, mut_node_box_shrink, mut_slab_moved, mut_filter_zero, mut_leaf_box_shrink]
 PAGE_MUTS = [pg_dup_id, pg_foreign_id, pg_transplant, pg_id_range, pg_tri_index, pg_vertex_nan, pg_counts_bomb]
@@ -1845,7 +1871,8 @@ def cat_crafted(h):
     groups = [("s", f, "crafted") for f in STRUCT_MUTS] + [("j", f, "crafted") for f in STATS_MUTS] + \
              [("p", f, "crafted") for f in PAGE_MUTS] + [("s", f, "crafted-semantic") for f in SEMANTIC_MUTS] + \
              [("p", f, "crafted-semantic") for f in SEMANTIC_PAGE_MUTS] + \
-             [("s", f, "crafted") for f in F5_MUTS] + [("s", f, "crafted-semantic") for f in F5_SEMANTIC_MUTS]
+             [("s", f, "crafted") for f in F5_MUTS] + [("s", f, "crafted-semantic") for f in F5_SEMANTIC_MUTS] + \
+             [("s", f, "crafted") for f in F6_MUTS]
     for backend in ("pagefile", "hdf5"):
         if backend not in backends:
             num += len(groups)

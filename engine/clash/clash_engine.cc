@@ -304,7 +304,7 @@ Status RunSelfClash(const ClashStore& st, const ClashOptions& o, const ClashVisi
       LoadedObject& obj = loaded[task.load]->objects[task.pos];
       obj.resolution = CoordinateResolution(e.box);
       obj.mesh = std::make_unique<Mesh>();
-      errors[k] = DecodeStoredMesh(reader.path(), e, obj.mesh.get());
+      errors[k] = DecodeStoredMesh(reader.path(), reader.options().codec.dictionary.get(), e, obj.mesh.get());
       if (errors[k].ok()) obj.shape = std::make_unique<ClashShape>(*obj.mesh, StoredEdges(e));
     });
     for (size_t i = 0; i < b.load.size(); ++i) pinned[i].Release();
@@ -507,7 +507,7 @@ Status RunCollide(const ClashStore& st, const Mesh& mesh, const std::optional<Ri
           w[k].Clear();
           const ObjectEntryView& e = c.pins[c.candidates[k].pin].view.entry(c.candidates[k].pos);
           Mesh mesh;
-          errors[k] = DecodeStoredMesh(reader.path(), e, &mesh);
+          errors[k] = DecodeStoredMesh(reader.path(), reader.options().codec.dictionary.get(), e, &mesh);
           if (!errors[k].ok()) return;
           const ClashShape other(mesh, StoredEdges(e));
           const double r = CoordinateResolution(e.box);

@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <deque>
 #include <filesystem>
 #include <future>
 #include <limits>
@@ -226,16 +227,63 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
   report.origin = options.origin  ? *options.origin
                   : first_pending ? ChooseStoreOrigin(first.mesh.Bounds())
                                   : Vec3d{};
-  auto read_all = [&](SceneObject* obj) -> Result<bool> {
-    if (!first_pending) return read(obj);
-    std::swap(*obj, first);
-    first_pending = false;
-    return true;
-  };
+  // The store's dictionary (object_codec.h), trained on the first objects before any is encoded: they are
+  // read ahead, packed as the encoder will pack them, and handed to the encoder after `first`.
+  std::deque<SceneObject> ahead;
   EncoderOptions encoder;
   encoder.codec = options.store.codec;
+  encoder.codec.dictionary.reset();
   encoder.origin = report.origin;
   encoder.threads = options.threads;
+  if (first_pending && encoder.codec.codec == Codec::kZstd) {
+    const auto train_start = Clock::now();
+    std::vector<uint8_t> sample;
+    std::vector<size_t> sizes;
+    // An object that cannot be packed is left to the encoder, which reports it in order.
+    auto add = [&](const SceneObject& obj) {
+      const size_t before = sample.size();
+      if (!PackObjectGeometry(obj, report.origin, encoder.codec.shuffle, &sample).ok()) return false;
+      if (sample.size() > kDictionarySampleBytes) {  // whole objects only
+        sample.resize(before);
+        return false;
+      }
+      sizes.push_back(sample.size() - before);
+      return true;
+    };
+    for (bool more = add(first); more;) {
+      SceneObject obj;
+      auto got = read(&obj);
+      if (!got.ok()) return got.status();
+      if (!*got) break;
+      ahead.push_back(std::move(obj));
+      more = add(ahead.back());
+    }
+    std::vector<uint8_t> dictionary = TrainDictionary(sample, sizes, encoder.codec.zstd_level);
+    if (!dictionary.empty()) {
+      auto loaded = CodecDictionary::Load(std::move(dictionary), encoder.codec.zstd_level);
+      if (!loaded.ok())
+        return Status::Internal("the dictionary just trained does not load: " + loaded.status().message());
+      encoder.codec.dictionary = *loaded;
+    }
+    report.dictionary_bytes = encoder.codec.dictionary ? encoder.codec.dictionary->bytes().size() : 0;
+    report.dictionary_seconds = Seconds(train_start);
+  }
+#if defined(__GLIBC__)
+  // Training's buffers (the sample, zstd's tables: ~12 MiB) are free: hand them back before encoding.
+  malloc_trim(0);
+#endif
+  writer.SetCodecDictionary(encoder.codec.dictionary);
+  auto read_all = [&](SceneObject* obj) -> Result<bool> {
+    if (first_pending) {
+      std::swap(*obj, first);
+      first_pending = false;
+      return true;
+    }
+    if (ahead.empty()) return read(obj);
+    std::swap(*obj, ahead.front());
+    ahead.pop_front();
+    return true;
+  };
   MKTREE_RETURN_IF_ERROR(EncodeObjects(encoder, read_all, spill));
 #if defined(__GLIBC__)
   // The pipeline's threads freed their batches and buffers into their own malloc arenas, which keep the

@@ -59,6 +59,8 @@ struct IngestReport {
   uint64_t triangles = 0;
   uint64_t raw_geometry_bytes = 0;  // Mesh::RawGeometryBytes summed
   uint64_t encoded_bytes = 0;       // leaf entry bytes summed (after the codec)
+  uint64_t dictionary_bytes = 0;    // the store's zstd dictionary (0: none, object_codec.h)
+  double dictionary_seconds = 0;    // reading ahead the sample and training it
   uint64_t pages = 0;
   uint64_t store_bytes = 0;  // size of the finished file
   double read_seconds = 0, build_seconds = 0, write_seconds = 0, total_seconds = 0;

@@ -290,7 +290,8 @@ class StoreDatabase final : public Database {
       for (const ObjectEntryView& e : pinned.view.entries()) {
         if (e.id != id) continue;
         Mesh mesh;
-        MKTREE_RETURN_IF_ERROR(DecodeStoredMesh(reader_->pages().name(), e, &mesh));
+        MKTREE_RETURN_IF_ERROR(
+            DecodeStoredMesh(reader_->pages().name(), reader_->options().codec.dictionary.get(), e, &mesh));
         const Vec3d& o = tree.origin;
         for (size_t v = 0; v < mesh.vertices.size(); ++v) mesh.vertices[v] += o[v % 3];
         return mesh;
@@ -445,7 +446,8 @@ class StoreDatabase final : public Database {
     if (!mesh) {
       MKTREE_RETURN_IF_ERROR(
           ParsePinned(reader_->pages().name(), reader_->tree().params.mem_page(), &pinned));
-      MKTREE_RETURN_IF_ERROR(DecodeStoredMesh(path(), pinned.view.entry(i), &local));
+      MKTREE_RETURN_IF_ERROR(
+          DecodeStoredMesh(path(), reader_->options().codec.dictionary.get(), pinned.view.entry(i), &local));
       mesh = d.CacheMesh(i, std::move(local));
       if (!mesh) mesh = &local;  // over the leaf's budget: CacheMesh left `local` as it was
     }

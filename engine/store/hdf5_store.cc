@@ -6,6 +6,7 @@
 //   /pages               the leaf pages, then the object record pages (record_codec.h)
 //   /objects/leaf_digest, /objects/record_directory, /objects/sources   the object table's canonical encoding
 //   /stats_json          scalar fixed-length string
+//   /codec_dictionary    uint8: the zstd dictionary of the entries (empty: none)
 //   attributes on /      magic "MKTREE-HDF5" (written last), format_version, build parameters, codec, counts,
 //                        and XXH3-64 checksums of the canonical encodings (tree_codec.h) of each part
 // Every HDF5 call runs under hdf5::Lock.
@@ -45,14 +46,15 @@ constexpr const char* kHdf5Magic = "MKTREE-HDF5";
 // boxes relative to it, vertices in each object's local frame), and the object table as its canonical
 // encoding (leaf, name_end, names) instead of fixed-length names padded to the longest one; 4: object
 // records in pages after the leaf pages (record_directory and sources instead of name_end and names); 5:
-// each object's leaf in its record, and leaf_digest (u64 per leaf) instead of leaf (u32 per object).
-constexpr uint32_t kHdf5FormatVersion = 5;
+// each object's leaf in its record, and leaf_digest (u64 per leaf) instead of leaf (u32 per object); 6:
+// codec_dictionary (zstd, shared by the entries).
+constexpr uint32_t kHdf5FormatVersion = 6;
 constexpr hsize_t kObjectChunkRows = 65536;
 
-constexpr int kChecksumCount = 7;
+constexpr int kChecksumCount = 8;
 constexpr const char* kChecksumNames[kChecksumCount] = {
     "checksum_header",  "checksum_nodes",      "checksum_split_nodes", "checksum_leaves",
-    "checksum_objects", "checksum_stats_json", "checksum_leaf_filter"};
+    "checksum_objects", "checksum_stats_json", "checksum_leaf_filter", "checksum_codec_dictionary"};
 
 // XXH3 of the header fields: parameters, codec, counts, version, origin.
 uint64_t HeaderChecksum(const BuildParams& p, const CodecOptions& c, uint64_t pages, uint64_t objects,
@@ -142,6 +144,11 @@ class Hdf5Writer : public StoreWriter::Impl {
 
     MKTREE_RETURN_IF_ERROR(WriteObjects(f, c.objects));
     MKTREE_RETURN_IF_ERROR(store_->IoStatus());
+    const std::vector<uint8_t> no_dictionary;
+    const std::vector<uint8_t>& dictionary = c.codec.dictionary ? c.codec.dictionary->bytes() : no_dictionary;
+    MKTREE_RETURN_IF_ERROR(
+        hdf5::WriteTable(f, "codec_dictionary", Records<kByteColumn>(dictionary), path_).status());
+    MKTREE_RETURN_IF_ERROR(store_->IoStatus());
 
     {  // stats JSON: a scalar fixed-length string dataset. Not variable-length: HDF5's global heap, where
        // those live, has no checksum, and a damaged heap entry crashes the library on read.
@@ -167,6 +174,7 @@ class Hdf5Writer : public StoreWriter::Impl {
     sums[4] = ObjectsChecksum(c.objects);
     sums[5] = Checksum(c.stats_json);
     sums[6] = Checksum(c.tree.leaf_filter);
+    sums[7] = Checksum(dictionary);
     MKTREE_RETURN_IF_ERROR(WriteAttr(f, "format_version", kHdf5FormatVersion, path_));
     // The parameter record's fields, each an attribute of its name and type; the codec as a word.
     for (const char* field : {"block_size", "blocks_per_page", "balance_r", "split_tree_node_budget"})
@@ -369,6 +377,13 @@ Result<OpenedStore> OpenHdf5(const std::string& path, const ReadOptions& opts) {
     c.stats_json = std::move(js);
   }
   if (Checksum(c.stats_json) != sums[5]) return bad("stats_json checksum mismatch");
+  {
+    std::vector<uint8_t> dictionary;
+    MKTREE_RETURN_IF_ERROR(
+        hdf5::ReadTable<kByteColumn>(f, "codec_dictionary", &dictionary, file_bytes, path));
+    if (Checksum(dictionary) != sums[7]) return bad("codec_dictionary checksum mismatch");
+    if (Status d = LoadCodecDictionary(std::move(dictionary), &c.codec); !d.ok()) return bad(d.message());
+  }
 
   // The pages dataset: shape, chunking and filters as we wrote them.
   auto pages = Hdf5PageStore::Open(path, std::move(file), mem_page, page_count);

@@ -125,9 +125,11 @@ Result<PinnedLeaf> ReadLeaf(PageCache& cache, const std::string& store_name, uin
                             const LeafInfo& info, const ObjectTable& objects, uint64_t mem_page,
                             bool verify_checksums, QueryStats* stats);
 
-// DecodeObjectMesh, naming the store in its error (the entry's own checks cannot know the file).
-inline Status DecodeStoredMesh(const std::string& store_name, const ObjectEntryView& e, Mesh* mesh) {
-  Status st = DecodeObjectMesh(e, mesh);
+// DecodeObjectMesh with the store's dictionary (StoreReader::options().codec.dictionary), naming the
+// store in its error (the entry's own checks cannot know the file).
+inline Status DecodeStoredMesh(const std::string& store_name, const CodecDictionary* dictionary,
+                               const ObjectEntryView& e, Mesh* mesh) {
+  Status st = DecodeObjectMesh(e, mesh, dictionary);
   return st.ok() ? st : Status::Corruption(store_name + ": " + st.message());
 }
 

@@ -1,7 +1,10 @@
 #include "engine/store/object_codec.h"
 
+#define ZDICT_STATIC_LINKING_ONLY  // ZDICT_optimizeTrainFromBuffer_fastCover
+#include <zdict.h>
 #include <zstd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -114,6 +117,80 @@ double LocalBase(float lo, float hi) {
 
 }  // namespace
 
+Result<std::shared_ptr<const CodecDictionary>> CodecDictionary::Load(std::vector<uint8_t> bytes,
+                                                                     std::optional<int> compress_level) {
+  // A zstd dictionary starts with its magic and a non-zero id; anything else zstd would take as raw
+  // content, so a damaged one is refused here rather than decoding to wrong bytes.
+  if (ZSTD_getDictID_fromDict(bytes.data(), bytes.size()) == 0)
+    return Status::Corruption("the codec dictionary is not a zstd dictionary");
+  std::shared_ptr<CodecDictionary> d(new CodecDictionary());
+  d->bytes_ = std::move(bytes);
+  d->ddict_ = ZSTD_createDDict(d->bytes_.data(), d->bytes_.size());
+  if (d->ddict_ == nullptr) return Status::Corruption("the codec dictionary's tables are invalid");
+  if (compress_level) {
+    d->cdict_ = ZSTD_createCDict(d->bytes_.data(), d->bytes_.size(), *compress_level);
+    if (d->cdict_ == nullptr) return Status::Corruption("the codec dictionary's tables are invalid");
+  }
+  return std::shared_ptr<const CodecDictionary>(std::move(d));
+}
+
+CodecDictionary::~CodecDictionary() {
+  ZSTD_freeCDict(cdict_);
+  ZSTD_freeDDict(ddict_);
+}
+
+namespace {
+
+// What the samples compress to, each alone (as entries store them: raw where zstd does not shrink one).
+uint64_t StoredBytes(std::span<const uint8_t> samples, std::span<const size_t> sizes, int level,
+                     const ZSTD_CDict* cdict) {
+  ZSTD_CCtx* cctx = ThreadCCtx();
+  std::vector<uint8_t> out;
+  uint64_t total = 0;
+  size_t at = 0;
+  for (const size_t n : sizes) {
+    out.resize(ZSTD_compressBound(n));
+    ZSTD_CCtx_reset(cctx, ZSTD_reset_session_and_parameters);
+    ZSTD_CCtx_setParameter(cctx, ZSTD_c_compressionLevel, level);
+    ZSTD_CCtx_setParameter(cctx, ZSTD_c_contentSizeFlag, 0);
+    ZSTD_CCtx_setParameter(cctx, ZSTD_c_dictIDFlag, 0);
+    if (cdict != nullptr) ZSTD_CCtx_refCDict(cctx, cdict);
+    const size_t z = ZSTD_compress2(cctx, out.data(), out.size(), samples.data() + at, n);
+    total += !ZSTD_isError(z) && z < n ? z : n;
+    at += n;
+  }
+  return total;
+}
+
+}  // namespace
+
+std::vector<uint8_t> TrainDictionary(std::span<const uint8_t> samples, std::span<const size_t> sizes,
+                                     int level) {
+  if (sizes.empty() || sizes.size() > std::numeric_limits<unsigned>::max()) return {};
+  // Measured (bench/dict_bench.cc): 64 KiB is best on the tanker and the 4 MiB steel scene, 16 KiB on the
+  // 1 MiB duplex; a sixty-fourth of the sample follows that.
+  const size_t capacity = std::clamp<size_t>(samples.size() / 64, size_t{4} << 10, size_t{64} << 10);
+  std::vector<uint8_t> dict(capacity);
+  ZDICT_fastCover_params_t p{};
+  p.d = 8;
+  p.f = 20;
+  p.steps = 4;
+  p.nbThreads = 1;  // deterministic
+  p.zParams.compressionLevel = level;
+  // zstd cannot train on a few objects and says so (an error code, not a crash); no dictionary then.
+  const size_t n = ZDICT_optimizeTrainFromBuffer_fastCover(
+      dict.data(), dict.size(), samples.data(), sizes.data(), static_cast<unsigned>(sizes.size()), &p);
+  if (ZDICT_isError(n)) return {};
+  dict.resize(n);
+  auto loaded = CodecDictionary::Load(dict, level);
+  if (!loaded.ok()) return {};
+  // On a scene hardly larger than its dictionary the dictionary's own bytes outweigh what it saves.
+  const uint64_t with = StoredBytes(samples, sizes, level, (*loaded)->cdict());
+  const uint64_t without = StoredBytes(samples, sizes, level, nullptr);
+  if (with + n >= without) return {};
+  return dict;
+}
+
 double CoordinateResolution(const Box3f& box) {
   double sum = 0;
   for (int c = 0; c < 3; ++c) {
@@ -200,15 +277,20 @@ Result<uint32_t> EncodeObjectEntry(const SceneObject& obj, const Vec3d& origin, 
     ZSTD_CCtx_setParameter(cctx, ZSTD_c_compressionLevel, opts.zstd_level);
     // The raw size is in the entry header; leaving it out of the frame saves bytes on small meshes.
     ZSTD_CCtx_setParameter(cctx, ZSTD_c_contentSizeFlag, 0);
+    const ZSTD_CDict* cdict = opts.dictionary ? opts.dictionary->cdict() : nullptr;
+    if (cdict != nullptr) {
+      ZSTD_CCtx_setParameter(cctx, ZSTD_c_dictIDFlag, 0);  // a store has one dictionary
+      ZSTD_CCtx_refCDict(cctx, cdict);
+    }
     const size_t z = ZSTD_compress2(cctx, out->data() + start + kObjectEntryHeaderBytes,
                                     out->size() - start - kObjectEntryHeaderBytes, packed.data(), raw);
     if (!ZSTD_isError(z) && z < raw) {
       compressed = z;
-      codec = Codec::kZstd;
+      codec = cdict != nullptr ? Codec::kZstdDict : Codec::kZstd;
       transform = opts.shuffle ? 1 : 0;
     }
   }
-  const uint32_t stored = codec == Codec::kZstd ? static_cast<uint32_t>(compressed) : raw;
+  const uint32_t stored = codec != Codec::kNone ? static_cast<uint32_t>(compressed) : raw;
   out->resize(start + kObjectEntryHeaderBytes + stored);
   uint8_t* p = out->data() + start;
   Put<uint32_t>(p + 0, obj.id);
@@ -225,7 +307,7 @@ Result<uint32_t> EncodeObjectEntry(const SceneObject& obj, const Vec3d& origin, 
   Put<uint32_t>(p + 40, raw);
   Put<uint32_t>(p + 44, stored);
   uint8_t* g = p + kObjectEntryHeaderBytes;
-  if (codec != Codec::kZstd) {
+  if (codec == Codec::kNone) {
     CopyBytes(g, local.data(), 4 * local.size());
     CopyBytes(g + 4 * local.size(), m.triangles.data(), 4 * m.triangles.size());
   }
@@ -234,6 +316,29 @@ Result<uint32_t> EncodeObjectEntry(const SceneObject& obj, const Vec3d& origin, 
   if (local.capacity() > (size_t{1} << 20)) local = {};
   if (box_out != nullptr) *box_out = box;
   return kObjectEntryHeaderBytes + stored;
+}
+
+Status PackObjectGeometry(const SceneObject& obj, const Vec3d& origin, bool shuffle,
+                          std::vector<uint8_t>* out) {
+  const Mesh& m = obj.mesh;
+  if (m.vertices.size() % 3 != 0 || m.triangles.size() % 3 != 0 ||
+      4 * uint64_t{m.vertices.size()} + 4 * uint64_t{m.triangles.size()} >
+          std::numeric_limits<uint32_t>::max())
+    return Status::InvalidArgument("object " + std::to_string(obj.id) + " ('" + obj.name +
+                                   "'): geometry cannot be encoded (larger than 4 GiB or malformed)");
+  thread_local std::vector<float> local;
+  Box3f box;
+  MKTREE_RETURN_IF_ERROR(LocalFrame(obj, origin, &local, &box));
+  const size_t start = out->size();
+  out->resize(start + 4 * local.size() + 4 * m.triangles.size());
+  if (shuffle) {
+    ForwardTransform(local, m.triangles, out->data() + start);
+  } else {
+    CopyBytes(out->data() + start, local.data(), 4 * local.size());
+    CopyBytes(out->data() + start + 4 * local.size(), m.triangles.data(), 4 * m.triangles.size());
+  }
+  if (local.capacity() > (size_t{1} << 20)) local = {};
+  return Status::Ok();
 }
 
 uint32_t EncodeObjectEntry(const SceneObject& obj, const CodecOptions& opts, std::vector<uint8_t>* out,
@@ -270,7 +375,7 @@ Status ParseObjectEntry(const uint8_t* data, size_t n, ObjectEntryView* out) {
   for (int i = 0; i < 3; ++i)
     if (!(std::isfinite(e.box.min[i]) && std::isfinite(e.box.max[i]) && e.box.min[i] <= e.box.max[i]))
       return fail("box is not finite, or its min exceeds its max");
-  if (codec > 1) return fail("unknown codec " + std::to_string(codec));
+  if (codec > 2) return fail("unknown codec " + std::to_string(codec));
   e.codec = static_cast<Codec>(codec);
   if (e.transform > 1 || (e.codec == Codec::kNone && e.transform != 0))
     return fail("unknown transform " + std::to_string(e.transform));
@@ -285,7 +390,7 @@ Status ParseObjectEntry(const uint8_t* data, size_t n, ObjectEntryView* out) {
   return Status::Ok();
 }
 
-Status DecodeObjectMesh(const ObjectEntryView& e, Mesh* mesh) {
+Status DecodeObjectMesh(const ObjectEntryView& e, Mesh* mesh, const CodecDictionary* dictionary) {
   auto fail = [&](const std::string& what) {
     return Status::Corruption("object " + std::to_string(e.id) + ": " + what);
   };
@@ -300,8 +405,14 @@ Status DecodeObjectMesh(const ObjectEntryView& e, Mesh* mesh) {
   } else {
     thread_local std::vector<uint8_t> buf;
     buf.resize(e.raw_bytes);
-    const size_t r =
-        ZSTD_decompressDCtx(ThreadDCtx(), buf.data(), buf.size(), e.geometry.data(), e.geometry.size());
+    size_t r;
+    if (e.codec == Codec::kZstdDict) {
+      if (dictionary == nullptr) return fail("compressed with a dictionary, but the store has none");
+      r = ZSTD_decompress_usingDDict(ThreadDCtx(), buf.data(), buf.size(), e.geometry.data(),
+                                     e.geometry.size(), dictionary->ddict());
+    } else {
+      r = ZSTD_decompressDCtx(ThreadDCtx(), buf.data(), buf.size(), e.geometry.data(), e.geometry.size());
+    }
     if (ZSTD_isError(r)) return fail(std::string("zstd: ") + ZSTD_getErrorName(r));
     if (r != e.raw_bytes) return fail("decompressed size mismatch");
     if (e.transform == 1) {

@@ -15,7 +15,7 @@
 //   offset size field
 //   0      4    object id
 //   4      24   float32 AABB in the store frame: min x, y, z, max x, y, z (rounded outward)
-//   28     1    codec: 0 none, 1 zstd
+//   28     1    codec: 0 none, 1 zstd, 2 zstd with the store's dictionary
 //   29     1    transform: 0 none, 1 shuffle (see below)
 //   30     1    shape flags (ShapeFlags): what ingest learnt of the mesh; 0 = unknown
 //   31     1    reserved, 0
@@ -35,6 +35,8 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -43,7 +45,55 @@
 
 namespace mktree {
 
-enum class Codec : uint8_t { kNone = 0, kZstd = 1 };
+// kZstdDict: a zstd frame compressed with the store's dictionary (store format 6; an entry codec only,
+// the store's parameters say kZstd).
+enum class Codec : uint8_t { kNone = 0, kZstd = 1, kZstdDict = 2 };
+
+}  // namespace mktree
+
+struct ZSTD_CDict_s;
+struct ZSTD_DDict_s;
+
+namespace mktree {
+
+// A store's zstd dictionary (store format 6): trained at ingest on the first objects' geometry
+// (TrainDictionary), kept once in the store and shared by all its zstd entries (codec kZstdDict). Each
+// object's frame then needs no literal table of its own: measured (bench/dict_bench.cc), a quarter of
+// the compression CPU and 45 % fewer geometry bytes on the tanker, 2-29 % fewer on the real scenes.
+// Thread safety: immutable once loaded; any number of threads may compress or decompress with it.
+class CodecDictionary {
+ public:
+  // Loads `bytes` (a zstd dictionary, as TrainDictionary gives), for compression at `compress_level` if
+  // given. Corruption when zstd does not take them as a dictionary.
+  static Result<std::shared_ptr<const CodecDictionary>> Load(std::vector<uint8_t> bytes,
+                                                             std::optional<int> compress_level);
+  ~CodecDictionary();
+  CodecDictionary(const CodecDictionary&) = delete;
+  CodecDictionary& operator=(const CodecDictionary&) = delete;
+
+  const std::vector<uint8_t>& bytes() const { return bytes_; }
+  const ZSTD_CDict_s* cdict() const { return cdict_; }  // null unless loaded with a level
+  const ZSTD_DDict_s* ddict() const { return ddict_; }
+
+ private:
+  CodecDictionary() = default;
+  std::vector<uint8_t> bytes_;
+  ZSTD_CDict_s* cdict_ = nullptr;
+  ZSTD_DDict_s* ddict_ = nullptr;
+};
+
+// What ingest trains a dictionary on: the packed geometry (PackObjectGeometry) of the first objects, whole
+// objects up to this many bytes. 4 MiB trains in ~0.15 s on one core and gives the tanker's best bytes
+// (1 and 8 MiB are 1 % worse or no better), and holds all of the steel scene, whose bytes it improves 7 %
+// over 2 MiB.
+inline constexpr size_t kDictionarySampleBytes = size_t{4} << 20;
+
+// Trains a dictionary for zstd level `level` on `samples` (objects' packed geometry back to back, their
+// sizes in `sizes`), of sample bytes / 64 clamped to 4-64 KiB (smaller scenes fit smaller dictionaries).
+// Returns no bytes (no dictionary) when zstd cannot train on the sample (a few objects) or when, on the
+// sample, the dictionary would not save more than its own size. Deterministic: one training thread.
+std::vector<uint8_t> TrainDictionary(std::span<const uint8_t> samples, std::span<const size_t> sizes,
+                                     int level);
 
 struct CodecOptions {
   Codec codec = Codec::kZstd;  // how geometry is stored in leaf entries
@@ -55,6 +105,8 @@ struct CodecOptions {
   // this small (~660 B raw).
   int zstd_level = 3;
   bool shuffle = true;  // apply transform 1 before zstd (ignored with kNone)
+  // The store's dictionary (with kZstd): entries are compressed with it (codec kZstdDict). Null: none.
+  std::shared_ptr<const CodecDictionary> dictionary;
 };
 
 inline constexpr uint32_t kObjectEntryHeaderBytes = 48;
@@ -76,6 +128,11 @@ Result<uint32_t> EncodeObjectEntry(const SceneObject& obj, const Vec3d& origin, 
 // The same for a store whose origin is (0, 0, 0); returns 0 (appending nothing) where that fails.
 uint32_t EncodeObjectEntry(const SceneObject& obj, const CodecOptions& opts, std::vector<uint8_t>* out,
                            uint8_t shape_flags = 0);
+
+// Appends the bytes EncodeObjectEntry hands zstd for `obj` (its local vertices and triangles, transformed
+// when `shuffle`) to *out: what a store's dictionary is trained on. InvalidArgument as EncodeObjectEntry.
+Status PackObjectGeometry(const SceneObject& obj, const Vec3d& origin, bool shuffle,
+                          std::vector<uint8_t>* out);
 
 // A parsed entry inside a leaf payload. `geometry` points into the payload it was parsed from.
 struct ObjectEntryView {
@@ -104,8 +161,9 @@ Status ParseObjectEntry(const uint8_t* data, size_t n, ObjectEntryView* out);
 double CoordinateResolution(const Box3f& box);
 
 // Decompresses and un-transforms an entry's geometry into *mesh, in the store frame (box.min + local).
-// Corruption on bad data (zstd failure, size mismatch, a triangle index out of range, a vertex outside the
-// entry's box).
-Status DecodeObjectMesh(const ObjectEntryView& e, Mesh* mesh);
+// `dictionary` is the store's (CodecOptions::dictionary), needed by kZstdDict entries. Corruption on bad
+// data (zstd failure, size mismatch, a triangle index out of range, a vertex outside the entry's box, a
+// kZstdDict entry without a dictionary).
+Status DecodeObjectMesh(const ObjectEntryView& e, Mesh* mesh, const CodecDictionary* dictionary = nullptr);
 
 }  // namespace mktree

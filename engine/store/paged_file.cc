@@ -2,7 +2,7 @@
 //   [0, P)                       header page (P = MemPage bytes; fixed fields in the first 512 bytes)
 //   [P * (1 + i), P * (2 + i))   page i: the leaf pages, then the object record pages
 //   then the sections, back to back: nodes, split nodes, leaves, leaf id digests, record directory,
-//   sources, stats JSON, leaf filter.
+//   sources, stats JSON, leaf filter, codec dictionary.
 // The header is written last, at Commit, so an unfinished file has a zero header and is refused.
 #include <fcntl.h>
 #include <unistd.h>
@@ -33,20 +33,21 @@ namespace {
 // 2: the leaf filter holds 10-bit levels in 8 bytes an object; 3: the store frame (an origin in the header,
 // boxes relative to it, vertices in each object's local frame); 4: object records in pages after the leaf
 // pages (record directory and sources sections instead of name ends and names); 5: each object's leaf in
-// its record, and a section of leaf id digests instead of the object leaves (u32 an object, in RAM).
-constexpr uint32_t kPagedFileVersion = 5;
+// its record, and a section of leaf id digests instead of the object leaves (u32 an object, in RAM); 6: a
+// codec dictionary section (zstd, shared by the entries).
+constexpr uint32_t kPagedFileVersion = 6;
 constexpr uint32_t kFixedHeaderBytes = 512;  // the smallest page the builder accepts
 constexpr uint32_t kParamsOffset = 16;
-constexpr uint32_t kSectionCount = 8;
+constexpr uint32_t kSectionCount = 9;
 constexpr uint32_t kSectionTableOffset = 80;
-constexpr uint32_t kHeaderChecksumOffset = kSectionTableOffset + kSectionCount * kSectionEntryBytes;  // 272
-constexpr uint32_t kOriginOffset = kHeaderChecksumOffset + 8;  // 280: 3 x f64
+constexpr uint32_t kHeaderChecksumOffset = kSectionTableOffset + kSectionCount * kSectionEntryBytes;  // 296
+constexpr uint32_t kOriginOffset = kHeaderChecksumOffset + 8;  // 304: 3 x f64
 static_assert(kOriginOffset + 24 <= kFixedHeaderBytes);
 static_assert(kParamsOffset + kParamsRecordBytes <= 48);
 
 const char* const kSectionNames[kSectionCount] = {"nodes",           "split nodes",      "leaves",
                                                   "leaf id digests", "record directory", "sources",
-                                                  "stats JSON",      "leaf filter"};
+                                                  "stats JSON",      "leaf filter",      "codec dictionary"};
 
 // Whether records of S are encoded as their bytes in RAM (little-endian host, storage/byte_io.h): each
 // named field where the encoding puts it and the record as long as its encoding, so that reserved fields
@@ -120,8 +121,10 @@ class PagedFileWriter : public StoreWriter::Impl {
           return EncodeSources(c.objects.sources);
         case 6:
           return std::vector<uint8_t>(c.stats_json.begin(), c.stats_json.end());
-        default:
+        case 7:
           return c.tree.leaf_filter;
+        default:
+          return c.codec.dictionary ? c.codec.dictionary->bytes() : std::vector<uint8_t>();
       }
     };
 
@@ -228,7 +231,7 @@ Result<OpenedStore> OpenPagedFile(const std::string& path, const ReadOptions& op
   // Each section is read straight into its final structure: open's peak is the structure, not plus a copy
   // of the largest section. Nothing is decoded before every checksum matched (the object table's three
   // sections are small and decoded together at the end).
-  std::vector<uint8_t> leaf_digests, directory, sources;
+  std::vector<uint8_t> leaf_digests, directory, sources, dictionary;
   auto whole = [](SectionReader& r, std::vector<uint8_t>* out) {
     out->resize(r.bytes());
     return r.Read(out->data(), r.bytes());
@@ -260,8 +263,11 @@ Result<OpenedStore> OpenPagedFile(const std::string& path, const ReadOptions& op
         c.stats_json.assign(json.begin(), json.end());
         break;
       }
-      default:
+      case 7:
         d = whole(r, &c.tree.leaf_filter);
+        break;
+      default:
+        d = whole(r, &dictionary);
     }
     return d;
   };
@@ -276,6 +282,7 @@ Result<OpenedStore> OpenPagedFile(const std::string& path, const ReadOptions& op
   if (Status d = DecodeObjectTable(object_count, leaf_digests, directory, sources, &c.objects); !d.ok())
     return bad(d.message());
   if (c.objects.size() != object_count) return bad("object table size does not match the header");
+  if (Status d = LoadCodecDictionary(std::move(dictionary), &c.codec); !d.ok()) return bad(d.message());
   MKTREE_RETURN_IF_ERROR(ValidateStructure(c.tree, c.objects, page_count, path));
 
   auto store = std::make_unique<PagedFileStore>(path, fd, mem_page, page_count);

@@ -27,6 +27,10 @@ class StoreWriter::Impl {
   virtual void Abort() = 0;
 };
 
+// Loads a store's codec dictionary section into c->dictionary (none when `bytes` is empty). Corruption,
+// without the store's name, when the bytes are not a zstd dictionary or the store's codec is not zstd.
+Status LoadCodecDictionary(std::vector<uint8_t> bytes, CodecOptions* c);
+
 // `ops` makes every write, truncation and fsync of the file (fault injection in tests).
 Result<std::unique_ptr<StoreWriter::Impl>> CreatePagedFileWriter(const std::string& temp_path,
                                                                  const BuildParams& params, FileOps& ops);

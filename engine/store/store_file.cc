@@ -157,6 +157,20 @@ Result<std::unique_ptr<StoreWriter>> StoreWriter::Create(const std::string& fina
 
 PageStore& StoreWriter::pages() { return backend_->pages(); }
 
+void StoreWriter::SetCodecDictionary(std::shared_ptr<const CodecDictionary> dictionary) {
+  opts_.codec.dictionary = std::move(dictionary);
+}
+
+Status LoadCodecDictionary(std::vector<uint8_t> bytes, CodecOptions* c) {
+  c->dictionary.reset();
+  if (bytes.empty()) return Status::Ok();
+  if (c->codec != Codec::kZstd) return Status::Corruption("a codec dictionary, but the codec is not zstd");
+  auto d = CodecDictionary::Load(std::move(bytes), std::nullopt);
+  if (!d.ok()) return d.status();
+  c->dictionary = std::move(d).value();
+  return Status::Ok();
+}
+
 Status StoreWriter::AppendObject(ObjectId id, uint32_t leaf, const Box3f& box, std::string_view name,
                                  std::string_view source, std::span<const ObjectAttribute> attributes) {
   if (done_) return Status::InvalidArgument(final_path_ + ": writer already committed");

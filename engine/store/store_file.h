@@ -76,6 +76,9 @@ class StoreWriter {
     return AppendObject(id, leaf, Box3f(), name, {}, {});
   }
   uint64_t object_count() const { return objects_.size(); }
+  // The zstd dictionary the entries were compressed with (CodecOptions::dictionary), kept in the store;
+  // null: none. Replaces the one StoreOptions gave Create.
+  void SetCodecDictionary(std::shared_ptr<const CodecDictionary> dictionary);
 
   // Validates tree against the pages and objects written (ValidateStructure, tree.params page size ==
   // the store's) and stats_json (ValidateStatsJson: empty or TreeStats::ToJson's), writes the tree,

@@ -146,7 +146,8 @@ Result<ClashRenderReport> RenderClashes(const StoreReader& store, const ClashMar
             fade = kNeutralFade;  // the other pairs stay visible, but behind the focus pair in emphasis too
           }
         }
-        MKTREE_RETURN_IF_ERROR(DecodeStoredMesh(store.path(), e, &mesh));
+        MKTREE_RETURN_IF_ERROR(
+            DecodeStoredMesh(store.path(), store.options().codec.dictionary.get(), e, &mesh));
         report.triangles += shader.Draw(mesh, ClashColour(c), e.id, layer, ss, &raster, fade);
         return Status::Ok();
       },

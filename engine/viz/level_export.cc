@@ -337,7 +337,8 @@ Result<ExportReport> ExportLevel(const StoreReader& store, const std::string& ou
           report.triangles[gi] += 12;
           return sink->Add(gi, corners, 8, kBoxTriangles, 12);
         }
-        MKTREE_RETURN_IF_ERROR(DecodeStoredMesh(store.path(), e, &mesh));
+        MKTREE_RETURN_IF_ERROR(
+            DecodeStoredMesh(store.path(), store.options().codec.dictionary.get(), e, &mesh));
         const auto nv = static_cast<uint32_t>(mesh.vertex_count()),
                    nt = static_cast<uint32_t>(mesh.triangle_count());
         report.vertices[gi] += nv;

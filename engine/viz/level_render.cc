@@ -157,7 +157,8 @@ Result<RenderReport> RenderLevel(const StoreReader& store, const std::string& pn
       store, o.level,
       [&](uint32_t, const ObjectEntryView& e, LevelGroup g) -> Status {
         ++report.objects[GroupIndex(g)];
-        MKTREE_RETURN_IF_ERROR(DecodeStoredMesh(store.path(), e, &mesh));
+        MKTREE_RETURN_IF_ERROR(
+            DecodeStoredMesh(store.path(), store.options().codec.dictionary.get(), e, &mesh));
         report.triangles += shader.Draw(mesh, GroupColour(g), e.id, 0, ss, &raster);
         return Status::Ok();
       },

@@ -17,18 +17,19 @@
 namespace mktree::fuzz {
 
 inline constexpr char kPagedMagic[8] = {'M', 'K', 'T', 'R', 'E', 'E', 'P', 'F'};
-inline constexpr uint32_t kPagedVersion = 5;  // the origin (offset 280) stays 0: a frame at the world's
+inline constexpr uint32_t kPagedVersion = 6;  // the origin (offset 304) stays 0: a frame at the world's
 inline constexpr uint32_t kFixedHeaderBytes = 512;
 inline constexpr uint32_t kParamsOffset = 16;
-inline constexpr uint32_t kSectionCount = 8;  // nodes, split nodes, leaves, leaf id digests, record
-                                              // directory, sources, stats JSON, leaf filter
+inline constexpr uint32_t kSectionCount = 9;  // nodes, split nodes, leaves, leaf id digests, record
+                                              // directory, sources, stats JSON, leaf filter,
+                                              // codec dictionary
 inline constexpr uint32_t kSectionTableOffset = 80;
 inline constexpr uint32_t kHeaderChecksumOffset = kSectionTableOffset + kSectionCount * 24;
 
 // Structured input of the store_open target, after its mode byte: the 28-byte parameter record, then
 // chunks separated by kChunkSeparator: the pages, leaf then record pages (concatenated; each page's
 // checksum is recomputed),
-// the eight sections in file order, and optionally query coordinates (6 doubles a query).
+// the nine sections in file order, and optionally query coordinates (6 doubles a query).
 inline constexpr uint8_t kChunkSeparator[8] = {0xff, 'M', 'K', 'S', 'E', 'C', 'T', 0xff};
 inline constexpr size_t kChunkCount = 1 + kSectionCount + 1;
 

@@ -88,6 +88,8 @@ int StoreStruct(const std::string& store, const std::string& out_path) {
   Append(&out, mktree::EncodeSources(o.sources), true);
   Append(&out, std::vector<uint8_t>(r->stats_json().begin(), r->stats_json().end()), true);
   Append(&out, t.leaf_filter, true);
+  const auto& dictionary = r->options().codec.dictionary;
+  Append(&out, dictionary ? dictionary->bytes() : std::vector<uint8_t>(), true);
   WriteFile(out_path, out);
   return 0;
 }

@@ -19,11 +19,11 @@ using testing::PrismMesh;
 using testing::RandomMesh;
 using testing::SameMesh;
 
-const CodecOptions kCodecs[] = {{Codec::kNone, 3, false},
-                                {Codec::kZstd, 3, false},
-                                {Codec::kZstd, 3, true},
-                                {Codec::kZstd, 19, true},
-                                {Codec::kZstd, -5, true}};
+const CodecOptions kCodecs[] = {{Codec::kNone, 3, false, nullptr},
+                                {Codec::kZstd, 3, false, nullptr},
+                                {Codec::kZstd, 3, true, nullptr},
+                                {Codec::kZstd, 19, true, nullptr},
+                                {Codec::kZstd, -5, true, nullptr}};
 
 TEST(ObjectCodecTest, RoundTripsEveryCodec) {
   std::mt19937 g(7);
@@ -171,7 +171,7 @@ TEST(ObjectCodecTest, CorruptEntriesAreRefused) {
   EXPECT_GT(refused, 0);
   // A triangle index out of range in a raw entry.
   std::vector<uint8_t> raw;
-  const uint32_t rn = EncodeObjectEntry(o, {Codec::kNone, 0, false}, &raw);
+  const uint32_t rn = EncodeObjectEntry(o, {Codec::kNone, 0, false, nullptr}, &raw);
   storage_internal::Put<uint32_t>(raw.data() + rn - 4, 1000);
   auto e = ParseObjectEntry(raw.data(), rn);
   ASSERT_TRUE(e.ok());
@@ -197,10 +197,10 @@ TEST(ObjectCodecTest, ShuffleShrinksPrismsAndBoxes) {
     return sum;
   };
   for (auto* set : {&prisms, &boxes}) {
-    const uint64_t raw = total(*set, {Codec::kNone, 0, false});
-    const uint64_t plain = total(*set, {Codec::kZstd, 3, false});
-    const uint64_t shuf = total(*set, {Codec::kZstd, 3, true});
-    const uint64_t shuf19 = total(*set, {Codec::kZstd, 19, true});
+    const uint64_t raw = total(*set, {Codec::kNone, 0, false, nullptr});
+    const uint64_t plain = total(*set, {Codec::kZstd, 3, false, nullptr});
+    const uint64_t shuf = total(*set, {Codec::kZstd, 3, true, nullptr});
+    const uint64_t shuf19 = total(*set, {Codec::kZstd, 19, true, nullptr});
     std::printf("[ratio] %s: raw %llu B, zstd-3 %.2fx, shuffle+zstd-3 %.2fx, shuffle+zstd-19 %.2fx\n",
                 set == &prisms ? "prisms (8-16 sides)" : "boxes", static_cast<unsigned long long>(raw),
                 double(raw) / plain, double(raw) / shuf, double(raw) / shuf19);

@@ -258,7 +258,7 @@ class CraftedHdf5Test : public ::testing::Test {
     storage_internal::ByteWriter w(&b);
     w.Put<uint64_t>(pages);
     w.Put<uint64_t>(objects);
-    w.Put<uint32_t>(5);                              // the HDF5 format version
+    w.Put<uint32_t>(6);                              // the HDF5 format version
     for (int i = 0; i < 3; ++i) w.Put<double>(0.0);  // the store frame's origin: these scenes lie near 0
     return Checksum(b);
   }

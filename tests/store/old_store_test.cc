@@ -1,12 +1,13 @@
-// Stores of format 5 (tests/store/data/tanker40_format5.*, written by the mktree of issue 21.1's paged
-// object leaves: each object's leaf in its record, leaf id digests in RAM, with
+// Stores of format 6 (tests/store/data/tanker40_format6.*, written by the mktree of issue 21.3's codec
+// dictionary section, empty for these 40 objects, too few to train on, with
 //   mktree build tanker:40:1 --block-size 512 --blocks-per-page 2 --backend hdf5|pagefile -q)
 // open and answer queries the same with this build, and this build writes the same stores for the same
 // input: the paged file byte for byte; the HDF5 file (whose objects carry modification times, so not its
 // bytes) with the same datasets (HDF5 types, shapes, creation properties, contents) and attributes (types,
 // values). A change of the store formats fails here: make new files then, and say so. The format 3 files
-// (tanker40_format3.*, from the start of issue 19) and format 4 files (tanker40_format4.*, issue 21/22's
-// object record pages) are refused by name and version.
+// (tanker40_format3.*, from the start of issue 19), format 4 files (tanker40_format4.*, issue 21/22's
+// object record pages) and format 5 files (tanker40_format5.*, issue 21.1's leaf id digests) are refused
+// by name and version.
 #include <gtest/gtest.h>
 #include <hdf5.h>
 
@@ -25,7 +26,7 @@ using testing::RunMktree;
 using testing::Slurp;
 using testing::TempDir;
 
-const std::string kOldStores = std::string(MKTREE_TESTS_DIR) + "/store/data/tanker40_format5";
+const std::string kOldStores = std::string(MKTREE_TESTS_DIR) + "/store/data/tanker40_format6";
 const std::string kRefusedStores = std::string(MKTREE_TESTS_DIR) + "/store/data/tanker40_format";
 const char* const kBuild = "build tanker:40:1 --block-size 512 --blocks-per-page 2 -q";
 
@@ -83,10 +84,10 @@ TEST(OldStoreTest, OldStoresOpenAndAnswerTheSame) {
   }
 }
 
-TEST(OldStoreTest, Format3And4StoresAreRefusedByVersion) {
+TEST(OldStoreTest, Format3To5StoresAreRefusedByVersion) {
   TempDir dir;
-  for (const std::string version : {"3", "4"}) {
-    const std::string why = "format version " + version + " (this build reads version 5)";
+  for (const std::string version : {"3", "4", "5"}) {
+    const std::string why = "format version " + version + " (this build reads version 6)";
     for (const std::string ext : {".h5", ".pf"}) {
       const std::string path = kRefusedStores + version + ext;
       auto r = StoreReader::Open(path);
@@ -209,19 +210,12 @@ TEST(OldStoreTest, Hdf5StoreIsWrittenWithTheSameObjectsTypesAndValues) {
   TempDir dir;
   Hdf5Compare files(kOldStores + ".h5", BuildNow(dir, "hdf5"));
   ASSERT_TRUE(files.ok());
-  const std::vector<std::string> want = {"objects",
-                                         "objects/leaf_digest",
-                                         "objects/record_directory",
-                                         "objects/sources",
-                                         "pages",
-                                         "stats_json",
-                                         "tree",
-                                         "tree/leaf_filter",
-                                         "tree/leaves",
-                                         "tree/nodes",
-                                         "tree/split_nodes"};
+  const std::vector<std::string> want = {
+      "codec_dictionary", "objects",     "objects/leaf_digest", "objects/record_directory",
+      "objects/sources",  "pages",       "stats_json",          "tree",
+      "tree/leaf_filter", "tree/leaves", "tree/nodes",          "tree/split_nodes"};
   EXPECT_EQ(Hdf5Compare::Objects(files.old_file()), want);
-  EXPECT_EQ(Hdf5Compare::AttributeNames(files.old_file()).size(), 19u);
+  EXPECT_EQ(Hdf5Compare::AttributeNames(files.old_file()).size(), 20u);
   files.ExpectSame();
 }
 

@@ -97,12 +97,12 @@ class PagedFileSectionTest : public ::testing::Test {
 };
 
 TEST_F(PagedFileSectionTest, AFlippedByteInAnySectionIsAChecksumMismatch) {
-  const char* const names[] = {"nodes",   "split nodes", "leaves",     "leaf id digests", "record directory",
-                               "sources", "stats JSON",  "leaf filter"};
+  const char* const names[] = {"nodes",   "split nodes", "leaves",      "leaf id digests", "record directory",
+                               "sources", "stats JSON",  "leaf filter", "codec dictionary"};
   ASSERT_TRUE(OpenWith(file_).ok());
-  for (int i = 0; i < 8; ++i) {
+  for (int i = 0; i < 9; ++i) {
     SCOPED_TRACE(names[i]);
-    if (SectionBytes(i) == 0) continue;  // the statistics, here
+    if (SectionBytes(i) == 0) continue;  // the statistics and the dictionary, here (dictionary_test.cc)
     std::vector<uint8_t> f = file_;
     f[SectionOffset(i) + SectionBytes(i) / 2] ^= 0x40;
     const Status st = OpenWith(f);
@@ -120,8 +120,8 @@ TEST_F(PagedFileSectionTest, ASplitNodeLabelOutOfRangeIsRefusedBehindValidChecks
   f[SectionOffset(1) + 13] = 7;
   PutU64(&f, 80 + 24 * 1 + 16,
          Checksum(std::span<const uint8_t>(f.data() + SectionOffset(1), SectionBytes(1))));
-  PutU64(&f, 272, 0);
-  PutU64(&f, 272, Checksum(std::span<const uint8_t>(f.data(), mem_page)));
+  PutU64(&f, 296, 0);
+  PutU64(&f, 296, Checksum(std::span<const uint8_t>(f.data(), mem_page)));
   const Status st = OpenWith(f);
   EXPECT_EQ(st.code(), Status::Code::kCorruption) << st.ToString();
   EXPECT_NE(st.message().find(path_ + ": split node label out of range"), std::string::npos) << st.message();
