@@ -618,4 +618,36 @@ Status RunCollide(const ClashStore& st, const Mesh& mesh, const std::optional<Ri
   return Status::Ok();
 }
 
+// Adds the counts of `b` to `a` (the window's bytes: the larger).
+void AddClashStats(ClashStats* a, const ClashStats& b) {
+  for (auto [x, y] : {std::pair{&a->pages_read, b.pages_read},
+                      {&a->pages_touched, b.pages_touched},
+                      {&a->distinct_pages, b.distinct_pages},
+                      {&a->store_pages, b.store_pages},
+                      {&a->leaf_reads, b.leaf_reads},
+                      {&a->leaf_rereads, b.leaf_rereads},
+                      {&a->leaf_pairs_tree, b.leaf_pairs_tree},
+                      {&a->leaf_pairs_visited, b.leaf_pairs_visited},
+                      {&a->candidate_pairs, b.candidate_pairs},
+                      {&a->excluded_pairs, b.excluded_pairs},
+                      {&a->bound_rejects, b.bound_rejects},
+                      {&a->triangle_tests, b.triangle_tests},
+                      {&a->containment_tests, b.containment_tests},
+                      {&a->shapes_prepared, b.shapes_prepared},
+                      {&a->hierarchies_built, b.hierarchies_built},
+                      {&a->classifiers_built, b.classifiers_built},
+                      {&a->hard, b.hard},
+                      {&a->touch, b.touch},
+                      {&a->clearance, b.clearance},
+                      {&a->reported_pairs, b.reported_pairs},
+                      {&a->capped_pairs, b.capped_pairs},
+                      {&a->unreported_touches, b.unreported_touches}})
+    *x += y;
+  a->window_peak_bytes = std::max(a->window_peak_bytes, b.window_peak_bytes);
+  a->window_budget_bytes = std::max(a->window_budget_bytes, b.window_budget_bytes);
+  a->broad_seconds += b.broad_seconds;
+  a->read_seconds += b.read_seconds;
+  a->narrow_seconds += b.narrow_seconds;
+}
+
 }  // namespace mktree

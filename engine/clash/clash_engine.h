@@ -48,6 +48,10 @@ Status RunMultiClash(const std::vector<ClashPart>& parts, const ClashPartPairs& 
 Status RunCollide(const ClashStore& store, const Mesh& mesh, const std::optional<RigidTransform>& transform,
                   const ClashOptions& options, const ClashVisitor& visit, ClashStats* stats);
 
+// Adds the counts and phase seconds of `b` to `a` (the window's bytes: the larger; total_seconds is left
+// to the caller): a run over several stores or ranks.
+void AddClashStats(ClashStats* a, const ClashStats& b);
+
 // RunCollide's checks of its mesh and transform (the same InvalidArgument).
 Status CheckCollideMesh(const Mesh& mesh, const std::optional<RigidTransform>& transform);
 
