@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <memory>
+#include <queue>
 #include <thread>
 #include <utility>
 #include <vector>
@@ -245,26 +246,29 @@ Status RunMultiClash(const std::vector<ClashPart>& parts, const ClashPartPairs& 
   auto wanted = [&](uint32_t i, uint32_t j) { return !want || want(i, j); };
   clash::WorkPool pool(ThreadCount(o.threads));
   // Group names from the record pages, read in id order (each page once) straight from the stores, so
-  // that the clash's own page counts stay its leaves'; a damaged record page fails the run. Global id g
-  // is the next id of the part whose cursor holds it (ids increase within a part).
+  // that the clash's own page counts stay its leaves'; a damaged record page fails the run. Global ids
+  // come in increasing order: the parts' next ids in a heap (ids increase within a part).
   Status names_status;
   std::vector<std::unique_ptr<RecordReader>> names;
   for (const ClashPart& part : parts)
     names.push_back(std::make_unique<RecordReader>(part.store.reader.record_layout(), nullptr,
                                                    part.store.verify_checksums));
   std::vector<uint64_t> cursor(np, 0);
+  using Head = std::pair<uint64_t, size_t>;  // (global id, part)
+  std::priority_queue<Head, std::vector<Head>, std::greater<Head>> heads;
+  if (!o.exclude_group_separator.empty())
+    for (size_t k = 0; k < np; ++k)
+      if (parts[k].store.reader.object_count() > 0) heads.push({global_id(k, 0), k});
   const clash::Exclusions ex(o, global_count, [&](uint64_t g) -> std::string_view {
-    if (!names_status.ok()) return {};
-    for (size_t k = 0; k < np; ++k) {
-      const uint64_t at = cursor[k];
-      if (at >= parts[k].store.reader.object_count() || global_id(k, static_cast<ObjectId>(at)) != g)
-        continue;
-      ++cursor[k];
-      auto r = names[k]->Get(static_cast<uint32_t>(at), nullptr);
-      if (!r.ok()) names_status = r.status();
-      return r.ok() ? std::string_view((*r)->name) : std::string_view();
-    }
-    return {};
+    if (!names_status.ok() || heads.empty() || heads.top().first != g) return {};
+    const size_t k = heads.top().second;
+    heads.pop();
+    const uint64_t at = cursor[k]++;
+    if (cursor[k] < parts[k].store.reader.object_count())
+      heads.push({global_id(k, static_cast<ObjectId>(cursor[k])), k});
+    auto r = names[k]->Get(static_cast<uint32_t>(at), nullptr);
+    if (!r.ok()) names_status = r.status();
+    return r.ok() ? std::string_view((*r)->name) : std::string_view();
   });
   MKTREE_RETURN_IF_ERROR(names_status);
   names.clear();
