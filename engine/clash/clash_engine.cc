@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <memory>
+#include <queue>
 #include <thread>
 #include <utility>
 #include <vector>
@@ -109,8 +110,8 @@ struct Emitter {
 struct IoCount {
   QueryStats q;
   std::vector<uint8_t> touched;
-  void Mark(const LeafInfo& info) {
-    for (uint64_t p = info.first_page; p < info.first_page + info.page_count; ++p) {
+  void Mark(const LeafInfo& info, uint64_t base = 0) {
+    for (uint64_t p = base + info.first_page; p < base + info.first_page + info.page_count; ++p) {
       if (p >= touched.size()) touched.resize(p + 1, 0);
       touched[p] = 1;
     }
@@ -148,7 +149,7 @@ uint64_t DecodedLeafBytes(const LoadedLeaf& l) {
 // ReadLeaf with one duplicate-id scratch for every pinned leaf: ReadLeaf leaves it all zero, and each
 // PinnedLeaf's own would keep a bit per object of the store (a batch pins up to hundreds of leaves).
 Status ReadPinned(const ClashStore& st, uint32_t leaf, IoCount* io, std::vector<uint64_t>* seen,
-                  PinnedLeaf* out) {
+                  PinnedLeaf* out, uint64_t page_base = 0) {
   const StoreReader& reader = st.reader;
   const MKTree& tree = reader.tree();
   const LeafInfo& info = tree.leaves[leaf];
@@ -156,7 +157,7 @@ Status ReadPinned(const ClashStore& st, uint32_t leaf, IoCount* io, std::vector<
   const Status s = ReadLeaf(st.cache, reader.pages().name(), leaf, info, reader.objects(),
                             tree.params.mem_page(), st.verify_checksums, &io->q, out);
   out->seen.swap(*seen);
-  if (s.ok()) io->Mark(info);
+  if (s.ok()) io->Mark(info, page_base);
   return s;
 }
 
@@ -211,47 +212,137 @@ Status FirstError(const std::vector<Status>& errors) {
 
 Status RunSelfClash(const ClashStore& st, const ClashOptions& o, const ClashVisitor& visit,
                     ClashStats* stats) {
+  return RunMultiClash({ClashPart{st, nullptr}}, nullptr, o, visit, stats);
+}
+
+Status RunMultiClash(const std::vector<ClashPart>& parts, const ClashPartPairs& want, const ClashOptions& o,
+                     const ClashVisitor& visit, ClashStats* stats) {
   ClashStats local;
   ClashStats& s = stats ? *stats : local;
   s = ClashStats();
   MKTREE_RETURN_IF_ERROR(clash::CheckOptions(o));
   const Clock::time_point start = Clock::now();
-  const StoreReader& reader = st.reader;
-  const MKTree& tree = reader.tree();
-  s.store_pages = StorePages(tree);
+  const size_t np = parts.size();
+  if (np == 0) return Status::Ok();
+  // Leaves of all parts numbered one after the other (part k's from leaf_base[k]); pages likewise.
+  std::vector<uint32_t> leaf_base(np + 1, 0), part_of;
+  std::vector<uint64_t> page_base(np + 1, 0);
+  uint64_t global_count = 0, cache_bytes = 0;
+  for (size_t k = 0; k < np; ++k) {
+    const StoreReader& r = parts[k].store.reader;
+    const MKTree& t = r.tree();
+    leaf_base[k + 1] = leaf_base[k] + static_cast<uint32_t>(t.leaves.size());
+    part_of.resize(leaf_base[k + 1], static_cast<uint32_t>(k));
+    page_base[k + 1] = page_base[k] + r.pages().page_count();
+    s.store_pages += StorePages(t);
+    const std::vector<ObjectId>* ids = parts[k].ids;
+    if (ids && ids->size() != r.object_count())
+      return Status::Internal(r.path() + ": the part's id map does not match its objects");
+    global_count = std::max<uint64_t>(
+        global_count, ids ? (ids->empty() ? 0 : ids->back() + uint64_t{1}) : r.object_count());
+    cache_bytes += parts[k].store.cache.capacity() * t.params.mem_page();
+  }
+  auto global_id = [&](size_t k, ObjectId id) { return parts[k].ids ? (*parts[k].ids)[id] : id; };
+  auto wanted = [&](uint32_t i, uint32_t j) { return !want || want(i, j); };
   clash::WorkPool pool(ThreadCount(o.threads));
-  // Group names from the record pages, read in id order (each page once) straight from the store, so
-  // that the clash's own page counts stay its leaves'; a damaged record page fails the run.
+  // Group names from the record pages, read in id order (each page once) straight from the stores, so
+  // that the clash's own page counts stay its leaves'; a damaged record page fails the run. Global ids
+  // come in increasing order: the parts' next ids in a heap (ids increase within a part).
   Status names_status;
-  RecordReader names(reader.record_layout(), nullptr, st.verify_checksums);
-  const clash::Exclusions ex(o, reader.object_count(), [&](uint64_t i) -> std::string_view {
-    if (!names_status.ok()) return {};
-    auto r = names.Get(static_cast<uint32_t>(i), nullptr);
+  std::vector<std::unique_ptr<RecordReader>> names;
+  for (const ClashPart& part : parts)
+    names.push_back(std::make_unique<RecordReader>(part.store.reader.record_layout(), nullptr,
+                                                   part.store.verify_checksums));
+  std::vector<uint64_t> cursor(np, 0);
+  using Head = std::pair<uint64_t, size_t>;  // (global id, part)
+  std::priority_queue<Head, std::vector<Head>, std::greater<Head>> heads;
+  if (!o.exclude_group_separator.empty())
+    for (size_t k = 0; k < np; ++k)
+      if (parts[k].store.reader.object_count() > 0) heads.push({global_id(k, 0), k});
+  const clash::Exclusions ex(o, global_count, [&](uint64_t g) -> std::string_view {
+    if (!names_status.ok() || heads.empty() || heads.top().first != g) return {};
+    const size_t k = heads.top().second;
+    heads.pop();
+    const uint64_t at = cursor[k]++;
+    if (cursor[k] < parts[k].store.reader.object_count())
+      heads.push({global_id(k, static_cast<ObjectId>(cursor[k])), k});
+    auto r = names[k]->Get(static_cast<uint32_t>(at), nullptr);
     if (!r.ok()) names_status = r.status();
     return r.ok() ? std::string_view((*r)->name) : std::string_view();
   });
   MKTREE_RETURN_IF_ERROR(names_status);
+  names.clear();
 
-  // Broad phase: leaf pairs through the tree, the leaf filter, the plan.
-  std::vector<clash::LeafPair> pairs = clash::TreeLeafPairs(tree, o.clearance);
-  s.leaf_pairs_tree = pairs.size();
-  clash::NeededObjects needed;
-  clash::FilterLeafPairs(tree, o.clearance, pool, &pairs, &needed);
+  // Broad phase: leaf pairs through each tree and between the trees of parts whose roots grown by C meet,
+  // the leaf filter, the plan.
+  std::vector<clash::LeafPair> pairs;
+  std::vector<clash::NeededObjects> needed(np);
+  std::vector<uint8_t> filtered(np, 0);
+  for (uint32_t k = 0; k < np; ++k) {
+    const MKTree& t = parts[k].store.reader.tree();
+    filtered[k] = clash::InitNeeded(t, &needed[k]);
+    if (!wanted(k, k)) continue;
+    std::vector<clash::LeafPair> own = clash::TreeLeafPairs(t, o.clearance);
+    s.leaf_pairs_tree += own.size();
+    clash::FilterLeafPairs(t, o.clearance, pool, &own, &needed[k]);
+    for (const clash::LeafPair& lp : own) pairs.push_back({lp.p + leaf_base[k], lp.q + leaf_base[k]});
+  }
+  for (uint32_t i = 0; i < np; ++i) {
+    const MKTree& ti = parts[i].store.reader.tree();
+    for (uint32_t j = i + 1; j < np; ++j) {
+      const MKTree& tj = parts[j].store.reader.tree();
+      if (!wanted(i, j) || ti.empty() || tj.empty() ||
+          !clash::GrownMeet(clash::ToBox3d(ti.nodes[0].box), clash::ToBox3d(tj.nodes[0].box), o.clearance))
+        continue;
+      std::vector<clash::LeafPair> cross = clash::CrossLeafPairs(ti, tj, o.clearance);
+      s.leaf_pairs_tree += cross.size();
+      if (filtered[i] && filtered[j]) {
+        clash::FilterCrossLeafPairs(ti, tj, o.clearance, pool, &cross, &needed[i], &needed[j]);
+      } else if (!cross.empty()) {
+        needed[i].all = needed[j].all = true;
+      }
+      for (const clash::LeafPair& lp : cross) pairs.push_back({lp.p + leaf_base[i], lp.q + leaf_base[j]});
+    }
+  }
   s.leaf_pairs_visited = pairs.size();
-  s.window_budget_bytes =
-      o.window_bytes
-          ? o.window_bytes
-          : std::max<uint64_t>(kDefaultClashWindowBytes,
-                               kDecodedBytesPerPayloadByte * st.cache.capacity() * tree.params.mem_page());
-  std::vector<uint64_t> leaf_bytes(tree.leaves.size());
-  for (size_t i = 0; i < leaf_bytes.size(); ++i) leaf_bytes[i] = DecodedLeafEstimate(tree.leaves[i]);
-  const clash::SweepPlan plan =
-      clash::PlanSweep(tree, std::move(pairs), leaf_bytes, s.window_budget_bytes, kBatchPairs);
+  s.window_budget_bytes = o.window_bytes ? o.window_bytes
+                                         : std::max<uint64_t>(kDefaultClashWindowBytes,
+                                                              kDecodedBytesPerPayloadByte * cache_bytes);
+  const uint32_t total_leaves = leaf_base[np];
+  std::vector<uint64_t> leaf_bytes(total_leaves);
+  for (uint32_t g = 0; g < total_leaves; ++g)
+    leaf_bytes[g] =
+        DecodedLeafEstimate(parts[part_of[g]].store.reader.tree().leaves[g - leaf_base[part_of[g]]]);
+  clash::SweepPlan plan;
+  if (np == 1) {
+    plan = clash::PlanSweep(parts[0].store.reader.tree(), std::move(pairs), leaf_bytes, s.window_budget_bytes,
+                            kBatchPairs);
+  } else {
+    Box3f root;
+    std::vector<Box3f> boxes(total_leaves);
+    bool any = false;
+    for (size_t k = 0; k < np; ++k) {
+      const MKTree& t = parts[k].store.reader.tree();
+      for (size_t l = 0; l < t.leaves.size(); ++l) boxes[leaf_base[k] + l] = t.leaves[l].box;
+      if (t.empty()) continue;
+      if (!any) {
+        root = t.nodes[0].box;
+      } else {
+        for (int i = 0; i < 3; ++i) {
+          root.min[i] = std::min(root.min[i], t.nodes[0].box.min[i]);
+          root.max[i] = std::max(root.max[i], t.nodes[0].box.max[i]);
+        }
+      }
+      any = true;
+    }
+    plan = clash::PlanSweep(root, boxes, std::move(pairs), leaf_bytes, s.window_budget_bytes, kBatchPairs);
+  }
   s.leaf_reads = plan.leaf_reads;
   s.leaf_rereads = plan.leaf_rereads;
   s.broad_seconds = Since(start);
+  const Vec3d origin = parts[0].store.reader.tree().origin;
 
-  std::vector<std::unique_ptr<LoadedLeaf>> window(tree.leaves.size());
+  std::vector<std::unique_ptr<LoadedLeaf>> window(total_leaves);
   uint64_t window_bytes = 0;
   std::vector<PinnedLeaf> pinned;
   std::vector<uint64_t> seen;
@@ -285,15 +376,17 @@ Status RunSelfClash(const ClashStore& st, const ClashOptions& o, const ClashVisi
     loaded.clear();
     tasks.clear();
     for (size_t i = 0; i < b.load.size(); ++i) {
-      const uint32_t leaf = b.load[i];
-      MKTREE_RETURN_IF_ERROR(ReadPinned(st, leaf, &io, &seen, &pinned[i]));
+      const uint32_t k = part_of[b.load[i]];
+      const uint32_t leaf = b.load[i] - leaf_base[k];
+      const ClashStore& st = parts[k].store;
+      MKTREE_RETURN_IF_ERROR(ReadPinned(st, leaf, &io, &seen, &pinned[i], page_base[k]));
       auto l = std::make_unique<LoadedLeaf>();
       const auto& entries = pinned[i].view.entries();
       l->objects.resize(entries.size());
       for (uint32_t pos = 0; pos < entries.size(); ++pos) {
-        l->objects[pos].id = entries[pos].id;
+        l->objects[pos].id = global_id(k, entries[pos].id);
         l->objects[pos].box = clash::ToBox3d(entries[pos].box);
-        if (needed(tree, leaf, pos)) tasks.push_back({i, pos});
+        if (needed[k](st.reader.tree(), leaf, pos)) tasks.push_back({i, pos});
       }
       loaded.push_back(std::move(l));
     }
@@ -304,7 +397,9 @@ Status RunSelfClash(const ClashStore& st, const ClashOptions& o, const ClashVisi
       LoadedObject& obj = loaded[task.load]->objects[task.pos];
       obj.resolution = CoordinateResolution(e.box);
       obj.mesh = std::make_unique<Mesh>();
-      errors[k] = DecodeStoredMesh(reader.path(), reader.options().codec.dictionary.get(), e, obj.mesh.get());
+      const StoreReader& part_reader = parts[part_of[b.load[task.load]]].store.reader;
+      errors[k] = DecodeStoredMesh(part_reader.path(), part_reader.options().codec.dictionary.get(), e,
+                                   obj.mesh.get());
       if (errors[k].ok()) obj.shape = std::make_unique<ClashShape>(*obj.mesh, StoredEdges(e));
     });
     for (size_t i = 0; i < b.load.size(); ++i) pinned[i].Release();
@@ -329,8 +424,8 @@ Status RunSelfClash(const ClashStore& st, const ClashOptions& o, const ClashVisi
         [&](size_t k) {
           const clash::LeafPair& lp = plan.pairs[b.pair_begin + k];
           work[k].Clear();
-          errors[k] = TestLeafPair(reader.path(), *window[lp.p], *window[lp.q], lp.p == lp.q, o, ex,
-                                   tree.origin, &work[k]);
+          errors[k] = TestLeafPair(parts[part_of[lp.p]].store.reader.path(), *window[lp.p], *window[lp.q],
+                                   lp.p == lp.q, o, ex, origin, &work[k]);
         },
         [&] { emit_previous(); });
     MKTREE_RETURN_IF_ERROR(FirstError(errors));
@@ -355,9 +450,7 @@ Status RunSelfClash(const ClashStore& st, const ClashOptions& o, const ClashVisi
   return Status::Ok();
 }
 
-namespace {
-
-Status CheckQueryMesh(const Mesh& mesh, const std::optional<RigidTransform>& transform) {
+Status CheckCollideMesh(const Mesh& mesh, const std::optional<RigidTransform>& transform) {
   if (mesh.triangles.empty() || mesh.vertices.empty())
     return Status::InvalidArgument("collide: the object's mesh is empty");
   if (mesh.vertices.size() % 3 || mesh.triangles.size() % 3)
@@ -388,15 +481,13 @@ Status CheckQueryMesh(const Mesh& mesh, const std::optional<RigidTransform>& tra
   return Status::Ok();
 }
 
-}  // namespace
-
 Status RunCollide(const ClashStore& st, const Mesh& mesh, const std::optional<RigidTransform>& transform,
                   const ClashOptions& o, const ClashVisitor& visit, ClashStats* stats) {
   ClashStats local;
   ClashStats& s = stats ? *stats : local;
   s = ClashStats();
   MKTREE_RETURN_IF_ERROR(clash::CheckOptions(o));
-  MKTREE_RETURN_IF_ERROR(CheckQueryMesh(mesh, transform));
+  MKTREE_RETURN_IF_ERROR(CheckCollideMesh(mesh, transform));
   const Clock::time_point start = Clock::now();
   const StoreReader& reader = st.reader;
   const MKTree& tree = reader.tree();
@@ -547,6 +638,38 @@ Status RunCollide(const ClashStore& st, const Mesh& mesh, const std::optional<Ri
   io.Fill(&s);
   s.total_seconds = Since(start);
   return Status::Ok();
+}
+
+// Adds the counts of `b` to `a` (the window's bytes: the larger).
+void AddClashStats(ClashStats* a, const ClashStats& b) {
+  for (auto [x, y] : {std::pair{&a->pages_read, b.pages_read},
+                      {&a->pages_touched, b.pages_touched},
+                      {&a->distinct_pages, b.distinct_pages},
+                      {&a->store_pages, b.store_pages},
+                      {&a->leaf_reads, b.leaf_reads},
+                      {&a->leaf_rereads, b.leaf_rereads},
+                      {&a->leaf_pairs_tree, b.leaf_pairs_tree},
+                      {&a->leaf_pairs_visited, b.leaf_pairs_visited},
+                      {&a->candidate_pairs, b.candidate_pairs},
+                      {&a->excluded_pairs, b.excluded_pairs},
+                      {&a->bound_rejects, b.bound_rejects},
+                      {&a->triangle_tests, b.triangle_tests},
+                      {&a->containment_tests, b.containment_tests},
+                      {&a->shapes_prepared, b.shapes_prepared},
+                      {&a->hierarchies_built, b.hierarchies_built},
+                      {&a->classifiers_built, b.classifiers_built},
+                      {&a->hard, b.hard},
+                      {&a->touch, b.touch},
+                      {&a->clearance, b.clearance},
+                      {&a->reported_pairs, b.reported_pairs},
+                      {&a->capped_pairs, b.capped_pairs},
+                      {&a->unreported_touches, b.unreported_touches}})
+    *x += y;
+  a->window_peak_bytes = std::max(a->window_peak_bytes, b.window_peak_bytes);
+  a->window_budget_bytes = std::max(a->window_budget_bytes, b.window_budget_bytes);
+  a->broad_seconds += b.broad_seconds;
+  a->read_seconds += b.read_seconds;
+  a->narrow_seconds += b.narrow_seconds;
 }
 
 }  // namespace mktree

@@ -2,7 +2,9 @@
 // against the store, out of core (docs/clash.md §3). Database::SelfClash and Database::Collide call these.
 #pragma once
 
+#include <functional>
 #include <optional>
+#include <vector>
 
 #include "engine/store/store_file.h"
 #include "mktree/clash.h"
@@ -23,10 +25,34 @@ struct ClashStore {
 Status RunSelfClash(const ClashStore& store, const ClashOptions& options, const ClashVisitor& visit,
                     ClashStats* stats);
 
+// One store of a clash over several stores (the shards of a sharded store: one frame, disjoint objects):
+// its view, and the global id of each local id (increasing; null: the local ids are the global ones).
+struct ClashPart {
+  ClashStore store;
+  const std::vector<ObjectId>* ids = nullptr;
+};
+
+// Which pairs of parts (i <= j; i == j: the pairs inside part i) a clash over several stores covers.
+using ClashPartPairs = std::function<bool(uint32_t i, uint32_t j)>;
+
+// The self-clash of the union of `parts`, limited to the part pairs `want` accepts (null: all): each
+// object pair is found once, by the one part pair holding its two objects, in one sweep over the leaves
+// of all parts (each leaf read about once). Pairs carry global ids; exclusions see global ids and names.
+// The statistics sum the parts' (store_pages: of all parts). RunSelfClash is this with one part.
+Status RunMultiClash(const std::vector<ClashPart>& parts, const ClashPartPairs& want,
+                     const ClashOptions& options, const ClashVisitor& visit, ClashStats* stats);
+
 // Every object of the store that clashes with `mesh` (world coordinates) moved by `transform`; pairs
 // have b = kCollideObject. InvalidArgument for an empty mesh, a non-finite vertex, an index out of range
 // or a transform that is not a proper rotation.
 Status RunCollide(const ClashStore& store, const Mesh& mesh, const std::optional<RigidTransform>& transform,
                   const ClashOptions& options, const ClashVisitor& visit, ClashStats* stats);
+
+// Adds the counts and phase seconds of `b` to `a` (the window's bytes: the larger; total_seconds is left
+// to the caller): a run over several stores or ranks.
+void AddClashStats(ClashStats* a, const ClashStats& b);
+
+// RunCollide's checks of its mesh and transform (the same InvalidArgument).
+Status CheckCollideMesh(const Mesh& mesh, const std::optional<RigidTransform>& transform);
 
 }  // namespace mktree

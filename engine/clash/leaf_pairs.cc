@@ -13,18 +13,20 @@ double Volume(const Box3f& b) {
   return (double{b.max[0]} - b.min[0]) * (double{b.max[1]} - b.min[1]) * (double{b.max[2]} - b.min[2]);
 }
 
+// A dual traversal of trees a and b (the same tree for a self-clash).
 struct Traversal {
-  const MKTree& tree;
+  const MKTree& a;
+  const MKTree& b;
   double c;
   std::vector<LeafPair>* out;
 
   void Emit(uint32_t n, uint32_t m) {
-    uint32_t p = tree.nodes[n].leaf, q = tree.nodes[m].leaf;
-    if (p > q) std::swap(p, q);
+    uint32_t p = a.nodes[n].leaf, q = b.nodes[m].leaf;
+    if (&a == &b && p > q) std::swap(p, q);
     out->push_back({p, q});
   }
   void Self(uint32_t n) {
-    const TreeNode& node = tree.nodes[n];
+    const TreeNode& node = a.nodes[n];
     if (node.is_leaf()) {
       Emit(n, n);
       return;
@@ -34,20 +36,20 @@ struct Traversal {
     Two(node.child[0], node.child[1]);
   }
   void Two(uint32_t n, uint32_t m) {
-    const TreeNode& a = tree.nodes[n];
-    const TreeNode& b = tree.nodes[m];
-    if (!GrownMeet(ToBox3d(a.box), ToBox3d(b.box), c)) return;
-    if (a.is_leaf() && b.is_leaf()) {
+    const TreeNode& x = a.nodes[n];
+    const TreeNode& y = b.nodes[m];
+    if (!GrownMeet(ToBox3d(x.box), ToBox3d(y.box), c)) return;
+    if (x.is_leaf() && y.is_leaf()) {
       Emit(n, m);
       return;
     }
-    const bool split_a = !a.is_leaf() && (b.is_leaf() || Volume(a.box) >= Volume(b.box));
+    const bool split_a = !x.is_leaf() && (y.is_leaf() || Volume(x.box) >= Volume(y.box));
     if (split_a) {
-      Two(a.child[0], m);
-      Two(a.child[1], m);
+      Two(x.child[0], m);
+      Two(x.child[1], m);
     } else {
-      Two(n, b.child[0]);
-      Two(n, b.child[1]);
+      Two(n, y.child[0]);
+      Two(n, y.child[1]);
     }
   }
 };
@@ -57,20 +59,36 @@ struct Traversal {
 std::vector<LeafPair> TreeLeafPairs(const MKTree& tree, double c) {
   std::vector<LeafPair> out;
   if (tree.empty()) return out;
-  Traversal t{tree, c, &out};
+  Traversal t{tree, tree, c, &out};
   t.Self(0);
   return out;
 }
 
-void FilterLeafPairs(const MKTree& tree, double c, WorkPool& pool, std::vector<LeafPair>* pairs,
-                     NeededObjects* needed) {
+std::vector<LeafPair> CrossLeafPairs(const MKTree& a, const MKTree& b, double c) {
+  std::vector<LeafPair> out;
+  if (a.empty() || b.empty()) return out;
+  Traversal t{a, b, c, &out};
+  t.Two(0, 0);
+  return out;
+}
+
+bool InitNeeded(const MKTree& tree, NeededObjects* needed) {
   if (tree.leaf_filter.empty() || tree.leaf_filter_begin.size() != tree.leaves.size() + 1) {
     needed->all = true;
-    return;
+    return false;
   }
   const uint64_t objects = tree.leaf_filter_begin.back() / kLeafFilterBytesPerObject;
   needed->flags = std::make_unique<std::atomic<uint8_t>[]>(objects);
   for (uint64_t i = 0; i < objects; ++i) needed->flags[i].store(0, std::memory_order_relaxed);
+  return true;
+}
+
+namespace {
+
+// Keeps the pairs (p of ta, q of tb; `same`: one tree, p == q the pairs inside a leaf) whose leaf
+// filters admit two distinct objects whose boxes grown by c meet, marking them.
+void FilterPairs(const MKTree& ta, const MKTree& tb, bool same, double c, WorkPool& pool,
+                 std::vector<LeafPair>* pairs, NeededObjects* na, NeededObjects* nb) {
   std::vector<uint8_t> keep(pairs->size(), 0);
   constexpr size_t kChunk = 256;
   const size_t chunks = (pairs->size() + kChunk - 1) / kChunk;
@@ -78,7 +96,7 @@ void FilterLeafPairs(const MKTree& tree, double c, WorkPool& pool, std::vector<L
     // The objects of each leaf that meet the other leaf's box, as dequantised boxes.
     std::vector<Box3d> ba, bb;
     std::vector<uint32_t> ia, ib;
-    auto near = [&](uint32_t leaf, const Box3d& other, std::vector<Box3d>* boxes,
+    auto near = [&](const MKTree& tree, uint32_t leaf, const Box3d& other, std::vector<Box3d>* boxes,
                     std::vector<uint32_t>* idx) {
       boxes->clear();
       idx->clear();
@@ -94,17 +112,18 @@ void FilterLeafPairs(const MKTree& tree, double c, WorkPool& pool, std::vector<L
     const size_t end = std::min(pairs->size(), (chunk + 1) * kChunk);
     for (size_t k = chunk * kChunk; k < end; ++k) {
       const LeafPair lp = (*pairs)[k];
-      near(lp.p, ToBox3d(tree.leaves[lp.q].box), &ba, &ia);
-      near(lp.q, ToBox3d(tree.leaves[lp.p].box), &bb, &ib);
-      const uint64_t base_p = tree.leaf_filter_begin[lp.p] / kLeafFilterBytesPerObject,
-                     base_q = tree.leaf_filter_begin[lp.q] / kLeafFilterBytesPerObject;
+      near(ta, lp.p, ToBox3d(tb.leaves[lp.q].box), &ba, &ia);
+      near(tb, lp.q, ToBox3d(ta.leaves[lp.p].box), &bb, &ib);
+      const uint64_t base_p = ta.leaf_filter_begin[lp.p] / kLeafFilterBytesPerObject,
+                     base_q = tb.leaf_filter_begin[lp.q] / kLeafFilterBytesPerObject;
+      const bool one_leaf = same && lp.p == lp.q;
       bool any = false;
       for (size_t i = 0; i < ba.size(); ++i) {
-        for (size_t j = lp.p == lp.q ? i + 1 : 0; j < bb.size(); ++j) {
+        for (size_t j = one_leaf ? i + 1 : 0; j < bb.size(); ++j) {
           if (!GrownMeet(ba[i], bb[j], c)) continue;
           any = true;
-          needed->flags[base_p + ia[i]].store(1, std::memory_order_relaxed);
-          needed->flags[base_q + ib[j]].store(1, std::memory_order_relaxed);
+          na->flags[base_p + ia[i]].store(1, std::memory_order_relaxed);
+          nb->flags[base_q + ib[j]].store(1, std::memory_order_relaxed);
         }
       }
       keep[k] = any;
@@ -114,6 +133,19 @@ void FilterLeafPairs(const MKTree& tree, double c, WorkPool& pool, std::vector<L
   for (size_t k = 0; k < pairs->size(); ++k)
     if (keep[k]) (*pairs)[w++] = (*pairs)[k];
   pairs->resize(w);
+}
+
+}  // namespace
+
+void FilterCrossLeafPairs(const MKTree& a, const MKTree& b, double c, WorkPool& pool,
+                          std::vector<LeafPair>* pairs, NeededObjects* needed_a, NeededObjects* needed_b) {
+  FilterPairs(a, b, false, c, pool, pairs, needed_a, needed_b);
+}
+
+void FilterLeafPairs(const MKTree& tree, double c, WorkPool& pool, std::vector<LeafPair>* pairs,
+                     NeededObjects* needed) {
+  if (!InitNeeded(tree, needed)) return;
+  FilterPairs(tree, tree, true, c, pool, pairs, needed, needed);
 }
 
 }  // namespace mktree::clash

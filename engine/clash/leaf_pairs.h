@@ -40,4 +40,17 @@ struct NeededObjects {
 void FilterLeafPairs(const MKTree& tree, double c, WorkPool& pool, std::vector<LeafPair>* pairs,
                      NeededObjects* needed);
 
+// Two stores in one frame (shards of one sharded store): every pair (p leaf of a, q leaf of b) whose
+// node boxes grown by c meet, by the same dual traversal from both roots.
+std::vector<LeafPair> CrossLeafPairs(const MKTree& a, const MKTree& b, double c);
+
+// Readies *needed for FilterLeafPairs' marks (all zero); false when the tree has no leaf filter (then
+// every object is needed).
+bool InitNeeded(const MKTree& tree, NeededObjects* needed);
+
+// FilterLeafPairs for CrossLeafPairs' pairs, marking in *needed_a and *needed_b (both readied by
+// InitNeeded, both trees with a leaf filter).
+void FilterCrossLeafPairs(const MKTree& a, const MKTree& b, double c, WorkPool& pool,
+                          std::vector<LeafPair>* pairs, NeededObjects* needed_a, NeededObjects* needed_b);
+
 }  // namespace mktree::clash

@@ -7,13 +7,20 @@ namespace mktree::clash {
 
 SweepPlan PlanSweep(const MKTree& tree, std::vector<LeafPair> pairs, const std::vector<uint64_t>& leaf_bytes,
                     uint64_t window_bytes, size_t batch_pairs) {
+  if (pairs.empty()) return SweepPlan();
+  std::vector<Box3f> boxes(tree.leaves.size());
+  for (size_t i = 0; i < boxes.size(); ++i) boxes[i] = tree.leaves[i].box;
+  return PlanSweep(tree.nodes[0].box, boxes, std::move(pairs), leaf_bytes, window_bytes, batch_pairs);
+}
+
+SweepPlan PlanSweep(const Box3f& root, const std::vector<Box3f>& leaf_boxes, std::vector<LeafPair> pairs,
+                    const std::vector<uint64_t>& leaf_bytes, uint64_t window_bytes, size_t batch_pairs) {
   SweepPlan plan;
   if (pairs.empty()) return plan;
-  const Box3f& root = tree.nodes[0].box;
   for (int i = 1; i < 3; ++i) {
     if (double{root.max[i]} - root.min[i] > double{root.max[plan.axis]} - root.min[plan.axis]) plan.axis = i;
   }
-  const size_t n = tree.leaves.size();
+  const size_t n = leaf_boxes.size();
   constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();
   // Sweep rank of every leaf in some pair, by its box's low end on the axis.
   std::vector<uint32_t> rank(n, kNone), order;
@@ -23,7 +30,7 @@ SweepPlan PlanSweep(const MKTree& tree, std::vector<LeafPair> pairs, const std::
   }
   const int ax = plan.axis;
   std::sort(order.begin(), order.end(), [&](uint32_t x, uint32_t y) {
-    const float bx = tree.leaves[x].box.min[ax], by = tree.leaves[y].box.min[ax];
+    const float bx = leaf_boxes[x].min[ax], by = leaf_boxes[y].min[ax];
     return bx != by ? bx < by : x < y;
   });
   for (size_t r = 0; r < order.size(); ++r) rank[order[r]] = static_cast<uint32_t>(r);

@@ -34,5 +34,9 @@ struct SweepPlan {
 // of at most `batch_pairs` pairs.
 SweepPlan PlanSweep(const MKTree& tree, std::vector<LeafPair> pairs, const std::vector<uint64_t>& leaf_bytes,
                     uint64_t window_bytes, size_t batch_pairs);
+// The same over leaves numbered by the caller (several stores' leaves in one frame): the sweep runs along
+// the longest axis of `root`, leaf i's box is leaf_boxes[i].
+SweepPlan PlanSweep(const Box3f& root, const std::vector<Box3f>& leaf_boxes, std::vector<LeafPair> pairs,
+                    const std::vector<uint64_t>& leaf_bytes, uint64_t window_bytes, size_t batch_pairs);
 
 }  // namespace mktree::clash

@@ -242,6 +242,8 @@ class StoreDatabase final : public Database {
                    [&] { return RunCollide(ClashStoreView(), mesh, transform, options, visit, stats); });
   }
 
+  ClashStore ClashView() const { return ClashStoreView(); }
+
   void ClearCache() override { cache_.Clear(); }
   const std::string& path() const override { return reader_->path(); }
   uint64_t object_count() const override { return reader_->object_count(); }
@@ -589,6 +591,10 @@ Status StoreDatabase::RunBatchStreamed(const QuerySource& source, const BatchOpt
 
 std::unique_ptr<Database> OpenStoreDatabase(std::unique_ptr<StoreReader> reader, const OpenOptions& options) {
   return std::make_unique<StoreDatabase>(std::move(reader), options);
+}
+
+ClashStore StoreClashView(const Database& store) {
+  return static_cast<const StoreDatabase&>(store).ClashView();
 }
 
 Status Database::Visit(const Query& query, const ObjectVisitor& visit, QueryStats* stats) const {

@@ -2,12 +2,16 @@
 // shards whose stores' root boxes it meets; each shard is an ordinary store's Database, whose local ids
 // the shard's id file maps to global ones.
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <condition_variable>
+#include <limits>
 #include <mutex>
 #include <queue>
 #include <thread>
 
+#include "engine/clash/clash_engine.h"
+#include "engine/clash/pair_rules.h"
 #include "engine/core/guarded.h"
 #include "engine/query/ordered_batch.h"
 #include "engine/query/store_database.h"
@@ -106,13 +110,13 @@ class ShardedDatabase final : public Database {
   Status RunBatchStreamed(const QuerySource& source, const BatchOptions& options,
                           const ResultVisitor& deliver) const override;
 
-  Status SelfClash(const ClashOptions&, const ClashVisitor&, ClashStats*) const override {
-    return Status::Unsupported(path_ + ": clash detection over a sharded store is not supported yet");
+  // One sweep over all the shards' leaves (docs/shards.md, "Clash"): the pairs inside each shard and,
+  // for shards i < j whose root boxes grown by C meet, the pairs of a leaf of i and a leaf of j.
+  Status SelfClash(const ClashOptions& o, const ClashVisitor& visit, ClashStats* stats) const override {
+    return Guarded(path_, [&] { return RunMultiClash(ClashParts(), nullptr, o, visit, stats); });
   }
-  Status Collide(const Mesh&, const std::optional<RigidTransform>&, const ClashOptions&, const ClashVisitor&,
-                 ClashStats*) const override {
-    return Status::Unsupported(path_ + ": clash detection over a sharded store is not supported yet");
-  }
+  Status Collide(const Mesh& mesh, const std::optional<RigidTransform>& transform, const ClashOptions& o,
+                 const ClashVisitor& visit, ClashStats* stats) const override;
   void ClearCache() override {
     for (auto& s : shards_) s->ClearCache();
   }
@@ -178,6 +182,33 @@ class ShardedDatabase final : public Database {
     return out;
   }
 
+  std::vector<ClashPart> ClashParts() const {
+    std::vector<ClashPart> parts;
+    for (size_t s = 0; s < shards_.size(); ++s)
+      parts.push_back(ClashPart{StoreClashView(*shards_[s]), &ids_[s]});
+    return parts;
+  }
+
+  // The shards whose root boxes meet `b` (store frame) grown by c, in shard order.
+  std::vector<uint32_t> RouteGrown(const Box3d& b, double c) const {
+    std::vector<uint32_t> out;
+    uint32_t stack[128];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+      const uint32_t n = stack[--top];
+      if (!clash::GrownMeet(clash::ToBox3d(box_[n]), b, c)) continue;
+      const TopNode& t = m_.top.nodes[n];
+      if (t.is_leaf()) {
+        out.push_back(t.shard);
+        continue;
+      }
+      stack[top++] = t.child[1];
+      stack[top++] = t.child[0];
+    }
+    return out;
+  }
+
   // The shard holding global id `id` and its id there.
   Result<std::pair<uint32_t, ObjectId>> Locate(ObjectId id) const {
     if (id >= m_.objects)
@@ -199,6 +230,68 @@ class ShardedDatabase final : public Database {
   std::string stats_json_;
   double objects_per_page_ = 0;
 };
+
+// Each shard the mesh's box grown by C reaches runs its own Collide (the engine's, on its store) with
+// the cap lifted and the exclusion seeing global ids; the pairs come back in shard order, each shard's in
+// its leaf order, with global ids, and the cap is applied here. store_pages counts every shard's pages.
+Status ShardedDatabase::Collide(const Mesh& mesh, const std::optional<RigidTransform>& transform,
+                                const ClashOptions& o, const ClashVisitor& visit, ClashStats* stats) const {
+  return Guarded(path_, [&]() -> Status {
+    const auto start = std::chrono::steady_clock::now();
+    ClashStats local;
+    ClashStats& total = stats ? *stats : local;
+    total = ClashStats();
+    MKTREE_RETURN_IF_ERROR(clash::CheckOptions(o));
+    MKTREE_RETURN_IF_ERROR(CheckCollideMesh(mesh, transform));
+    // The mesh's box in the store frame, as RunCollide computes it.
+    Box3d box;
+    for (size_t v = 0; v < mesh.vertex_count(); ++v) {
+      Vec3d p{mesh.vertices[3 * v], mesh.vertices[3 * v + 1], mesh.vertices[3 * v + 2]};
+      if (transform) p = transform->Apply(p);
+      for (int i = 0; i < 3; ++i) {
+        const double x = p[i] - m_.origin[i];
+        if (!std::isfinite(x))
+          return Status::InvalidArgument("collide: the moved object has a non-finite vertex");
+        box.min[i] = v ? std::min(box.min[i], x) : x;
+        box.max[i] = v ? std::max(box.max[i], x) : x;
+      }
+    }
+    const std::vector<uint32_t> route = RouteGrown(box, o.clearance);
+    for (size_t s = 0; s < shards_.size(); ++s) {
+      ClashStats st;
+      if (std::find(route.begin(), route.end(), s) == route.end()) {
+        // Unreached: none of its pages is read, but its pages are the store's.
+        for (const LeafInfo& l : StoreClashView(*shards_[s]).reader.tree().leaves)
+          st.store_pages += l.page_count;
+        AddClashStats(&total, st);
+        continue;
+      }
+      const std::vector<ObjectId>& ids = ids_[s];
+      ClashOptions so = o;
+      so.max_pairs = std::numeric_limits<uint64_t>::max();
+      if (o.exclude) so.exclude = [&](ObjectId a, ObjectId b) { return o.exclude(ids[a], b); };
+      uint64_t reported = 0, capped = 0;
+      MKTREE_RETURN_IF_ERROR(shards_[s]->Collide(
+          mesh, transform, so,
+          [&](const ClashPair& p) {
+            if (total.reported_pairs + reported >= o.max_pairs) {
+              ++capped;
+              return;
+            }
+            ++reported;
+            ClashPair g = p;
+            g.a = ids[p.a];
+            if (visit) visit(g);
+          },
+          &st));
+      st.reported_pairs = reported;
+      st.capped_pairs = capped;
+      AddClashStats(&total, st);
+    }
+    total.total_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return Status::Ok();
+  });
+}
 
 Status ShardedDatabase::RunBatchStreamed(const QuerySource& source, const BatchOptions& options,
                                          const ResultVisitor& deliver) const {

@@ -158,7 +158,7 @@ class Database {
   // it), each shard with a cache of ceil(cache_pages / shards) pages. The Database then answers every
   // query, batch, Object and ObjectGeometry as the unsharded store of the same scene: the same ids (a
   // streamed answer visits them shard by shard, so in another order; Run and batches sort them), names,
-  // boxes and meshes. SelfClash and Collide are Unsupported on a sharded store.
+  // boxes and meshes; SelfClash and Collide find the same pairs (docs/shards.md, "Clash").
   static Result<std::unique_ptr<Database>> Open(const std::string& path, const OpenOptions& options = {});
 
   // Runs `query`, calling `visit` once for each object of the answer: ids in the order their leaves are

@@ -1,7 +1,11 @@
 // `mktree build --shards`, and `query`/`info` on a manifest (docs/cli.md).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <vector>
 
 #include "engine/shard/manifest.h"
 #include "test_dirs.h"
@@ -58,6 +62,56 @@ TEST(ShardCli, BuildQueryAndInfo) {
   EXPECT_EQ(missing.err.rfind("error: ", 0), 0u) << missing.err;
   EXPECT_NE(missing.err.find("s.mkts.shard-1.mkt"), std::string::npos) << missing.err;
   EXPECT_EQ(std::count(missing.err.begin(), missing.err.end(), '\n'), 1);
+}
+
+// The pair lines without the --summary line, sorted (a sharded store gives them in another order), and
+// the summary's pair counts.
+std::string SortedPairs(const std::string& out) {
+  std::vector<std::string> lines;
+  std::istringstream in(out);
+  for (std::string line; std::getline(in, line);)
+    if (line.rfind("{\"a\"", 0) == 0) lines.push_back(line);
+  std::sort(lines.begin(), lines.end());
+  std::string all;
+  for (const auto& l : lines) all += l + "\n";
+  return all;
+}
+std::string Counts(const std::string& out) {
+  const size_t at = out.find("{\"pairs\"");
+  return at == std::string::npos ? "" : out.substr(at, out.find(", \"pages_read\"", at) - at);
+}
+
+TEST(ShardCli, ClashAndCollideOnAManifest) {
+  TempDir dir("mktree_shard_cli");
+  const std::string d = dir.path().string();
+  ASSERT_EQ(RunMktree("build tanker:6000:3 -o " + d + "/plain.mkt -q", dir).code, 0);
+  ASSERT_EQ(RunMktree("build tanker:6000:3 -o " + d + "/s.mkts --shards 3 -q", dir).code, 0);
+  {
+    std::ofstream obj(d + "/probe.obj");
+    obj << "v 0 -4 0\nv 30 -4 0\nv 30 4 0\nv 0 4 0\nv 0 -4 8\nv 30 -4 8\nv 30 4 8\nv 0 4 8\n"
+           "f 1 3 2\nf 1 4 3\nf 5 6 7\nf 5 7 8\nf 1 2 6\nf 1 6 5\nf 2 3 7\nf 2 7 6\nf 3 4 8\nf 3 8 7\n"
+           "f 4 1 5\nf 4 5 8\n";
+  }
+  for (const std::string args :
+       {std::string("clash %s --summary --clearance 0.01 --names"),
+        std::string("clash %s --summary --threads 2 --max-pairs 50"),
+        "collide %s --object " + d + "/probe.obj --translate 90,0,2 --rotate-deg 0,0,20 --summary"}) {
+    SCOPED_TRACE(args);
+    auto with = [&](const std::string& store) {
+      std::string a = args;
+      a.replace(a.find("%s"), 2, store);
+      return a;
+    };
+    auto plain = RunMktree(with(d + "/plain.mkt"), dir);
+    auto sharded = RunMktree(with(d + "/s.mkts"), dir);
+    ASSERT_EQ(plain.code, 0) << plain.err;
+    ASSERT_EQ(sharded.code, 0) << sharded.err;
+    EXPECT_GT(std::count(plain.out.begin(), plain.out.end(), '\n'), 10);
+    if (args.find("max-pairs") == std::string::npos)
+      EXPECT_EQ(SortedPairs(sharded.out), SortedPairs(plain.out));
+    EXPECT_EQ(Counts(sharded.out), Counts(plain.out));
+    EXPECT_NE(Counts(sharded.out), "");
+  }
 }
 
 TEST(ShardCli, BadShardCountsAreRefused) {

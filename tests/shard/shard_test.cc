@@ -195,11 +195,6 @@ TEST_P(RandomScenes, AnswerAsTheUnshardedStoreAndBruteForce) {
   EXPECT_LT((*alone)->object_count(), o.shards > 1 ? objs.size() : objs.size() + 1);
   const BruteForce oracle(objs);
   ExpectSameAnswers(**sharded, **plain, oracle, RandomQueries((*plain)->bounds(), objs, 400, 5), o.shards);
-  EXPECT_EQ((*sharded)
-                ->SelfClash(
-                    {}, [](const ClashPair&) {}, nullptr)
-                .code(),
-            Status::Code::kUnsupported);
 }
 
 INSTANTIATE_TEST_SUITE_P(

@@ -2,6 +2,7 @@
 //   mpirun -n R mktree-mpi SCENE... -o MANIFEST --shards K [--backend hdf5|pagefile] [--threads N]
 //                          [--round-bytes B]
 //   mpirun -n R mktree-mpi query MANIFEST --queries FILE [--exact] [--cold] [--threads N]
+//   mpirun -n R mktree-mpi clash MANIFEST [--clearance C] [--touch-tolerance T] [--max-pairs N] ...
 #include <mpi.h>
 
 #include <cstring>
@@ -13,9 +14,10 @@ int main(int argc, char** argv) {
   int rank = 0, ranks = 1;
   MPI_Comm_rank(MPI_COMM_WORLD, &rank);
   MPI_Comm_size(MPI_COMM_WORLD, &ranks);
-  const int rc = argc > 1 && std::strcmp(argv[1], "query") == 0
-                     ? mktree::RunQuery(argc - 1, argv + 1, rank, ranks)
-                     : mktree::RunBuild(argc, argv, rank, ranks);
+  const int rc =
+      argc > 1 && std::strcmp(argv[1], "query") == 0   ? mktree::RunQuery(argc - 1, argv + 1, rank, ranks)
+      : argc > 1 && std::strcmp(argv[1], "clash") == 0 ? mktree::RunClash(argc - 1, argv + 1, rank, ranks)
+                                                       : mktree::RunBuild(argc, argv, rank, ranks);
   MPI_Finalize();
   return rc;
 }

@@ -58,11 +58,23 @@ bool ParseQuery(int argc, char** argv, QueryArgs* a, std::string* err) {
   return true;
 }
 
-struct OpenShard {
-  uint32_t index = 0;
-  std::unique_ptr<Database> db;
-  std::vector<ObjectId> ids;  // local -> global
-};
+constexpr int kStats = 11;
+void PutStats(std::vector<uint8_t>* b, const QueryStats& s) {
+  for (uint64_t v :
+       {s.internal_nodes_visited, s.split_nodes_visited, s.leaves_visited, s.leaves_filtered, s.pages_touched,
+        s.pages_read, s.cache_hits, s.bytes_read, s.candidates_tested, s.hits, s.leaves_with_hits})
+    Put(b, v);
+}
+QueryStats GetStats(const std::vector<uint8_t>& b, size_t* at) {
+  QueryStats s;
+  for (uint64_t* v : {&s.internal_nodes_visited, &s.split_nodes_visited, &s.leaves_visited,
+                      &s.leaves_filtered, &s.pages_touched, &s.pages_read, &s.cache_hits, &s.bytes_read,
+                      &s.candidates_tested, &s.hits, &s.leaves_with_hits})
+    *v = Get<uint64_t>(b, at);
+  return s;
+}
+
+}  // namespace
 
 // Shard s of the manifest, checked as Database::Open(manifest) checks it before opening its store.
 Result<OpenShard> OpenOneShard(const std::string& manifest, const Manifest& m, uint32_t s) {
@@ -84,24 +96,6 @@ Result<OpenShard> OpenOneShard(const std::string& manifest, const Manifest& m, u
                           Database::Open(ShardFilePath(manifest, e.store.name), {.cache_pages = cache}));
   return o;
 }
-
-constexpr int kStats = 11;
-void PutStats(std::vector<uint8_t>* b, const QueryStats& s) {
-  for (uint64_t v :
-       {s.internal_nodes_visited, s.split_nodes_visited, s.leaves_visited, s.leaves_filtered, s.pages_touched,
-        s.pages_read, s.cache_hits, s.bytes_read, s.candidates_tested, s.hits, s.leaves_with_hits})
-    Put(b, v);
-}
-QueryStats GetStats(const std::vector<uint8_t>& b, size_t* at) {
-  QueryStats s;
-  for (uint64_t* v : {&s.internal_nodes_visited, &s.split_nodes_visited, &s.leaves_visited,
-                      &s.leaves_filtered, &s.pages_touched, &s.pages_read, &s.cache_hits, &s.bytes_read,
-                      &s.candidates_tested, &s.hits, &s.leaves_with_hits})
-    *v = Get<uint64_t>(b, at);
-  return s;
-}
-
-}  // namespace
 
 int RunQuery(int argc, char** argv, int rank, int ranks) {
   QueryArgs a;

@@ -6,9 +6,13 @@
 
 #include <cstdint>
 #include <cstring>
+#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
+
+#include "engine/shard/manifest.h"
+#include "mktree/database.h"
 
 namespace mktree {
 
@@ -78,8 +82,20 @@ inline int RankOfShard(uint32_t shard, uint32_t shards, int ranks) {
   return static_cast<int>(uint64_t{shard} * static_cast<uint64_t>(ranks) / shards);
 }
 
-// The commands (tools/mpi/mpi_build.cc, mpi_query.cc), on every rank after MPI_Init; the exit status.
+// One shard of a manifest opened on a rank: its store's Database (local ids) and its id file.
+struct OpenShard {
+  uint32_t index = 0;
+  std::unique_ptr<Database> db;
+  std::vector<ObjectId> ids;  // local -> global
+};
+// Shard s of the manifest, checked as Database::Open(manifest) checks it before opening its store, with
+// the one-process Database's cache (4,096 pages over the shards).
+Result<OpenShard> OpenOneShard(const std::string& manifest, const Manifest& m, uint32_t s);
+
+// The commands (tools/mpi/mpi_build.cc, mpi_query.cc, mpi_clash.cc), on every rank after MPI_Init; the exit
+// status.
 int RunBuild(int argc, char** argv, int rank, int ranks);
 int RunQuery(int argc, char** argv, int rank, int ranks);
+int RunClash(int argc, char** argv, int rank, int ranks);
 
 }  // namespace mktree
