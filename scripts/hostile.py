@@ -33,7 +33,7 @@ import threading
 import time
 from pathlib import Path
 
-CATEGORIES = ["corrupt", "crafted", "scenes", "args", "disk", "kills", "concurrency"]
+CATEGORIES = ["corrupt", "crafted", "scenes", "args", "disk", "kills", "concurrency", "shards"]
 ROWS = [
     ("corrupt", "corrupt stores"),
     ("crafted", "crafted stores"),
@@ -43,6 +43,7 @@ ROWS = [
     ("disk", "full disk"),
     ("kills", "kills"),
     ("concurrency", "concurrency"),
+    ("shards", "sharded stores"),
 ]
 OUTCOMES = ["ok", "clean", "unclean", "wrong", "hang", "crash"]  # by severity
 COLUMN_TITLES = [("crash", "crashes"), ("hang", "hangs"), ("wrong", "silent wrong"),
@@ -2913,11 +2914,164 @@ def cat_concurrency(h):
             h.finish_case(c)
 
 
+
+# ---------------------------------------------------------------------------------------------------------
+# 8. Sharded stores (docs/shards.md): a manifest, its shard stores and their id files
+
+
+def cat_shards(h):
+    """Damaged, swapped, foreign and missing files of a sharded store (`build --shards 3`), through info,
+    query, a batch count (two threads) and clash (when the pristine manifest's clash succeeds). A truncated,
+    swapped, foreign or missing file must give an error; a flipped byte an error or the right answers. Errors
+    must be one line naming the file (any of the files the case changed)."""
+    num = 0
+    K = 3
+    for backend in ("pagefile", "hdf5"):
+        fix = h.fix / ("shards_%s" % backend)
+        other = h.fix / ("shards_%s_other" % backend)      # the same scene, built again: another build id
+        scene2 = h.fix / ("shards_%s_scene2" % backend)    # another scene
+        for d, scene in ((fix, "tanker:3000"), (other, "tanker:3000"), (scene2, "tanker:3000:2")):
+            if not (d / "s.mkt").exists():
+                d.mkdir(parents=True, exist_ok=True)
+                h.must("build", scene, "-o", "s.mkt", "--backend", backend, "--shards", K, "-q", cwd=d)
+        files = sorted(f.name for f in fix.iterdir())
+        qfile = h.queries_for(h.store("pagefile"), "tanker3000.q")
+        want = h.answers(fix / "s.mkt", qfile)
+        want_exact = h.answers(fix / "s.mkt", qfile, exact=True)
+        pc = h.tool(*CLASH_ARGS(fix / "s.mkt"), cwd=fix)
+        clash_want = pc.out if pc.rc == 0 else None
+        if clash_want is None:
+            h.setup_notes.append("shards %s: no clash step, clash on the pristine manifest fails (%s)" %
+                                 (backend, pc.err.strip()[:120]))
+
+        def store(i):
+            return "s.mkt.shard-%d.mkt" % i
+
+        def ids(i):
+            return "s.mkt.shard-%d.ids" % i
+
+        cases = []  # (title, edit(case dir, rng) -> names the error may give, must fail)
+        targets = [("s.mkt", 12, 6), (store(0), 12, 4), (store(2), 6, 3), (ids(1), 10, 4)]
+        for name, flips, truncs in targets:
+            size = (fix / name).stat().st_size
+            for k in range(flips):
+                r = h.rng("shards", backend, name, "flip", k)
+                pos = r.randrange(min(size, 4096)) if k % 2 == 0 else r.randrange(size)
+                x = r.randrange(1, 256)
+
+                def edit(d, name=name, pos=pos, x=x):
+                    b = bytearray((d / name).read_bytes())
+                    b[pos] ^= x
+                    (d / name).write_bytes(bytes(b))
+                cases.append(("%s: byte %d of %s xor 0x%02x" % (backend, pos, name, x), edit, [name], False))
+            for k in range(truncs):
+                r = h.rng("shards", backend, name, "trunc", k)
+                pos = r.randrange(size) if k else 0
+
+                def edit(d, name=name, pos=pos):
+                    with open(d / name, "r+b") as f:
+                        f.truncate(pos)
+                cases.append(("%s: %s truncated to %d of %d bytes" % (backend, name, pos, size), edit, [name], True))
+
+        def swap(a, b):
+            def edit(d):
+                ta, tb = (d / a).read_bytes(), (d / b).read_bytes()
+                (d / a).write_bytes(tb)
+                (d / b).write_bytes(ta)
+            return edit
+        cases.append(("%s: shard stores 0 and 1 swapped" % backend, swap(store(0), store(1)), [store(0), store(1)],
+                      True))
+        cases.append(("%s: id files 0 and 1 swapped" % backend, swap(ids(0), ids(1)), [ids(0), ids(1)], True))
+
+        def swap_shards(d):
+            swap(store(0), store(1))(d)
+            swap(ids(0), ids(1))(d)
+        cases.append(("%s: shards 0 and 1 (store and id file) swapped" % backend, swap_shards,
+                      [store(0), store(1), ids(0), ids(1)], True))
+
+        def copy_from(src, names_):
+            def edit(d):
+                for n in names_:
+                    shutil.copyfile(src / n, d / n)
+            return edit
+        cases.append(("%s: the manifest of another build of the same scene" % backend, copy_from(other, ["s.mkt"]),
+                      ["s.mkt"] + [store(i) for i in range(K)] + [ids(i) for i in range(K)], True))
+        cases.append(("%s: the manifest of another scene" % backend, copy_from(scene2, ["s.mkt"]),
+                      ["s.mkt"] + [store(i) for i in range(K)] + [ids(i) for i in range(K)], True))
+        cases.append(("%s: shard 1 (store and id file) from another build of the same scene" % backend,
+                      copy_from(other, [store(1), ids(1)]), [store(1), ids(1)], True))
+        cases.append(("%s: shard 1's store from another build of the same scene" % backend,
+                      copy_from(other, [store(1)]), [store(1)], True))
+        cases.append(("%s: shard 1's id file from another build of the same scene" % backend,
+                      copy_from(other, [ids(1)]), [ids(1)], True))
+        cases.append(("%s: shard 2 (store and id file) from another scene" % backend,
+                      copy_from(scene2, [store(2), ids(2)]), [store(2), ids(2)], True))
+
+        def remove(n):
+            def edit(d):
+                (d / n).unlink()
+            return edit
+        cases.append(("%s: shard 1's store missing" % backend, remove(store(1)), [store(1)], True))
+        cases.append(("%s: shard 2's id file missing" % backend, remove(ids(2)), [ids(2)], True))
+
+        def plain_store(d):
+            (d / store(0)).unlink()
+            (d / store(0)).mkdir()
+        cases.append(("%s: shard 0's store a directory" % backend, plain_store, [store(0)], True))
+
+        for title, edit, names, must_fail in cases:
+            num += 1
+            if not h.wanted("shards", num):
+                continue
+            c = h.new_case("shards", num, title)
+            for f in files:
+                shutil.copyfile(fix / f, c.path(f))
+            edit(c.dir)
+            changed = [f for f in files if not (c.dir / f).is_file() or
+                       (c.dir / f).read_bytes() != (fix / f).read_bytes()]
+            if not changed:  # e.g. another build's shard store: byte for byte the same file
+                c.note("every file is byte-identical to the pristine one's: the right answers are expected")
+            shutil.copyfile(qfile, c.path("q.txt"))
+            c.note("made by scripts/hostile.py (shards): $MKTREE build tanker:3000 -o s.mkt --backend %s --shards %d -q"
+                   "; then: %s" % (backend, K, title))
+            protect = [f for f in files if (c.dir / f).is_file()]
+
+            def q_check(w):
+                def f(p):
+                    try:
+                        return diff_answers(parse_answers(p.out), w)
+                    except (ValueError, KeyError) as e:
+                        return "unparsable query output (%s)" % e
+                return f
+
+            def count_check(p, w=want):
+                try:
+                    got = [json.loads(x)["hit_count"] for x in p.out.splitlines() if x.strip()]
+                except (ValueError, KeyError) as e:
+                    return "unparsable query output (%s)" % e
+                exp = [len(x[2]) for x in w]
+                return None if got == exp else "counts differ: %s..., expected %s..." % (got[:6], exp[:6])
+
+            c.mk("info", "s.mkt", names=names, protect=protect, label="info")
+            if not c.stopped():
+                c.mk("query", "s.mkt", "--queries", "q.txt", names=names, check=q_check(want), protect=protect,
+                     label="query")
+            if not c.stopped():
+                c.mk("query", "s.mkt", "--queries", "q.txt", "--exact", names=names, check=q_check(want_exact),
+                     protect=protect, label="query --exact")
+            if not c.stopped():
+                c.mk("query", "s.mkt", "--queries", "q.txt", "--count", "--threads", 2, names=names, check=count_check,
+                     protect=protect, label="query --count --threads 2 (batch)")
+            if clash_want is not None and not c.stopped():  # once clash reads manifests
+                c.mk(*CLASH_ARGS("s.mkt"), names=names, check=clash_check(clash_want), protect=protect,
+                     label="clash")
+            h.finish_case(c, require_error=must_fail and bool(changed))
+
 # ---------------------------------------------------------------------------------------------------------
 
 
 RUNNERS = {"corrupt": cat_corrupt, "crafted": cat_crafted, "scenes": cat_scenes, "args": cat_args, "disk": cat_disk,
-           "kills": cat_kills, "concurrency": cat_concurrency}
+           "kills": cat_kills, "concurrency": cat_concurrency, "shards": cat_shards}
 
 
 def main():

@@ -58,7 +58,16 @@ Status CheckLeafEntries(const LeafView& view, const std::string& store_name, uin
   for (size_t j = 0; j < i; ++j) bits[entries[j].id >> 6] = 0;
   if (problem.empty() && digest != objects.leaf_digest[leaf])
     problem = "its objects are not the ones the object table puts in it (id digest mismatch)";
-  return problem.empty() ? Status::Ok() : fail(problem);
+  if (!problem.empty()) return fail(problem);
+  // The digest matched, but for a crafted collision: no id may be another leaf's too.
+  if (objects.claims.Claimed(leaf)) return Status::Ok();
+  thread_local std::vector<uint32_t> ids;
+  ids.clear();
+  for (const ObjectEntryView& e : entries) ids.push_back(e.id);
+  const uint64_t twice = objects.claims.Claim(leaf, objects.leaf_digest.size(), n_objects, ids);
+  if (twice == LeafClaims::kNone) return Status::Ok();
+  return fail("object " + std::to_string(twice) +
+              " is in two leaves, this one and one read before (their id digests were made to collide)");
 }
 
 void DecodedLeaf::FreeBlock::operator()(void* p) const { ::operator delete (p, std::align_val_t{64}); }

@@ -89,7 +89,9 @@ struct PinnedLeaf {
 // their id digest (the sum of ObjectIdHash) the one `objects` holds for the leaf, each entry's box within
 // info.box. With the digests checked at open (they add up to the digest of all ids, the counts to the
 // object count), the entries are then the leaf's objects but for a digest collision, which damage makes
-// with odds of 2^-64 (a crafted file can aim for one). `seen` is scratch: all zero (or empty) before the
+// with odds of 2^-64 (a crafted file can aim for one): so the first leaf to pass claims its ids
+// (objects.claims, leaf_claims.h) and a leaf holding an id another leaf claimed is refused, which no
+// answer path can then see twice. `seen` is scratch: all zero (or empty) before the
 // call, and again after it; it grows to one bit per object. Errors are Corruption naming the store and
 // the leaf's first page.
 Status CheckLeafEntries(const LeafView& view, const std::string& store_name, uint32_t leaf,

@@ -77,6 +77,7 @@ Status ReadRecordSection(SectionReader& r, const std::string& path, std::vector<
 // The labelled fields of records read by ReadRecordSection, checked as DecodeRecords does.
 template <const RecordSchema& S, typename T>
 Status CheckLabels(const std::string& path, const std::vector<T>& records) {
+  if (records.empty()) return Status::Ok();  // data() may be null: no offset from it
   for (const RecordField& f : S.fields) {
     if (f.name == nullptr || f.labels.empty()) continue;
     const auto* p = reinterpret_cast<const uint8_t*>(records.data()) + f.offset;

@@ -3,7 +3,7 @@
 // and its HDF5 compound type. The paged file stores the canonical bytes as sections; both backends
 // checksum them (XXH3-64), so a flipped byte in the metadata is detected at open. All little-endian and
 // packed (see docs/store_format.md for the record layouts).
-// Thread safety: pure functions; ObjectTable is a plain value.
+// Thread safety: pure functions; ObjectTable is a plain value but for its claims (leaf_claims.h).
 #pragma once
 
 #include <cstdint>
@@ -12,6 +12,7 @@
 #include <string_view>
 #include <vector>
 
+#include "engine/store/leaf_claims.h"
 #include "engine/store/object_codec.h"
 #include "engine/tree/mktree.h"
 #include "mktree/scene.h"
@@ -30,6 +31,7 @@ struct ObjectTable {
   std::vector<uint64_t> leaf_digest;       // per leaf: LeafIdDigest of its objects' ids
   std::vector<uint32_t> record_directory;  // first object id of each record page
   std::vector<std::string> sources;        // the distinct input files, by index
+  LeafClaims claims;                       // the leaf each id was read in first (not part of the value)
 
   uint64_t size() const { return count; }
   bool operator==(const ObjectTable&) const = default;

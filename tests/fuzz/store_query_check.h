@@ -2,10 +2,12 @@
 // every answer must be whatever the store holds: sorted ids, no duplicate, only objects the store has.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
 #include <fstream>
+#include <span>
 #include <vector>
 
 #include "fuzz_util.h"
@@ -15,9 +17,13 @@ namespace mktree::fuzz {
 
 // MKTREE_FUZZ_NO_ANSWER_CHECK=1 turns the answer check off, to look for crashes and hangs past a known
 // wrong-answer bug that would otherwise stop nearly every run.
-inline void CheckAnswer(const Database& db, const std::vector<ObjectId>& hits) {
+inline bool AnswerCheckOff() {
   static const bool off = std::getenv("MKTREE_FUZZ_NO_ANSWER_CHECK") != nullptr;
-  if (off) return;
+  return off;
+}
+
+inline void CheckAnswer(const Database& db, const std::vector<ObjectId>& hits) {
+  if (AnswerCheckOff()) return;
   for (size_t i = 0; i < hits.size(); ++i) {
     if (hits[i] >= db.object_count()) std::abort();     // an object the store does not have
     if (i > 0 && hits[i] <= hits[i - 1]) std::abort();  // unsorted or duplicated
@@ -38,10 +44,30 @@ inline void RunQueries(const Database& db, const std::vector<Box3d>& extra) {
   }
   boxes.insert(boxes.end(), extra.begin(), extra.end());
   QueryResult r;
+  std::vector<ObjectId> streamed;
   for (const Box3d& q : boxes) {
     for (QueryMode mode : {QueryMode::kAabb, QueryMode::kExact}) {
       if (db.Run(Query::Point(Vec3d{q.min[0], q.min[1], q.min[2]}, mode), &r).ok()) CheckAnswer(db, r.hits);
-      if (db.Run(Query::Box(q, mode), &r).ok()) CheckAnswer(db, r.hits);
+      const Query box = Query::Box(q, mode);
+      if (!db.Run(box, &r).ok()) continue;
+      CheckAnswer(db, r.hits);
+      if (AnswerCheckOff()) continue;
+      // The streaming and counting paths, which sort nothing: the same ids, or an error.
+      streamed.clear();
+      const Status st = db.VisitSpans(
+          box,
+          [&](std::span<const ObjectId> ids) { streamed.insert(streamed.end(), ids.begin(), ids.end()); },
+          nullptr);
+      std::sort(streamed.begin(), streamed.end());
+      if (st.ok() && streamed != r.hits) std::abort();
+      BatchOptions count;
+      count.threads = 1;
+      count.ids = false;
+      const uint64_t want = r.hits.size();
+      (void)db.RunBatchStreamed({box}, count, [want](uint64_t, const QueryResult& c) {
+        if (c.stats.hits != want) std::abort();
+        return Status::Ok();
+      });
     }
   }
 }
