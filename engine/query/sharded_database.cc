@@ -163,19 +163,26 @@ class ShardedDatabase final : public Database {
         b.max[i] = q.box.max[i] - o[i];
       }
     }
+    return WalkTop([&](uint32_t n) { return box_[n].Intersects(b); }, stats);
+  }
+
+  // The shards (in shard order) of the top-level leaves reached through the nodes `meets` accepts; counts
+  // the internal nodes passed in stats when given.
+  template <typename Meets>
+  std::vector<uint32_t> WalkTop(const Meets& meets, QueryStats* stats) const {
     std::vector<uint32_t> out;
     uint32_t stack[128];
     int top = 0;
     stack[top++] = 0;
     while (top > 0) {
       const uint32_t n = stack[--top];
-      if (!box_[n].Intersects(b)) continue;
+      if (!meets(n)) continue;
       const TopNode& t = m_.top.nodes[n];
       if (t.is_leaf()) {
         out.push_back(t.shard);
         continue;
       }
-      ++stats->internal_nodes_visited;
+      if (stats) ++stats->internal_nodes_visited;
       stack[top++] = t.child[1];
       stack[top++] = t.child[0];
     }
@@ -191,22 +198,7 @@ class ShardedDatabase final : public Database {
 
   // The shards whose root boxes meet `b` (store frame) grown by c, in shard order.
   std::vector<uint32_t> RouteGrown(const Box3d& b, double c) const {
-    std::vector<uint32_t> out;
-    uint32_t stack[128];
-    int top = 0;
-    stack[top++] = 0;
-    while (top > 0) {
-      const uint32_t n = stack[--top];
-      if (!clash::GrownMeet(clash::ToBox3d(box_[n]), b, c)) continue;
-      const TopNode& t = m_.top.nodes[n];
-      if (t.is_leaf()) {
-        out.push_back(t.shard);
-        continue;
-      }
-      stack[top++] = t.child[1];
-      stack[top++] = t.child[0];
-    }
-    return out;
+    return WalkTop([&](uint32_t n) { return clash::GrownMeet(clash::ToBox3d(box_[n]), b, c); }, nullptr);
   }
 
   // The shard holding global id `id` and its id there.

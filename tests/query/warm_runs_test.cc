@@ -12,6 +12,7 @@
 #include "engine/store/store_file.h"
 #include "mktree/database.h"
 #include "query/query_oracle.h"
+#include "query/run_matches_visit.h"
 #include "query/scene_fixtures.h"
 #include "test_dirs.h"
 
@@ -106,33 +107,10 @@ TEST_P(WarmRunsTest, MultiPageLeavesKeepAnswersAndCountsOfOneLeafAtATime) {
         ASSERT_TRUE(windowed.ok() && single.ok());
         for (int pass = 0; pass < 3; ++pass) {
           for (size_t i = 0; i < qs.size(); ++i) {
-            QueryResult r;
-            ASSERT_TRUE((*windowed)->Run(qs[i], &r).ok());
-            ASSERT_EQ(r.hits, expected[i]) << "pass " << pass << " query " << i;
-            std::vector<ObjectId> one;
-            QueryStats s;
-            auto complete = (*single)->VisitUntil(
-                qs[i],
-                [&](ObjectId id) {
-                  one.push_back(id);
-                  return true;
-                },
-                &s);
-            ASSERT_TRUE(complete.ok() && *complete);
-            std::sort(one.begin(), one.end());
-            ASSERT_EQ(one, expected[i]);
-            const QueryStats& w = r.stats;
-            ASSERT_EQ(w.pages_read, s.pages_read) << "pass " << pass << " query " << i;
-            EXPECT_EQ(w.pages_touched, s.pages_touched) << i;
-            EXPECT_EQ(w.cache_hits, s.cache_hits) << i;
-            EXPECT_EQ(w.bytes_read, s.bytes_read) << i;
-            EXPECT_EQ(w.leaves_visited, s.leaves_visited) << i;
-            EXPECT_EQ(w.leaves_filtered, s.leaves_filtered) << i;
-            EXPECT_EQ(w.leaves_with_hits, s.leaves_with_hits) << i;
-            EXPECT_EQ(w.candidates_tested, s.candidates_tested) << i;
-            EXPECT_EQ(w.internal_nodes_visited, s.internal_nodes_visited) << i;
-            EXPECT_EQ(w.split_nodes_visited, s.split_nodes_visited) << i;
-            EXPECT_EQ(w.hits, s.hits) << i;
+            testing::ExpectRunMatchesVisitUntil(
+                **windowed, **single, qs[i], expected[i],
+                "pass " + std::to_string(pass) + " query " + std::to_string(i));
+            if (::testing::Test::HasFatalFailure()) return;
           }
         }
       }
