@@ -16,6 +16,7 @@
 #include <tuple>
 #include <vector>
 
+#include "clash/clash_oracle.h"
 #include "engine/geometry/mesh_separation.h"
 #include "engine/ingest/store_builder.h"
 #include "engine/scene/scene_source.h"
@@ -31,6 +32,9 @@ namespace mktree {
 namespace {
 
 using testing::BoxMesh;
+using testing::ExpectSame;
+using testing::OracleClass;
+using testing::Sorted;
 
 std::string TempPath(const std::string& name) {
   static const testing::TempDir dir("mktree_clash");
@@ -48,36 +52,6 @@ Status Build(const std::vector<SceneObject>& objs, const std::string& path, Back
   }};
   auto r = BuildStore(in, path, o);
   return r.ok() ? Status::Ok() : r.status();
-}
-
-// The oracle's own rules (not engine/clash's): class of a separation, as docs/clash.md §1 states them,
-// with r the pair's resolution (the sum of both objects' CoordinateResolution).
-bool OracleClass(const Separation& s, double c, double t, double r, ClashPair* p) {
-  p->resolution = r;
-  if (s.meeting == Meeting::kApart) {
-    if (s.distance <= r) {
-      p->cls = ClashClass::kTouch;
-      p->meeting = ClashMeeting::kResolutionGap;
-    } else {
-      if (!(s.distance < c)) return false;
-      p->cls = ClashClass::kClearance;
-      p->meeting = ClashMeeting::kApart;
-    }
-  } else {
-    const double touch = std::max(t, r);
-    p->cls = s.depth_lower > touch    ? ClashClass::kHard
-             : s.depth_upper <= touch ? ClashClass::kTouch
-                                      : ClashClass::kHard;
-    p->meeting = s.meeting == Meeting::kSurfacesMeet ? ClashMeeting::kCross
-                 : s.meeting == Meeting::kAInsideB   ? ClashMeeting::kAInsideB
-                                                     : ClashMeeting::kBInsideA;
-    p->depth_lower = s.depth_lower;
-    p->depth_upper = s.depth_upper;
-  }
-  p->distance = s.distance;
-  p->point_a = s.point_a;
-  p->point_b = s.point_b;
-  return true;
 }
 
 struct Oracle {
@@ -134,32 +108,6 @@ struct Oracle {
     return out;
   }
 };
-
-std::vector<ClashPair> Sorted(std::vector<ClashPair> v) {
-  std::sort(v.begin(), v.end(),
-            [](const ClashPair& x, const ClashPair& y) { return std::tie(x.a, x.b) < std::tie(y.a, y.b); });
-  return v;
-}
-
-void ExpectSame(const std::vector<ClashPair>& got, const std::vector<ClashPair>& want) {
-  ASSERT_EQ(got.size(), want.size());
-  for (size_t i = 0; i < got.size(); ++i) {
-    SCOPED_TRACE("pair " + std::to_string(want[i].a) + " " + std::to_string(want[i].b));
-    EXPECT_EQ(got[i].a, want[i].a);
-    EXPECT_EQ(got[i].b, want[i].b);
-    EXPECT_EQ(got[i].cls, want[i].cls);
-    EXPECT_EQ(got[i].meeting, want[i].meeting);
-    EXPECT_EQ(got[i].distance, want[i].distance);
-    EXPECT_EQ(got[i].depth_lower, want[i].depth_lower);
-    EXPECT_EQ(got[i].depth_upper, want[i].depth_upper);
-    EXPECT_EQ(got[i].depth_exact, want[i].depth_lower == want[i].depth_upper);
-    EXPECT_EQ(got[i].resolution, want[i].resolution);
-    for (int k = 0; k < 3; ++k) {
-      EXPECT_EQ(got[i].point_a[k], want[i].point_a[k]);
-      EXPECT_EQ(got[i].point_b[k], want[i].point_b[k]);
-    }
-  }
-}
 
 Box3d B(double x0, double y0, double z0, double x1, double y1, double z1) {
   Box3d b;

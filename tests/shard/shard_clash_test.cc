@@ -10,6 +10,7 @@
 #include <random>
 #include <tuple>
 
+#include "clash/clash_oracle.h"
 #include "engine/generator/tanker_generator.h"
 #include "engine/geometry/mesh_separation.h"
 #include "engine/ingest/store_builder.h"
@@ -27,34 +28,10 @@ namespace mktree {
 namespace {
 
 using testing::BoxMesh;
+using testing::ExpectSame;
+using testing::OracleClass;
+using testing::Sorted;
 using testing::TempDir;
-
-auto Key(const ClashPair& p) { return std::tie(p.a, p.b); }
-
-std::vector<ClashPair> Sorted(std::vector<ClashPair> v) {
-  std::sort(v.begin(), v.end(), [](const ClashPair& x, const ClashPair& y) { return Key(x) < Key(y); });
-  return v;
-}
-
-void ExpectSame(const std::vector<ClashPair>& got, const std::vector<ClashPair>& want) {
-  ASSERT_EQ(got.size(), want.size());
-  for (size_t i = 0; i < got.size(); ++i) {
-    SCOPED_TRACE("pair " + std::to_string(want[i].a) + " " + std::to_string(want[i].b));
-    EXPECT_EQ(got[i].a, want[i].a);
-    EXPECT_EQ(got[i].b, want[i].b);
-    EXPECT_EQ(got[i].cls, want[i].cls);
-    EXPECT_EQ(got[i].meeting, want[i].meeting);
-    EXPECT_EQ(got[i].distance, want[i].distance);
-    EXPECT_EQ(got[i].depth_lower, want[i].depth_lower);
-    EXPECT_EQ(got[i].depth_upper, want[i].depth_upper);
-    EXPECT_EQ(got[i].depth_exact, want[i].depth_exact);
-    EXPECT_EQ(got[i].resolution, want[i].resolution);
-    for (int k = 0; k < 3; ++k) {
-      EXPECT_EQ(got[i].point_a[k], want[i].point_a[k]);
-      EXPECT_EQ(got[i].point_b[k], want[i].point_b[k]);
-    }
-  }
-}
 
 // Brute force over the stored geometry: every pair whose stored boxes grown by c meet, classified by
 // docs/clash.md §1's rules (restated here, not engine/clash's).
@@ -86,30 +63,7 @@ std::vector<ClashPair> Oracle(const std::vector<SceneObject>& scene, double c, d
       ClashPair p;
       p.a = objects[i].id;
       p.b = objects[j].id;
-      p.resolution = r;
-      if (s.meeting == Meeting::kApart) {
-        if (s.distance <= r) {
-          p.cls = ClashClass::kTouch;
-          p.meeting = ClashMeeting::kResolutionGap;
-        } else if (s.distance < c) {
-          p.cls = ClashClass::kClearance;
-          p.meeting = ClashMeeting::kApart;
-        } else {
-          continue;
-        }
-      } else {
-        const double touch = std::max(t, r);
-        p.cls = s.depth_lower > touch    ? ClashClass::kHard
-                : s.depth_upper <= touch ? ClashClass::kTouch
-                                         : ClashClass::kHard;
-        p.meeting = s.meeting == Meeting::kSurfacesMeet ? ClashMeeting::kCross
-                    : s.meeting == Meeting::kAInsideB   ? ClashMeeting::kAInsideB
-                                                        : ClashMeeting::kBInsideA;
-        p.depth_lower = s.depth_lower;
-        p.depth_upper = s.depth_upper;
-      }
-      p.depth_exact = p.depth_lower == p.depth_upper;
-      p.distance = s.distance;
+      if (!OracleClass(s, c, t, r, &p)) continue;
       p.point_a = {s.point_a.x + origin.x, s.point_a.y + origin.y, s.point_a.z + origin.z};
       p.point_b = {s.point_b.x + origin.x, s.point_b.y + origin.y, s.point_b.z + origin.z};
       out.push_back(p);
@@ -258,7 +212,9 @@ TEST_P(ShardClash, PlantedPairsAcrossCutsAsUnshardedAndBruteForce) {
         for (const ClashPair& p : got) EXPECT_LT(p.a, p.b);
         EXPECT_GT(stats.pages_read, 0u);
         EXPECT_LE(stats.distinct_pages, stats.store_pages);
-        if (cache == 4096) EXPECT_EQ(stats.pages_read, stats.distinct_pages);  // each page read once
+        if (cache == 4096) {
+          EXPECT_EQ(stats.pages_read, stats.distinct_pages);  // each page read once
+        }
         // Pairs across the cuts: of every planted kind.
         if (k > 1 && cache == 0) {
           uint64_t cross = 0, contained = 0, touch = 0;
@@ -352,8 +308,9 @@ TEST(ShardClashRuns, ExclusionsAndTheCapAsOnOneStore) {
     EXPECT_EQ(ss.capped_pairs, want.size() - 7);
     EXPECT_EQ(ss.hard + ss.touch + ss.clearance, want.size());
     for (const ClashPair& p : capped)
-      EXPECT_TRUE(std::binary_search(want.begin(), want.end(), p,
-                                     [](const ClashPair& x, const ClashPair& y) { return Key(x) < Key(y); }));
+      EXPECT_TRUE(std::binary_search(want.begin(), want.end(), p, [](const ClashPair& x, const ClashPair& y) {
+        return testing::PairKey(x) < testing::PairKey(y);
+      }));
   }
 }
 

@@ -92,7 +92,7 @@ TEST(ShardCli, ClashAndCollideOnAManifest) {
            "f 1 3 2\nf 1 4 3\nf 5 6 7\nf 5 7 8\nf 1 2 6\nf 1 6 5\nf 2 3 7\nf 2 7 6\nf 3 4 8\nf 3 8 7\n"
            "f 4 1 5\nf 4 5 8\n";
   }
-  for (const std::string args :
+  for (const std::string& args :
        {std::string("clash %s --summary --clearance 0.01 --names"),
         std::string("clash %s --summary --threads 2 --max-pairs 50"),
         "collide %s --object " + d + "/probe.obj --translate 90,0,2 --rotate-deg 0,0,20 --summary"}) {
@@ -107,8 +107,9 @@ TEST(ShardCli, ClashAndCollideOnAManifest) {
     ASSERT_EQ(plain.code, 0) << plain.err;
     ASSERT_EQ(sharded.code, 0) << sharded.err;
     EXPECT_GT(std::count(plain.out.begin(), plain.out.end(), '\n'), 10);
-    if (args.find("max-pairs") == std::string::npos)
+    if (args.find("max-pairs") == std::string::npos) {
       EXPECT_EQ(SortedPairs(sharded.out), SortedPairs(plain.out));
+    }
     EXPECT_EQ(Counts(sharded.out), Counts(plain.out));
     EXPECT_NE(Counts(sharded.out), "");
   }
