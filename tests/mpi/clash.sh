@@ -4,8 +4,8 @@
 # (a rank owns two) and on K = R - 1 (a rank owns none). The lines come sorted by (a, b): byte for byte the
 # unsharded lines sorted so, and the same on 1 rank as on R; the cap keeps the first N of that order;
 # --names gives the unsharded --names lines; runs of a few pairs (MKTREE_MPI_TEST_SORT_RUN_BYTES) give
-# the same bytes through the external sort's files and merge levels. A missing shard fails every rank,
-# printing nothing.
+# the same bytes through the external sort's files and merge levels, which go to $TMPDIR. A missing
+# shard fails every rank, printing nothing.
 #   tests/mpi/clash.sh R MKTREE_MPI MKTREE MPIEXEC
 set -euo pipefail
 ranks=$1 mpi=$2 m=$3 mpiexec=$4
@@ -59,6 +59,13 @@ for k in $((ranks + 1)) $((ranks - 1)); do
     --names >"$dir/runs" 2>/dev/null
   cmp "$dir/mpi" "$dir/runs"
 done
+# Sort runs spill to unnamed files in $TMPDIR: the same bytes with a TMPDIR of the caller's, nothing left
+# there. (A missing TMPDIR cannot be tested here: mpirun creates it for its session directory.)
+mkdir "$dir/tmp"
+TMPDIR="$dir/tmp" MKTREE_MPI_TEST_SORT_RUN_BYTES=520 run -x TMPDIR -x MKTREE_MPI_TEST_SORT_RUN_BYTES "$mpi" clash \
+  "$dir/s$k.mkts" --names >"$dir/runs" 2>/dev/null
+cmp "$dir/mpi" "$dir/runs"
+[[ -z "$(ls -A "$dir/tmp")" ]]
 k=$((ranks + 1))
 rm "$dir/s$k.mkts.shard-1.mkt"
 if run "$mpi" clash "$dir/s$k.mkts" >"$dir/out" 2>"$dir/err"; then exit 1; fi

@@ -10,7 +10,9 @@
 // rank has finished without error, rank 0 merges the ranks' sorted streams (each sent in bounded messages
 // as rank 0 needs them) and prints them in (a, b) order, the same bytes for any R and K; the cap keeps the
 // first N of that order. The lines are `mktree clash`'s on the one-process Database, sorted by (a, b).
+#include <fcntl.h>
 #include <sys/resource.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cerrno>
@@ -147,12 +149,27 @@ struct FileCloser {
 };
 using File = std::unique_ptr<std::FILE, FileCloser>;
 
+// An unnamed file in $TMPDIR (default /tmp): std::tmpfile ignores TMPDIR, and a large self-clash's pairs
+// (about 104 bytes each) belong on the disk the user chose. No name, so a killed rank leaves nothing.
 Result<File> TempFile() {
-  File f(std::tmpfile());
-  if (!f)
-    return Status::IOError(std::string("cannot make a temporary file for the pairs: ") +
-                           std::strerror(errno));
-  return f;
+  const char* env = std::getenv("TMPDIR");
+  const std::string dir = env && *env ? env : "/tmp";
+  int fd = -1;
+#ifdef O_TMPFILE
+  fd = ::open(dir.c_str(), O_TMPFILE | O_RDWR | O_CLOEXEC, 0600);
+#endif
+  if (fd < 0) {  // a filesystem without O_TMPFILE: a named file, unlinked at once
+    std::string name = dir + "/mktree-pairs.XXXXXX";
+    fd = ::mkstemp(name.data());
+    if (fd >= 0) ::unlink(name.c_str());
+  }
+  std::FILE* f = fd >= 0 ? ::fdopen(fd, "w+b") : nullptr;
+  if (!f) {
+    const std::string why = std::strerror(errno);
+    if (fd >= 0) ::close(fd);
+    return Status::IOError("cannot make a temporary file for the pairs in " + dir + ": " + why);
+  }
+  return File(f);
 }
 
 Status WritePairs(std::FILE* f, const ClashPair* p, size_t n) {
