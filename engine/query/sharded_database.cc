@@ -206,10 +206,8 @@ class ShardedDatabase final : public Database {
     if (id >= m_.objects)
       return Status::InvalidArgument(path_ + ": no object " + std::to_string(id) + " (the store has " +
                                      std::to_string(m_.objects) + ")");
-    for (uint32_t s = 0; s < ids_.size(); ++s) {
-      auto it = std::lower_bound(ids_[s].begin(), ids_[s].end(), id);
-      if (it != ids_[s].end() && *it == id) return std::pair{s, static_cast<ObjectId>(it - ids_[s].begin())};
-    }
+    for (uint32_t s = 0; s < ids_.size(); ++s)
+      if (auto local = LocalIdOf(ids_[s], id)) return std::pair{s, *local};
     return Status::Internal(path_ + ": object " + std::to_string(id) + " is in no shard");
   }
 

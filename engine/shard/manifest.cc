@@ -4,6 +4,7 @@
 #include <unistd.h>
 #include <xxhash.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -247,6 +248,12 @@ Result<std::vector<ObjectId>> ReadShardIds(const std::string& path, uint64_t bui
     if (ids[i] >= total_objects || (i > 0 && ids[i] <= ids[i - 1]))
       return bad("ids not increasing or out of range");
   return ids;
+}
+
+std::optional<ObjectId> LocalIdOf(const std::vector<ObjectId>& ids, ObjectId id) {
+  auto it = std::lower_bound(ids.begin(), ids.end(), id);
+  if (it == ids.end() || *it != id) return std::nullopt;
+  return static_cast<ObjectId>(it - ids.begin());
 }
 
 }  // namespace mktree

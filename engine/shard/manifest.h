@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -55,6 +56,8 @@ Status WriteShardIds(const std::string& path, uint64_t build_id, uint32_t shard,
                      const std::vector<ObjectId>& ids);
 Result<std::vector<ObjectId>> ReadShardIds(const std::string& path, uint64_t build_id, uint32_t shard,
                                            uint64_t total_objects);
+// The local id of global id `id` in a shard whose id file gave `ids` (strictly increasing), if it is there.
+std::optional<ObjectId> LocalIdOf(const std::vector<ObjectId>& ids, ObjectId id);
 
 // "<manifest>.shard-<i>.mkt" and "<manifest>.shard-<i>.ids": the shards' paths, beside the manifest.
 std::string ShardStorePath(const std::string& manifest, uint32_t shard);

@@ -304,6 +304,12 @@ class PairSorter {
     };
     for (size_t l = 0; files() > kFanIn; ++l) {
       if (levels_[l].empty()) continue;
+      if (levels_[l].size() == 1) {  // merging one run would only copy it: it moves up as it is
+        Run alone = std::move(levels_[l][0]);
+        levels_[l].clear();
+        MKTREE_RETURN_IF_ERROR(AddFile(l + 1, std::move(alone)));
+        continue;
+      }
       MKTREE_ASSIGN_OR_RETURN(Run merged, MergeToFile(&levels_[l]));
       MKTREE_RETURN_IF_ERROR(AddFile(l + 1, std::move(merged)));
     }
@@ -359,10 +365,8 @@ class LocalStream {
 
  private:
   Result<std::string> NameOf(ObjectId id) const {
-    for (const OpenShard& s : *shards_) {  // ids ascend in a shard (local order is global order)
-      auto it = std::lower_bound(s.ids.begin(), s.ids.end(), id);
-      if (it != s.ids.end() && *it == id) return s.db->ObjectName(static_cast<ObjectId>(it - s.ids.begin()));
-    }
+    for (const OpenShard& s : *shards_)
+      if (auto local = LocalIdOf(s.ids, id)) return s.db->ObjectName(*local);
     return Status::Internal("object " + std::to_string(id) + " is in no shard open on this rank");
   }
 
