@@ -59,7 +59,9 @@ struct LoadedLeaf {
   uint64_t bytes = 0;  // heap held by its meshes and shapes (about)
 };
 
-constexpr size_t kKeptFoundCapacity = 64;
+constexpr size_t kKeptFoundCapacity = 16;
+// Leaf pairs tested between two hand-overs of found pairs to the visitor.
+constexpr size_t kNarrowChunk = 128;
 
 // What the tests of one leaf pair (or one collide chunk) found.
 struct PairWork {
@@ -348,7 +350,7 @@ Status RunMultiClash(const std::vector<ClashPart>& parts, const ClashPartPairs& 
   std::vector<uint64_t> seen;
   IoCount io;
   Emitter emit{o, visit, s};
-  std::vector<PairWork> work, previous;  // this batch's results, the last batch's (not yet handed on)
+  std::vector<PairWork> work, previous;  // this chunk's results, the last chunk's (not yet handed on)
   size_t previous_count = 0;
   auto emit_previous = [&] {
     for (size_t k = 0; k < previous_count; ++k) emit.Add(previous[k]);
@@ -413,22 +415,28 @@ Status RunMultiClash(const std::vector<ClashPart>& parts, const ClashPartPairs& 
     s.window_peak_bytes = std::max(s.window_peak_bytes, window_bytes);
     s.read_seconds += Since(t);
 
-    // Narrow phase: the batch's leaf pairs on all threads; meanwhile this thread hands the previous
-    // batch's pairs on, in order (formatting and writing millions of pairs is serial work).
+    // Narrow phase: the batch's leaf pairs on all threads, a chunk at a time; meanwhile this thread hands
+    // the previous chunk's pairs on, in order (formatting and writing millions of pairs is serial work).
+    // Chunks, not whole batches, so that the pairs found but not yet handed on stay few.
     t = Clock::now();
     const size_t n = b.pair_end - b.pair_begin;
-    if (work.size() < n) work.resize(n);
-    errors.assign(n, Status::Ok());
-    pool.For(
-        n,
-        [&](size_t k) {
-          const clash::LeafPair& lp = plan.pairs[b.pair_begin + k];
-          work[k].Clear();
-          errors[k] = TestLeafPair(parts[part_of[lp.p]].store.reader.path(), *window[lp.p], *window[lp.q],
-                                   lp.p == lp.q, o, ex, origin, &work[k]);
-        },
-        [&] { emit_previous(); });
-    MKTREE_RETURN_IF_ERROR(FirstError(errors));
+    for (size_t from = 0; from < n; from += kNarrowChunk) {
+      const size_t count = std::min(kNarrowChunk, n - from);
+      if (work.size() < count) work.resize(count);
+      errors.assign(count, Status::Ok());
+      pool.For(
+          count,
+          [&](size_t k) {
+            const clash::LeafPair& lp = plan.pairs[b.pair_begin + from + k];
+            work[k].Clear();
+            errors[k] = TestLeafPair(parts[part_of[lp.p]].store.reader.path(), *window[lp.p], *window[lp.q],
+                                     lp.p == lp.q, o, ex, origin, &work[k]);
+          },
+          [&] { emit_previous(); });
+      MKTREE_RETURN_IF_ERROR(FirstError(errors));
+      std::swap(work, previous);
+      previous_count = count;
+    }
     // The shapes' parts built by these pairs: the window holds them until the leaves leave.
     for (size_t k = b.pair_begin; k < b.pair_end; ++k)
       for (uint32_t leaf : {plan.pairs[k].p, plan.pairs[k].q}) {
@@ -439,8 +447,6 @@ Status RunMultiClash(const std::vector<ClashPart>& parts, const ClashPartPairs& 
       }
     s.window_peak_bytes = std::max(s.window_peak_bytes, window_bytes);
     s.narrow_seconds += Since(t);
-    std::swap(work, previous);
-    previous_count = n;
     for (uint32_t leaf : b.drop) drop(leaf);
     if (o.progress) o.progress(bi + 1, plan.batches.size());
   }
