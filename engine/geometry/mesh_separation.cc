@@ -36,7 +36,7 @@ struct ClashShape::Impl {
   // Separate may run on several threads at once, hence call_once. `st` counts what was built.
   const TriangleHierarchy& Hierarchy(NarrowStats* st) const {
     std::call_once(hierarchy_once, [&] {
-      hierarchy.emplace(mesh);
+      hierarchy = std::make_unique<TriangleHierarchy>(mesh);
       ++st->hierarchies_built;
     });
     return *hierarchy;
@@ -49,15 +49,17 @@ struct ClashShape::Impl {
       options.edges = edges;
       // Containment asks one point per component; the depth bound asks one per vertex inside.
       options.expected_queries = kGridBreakEven;
-      classifier.emplace(mesh, options);
+      classifier = std::make_unique<SolidClassifier>(mesh, options);
       ++st->classifiers_built;
     });
     return *classifier;
   }
-  // Solids only: component_vertices and distinct_vertices.
+  // Solids only: vertex_lists.
   void BuildVertexLists() const {
     std::call_once(vertices_once, [&] {
-      component_vertices = ComponentVertices(mesh, &distinct_vertices);
+      auto lists = std::make_unique<VertexLists>();
+      lists->component = ComponentVertices(mesh, &lists->distinct);
+      vertex_lists = std::move(lists);
       vertices_built.store(true, std::memory_order_release);
     });
   }
@@ -95,7 +97,7 @@ struct ClashShape::Impl {
                                  [](const ByX& e, double x) { return e.x < x; });
       bool seen = false;
       for (auto j = it; j != by_x.begin() + n_dirs && j->x <= to && !seen; ++j) {
-        const Vec3d& d = directions[j->k];
+        const Vec3d& d = directions[j->k].d;
         seen = std::fabs(d.x - n.x) + std::fabs(d.y - n.y) + std::fabs(d.z - n.z) < 1e-9;
       }
       if (seen) continue;
@@ -104,22 +106,21 @@ struct ClashShape::Impl {
       std::move_backward(at, by_x.begin() + n_dirs, by_x.begin() + n_dirs + 1);
       *at = {n.x, static_cast<uint32_t>(directions.size())};
       ++n_dirs;
-      directions.push_back(n);
+      directions.push_back({n});
     }
     // Kept for the object's life: no growth slack.
     directions.shrink_to_fit();
     // All intervals in one pass over the vertices (each position once when known: the same intervals).
     const size_t nd = directions.size();
-    direction_lo.assign(nd, std::numeric_limits<double>::infinity());
-    direction_hi.assign(nd, -std::numeric_limits<double>::infinity());
     std::array<double, kMaxDepthDirections> dx, dy, dz;
     for (size_t k = 0; k < nd; ++k) {
-      dx[k] = directions[k].x;
-      dy[k] = directions[k].y;
-      dz[k] = directions[k].z;
+      dx[k] = directions[k].d.x;
+      dy[k] = directions[k].d.y;
+      dz[k] = directions[k].d.z;
     }
-    double* lo = direction_lo.data();
-    double* hi = direction_hi.data();
+    std::array<double, kMaxDepthDirections> lo, hi;
+    lo.fill(std::numeric_limits<double>::infinity());
+    hi.fill(-std::numeric_limits<double>::infinity());
     auto add = [&](size_t i) {
       const double* p = &mesh.vertices[3 * i];
       const double x = p[0], y = p[1], z = p[2];
@@ -130,9 +131,13 @@ struct ClashShape::Impl {
       }
     };
     if (vertices_built.load(std::memory_order_acquire)) {
-      for (uint32_t i : distinct_vertices) add(i);
+      for (uint32_t i : vertex_lists->distinct) add(i);
     } else {
       for (size_t i = 0; i < mesh.vertex_count(); ++i) add(i);
+    }
+    for (size_t k = 0; k < nd; ++k) {
+      directions[k].lo = lo[k];
+      directions[k].hi = hi[k];
     }
   }
 
@@ -150,7 +155,7 @@ struct ClashShape::Impl {
       hi = std::max(hi, p);
     };
     if (vertices_built.load(std::memory_order_acquire)) {
-      for (uint32_t i : distinct_vertices) add(i);
+      for (uint32_t i : vertex_lists->distinct) add(i);
     } else {
       for (size_t i = 0; i < mesh.vertex_count(); ++i) add(i);
     }
@@ -221,15 +226,21 @@ struct ClashShape::Impl {
   bool is_solid = false;  // closed meshes only: open ones are surfaces
   double projection_slack = 0;
   double negligible2 = 0;
-  // Built on first use (the accessors above).
+  // Built on first use (the accessors above), each behind a pointer: most shapes of a sweep's window
+  // never build some of them, and an empty part should cost a shape a pointer, not the part's size.
+  struct VertexLists {
+    std::vector<uint32_t> component, distinct;  // ComponentVertices
+  };
+  struct FaceDirection {
+    Vec3d d;
+    double lo = 0, hi = 0;  // the vertices' projection interval on d
+  };
   mutable std::once_flag hierarchy_once, classifier_once, vertices_once, directions_once;
-  mutable std::optional<TriangleHierarchy> hierarchy;
-  mutable std::optional<SolidClassifier> classifier;
+  mutable std::unique_ptr<TriangleHierarchy> hierarchy;
+  mutable std::unique_ptr<SolidClassifier> classifier;
   mutable std::atomic<bool> vertices_built{false};
-  mutable std::vector<uint32_t> component_vertices;
-  mutable std::vector<uint32_t> distinct_vertices;  // solids: ComponentVertices
-  mutable std::vector<Vec3d> directions;            // FaceDirections
-  mutable std::vector<double> direction_lo, direction_hi;
+  mutable std::unique_ptr<VertexLists> vertex_lists;
+  mutable std::vector<FaceDirection> directions;  // FaceDirections
 };
 
 ClashShape::ClashShape(const Mesh& mesh, const std::optional<EdgeCheck>& edges)
@@ -249,14 +260,17 @@ size_t ClashShape::MemoryBytes() const {
   size_t bytes = sizeof(Impl);
   if (m.hierarchy) bytes += m.hierarchy->MemoryBytes();
   if (m.classifier) bytes += m.classifier->MemoryBytes();
-  bytes += (m.component_vertices.capacity() + m.distinct_vertices.capacity()) * sizeof(uint32_t) +
-           m.directions.capacity() * sizeof(Vec3d) +
-           (m.direction_lo.capacity() + m.direction_hi.capacity()) * sizeof(double);
+  if (m.hierarchy) bytes += sizeof(TriangleHierarchy);
+  if (m.classifier) bytes += sizeof(SolidClassifier);
+  if (m.vertex_lists)
+    bytes += sizeof(Impl::VertexLists) +
+             (m.vertex_lists->component.capacity() + m.vertex_lists->distinct.capacity()) * sizeof(uint32_t);
+  bytes += m.directions.capacity() * sizeof(Impl::FaceDirection);
   return bytes;
 }
 
 ClashShape::Built ClashShape::built() const {
-  return {impl_->hierarchy.has_value(), impl_->classifier.has_value()};
+  return {impl_->hierarchy != nullptr, impl_->classifier != nullptr};
 }
 
 Status ValidateClashMesh(const Mesh& mesh) {
@@ -368,8 +382,8 @@ double DeepestVertex(const Impl& x, const Impl& y, double deepest, double stop, 
     for (size_t i = 0; i < x.mesh.vertex_count() && deepest2 < stop * stop; ++i) visit(i);
   } else {
     x.BuildVertexLists();
-    for (size_t k = 0; k < x.distinct_vertices.size() && deepest2 < stop * stop; ++k)
-      visit(x.distinct_vertices[k]);
+    const std::vector<uint32_t>& distinct = x.vertex_lists->distinct;
+    for (size_t k = 0; k < distinct.size() && deepest2 < stop * stop; ++k) visit(distinct[k]);
   }
   return std::sqrt(deepest2);
 }
@@ -407,8 +421,9 @@ double FaceDirectionOverlap(const Impl& x, const Impl& y) {
   x.BuildDirections();
   double best = std::numeric_limits<double>::infinity();
   for (size_t k = 0; k < x.directions.size(); ++k) {
-    const auto [lo, hi] = y.ProjectionInterval(x.directions[k]);
-    const double overlap = std::min(x.direction_hi[k] - lo, hi - x.direction_lo[k]);
+    const Impl::FaceDirection& f = x.directions[k];
+    const auto [lo, hi] = y.ProjectionInterval(f.d);
+    const double overlap = std::min(f.hi - lo, hi - f.lo);
     best = std::min(best, overlap + x.projection_slack + y.projection_slack);
     if (best <= 0) break;
   }
@@ -488,7 +503,7 @@ bool ComponentInside(const Impl& x, const Impl& y, Vec3d* point, NarrowStats* st
   x.BuildVertexLists();
   const double tol2 = 4 * cy.tolerance() * cy.tolerance();
   bool unsure = false;
-  for (uint32_t v : x.component_vertices) {
+  for (uint32_t v : x.vertex_lists->component) {
     const Vec3d p = VertexAt(x.mesh, v);
     if (!y.kdop.Contains(p)) continue;
     ++st->containment_tests;
