@@ -5,6 +5,10 @@
 
 namespace mktree::clash {
 
+namespace {
+constexpr uint64_t kBatchWindowShare = 4;
+}  // namespace
+
 SweepPlan PlanSweep(const MKTree& tree, std::vector<LeafPair> pairs, const std::vector<uint64_t>& leaf_bytes,
                     uint64_t window_bytes, size_t batch_pairs) {
   if (pairs.empty()) return SweepPlan();
@@ -65,9 +69,12 @@ SweepPlan PlanSweep(const Box3f& root, const std::vector<Box3f>& leaf_boxes, std
   std::vector<uint8_t> in_window(order.size(), 0), ever_read(order.size(), 0), in_batch(order.size(), 0);
   std::vector<uint32_t> window;  // ranks
   uint64_t window_used = 0;
+  // A batch's leaves take at most this share of the window: the leaves behind the sweep front can leave
+  // between batches, so that the window holds about the front, not a whole batch's span of the scene.
+  const uint64_t batch_bytes = window_bytes / kBatchWindowShare;
   size_t k = 0;
   while (k < pairs.size()) {
-    // Grow the batch pair by pair while the leaves it needs fit the window (always at least one pair, so
+    // Grow the batch pair by pair while the leaves it needs fit its share (always at least one pair, so
     // that a window smaller than a sweep step still holds just two leaves).
     SweepBatch b;
     b.pair_begin = k;
@@ -84,7 +91,7 @@ SweepPlan PlanSweep(const Box3f& root, const std::vector<Box3f>& leaf_boxes, std
         added[n_added++] = r;
         added_bytes += bytes(leaf);
       }
-      if (end > k && need_bytes + added_bytes > window_bytes) break;
+      if (end > k && need_bytes + added_bytes > batch_bytes) break;
       for (int i = 0; i < n_added; ++i) {
         in_batch[added[i]] = 1;
         need.push_back(added[i]);

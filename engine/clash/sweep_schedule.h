@@ -31,7 +31,7 @@ struct SweepPlan {
 
 // Plans the sweep of `pairs` with a window of `window_bytes` bytes of decoded leaves, leaf i counted as
 // leaf_bytes[i] (a batch always holds the leaves its own pairs need, even beyond the budget), and batches
-// of at most `batch_pairs` pairs.
+// of at most `batch_pairs` pairs whose leaves take at most a quarter of the window (or one pair).
 SweepPlan PlanSweep(const MKTree& tree, std::vector<LeafPair> pairs, const std::vector<uint64_t>& leaf_bytes,
                     uint64_t window_bytes, size_t batch_pairs);
 // The same over leaves numbered by the caller (several stores' leaves in one frame): the sweep runs along
