@@ -258,10 +258,8 @@ size_t ClashShape::MemoryBytes() const {
   // What is built so far. Called by the thread that owns the shape while no Separate runs on it.
   const Impl& m = *impl_;
   size_t bytes = sizeof(Impl);
-  if (m.hierarchy) bytes += m.hierarchy->MemoryBytes();
-  if (m.classifier) bytes += m.classifier->MemoryBytes();
-  if (m.hierarchy) bytes += sizeof(TriangleHierarchy);
-  if (m.classifier) bytes += sizeof(SolidClassifier);
+  if (m.hierarchy) bytes += sizeof(TriangleHierarchy) + m.hierarchy->MemoryBytes();
+  if (m.classifier) bytes += sizeof(SolidClassifier) + m.classifier->MemoryBytes();
   if (m.vertex_lists)
     bytes += sizeof(Impl::VertexLists) +
              (m.vertex_lists->component.capacity() + m.vertex_lists->distinct.capacity()) * sizeof(uint32_t);
