@@ -64,24 +64,6 @@ struct Interval {
   bool complete = true;
 };
 
-// Do the corners of `u` lie strictly on both sides of `t`'s plane, and those of `t` of `u`'s? Two meeting
-// triangles that do cross along a segment; their solids then overlap near it (for meshes that do not cross
-// themselves), so no certificate is to be found and the search stops. Only a shortcut: skipping a search
-// never makes an answer wrong.
-bool StraddlesPlane(const Vec3d* t, const Vec3d* u) {
-  const double p0[3] = {t[0].x, t[0].y, t[0].z}, p1[3] = {t[1].x, t[1].y, t[1].z},
-               p2[3] = {t[2].x, t[2].y, t[2].z};
-  bool below = false, above = false;
-  for (int k = 0; k < 3; ++k) {
-    const double q[3] = {u[k].x, u[k].y, u[k].z};
-    const int s = Orient3dSign(p0, p1, p2, q);
-    below |= s < 0;
-    above |= s > 0;
-  }
-  return below && above;
-}
-bool Cross(const Vec3d* t, const Vec3d* u) { return StraddlesPlane(t, u) && StraddlesPlane(u, t); }
-
 // Project, stopping (complete = false) once the interval overlaps `other` by more than `limit` both ways.
 Interval ProjectUntil(const Mesh& m, const Vec3d& n, const Interval& other, double limit) {
   Interval r;
@@ -353,7 +335,8 @@ TouchResult FindTouchCertificate(const TouchObject& a, const TouchObject& b, con
   }
 
   // The planes of more meeting triangles.
-  if (ta && tb && Cross(ta, tb)) return r;
+  // Not skipped when the caller's pair straddles each other's planes: such triangles may still meet only
+  // on their edges (steel members touching at a corner).
   thread_local std::vector<TriangleHierarchy::Triangle> meeting;
   meeting.clear();
   MeetingTriangles(*a.hierarchy, *b.hierarchy, budget, &meeting, &r.triangle_tests);

@@ -5,12 +5,15 @@
 
 #include <algorithm>
 #include <array>
+#include <cfloat>
 #include <cmath>
 #include <random>
 #include <vector>
 
+#include "engine/geometry/exact_predicates.h"
 #include "engine/geometry/mesh_edges.h"
 #include "engine/geometry/mesh_separation.h"
+#include "engine/geometry/triangle_pair.h"
 #include "geometry/touch_meshes.h"
 
 namespace mktree {
@@ -160,6 +163,52 @@ TEST(TouchCertificate, PlateInTheCornerOfAnAngle) {
       EXPECT_EQ(r.meeting, Meeting::kSurfacesMeet);
       EXPECT_GT(r.depth_upper, 0.002);
     }
+  }
+}
+
+// Triangles that meet with each one's corners strictly on both sides of the other's plane may still meet
+// only on their edges: a square prism standing on a box's top face, across the box's side face x = 1,
+// makes such pairs of side triangles. Given one of them, the search still finds the plane z = 1.
+TEST(TouchCertificate, SearchGoesOnFromTrianglesMeetingOnTheirEdges) {
+  for (const Vec3d at : {Vec3d{0, 0, 0}, Vec3d{kFarX, kFarY, kFarZ}}) {
+    const Mesh a = Box({0, 0, 0}, {1, 1, 1}, at);
+    const Mesh b = ConvexPrism({{1.1, 0.8}, {0.8, 0.5}, {1.1, 0.2}, {1.4, 0.5}}, 1, 2, at);
+    EXPECT_EQ(ConvexDepth(a, b), 0);
+    ExpectTouch(a, b, "prism on the top face across a side");
+    auto corners = [](const Mesh& m, size_t t) {
+      std::array<Vec3d, 3> c;
+      for (int k = 0; k < 3; ++k) {
+        const double* v = &m.vertices[3 * size_t{m.triangles[3 * t + k]}];
+        c[k] = {v[0], v[1], v[2]};
+      }
+      return c;
+    };
+    auto straddles = [](const std::array<Vec3d, 3>& t, const std::array<Vec3d, 3>& u) {
+      const double p[3][3] = {{t[0].x, t[0].y, t[0].z}, {t[1].x, t[1].y, t[1].z}, {t[2].x, t[2].y, t[2].z}};
+      bool below = false, above = false;
+      for (const Vec3d& v : u) {
+        const double q[3] = {v.x, v.y, v.z};
+        const int sign = Orient3dSign(p[0], p[1], p[2], q);
+        below |= sign < 0;
+        above |= sign > 0;
+      }
+      return below && above;
+    };
+    const TriangleHierarchy ha(a), hb(b);
+    const Kdop ka = Kdop::Of(a), kb = Kdop::Of(b);
+    const SolidClassifier ca(a), cb(b);
+    const double slack = 16 * DBL_EPSILON * 3 * 2 * (kFarY + 10);
+    const TouchObject oa{&a, &ha, &ka, slack, &ca}, ob{&b, &hb, &kb, slack, &cb};
+    int straddling = 0;
+    for (size_t i = 0; i < a.triangle_count(); ++i)
+      for (size_t j = 0; j < b.triangle_count(); ++j) {
+        const std::array<Vec3d, 3> ta = corners(a, i), tb = corners(b, j);
+        if (!TrianglesMeet(ta.data(), tb.data()) || !straddles(ta, tb) || !straddles(tb, ta)) continue;
+        ++straddling;
+        const TouchResult r = FindTouchCertificate(oa, ob, ta.data(), tb.data(), TouchStage::kSearch);
+        EXPECT_TRUE(r.separated) << i << " " << j;
+      }
+    EXPECT_GT(straddling, 0);
   }
 }
 
