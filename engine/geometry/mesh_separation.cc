@@ -293,43 +293,53 @@ Vec3d VertexAt(const Mesh& m, size_t i) {
   return {m.vertices[3 * i], m.vertices[3 * i + 1], m.vertices[3 * i + 2]};
 }
 
-// Filtered all-pairs meeting test for small meshes: only triangles whose boxes meet the other mesh's box
-// take part. Returns the meeting corners.
-bool BruteForceMeeting(const TriangleHierarchy& a, const TriangleHierarchy& b, Vec3d* ta, Vec3d* tb,
-                       uint64_t* tests) {
-  const Box3d ba = a.bounds(), bb = b.bounds();
-  auto box_of = [](const TriangleHierarchy::Triangle& t) {
+bool BoxesMeet(const Box3d& x, const Box3d& y) {
+  for (int k = 0; k < 3; ++k)
+    if (x.max[k] < y.min[k] || y.max[k] < x.min[k]) return false;
+  return true;
+}
+
+// Filtered all-pairs meeting test straight on the meshes, for a small mesh against one of moderate size:
+// neither hierarchy is built (for most such pairs nothing else needs them). The small mesh's triangles
+// whose boxes meet the large mesh's box, against each triangle of the large mesh, in mesh order, whose box
+// meets the small mesh's box. Returns the meeting corners (ta of a, tb of b).
+bool ScanMeeting(const Impl& a, const Impl& b, Vec3d* ta, Vec3d* tb, uint64_t* tests) {
+  const bool a_small = a.mesh.triangle_count() <= b.mesh.triangle_count();
+  const Impl& small = a_small ? a : b;
+  const Impl& large = a_small ? b : a;
+  using Corners = std::array<Vec3d, 3>;
+  auto corners = [](const Impl& x, size_t t) {
+    return Corners{x.At(x.mesh.triangles[3 * t]), x.At(x.mesh.triangles[3 * t + 1]),
+                   x.At(x.mesh.triangles[3 * t + 2])};
+  };
+  auto box_of = [](const Corners& t) {
     Box3d x;
     for (const Vec3d& v : t) x.Extend(v.x, v.y, v.z);
     return x;
   };
-  auto meet = [](const Box3d& x, const Box3d& y) {
-    for (int k = 0; k < 3; ++k)
-      if (x.max[k] < y.min[k] || y.max[k] < x.min[k]) return false;
-    return true;
-  };
   // Per-thread scratch: Separate runs once per candidate pair, an allocation each would show.
-  thread_local std::vector<Box3d> boxes_b;
-  thread_local std::vector<uint32_t> idx_b;
-  boxes_b.clear();
-  idx_b.clear();
-  for (uint32_t j = 0; j < b.triangle_count(); ++j) {
-    const Box3d x = box_of(b.triangle(j));
-    if (meet(x, ba)) {
-      boxes_b.push_back(x);
-      idx_b.push_back(j);
-    }
+  thread_local std::vector<Corners> near;
+  thread_local std::vector<Box3d> near_boxes;
+  near.clear();
+  near_boxes.clear();
+  for (size_t t = 0; t < small.mesh.triangle_count(); ++t) {
+    const Corners c = corners(small, t);
+    const Box3d x = box_of(c);
+    if (!BoxesMeet(x, large.bounds)) continue;
+    near.push_back(c);
+    near_boxes.push_back(x);
   }
-  const size_t nb = idx_b.size();
-  for (uint32_t i = 0; i < a.triangle_count() && nb > 0; ++i) {
-    const Box3d x = box_of(a.triangle(i));
-    if (!meet(x, bb)) continue;
-    for (size_t k = 0; k < nb; ++k) {
-      if (!meet(x, boxes_b[k])) continue;
+  const size_t n = near.size();
+  for (size_t t = 0; t < large.mesh.triangle_count() && n > 0; ++t) {
+    const Corners c = corners(large, t);
+    const Box3d x = box_of(c);
+    if (!BoxesMeet(x, small.bounds)) continue;
+    for (size_t k = 0; k < n; ++k) {
+      if (!BoxesMeet(x, near_boxes[k])) continue;
       ++*tests;
-      if (TrianglesMeet(a.triangle(i).data(), b.triangle(idx_b[k]).data())) {
-        std::copy_n(a.triangle(i).data(), 3, ta);
-        std::copy_n(b.triangle(idx_b[k]).data(), 3, tb);
+      if (TrianglesMeet(c.data(), near[k].data())) {
+        std::copy_n(a_small ? near[k].data() : c.data(), 3, ta);
+        std::copy_n(a_small ? c.data() : near[k].data(), 3, tb);
         return true;
       }
     }
@@ -339,13 +349,13 @@ bool BruteForceMeeting(const TriangleHierarchy& a, const TriangleHierarchy& b, V
 
 bool FindMeetingTriangles(const Impl& a, const Impl& b, size_t brute_force, Vec3d* ta, Vec3d* tb,
                           NarrowStats* st) {
+  const size_t na = a.mesh.triangle_count(), nb = b.mesh.triangle_count();
+  if (std::min(na, nb) <= brute_force && std::max(na, nb) <= kScanTriangles)
+    return ScanMeeting(a, b, ta, tb, &st->triangle_tests);
   const TriangleHierarchy& ha = a.Hierarchy(st);
   const TriangleHierarchy& hb = b.Hierarchy(st);
-  uint64_t* tests = &st->triangle_tests;
-  if (ha.triangle_count() <= brute_force && hb.triangle_count() <= brute_force)
-    return BruteForceMeeting(ha, hb, ta, tb, tests);
   TriangleHierarchy::Pair pair;
-  if (!TriangleHierarchy::FindMeeting(ha, hb, &pair, tests)) return false;
+  if (!TriangleHierarchy::FindMeeting(ha, hb, &pair, &st->triangle_tests)) return false;
   std::copy_n(ha.triangle(pair.a).data(), 3, ta);
   std::copy_n(hb.triangle(pair.b).data(), 3, tb);
   return true;
@@ -393,14 +403,13 @@ double DeepestEdgePoint(const Impl& x, const Impl& y, double deepest, double sto
   thread_local std::vector<double> cuts;
   double deepest2 = deepest * deepest;
   const Mesh& m = x.mesh;
-  const TriangleHierarchy& hy = y.Hierarchy(st);
   for (size_t t = 0; t < m.triangle_count() && deepest2 < stop * stop; ++t)
     for (int e = 0; e < 3; ++e) {
       const uint32_t i = m.triangles[3 * t + e], j = m.triangles[3 * t + (e + 1) % 3];
       if (i > j) continue;  // each edge of a closed indexed mesh once
       const Vec3d p = VertexAt(m, i), q = VertexAt(m, j);
       cuts.clear();
-      hy.SegmentCrossings(p, q, &cuts);
+      y.Hierarchy(st).SegmentCrossings(p, q, &cuts);
       if (cuts.empty()) continue;
       cuts.push_back(0);
       cuts.push_back(1);

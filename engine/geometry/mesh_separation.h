@@ -11,12 +11,12 @@
 //
 // Method (docs/clash.md section 2): the 26-DOP bounds reject the pair (Kdop::Gap); then any meeting triangle
 // pair (exact, engine/geometry/triangle_pair.h) through the triangle hierarchies, or all filtered pairs
-// when both meshes have at most kBruteForceTriangles triangles; then, for two solids, one vertex of each
-// connected component against the other's solid (SolidClassifier); then the gap (hierarchy distance).
-// Depth bounds of meeting pairs: depth_upper = the smallest overlap of the two objects' projection
-// intervals over the 13 26-DOP directions and the face normals of small meshes, depth_lower = the largest
-// distance to the other's surface of a point of one solid's surface inside the other solid (vertices, and
-// edge points between the other surface's crossings; 0 when none is inside, or when either is a surface),
+// when one mesh is small and the other not large (kBruteForceTriangles, kScanTriangles); then, for two
+// solids, one vertex of each connected component against the other's solid (SolidClassifier); then the gap
+// (hierarchy distance). Depth bounds of meeting pairs: depth_upper = the smallest overlap of the two objects'
+// projection intervals over the 13 26-DOP directions and the face normals of small meshes, depth_lower = the
+// largest distance to the other's surface of a point of one solid's surface inside the other solid (vertices,
+// and edge points between the other surface's crossings; 0 when none is inside, or when either is a surface),
 // clamped to depth_upper. A touch certificate (engine/geometry/touch_certificate.h: a plane weakly
 // separating the vertex sets, or a convex piece the other's surface misses) makes both 0, exactly.
 //
@@ -113,9 +113,11 @@ struct Separation {
   Vec3d point_b;
 };
 
-// Both meshes at most this many triangles: Separate tests all pairs of triangles whose boxes meet the other
-// mesh's box instead of walking the hierarchies.
+// One mesh at most kBruteForceTriangles triangles and the other at most kScanTriangles: Separate tests all
+// pairs of triangles whose boxes meet the other mesh's box, straight on the meshes, instead of building and
+// walking the hierarchies.
 inline constexpr size_t kBruteForceTriangles = 32;
+inline constexpr size_t kScanTriangles = 256;
 
 // Meshes with at most this many triangles and vertices keep up to kMaxDepthDirections distinct face
 // normals as extra directions for depth_upper (each costs a pass over the other mesh's vertices).
