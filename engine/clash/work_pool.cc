@@ -10,6 +10,10 @@ WorkPool::WorkPool(unsigned threads) {
   } catch (...) {
     // A thread that cannot start leaves its share to the others.
   }
+  // Returns once every worker runs. A thread just started may wait on the caller's core for the kernel's
+  // next load balancing (milliseconds here), the whole of a small collide; waiting lets it run.
+  std::unique_lock<std::mutex> lock(mu_);
+  done_.wait(lock, [&] { return started_ == workers_.size(); });
 }
 
 WorkPool::~WorkPool() {
@@ -43,7 +47,9 @@ void WorkPool::RunShare() {
 
 void WorkPool::Work() {
   std::unique_lock<std::mutex> lock(mu_);
-  uint64_t seen = generation_;
+  uint64_t seen = 0;  // the constructor's generation: a loop begun before this line runs is joined
+  ++started_;
+  done_.notify_all();
   for (;;) {
     start_.wait(lock, [&] { return stop_ || generation_ != seen; });
     if (stop_) return;

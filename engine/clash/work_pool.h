@@ -40,7 +40,7 @@ class WorkPool {
   uint64_t generation_ = 0;
   bool stop_ = false;
   const std::function<void(size_t)>* f_ = nullptr;
-  size_t n_ = 0, next_ = 0, busy_ = 0;
+  size_t n_ = 0, next_ = 0, busy_ = 0, started_ = 0;
   std::exception_ptr error_;
 };
 
