@@ -19,8 +19,9 @@ struct EdgeSlot {
 
 struct Scratch {
   std::vector<uint32_t> canon;
-  std::vector<uint32_t> slots;  // weld table: vertex index + 1, 0 = empty
-  std::vector<EdgeSlot> edge_slots;
+  std::vector<uint32_t> slots;       // weld table: vertex index + 1, 0 = empty
+  std::vector<EdgeSlot> edge_slots;  // all empty between calls (TallyHashed empties what it filled)
+  std::vector<uint32_t> filled;      // the edge slots filled by this call
   std::vector<uint64_t> edges;
 };
 
@@ -106,22 +107,31 @@ void TallySorted(std::vector<uint64_t>* keys, EdgeCheck* r) {
 }
 
 // The same with a hash table: for small meshes (most objects of a scene) sorting ~100 keys costs more,
-// in branch mispredictions, than hashing them.
+// in branch mispredictions, than hashing them. Only the filled slots are tallied and emptied again: a
+// pass over the whole table (4 slots per edge use) cost more than the hashing.
 void TallyHashed(const Mesh& mesh, Scratch* s, EdgeCheck* r) {
   const size_t uses = 3 * (mesh.triangles.size() / 3);
   const size_t cap = std::bit_ceil(2 * uses + 16), mask = cap - 1;
   const int bits = Log2(cap);
-  s->edge_slots.assign(cap, EdgeSlot{0, 0, 0});
+  if (s->edge_slots.size() < cap) s->edge_slots.assign(cap, EdgeSlot{0, 0, 0});
+  if (s->filled.size() < uses) s->filled.resize(uses);
+  EdgeSlot* const table = s->edge_slots.data();
+  uint32_t* const filled = s->filled.data();
+  const uint32_t* const canon = s->canon.data();
+  size_t n_filled = 0;
   const uint32_t* tri = mesh.triangles.data();
   for (size_t t = 0; t + 2 < mesh.triangles.size(); t += 3) {
-    const uint32_t c[3] = {s->canon[tri[t]], s->canon[tri[t + 1]], s->canon[tri[t + 2]]};
+    const uint32_t c[3] = {canon[tri[t]], canon[tri[t + 1]], canon[tri[t + 2]]};
     if (c[0] == c[1] || c[1] == c[2] || c[2] == c[0]) continue;  // no area after welding
     for (int k = 0; k < 3; ++k) {
       const uint32_t a = c[k], b = c[(k + 1) % 3];
       const uint64_t edge = uint64_t{std::min(a, b)} << 32 | std::max(a, b);
       for (size_t h = HashTop(edge, bits);; h = (h + 1) & mask) {
-        EdgeSlot& slot = s->edge_slots[h];
-        if (slot.edge == 0) slot.edge = edge;
+        EdgeSlot& slot = table[h];
+        if (slot.edge == 0) {
+          slot.edge = edge;
+          filled[n_filled++] = static_cast<uint32_t>(h);
+        }
         if (slot.edge == edge) {
           ++(a < b ? slot.forward : slot.backward);
           break;
@@ -129,15 +139,16 @@ void TallyHashed(const Mesh& mesh, Scratch* s, EdgeCheck* r) {
       }
     }
   }
-  // Branch-free over the slots (empty ones count zero uses): a branch per slot mispredicted often
-  // enough to cost a third of the check.
+  // Branch-free over the filled slots: a branch per slot mispredicted often enough to show.
   bool not_closed = false, odd = false;
   size_t border = 0;
-  for (const EdgeSlot& slot : s->edge_slots) {
+  for (size_t i = 0; i < n_filled; ++i) {
+    EdgeSlot& slot = table[filled[i]];
     const uint32_t uses_of_edge = slot.forward + slot.backward;
-    not_closed |= (slot.edge != 0) & ((slot.forward != 1) | (slot.backward != 1));
+    not_closed |= (slot.forward != 1) | (slot.backward != 1);
     odd |= (uses_of_edge & 1) != 0;
     border += uses_of_edge == 1;
+    slot = EdgeSlot{0, 0, 0};
   }
   r->closed = r->closed && !not_closed;
   r->even = r->even && !odd;
