@@ -367,6 +367,11 @@ TEST(Separate, RandomSmallMeshesAgainstBruteForce) {
   for (size_t i = 0; i < meshes.size(); ++i)
     for (size_t j = i + 1; j < meshes.size(); ++j) {
       const Separation r = Check(meshes[i], meshes[j], 0.3, "random pair");
+      // The hierarchies' walk decides meeting as the small-mesh scan does (most pairs here take the scan).
+      SeparateOptions walk;
+      walk.brute_force_triangles = 0;
+      EXPECT_EQ(Separate(ClashShape(meshes[i]), ClashShape(meshes[j]), 0.3, nullptr, walk).meeting,
+                r.meeting);
       ++by_kind[static_cast<int>(r.meeting)];
       near += r.meeting == Meeting::kApart && r.distance < kInf;
       if (::testing::Test::HasFailure()) FAIL() << "pair " << i << ", " << j;
