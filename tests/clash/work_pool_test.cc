@@ -4,6 +4,9 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <mutex>
 #include <stdexcept>
 #include <thread>
 #include <vector>
@@ -29,6 +32,25 @@ TEST(WorkPool, EveryIterationOnceWithSideWorkOnTheCallingThread) {
       for (size_t i = 0; i < n; ++i)
         EXPECT_EQ(hits[i].load(), 1) << threads << " threads, n " << n << ", i " << i;
     }
+  }
+}
+
+// The first loop right after the pool is made runs on every thread: each iteration waits until all have
+// begun, which only a worker that joins that loop lets happen. (A worker that started late used to take
+// the loop in flight for done.)
+TEST(WorkPool, WorkersJoinTheFirstLoop) {
+  for (unsigned threads : {2u, 3u}) {
+    WorkPool pool(threads);
+    std::mutex mu;
+    std::condition_variable all_in;
+    size_t begun = 0;
+    std::atomic<size_t> together{0};
+    pool.For(threads, [&](size_t) {
+      std::unique_lock<std::mutex> lock(mu);
+      if (++begun == threads) all_in.notify_all();
+      if (all_in.wait_for(lock, std::chrono::seconds(10), [&] { return begun == threads; })) together++;
+    });
+    EXPECT_EQ(together.load(), threads) << threads << " threads";
   }
 }
 
