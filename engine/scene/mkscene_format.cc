@@ -106,7 +106,9 @@ class MkSceneSource final : public SceneSource {
                               std::to_string(offset_) + "): " + what);
   }
 
-  // Reads `n` more bytes of the current record into record_.
+  // Reads `n` more bytes of the current record into record_, through a window of the file read with
+  // pread: stdio read the file 4 KiB a call (glibc's setvbuf without a caller's buffer keeps the block
+  // size), 225,000 calls for a 1M-object scene.
   Status Read(size_t n) {
     const uint64_t have = offset_ + record_.size();
     if (n > file_size_ - have)
@@ -115,10 +117,42 @@ class MkSceneSource final : public SceneSource {
                      std::to_string(file_size_ - have) + " left");
     const size_t at = record_.size();
     record_.resize(at + n);
-    if (n && std::fread(record_.data() + at, 1, n, file_) != n) {
-      if (std::ferror(file_))
-        return Status::IOError(path_ + ": read failed at offset " + std::to_string(have));
-      return Corrupt("truncated: unexpected end of file at offset " + std::to_string(have));
+    uint8_t* dst = record_.data() + at;
+    uint64_t pos = have;
+    while (n > 0) {
+      if (pos >= window_begin_ && pos - window_begin_ < window_.size()) {
+        const size_t k = static_cast<size_t>(std::min<uint64_t>(n, window_.size() - (pos - window_begin_)));
+        std::memcpy(dst, window_.data() + (pos - window_begin_), k);
+        dst += k;
+        pos += k;
+        n -= k;
+        continue;
+      }
+      // A window at pos, or a record part as large as a window straight into place.
+      const bool direct = n >= kIoBufferBytes;
+      if (!direct) {
+        window_.resize(static_cast<size_t>(std::min<uint64_t>(kIoBufferBytes, file_size_ - pos)));
+        window_begin_ = pos;
+      }
+      uint8_t* into = direct ? dst : window_.data();
+      const size_t want = direct ? n : window_.size();
+      for (size_t got = 0; got < want;) {
+        const ssize_t r = ::pread(::fileno(file_), into + got, want - got, static_cast<off_t>(pos + got));
+        if (r < 0 && errno == EINTR) continue;
+        if (r <= 0) {
+          window_.clear();
+          if (r < 0)
+            return Status::IOError(path_ + ": read failed at offset " + std::to_string(pos + got) + ": " +
+                                   ErrnoText());
+          return Corrupt("truncated: unexpected end of file at offset " + std::to_string(pos + got));
+        }
+        got += static_cast<size_t>(r);
+      }
+      if (direct) {
+        dst += n;
+        pos += n;
+        n = 0;
+      }
     }
     return Status::Ok();
   }
@@ -198,7 +232,9 @@ class MkSceneSource final : public SceneSource {
   bool done_ = false;
   bool failed_ = false;
   std::vector<uint8_t> record_;
-  std::vector<float> floats_;  // version 1 coordinates
+  std::vector<float> floats_;    // version 1 coordinates
+  std::vector<uint8_t> window_;  // the file's bytes from window_begin_ (Read)
+  uint64_t window_begin_ = 0;
 };
 
 }  // namespace
@@ -225,7 +261,6 @@ Result<OpenedScene> OpenScene(const std::string& path) {
     std::fclose(f);
     return Status::IOError(path + ": cannot stat: " + ErrnoText());
   }
-  std::setvbuf(f, nullptr, _IOFBF, kIoBufferBytes);
   uint8_t header[kHeaderBytes];
   const size_t got = std::fread(header, 1, kHeaderBytes, f);
   Status bad;
