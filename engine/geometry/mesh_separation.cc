@@ -293,12 +293,6 @@ Vec3d VertexAt(const Mesh& m, size_t i) {
   return {m.vertices[3 * i], m.vertices[3 * i + 1], m.vertices[3 * i + 2]};
 }
 
-bool BoxesMeet(const Box3d& x, const Box3d& y) {
-  for (int k = 0; k < 3; ++k)
-    if (x.max[k] < y.min[k] || y.max[k] < x.min[k]) return false;
-  return true;
-}
-
 // Filtered all-pairs meeting test straight on the meshes, for a small mesh against one of moderate size:
 // neither hierarchy is built (for most such pairs nothing else needs them). The small mesh's triangles
 // whose boxes meet the large mesh's box, against each triangle of the large mesh, in mesh order, whose box
@@ -307,15 +301,10 @@ bool ScanMeeting(const Impl& a, const Impl& b, Vec3d* ta, Vec3d* tb, uint64_t* t
   const bool a_small = a.mesh.triangle_count() <= b.mesh.triangle_count();
   const Impl& small = a_small ? a : b;
   const Impl& large = a_small ? b : a;
-  using Corners = std::array<Vec3d, 3>;
+  using Corners = TriangleHierarchy::Triangle;
   auto corners = [](const Impl& x, size_t t) {
     return Corners{x.At(x.mesh.triangles[3 * t]), x.At(x.mesh.triangles[3 * t + 1]),
                    x.At(x.mesh.triangles[3 * t + 2])};
-  };
-  auto box_of = [](const Corners& t) {
-    Box3d x;
-    for (const Vec3d& v : t) x.Extend(v.x, v.y, v.z);
-    return x;
   };
   // Per-thread scratch: Separate runs once per candidate pair, an allocation each would show.
   thread_local std::vector<Corners> near;
@@ -324,7 +313,7 @@ bool ScanMeeting(const Impl& a, const Impl& b, Vec3d* ta, Vec3d* tb, uint64_t* t
   near_boxes.clear();
   for (size_t t = 0; t < small.mesh.triangle_count(); ++t) {
     const Corners c = corners(small, t);
-    const Box3d x = box_of(c);
+    const Box3d x = TriangleBox(c);
     if (!BoxesMeet(x, large.bounds)) continue;
     near.push_back(c);
     near_boxes.push_back(x);
@@ -332,7 +321,7 @@ bool ScanMeeting(const Impl& a, const Impl& b, Vec3d* ta, Vec3d* tb, uint64_t* t
   const size_t n = near.size();
   for (size_t t = 0; t < large.mesh.triangle_count() && n > 0; ++t) {
     const Corners c = corners(large, t);
-    const Box3d x = box_of(c);
+    const Box3d x = TriangleBox(c);
     if (!BoxesMeet(x, small.bounds)) continue;
     for (size_t k = 0; k < n; ++k) {
       if (!BoxesMeet(x, near_boxes[k])) continue;

@@ -84,16 +84,6 @@ Interval Project(const Mesh& m, const Vec3d& n) {
   return ProjectUntil(m, n, Interval{}, std::numeric_limits<double>::infinity());
 }
 
-bool BoxesMeet(const Box3d& x, const Box3d& y) {
-  for (int k = 0; k < 3; ++k)
-    if (x.max[k] < y.min[k] || y.max[k] < x.min[k]) return false;
-  return true;
-}
-Box3d TriangleBox(const TriangleHierarchy::Triangle& t) {
-  Box3d x;
-  for (const Vec3d& v : t) x.Extend(v.x, v.y, v.z);
-  return x;
-}
 double Volume(const Box3d& b) {
   return (b.max[0] - b.min[0]) * (b.max[1] - b.min[1]) * (b.max[2] - b.min[2]);
 }

@@ -9,18 +9,6 @@
 namespace mktree {
 namespace {
 
-Box3d TriangleBox(const TriangleHierarchy::Triangle& t) {
-  Box3d b;
-  for (const Vec3d& v : t) b.Extend(v.x, v.y, v.z);
-  return b;
-}
-
-bool BoxesMeet(const Box3d& a, const Box3d& b) {
-  for (int k = 0; k < 3; ++k)
-    if (a.max[k] < b.min[k] || b.max[k] < a.min[k]) return false;
-  return true;
-}
-
 double BoxExtent(const Box3d& b) {
   return (b.max[0] - b.min[0]) + (b.max[1] - b.min[1]) + (b.max[2] - b.min[2]);
 }

@@ -87,4 +87,17 @@ class TriangleHierarchy {
 // Squared distance between two boxes (0 when they meet).
 double BoxDistanceSquared(const Box3d& a, const Box3d& b);
 
+// Do the closed boxes share a point?
+inline bool BoxesMeet(const Box3d& a, const Box3d& b) {
+  for (int k = 0; k < 3; ++k)
+    if (a.max[k] < b.min[k] || b.max[k] < a.min[k]) return false;
+  return true;
+}
+
+inline Box3d TriangleBox(const TriangleHierarchy::Triangle& t) {
+  Box3d b;
+  for (const Vec3d& v : t) b.Extend(v.x, v.y, v.z);
+  return b;
+}
+
 }  // namespace mktree

@@ -44,11 +44,6 @@ Box3d Grow(Box3d b, double r) {
   for (int k = 0; k < 3; ++k) b.min[k] -= r, b.max[k] += r;
   return b;
 }
-bool BoxesMeet(const Box3d& a, const Box3d& b) {
-  for (int k = 0; k < 3; ++k)
-    if (a.max[k] < b.min[k] || b.max[k] < a.min[k]) return false;
-  return true;
-}
 
 // The oracle: every triangle pair (only triangles whose boxes come within `reach` of the other mesh's
 // box can matter), the exact pair test, point-in-solid for containment of solids.
