@@ -107,8 +107,8 @@ class MkSceneSource final : public SceneSource {
   }
 
   // Reads `n` more bytes of the current record into record_, through a window of the file read with
-  // pread: stdio read the file 4 KiB a call (glibc's setvbuf without a caller's buffer keeps the block
-  // size), 225,000 calls for a 1M-object scene.
+  // pread: stdio read the file a block a call (glibc's setvbuf without a caller's buffer keeps the
+  // block size).
   Status Read(size_t n) {
     const uint64_t have = offset_ + record_.size();
     if (n > file_size_ - have)
