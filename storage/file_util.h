@@ -19,6 +19,18 @@ Status PwriteFull(int fd, const void* buf, size_t n, uint64_t offset, const std:
 Result<uint64_t> FileSize(int fd, const std::string& name);
 // fsync of the directory holding `path`, so that a rename in it is durable.
 Status SyncParentDir(const std::string& path, FileOps& ops = DefaultFileOps());
+// Hands a file's newly written bytes to the kernel's writeback in runs of kBytes as a writer goes, so that
+// its final fsync finds little left to write (the disk works while the writer computes). Only starts the
+// writes: no wait, no durability (the fsync stays), and a failure is harmless, so none is reported.
+class WritebackPacer {
+ public:
+  static constexpr uint64_t kBytes = uint64_t{8} << 20;
+  // Call after each write of `bytes`.
+  void Wrote(int fd, uint64_t bytes);
+
+ private:
+  uint64_t pending_ = 0;
+};
 // Reads up to n bytes from the start of `path`; returns how many were read. Anything but a regular file
 // (a directory, FIFO, device) is InvalidArgument, without blocking.
 Result<size_t> ReadPrefix(const std::string& path, void* buf, size_t n);

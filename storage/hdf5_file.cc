@@ -38,6 +38,7 @@ struct DriverFile {
   dev_t dev = 0;
   ino_t ino = 0;
   WriterIo* io = nullptr;
+  storage_internal::WritebackPacer writeback;
 };
 
 DriverFile* AsDriverFile(H5FD_t* f) { return reinterpret_cast<DriverFile*>(f); }
@@ -169,6 +170,7 @@ herr_t WriterWrite(H5FD_t* file, H5FD_mem_t type, hid_t /*dxpl*/, haddr_t addr, 
       }
       done += static_cast<size_t>(r);
     }
+    f->writeback.Wrote(f->fd, done);
   }
   // Metadata is kept: HDF5 reads it back and interprets it. Raw data (pages, tables) read back after an error
   // only feeds a file that is being thrown away.

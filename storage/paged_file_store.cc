@@ -115,6 +115,7 @@ Status PagedFileStore::WritePage(uint64_t index, const uint8_t* data) {
     return Status::InvalidArgument(name_ + ": page " + std::to_string(index) + " written out of order");
   MKTREE_RETURN_IF_ERROR(PwriteFull(fd_, data, page_bytes_, (1 + index) * page_bytes_, name_, *ops_));
   if (index == count_) ++count_;
+  writeback_.Wrote(fd_, page_bytes_);
   return Status::Ok();
 }
 

@@ -15,6 +15,7 @@
 
 #include "mktree/status.h"
 #include "storage/file_ops.h"
+#include "storage/file_util.h"
 #include "storage/page_store.h"
 
 namespace mktree {
@@ -57,6 +58,7 @@ class PagedFileStore : public PageStore {
   uint64_t page_bytes_;
   uint64_t count_;
   FileOps* ops_;  // writes (the writer's; fault injection in tests)
+  storage_internal::WritebackPacer writeback_;
 };
 
 inline constexpr size_t kSectionEntryBytes = 24;
