@@ -4,9 +4,9 @@
 // For each object of the workload the bench takes the bytes the codec hands zstd (PackObjectGeometry:
 // local vertices and triangles after the shuffle transform), then per configuration:
 //   none      ZSTD_compress2 per object at the level, content size left out (the store as built today)
-//   dict K L  a dictionary of K KiB trained (ZDICT fastCover, d=8, f=20, steps 4, one thread) on the
-//             first --sample-mib MiB of objects (whole objects), a ZSTD_CDict at level L referenced by the
-//             context for every object (ZSTD_CCtx_refCDict), content size and dictionary id left out
+//   dict K L  a dictionary of K KiB trained (ZDICT fastCover, d=8, f=20, the engine's steps, one thread) on
+//             the first --sample-mib MiB of objects (whole objects), a ZSTD_CDict at level L referenced by
+//             the context for every object (ZSTD_CCtx_refCDict), content size and dictionary id left out
 // and reports: training seconds, compression CPU us an object, decompression CPU us an object (with a
 // ZSTD_DDict for dictionaries), stored geometry bytes (zstd output or raw, whichever is smaller, as the
 // entry stores it) and their ratio to "none" at the same level. CPU is CLOCK_PROCESS_CPUTIME_ID on one
@@ -200,7 +200,7 @@ int main(int argc, char** argv) {
         ZDICT_fastCover_params_t p{};
         p.d = 8;
         p.f = 20;
-        p.steps = 4;
+        p.steps = mktree::kDictionaryTrainingSteps;
         p.nbThreads = 1;
         p.zParams.compressionLevel = level;
         const double t0 = CpuSeconds();
