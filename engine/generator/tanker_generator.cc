@@ -1,6 +1,7 @@
 #include "engine/generator/tanker_generator.h"
 
 #include <algorithm>
+#include <bit>
 #include <charconv>
 #include <cmath>
 #include <string>
@@ -92,26 +93,47 @@ void AddPrism(Mesh* m, int axis, double cp, double cq, double radius, double s0,
   const int p = (axis + 1) % 3, q = (axis + 2) % 3;
   const uint32_t base = static_cast<uint32_t>(m->vertex_count());
   const uint32_t n = static_cast<uint32_t>(sides);
-  double ring[kMaxSides][2];  // the unit circle, computed once for both ends
-  for (int k = 0; k < sides; ++k) CosSin(phase + 2 * kPi * k / sides, &ring[k][0], &ring[k][1]);
+  // The unit circle, computed once for both ends and kept for the next prism: the pipes of a rack share
+  // sides and phase, and the series in CosSin was most of the generator's time.
+  thread_local struct {
+    double phase = 0;
+    int sides = 0;
+    double ring[kMaxSides][2];
+  } last;
+  if (last.sides != sides || std::bit_cast<uint64_t>(last.phase) != std::bit_cast<uint64_t>(phase)) {
+    for (int k = 0; k < sides; ++k) CosSin(phase + 2 * kPi * k / sides, &last.ring[k][0], &last.ring[k][1]);
+    last.phase = phase;
+    last.sides = sides;
+  }
+  const double(&ring)[kMaxSides][2] = last.ring;
+  // Written in place (one size check per array, not one per value as AddVertex and AddTriangle do).
+  const size_t v0 = m->vertices.size();
+  m->vertices.resize(v0 + 6 * size_t{n});
+  double* out = m->vertices.data() + v0;
   for (int end = 0; end < 2; ++end) {
-    for (int k = 0; k < sides; ++k) {
-      double v[3];
-      v[axis] = end ? s1 : s0;
-      v[p] = cp + radius * ring[k][0];
-      v[q] = cq + radius * ring[k][1];
-      AddVertex(m, v);
+    const double a = Quantize(end ? s1 : s0);
+    for (int k = 0; k < sides; ++k, out += 3) {
+      out[axis] = a;
+      out[p] = Quantize(cp + radius * ring[k][0]);
+      out[q] = Quantize(cq + radius * ring[k][1]);
     }
   }
+  const size_t t0 = m->triangles.size();
+  m->triangles.resize(t0 + 3 * (2 * size_t{n} + 2 * (size_t{n} - 2)));
+  uint32_t* tri = m->triangles.data() + t0;
+  auto add = [&tri](uint32_t a, uint32_t b, uint32_t c) {
+    tri[0] = a, tri[1] = b, tri[2] = c;
+    tri += 3;
+  };
   // Ring points run counter-clockwise about +axis, so these windings face outward.
   for (uint32_t k = 0; k < n; ++k) {
     const uint32_t k1 = (k + 1) % n;
-    AddTriangle(m, base + k, base + k1, base + n + k1);
-    AddTriangle(m, base + k, base + n + k1, base + n + k);
+    add(base + k, base + k1, base + n + k1);
+    add(base + k, base + n + k1, base + n + k);
   }
   for (uint32_t k = 1; k + 1 < n; ++k) {
-    AddTriangle(m, base + n, base + n + k, base + n + k + 1);  // top cap, normal +axis
-    AddTriangle(m, base, base + k + 1, base + k);              // bottom cap, normal -axis
+    add(base + n, base + n + k, base + n + k + 1);  // top cap, normal +axis
+    add(base, base + k + 1, base + k);              // bottom cap, normal -axis
   }
 }
 
