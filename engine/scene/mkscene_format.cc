@@ -11,6 +11,8 @@
 #include <cstdlib>
 #include <cstring>
 
+#include "storage/file_util.h"
+
 namespace mktree {
 namespace {
 
@@ -134,19 +136,12 @@ class MkSceneSource final : public SceneSource {
         window_.resize(static_cast<size_t>(std::min<uint64_t>(kIoBufferBytes, file_size_ - pos)));
         window_begin_ = pos;
       }
-      uint8_t* into = direct ? dst : window_.data();
-      const size_t want = direct ? n : window_.size();
-      for (size_t got = 0; got < want;) {
-        const ssize_t r = ::pread(::fileno(file_), into + got, want - got, static_cast<off_t>(pos + got));
-        if (r < 0 && errno == EINTR) continue;
-        if (r <= 0) {
-          window_.clear();
-          if (r < 0)
-            return Status::IOError(path_ + ": read failed at offset " + std::to_string(pos + got) + ": " +
-                                   ErrnoText());
-          return Corrupt("truncated: unexpected end of file at offset " + std::to_string(pos + got));
-        }
-        got += static_cast<size_t>(r);
+      // An end of file here means the file shrank after it was opened (its size was checked): an IOError.
+      if (Status st = storage_internal::PreadFull(::fileno(file_), direct ? dst : window_.data(),
+                                                  direct ? n : window_.size(), pos, path_);
+          !st.ok()) {
+        window_.clear();
+        return st;
       }
       if (direct) {
         dst += n;
@@ -294,14 +289,10 @@ class WindowReader {
         return Status::Corruption(path_ + ": truncated at offset " + std::to_string(offset));
       buf_.resize(std::max<uint64_t>(n, std::min<uint64_t>(kWindow, size_ - offset)));
       begin_ = offset;
-      for (size_t got = 0; got < buf_.size();) {
-        const ssize_t r =
-            ::pread(::fileno(f_), buf_.data() + got, buf_.size() - got, static_cast<off_t>(offset + got));
-        if (r < 0 && errno == EINTR) continue;
-        if (r <= 0)
-          return Status::IOError(path_ + ": read failed at offset " + std::to_string(offset + got) +
-                                 (r < 0 ? ": " + ErrnoText() : ": file shrank"));
-        got += static_cast<size_t>(r);
+      if (Status st = storage_internal::PreadFull(::fileno(f_), buf_.data(), buf_.size(), offset, path_);
+          !st.ok()) {
+        buf_.clear();
+        return st;
       }
     }
     return buf_.data() + (offset - begin_);
