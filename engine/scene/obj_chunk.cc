@@ -22,6 +22,33 @@ std::string_view Trim(std::string_view s) {
 
 std::string_view NextToken(std::string_view* s) { return ObjNextToken(s); }
 
+// A coordinate as exporters write it, [sign]digits[.digits] with at most 15 digits and not zero, ending
+// at a blank or the end: the digits' integer and 10^k (k <= 15) are exact doubles, so one division gives
+// the correctly rounded value, the double fast_float returns (Clinger's fast path), without its general
+// parse. False for anything else (exponents, long mantissas, zeros, nan), left to fast_float.
+bool ParseShortDecimal(const char* p, const char* e, double* v, const char** end) {
+  static constexpr double kPow10[16] = {1e0, 1e1, 1e2,  1e3,  1e4,  1e5,  1e6,  1e7,
+                                        1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15};
+  const bool negative = p != e && *p == '-';
+  p += p != e && (*p == '-' || *p == '+');
+  uint64_t m = 0;
+  const char* q = p;
+  for (; q != e && static_cast<unsigned char>(*q - '0') < 10 && q - p < 16; ++q) m = 10 * m + (*q - '0');
+  size_t digits = static_cast<size_t>(q - p), fraction = 0;
+  if (q != e && *q == '.') {
+    const char* f = ++q;
+    for (; q != e && static_cast<unsigned char>(*q - '0') < 10 && digits + (q - f) < 16; ++q)
+      m = 10 * m + (*q - '0');
+    fraction = static_cast<size_t>(q - f);
+    digits += fraction;
+  }
+  if (digits == 0 || digits > 15 || m == 0 || (q != e && !IsBlank(*q))) return false;
+  const double x = static_cast<double>(m) / kPow10[fraction];
+  *v = negative ? -x : x;
+  *end = q;
+  return true;
+}
+
 // Quoted token for messages, shortened so a garbage line cannot flood an error message.
 std::string Quote(std::string_view s) {
   constexpr size_t kMax = 40;
@@ -128,8 +155,14 @@ void ChunkParser::ParseVertex(std::string_view rest) {
     // Fast path: a plain nonzero finite number ending at a blank; anything else is decided by
     // ParseObjCoordinate on the whole token.
     double v = 0;
-    const char* b = p + (*p == '+');
-    auto [q, ec] = fast_float::from_chars(b, e, v);
+    const char* q = nullptr;
+    std::errc ec{};
+    if (!ParseShortDecimal(p, e, &v, &q)) {
+      const char* b = p + (*p == '+');
+      const auto r = fast_float::from_chars(b, e, v);
+      q = r.ptr;
+      ec = r.ec;
+    }
     if (ec != std::errc() || (q != e && !IsBlank(*q)) || v == 0 || !(std::fabs(v) <= kMaxCoordinate)) {
       q = p;
       while (q != e && !IsBlank(*q)) ++q;

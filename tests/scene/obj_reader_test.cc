@@ -6,8 +6,11 @@
 
 #include <cctype>
 #include <cmath>
+#include <cstdint>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -162,6 +165,41 @@ TEST(ObjReaderTest, CoordinatesAreDoublesWithUnderflowToZero) {
   EXPECT_EQ(objs[0].mesh.vertices[0], 0.1);
   EXPECT_EQ(objs[0].mesh.vertices[1], 0.0);
   EXPECT_EQ(objs[0].mesh.vertices[2], 2e37);
+}
+
+// Short decimals take a fast path (one division); every form must give strtod's correctly rounded double.
+TEST(ObjReaderTest, DecimalCoordinatesReadAsStrtodReadsThem) {
+  std::vector<std::string> numbers;
+  std::istringstream forms(
+      "0.1 -24.999 +5 5. .5 -.5 007.50 0.0 -0 1e3 -2.5E-3 123456789012345 1234567890123456 0.123456789012345 "
+      "9999999.99999999 -0.000000000000001 3.14159265358979323846");
+  for (std::string f; forms >> f;) numbers.push_back(f);
+  uint64_t x = 88172645463325252ull;  // xorshift: fixed, so a failure repeats
+  auto next = [&x] {
+    x ^= x << 13, x ^= x >> 7, x ^= x << 17;
+    return x;
+  };
+  for (int i = 0; i < 3000; ++i) {
+    const int digits = 1 + static_cast<int>(next() % 17);
+    const int point = static_cast<int>(next() % (digits + 2)) - 1;  // -1: no point
+    const uint64_t sign = next() % 3;
+    std::string d;
+    if (sign < 2) d.push_back(sign == 0 ? '-' : '+');
+    for (int k = 0; k <= digits; ++k) {
+      if (k == point) d.push_back('.');
+      if (k < digits) d.push_back(static_cast<char>('0' + next() % 10));
+    }
+    numbers.push_back(d);
+  }
+  while (numbers.size() % 3 != 0) numbers.push_back("1");
+  std::string obj;
+  for (size_t i = 0; i < numbers.size(); i += 3)
+    obj += "v " + numbers[i] + " " + numbers[i + 1] + " " + numbers[i + 2] + "\nf -1 -1 -1\n";
+  auto objs = ReadOk(obj);
+  ASSERT_EQ(objs.size(), 1u);
+  ASSERT_EQ(objs[0].mesh.vertices.size(), numbers.size());
+  for (size_t i = 0; i < numbers.size(); ++i)
+    EXPECT_EQ(objs[0].mesh.vertices[i], std::strtod(numbers[i].c_str(), nullptr)) << numbers[i];
 }
 
 // UTM-sized coordinates keep their millimetres: float32 would round 5000000.0001 to 5000000.
