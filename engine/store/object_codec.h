@@ -83,13 +83,12 @@ class CodecDictionary {
 };
 
 // What ingest trains a dictionary on: the packed geometry (PackObjectGeometry) of the first objects, whole
-// objects up to this many bytes. 4 MiB trains in ~0.07 s on one core and gives the tanker's best bytes
-// (1 and 8 MiB are 1 % worse or no better), and holds all of the steel scene, whose bytes it improves 7 %
-// over 2 MiB.
+// objects up to this many bytes. 4 MiB gives the tanker's best bytes (1 and 8 MiB are worse or no better)
+// and holds all of the steel scene, whose bytes it improves over 2 MiB (bench/README.md, dict_bench).
 inline constexpr size_t kDictionarySampleBytes = size_t{4} << 20;
-// zstd's fastCover search steps over its segment sizes k (50 to 2000): 1 tries k = 50 and 2000. Four steps
-// (five sizes) took 2.4x as long on one core, before any object is encoded, for stores within 0.75 % of
-// these either way on the scenes of shared/data and the tanker (bench/README.md, session 33).
+// zstd's fastCover search steps over its segment sizes k (50 to 2000): 1 tries k = 50 and 2000. Training
+// runs on one core before any object is encoded, and more steps cost time for no better stores overall
+// (bench/README.md, session 33).
 inline constexpr unsigned kDictionaryTrainingSteps = 1;
 
 // Trains a dictionary for zstd level `level` on `samples` (objects' packed geometry back to back, their
