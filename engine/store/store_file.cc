@@ -116,9 +116,11 @@ StoreWriter::StoreWriter(std::string final_path, std::string temp_path, StoreOpt
       temp_path_(std::move(temp_path)),
       opts_(std::move(opts)),
       backend_(std::move(backend)),
+      pages_(std::make_unique<WriteBehindPageStore>(&backend_->pages())),
       lock_(std::move(lock)) {}
 
 StoreWriter::~StoreWriter() {
+  pages_.reset();  // its thread may be writing to the backend
   if (!done_) {
     backend_->Abort();
     ::unlink(temp_path_.c_str());
@@ -155,7 +157,7 @@ Result<std::unique_ptr<StoreWriter>> StoreWriter::Create(const std::string& fina
                                        std::move(lock).value());
 }
 
-PageStore& StoreWriter::pages() { return backend_->pages(); }
+PageStore& StoreWriter::pages() { return *pages_; }
 
 void StoreWriter::SetCodecDictionary(std::shared_ptr<const CodecDictionary> dictionary) {
   opts_.codec.dictionary = std::move(dictionary);
@@ -178,9 +180,11 @@ Status StoreWriter::AppendObject(ObjectId id, uint32_t leaf, const Box3f& box, s
     return Status::InvalidArgument(final_path_ + ": object " + std::to_string(id) +
                                    " appended out of order (expected " + std::to_string(objects_.size()) +
                                    ")");
-  PageStore& pages = backend_->pages();
+  PageStore& pages = *pages_;
   if (!records_) {
-    // The record pages follow the leaf pages, which are all written by now.
+    // The record pages follow the leaf pages, which are all written by now. A failed leaf page write
+    // surfaces here rather than at Commit, after the whole object table.
+    MKTREE_RETURN_IF_ERROR(pages_->Flush());
     leaf_pages_ = pages.page_count();
     records_ = std::make_unique<RecordPager>(pages.page_bytes(), [this, &pages](const uint8_t* page) {
       return pages.WritePage(pages.page_count(), page);
@@ -213,18 +217,19 @@ Status StoreWriter::Commit(MKTree tree, const std::string& stats_json) {
   if (done_) return Status::InvalidArgument(final_path_ + ": writer already committed");
   auto fail = [&](Status st) {
     done_ = true;
+    (void)pages_->Flush();  // its thread stops writing before the file is closed
     backend_->Abort();
     ::unlink(temp_path_.c_str());
     return st;
   };
-  if (tree.params.mem_page() != backend_->pages().page_bytes())
+  if (tree.params.mem_page() != pages_->page_bytes())
     return fail(Status::InvalidArgument(
         final_path_ + ": the tree's page size " + std::to_string(tree.params.mem_page()) +
         " differs from the store's " + std::to_string(backend_->pages().page_bytes())));
   if (records_) {
     if (Status st = records_->Finish(); !st.ok()) return fail(st);
     objects_.record_directory = records_->TakeDirectory();
-    if (backend_->pages().page_count() != leaf_pages_ + objects_.record_directory.size())
+    if (pages_->page_count() != leaf_pages_ + objects_.record_directory.size())
       return fail(Status::InvalidArgument(final_path_ + ": leaf pages written after the first object"));
   }
   // The objects appended must be the tree's: each leaf's count (ValidateStructure can only check sums).
@@ -246,6 +251,7 @@ Status StoreWriter::Commit(MKTree tree, const std::string& stats_json) {
   c.tree = std::move(tree);
   c.objects = std::move(objects_);
   c.stats_json = stats_json;
+  if (Status st = pages_->Flush(); !st.ok()) return fail(st);
   Status st = ValidateStructure(c.tree, c.objects, backend_->pages().page_count(), final_path_);
   if (!st.ok()) return fail(Status::InvalidArgument(st.message()));
   st = ValidateStatsJson(c.stats_json);  // what Open would refuse

@@ -35,6 +35,7 @@
 #include "mktree/status.h"
 #include "storage/file_ops.h"
 #include "storage/page_store.h"
+#include "storage/write_behind_page_store.h"
 
 namespace mktree {
 
@@ -64,6 +65,8 @@ class StoreWriter {
   ~StoreWriter();
 
   // Where leaf pages go: write pages 0, 1, 2, ... in increasing order (rewriting a page is allowed).
+  // They reach the file on a thread of their own (storage/write_behind_page_store.h): a failed write is
+  // returned by a later WritePage, the first AppendObject or Commit.
   PageStore& pages();
   // The objects, appended in id order 0..N-1, after every leaf page is written: each object's leaf goes
   // to the object table, its record (box in the store frame, name, source file, attributes) to the record
@@ -102,6 +105,7 @@ class StoreWriter {
   std::string final_path_, temp_path_;
   StoreOptions opts_;
   std::unique_ptr<Impl> backend_;
+  std::unique_ptr<WriteBehindPageStore> pages_;  // writes to backend_->pages(); stopped before backend_ is
   std::unique_ptr<Lock> lock_;
   ObjectTable objects_;  // count, leaf digests and sources; the directory comes from records_ at Commit
   std::vector<uint32_t> leaf_count_;  // objects appended per leaf

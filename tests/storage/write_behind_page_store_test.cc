@@ -1,0 +1,133 @@
+#include "storage/write_behind_page_store.h"
+
+#include <gtest/gtest.h>
+
+#include <mutex>
+#include <thread>
+#include <vector>
+
+#include "storage/memory_page_store.h"
+
+namespace mktree {
+namespace {
+
+constexpr uint64_t kPage = 512;
+
+std::vector<uint8_t> PageOf(uint64_t index, uint8_t salt = 0) {
+  std::vector<uint8_t> p(kPage);
+  for (uint64_t i = 0; i < kPage; ++i) p[i] = static_cast<uint8_t>(index * 31 + i + salt);
+  return p;
+}
+
+// Records the calls the base receives (and from which thread); fails the `fail_at`-th write.
+class RecordingStore : public PageStore {
+ public:
+  uint64_t page_bytes() const override { return kPage; }
+  uint64_t page_count() const override { return memory.page_count(); }
+  Status ReadPage(uint64_t index, uint8_t* out) const override { return memory.ReadPage(index, out); }
+  Status WritePage(uint64_t index, const uint8_t* data) override {
+    std::lock_guard<std::mutex> lock(mu);
+    threads.push_back(std::this_thread::get_id());
+    if (++writes == fail_at) return Status::IOError("base: page " + std::to_string(index) + ": disk full");
+    order.push_back(index);
+    return memory.WritePage(index, data);
+  }
+  Status Sync() override {
+    ++syncs;
+    return Status::Ok();
+  }
+  const std::string& name() const override { return memory.name(); }
+
+  MemoryPageStore memory{kPage, "base"};
+  std::mutex mu;
+  std::vector<uint64_t> order;
+  std::vector<std::thread::id> threads;
+  uint64_t writes = 0, fail_at = 0;
+  int syncs = 0;
+};
+
+TEST(WriteBehindPageStoreTest, BaseGetsEveryPageInOrderFromOneThread) {
+  RecordingStore base;
+  {
+    WriteBehindPageStore pages(&base, 4 * kPage);  // batches of 4 pages: 250 pages cross many batches
+    for (uint64_t i = 0; i < 250; ++i) ASSERT_TRUE(pages.WritePage(i, PageOf(i).data()).ok());
+    ASSERT_TRUE(pages.WritePage(7, PageOf(7, 1).data()).ok());  // a rewrite, as the contract allows
+    ASSERT_TRUE(pages.WritePage(250, PageOf(250).data()).ok());
+    EXPECT_EQ(pages.page_count(), 251u);
+    ASSERT_TRUE(pages.Sync().ok());
+    EXPECT_EQ(base.syncs, 1);
+    std::vector<uint8_t> got(kPage);
+    ASSERT_TRUE(pages.ReadPage(7, got.data()).ok());
+    EXPECT_EQ(got, PageOf(7, 1));
+  }
+  ASSERT_EQ(base.order.size(), 252u);
+  for (uint64_t i = 0; i < 250; ++i) EXPECT_EQ(base.order[i], i);
+  EXPECT_EQ(base.order[250], 7u);
+  EXPECT_EQ(base.order[251], 250u);
+  for (const auto& t : base.threads) EXPECT_EQ(t, base.threads.front());
+  EXPECT_NE(base.threads.front(), std::this_thread::get_id());
+  std::vector<uint8_t> got(kPage);
+  for (uint64_t i : {0u, 100u, 249u, 250u}) {
+    ASSERT_TRUE(base.memory.ReadPage(i, got.data()).ok());
+    EXPECT_EQ(got, PageOf(i)) << i;
+  }
+}
+
+TEST(WriteBehindPageStoreTest, SmallStoreIsWrittenAtFlushWithoutAThread) {
+  RecordingStore base;
+  WriteBehindPageStore pages(&base, 64 * kPage);
+  for (uint64_t i = 0; i < 10; ++i) ASSERT_TRUE(pages.WritePage(i, PageOf(i).data()).ok());
+  EXPECT_EQ(base.writes, 0u);  // still in the batch
+  ASSERT_TRUE(pages.Flush().ok());
+  EXPECT_EQ(base.order.size(), 10u);
+  for (const auto& t : base.threads) EXPECT_EQ(t, std::this_thread::get_id());
+}
+
+TEST(WriteBehindPageStoreTest, OutOfOrderWriteIsRefusedAtOnce) {
+  RecordingStore base;
+  WriteBehindPageStore pages(&base, 4 * kPage);
+  ASSERT_TRUE(pages.WritePage(0, PageOf(0).data()).ok());
+  const Status st = pages.WritePage(2, PageOf(2).data());
+  EXPECT_EQ(st.code(), Status::Code::kInvalidArgument) << st.ToString();
+  EXPECT_NE(st.message().find("out of order"), std::string::npos) << st.ToString();
+  EXPECT_TRUE(pages.Flush().ok());
+  EXPECT_EQ(base.order, std::vector<uint64_t>{0});
+}
+
+TEST(WriteBehindPageStoreTest, FailedWriteIsStickyAndStopsLaterWrites) {
+  for (const uint64_t fail_at : {1u, 5u, 37u}) {
+    SCOPED_TRACE(fail_at);
+    RecordingStore base;
+    base.fail_at = fail_at;
+    WriteBehindPageStore pages(&base, 4 * kPage);
+    Status first;
+    uint64_t i = 0;
+    for (; i < 200 && first.ok(); ++i) first = pages.WritePage(i, PageOf(i).data());
+    const Status flushed = pages.Flush();
+    ASSERT_FALSE(flushed.ok());
+    EXPECT_EQ(flushed.code(), Status::Code::kIOError);
+    EXPECT_EQ(flushed.message(), "base: page " + std::to_string(fail_at - 1) + ": disk full");
+    if (!first.ok()) {
+      EXPECT_EQ(first.message(), flushed.message());
+    }
+    // Nothing after the failed page reached the base, and every later call returns the same error.
+    EXPECT_EQ(base.order.size(), fail_at - 1);
+    EXPECT_EQ(pages.WritePage(pages.page_count(), PageOf(i).data()).message(), flushed.message());
+    EXPECT_EQ(pages.Sync().message(), flushed.message());
+    EXPECT_EQ(base.syncs, 0);
+  }
+}
+
+TEST(WriteBehindPageStoreTest, DestroyedUnflushedDropsPendingPages) {
+  RecordingStore base;
+  {
+    WriteBehindPageStore pages(&base, 4 * kPage);
+    for (uint64_t i = 0; i < 100; ++i) ASSERT_TRUE(pages.WritePage(i, PageOf(i).data()).ok());
+  }
+  // Whatever reached the base is a prefix, in order.
+  for (size_t i = 0; i < base.order.size(); ++i) EXPECT_EQ(base.order[i], i);
+  EXPECT_LE(base.order.size(), 100u);
+}
+
+}  // namespace
+}  // namespace mktree
