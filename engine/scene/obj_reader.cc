@@ -1,6 +1,7 @@
 #include "engine/scene/obj_reader.h"
 
 #include <fcntl.h>
+#include <sys/mman.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -13,6 +14,7 @@
 #include <limits>
 #include <memory>
 #include <mutex>
+#include <new>
 #include <string_view>
 #include <thread>
 #include <vector>
@@ -113,13 +115,25 @@ class VertexIndexMap {
 
 // The global vertex table, in fixed-size blocks: growth never copies the table or needs twice its size,
 // so its footprint stays 24 bytes per vertex (plus at most one partly filled block). Doubles, because
-// coordinates far from 0 (UTM, geocentric) lose their detail in float32.
+// coordinates far from 0 (UTM, geocentric) lose their detail in float32. A block is mapped with its pages
+// already present: the table is most of a large OBJ's memory, and taking its page faults one 4 KiB page at
+// a time cost the applying thread more than filling them.
 class VertexTable {
  public:
+  VertexTable() = default;
+  VertexTable(const VertexTable&) = delete;
+  VertexTable& operator=(const VertexTable&) = delete;
+  ~VertexTable() {
+    for (double* b : blocks_) ::munmap(b, kBlockBytes);
+  }
   size_t size() const { return size_; }
   void Push(const double xyz[3]) {
-    if ((size_ & kBlockMask) == 0)
-      blocks_.emplace_back(new double[3 * kBlockVertices]);  // uninitialised: filled by Push
+    if ((size_ & kBlockMask) == 0) {
+      void* b = ::mmap(nullptr, kBlockBytes, PROT_READ | PROT_WRITE,
+                       MAP_PRIVATE | MAP_ANONYMOUS | MAP_POPULATE, -1, 0);
+      if (b == MAP_FAILED) throw std::bad_alloc();
+      blocks_.push_back(static_cast<double*>(b));
+    }
     std::memcpy(&blocks_.back()[3 * (size_ & kBlockMask)], xyz, 3 * sizeof(double));
     ++size_;
   }
@@ -129,7 +143,8 @@ class VertexTable {
   static constexpr int kBlockShift = 16;
   static constexpr size_t kBlockVertices = size_t{1} << kBlockShift;
   static constexpr size_t kBlockMask = kBlockVertices - 1;
-  std::vector<std::unique_ptr<double[]>> blocks_;
+  static constexpr size_t kBlockBytes = 3 * sizeof(double) * kBlockVertices;
+  std::vector<double*> blocks_;
   size_t size_ = 0;
 };
 
