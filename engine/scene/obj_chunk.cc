@@ -315,6 +315,17 @@ void ChunkParser::Run() {
   end_ = data_ + (c_.end - c_.begin);
   std::string_view line;
   while (!c_.has_error && NextRecord(&line)) {
+    // Most records are "v x y z" and "f a b c": recognised without splitting off the key.
+    if (line.size() >= 2 && IsBlank(line[1])) {
+      if (line[0] == 'v') {
+        ParseVertex(line.substr(1));
+        continue;
+      }
+      if (line[0] == 'f') {
+        ParseFace(line.substr(1));
+        continue;
+      }
+    }
     std::string_view rest = line;
     std::string_view key = NextToken(&rest);
     if (key.empty() || key.front() == '#') continue;
