@@ -244,9 +244,10 @@ Status EncodeObjects(const EncoderOptions& options, const ObjectReader& read, co
     return read_error;
   }
   // One encoder per core: the reader and the drain mostly wait on each other and on the encoders, and
-  // the kernel gives their cores to whichever stage has work. One batch filling, one per encoder and one
-  // draining: the memory bound of the earlier design (a batch holds at most ~kBatchRawBytes of geometry).
-  Pipeline pipeline(options, sink, threads, threads + 2);
+  // the kernel gives their cores to whichever stage has work. One batch filling, one per encoder, one
+  // draining and two in between: with only one batch of slack (the earlier design), every stage was at
+  // times blocked on another and a core idled. A batch holds at most ~kBatchRawBytes of geometry.
+  Pipeline pipeline(options, sink, threads, threads + 4);
   for (bool more = true; more;) {
     Batch* b = pipeline.Take();
     if (b == nullptr) break;  // the drain failed: its error is the first in input order

@@ -264,7 +264,9 @@ ObjReader::ObjReader(std::string path, std::unique_ptr<InputFile> file, ObjectId
   int threads = options.threads;
   if (threads < 0) threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   threads = static_cast<int>(std::min<uint64_t>(threads, chunk_count_ > 1 ? chunk_count_ : 0));
-  ring_.resize(threads == 0 ? 1 : threads + 2);
+  // Two chunks ahead of the parsers besides the one applied and one per parser: parsers that wait for a
+  // free slot leave their core idle whenever the applying thread is the stage behind.
+  ring_.resize(threads == 0 ? 1 : threads + 4);
   for (auto& c : ring_) c = std::make_unique<LoadedChunk>();
   ready_.assign(ring_.size(), 0);
   for (int i = 0; i < threads; ++i) threads_.emplace_back([this] { Work(); });
