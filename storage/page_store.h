@@ -25,6 +25,13 @@ class PageStore {
   virtual Status ReadPage(uint64_t index, uint8_t* out) const = 0;
   // Writes page `index`; pages are written in increasing index order during a build.
   virtual Status WritePage(uint64_t index, const uint8_t* data) = 0;
+  // Writes pages first .. first + count - 1 from `count` pages of bytes back to back: one system call
+  // where the store can (small writes cost the page cache several times what large ones do per byte).
+  virtual Status WritePages(uint64_t first, uint64_t count, const uint8_t* data) {
+    for (uint64_t i = 0; i < count; ++i)
+      MKTREE_RETURN_IF_ERROR(WritePage(first + i, data + i * page_bytes()));
+    return Status::Ok();
+  }
   virtual Status Sync() = 0;
   // The file (or "memory") the store lives in, for error messages.
   virtual const std::string& name() const = 0;

@@ -5,6 +5,7 @@
 #include <unistd.h>
 #include <xxhash.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
@@ -110,12 +111,12 @@ Status PagedFileStore::ReadPage(uint64_t index, uint8_t* out) const {
   return Status::Ok();
 }
 
-Status PagedFileStore::WritePage(uint64_t index, const uint8_t* data) {
-  if (index > count_)
-    return Status::InvalidArgument(name_ + ": page " + std::to_string(index) + " written out of order");
-  MKTREE_RETURN_IF_ERROR(PwriteFull(fd_, data, page_bytes_, (1 + index) * page_bytes_, name_, *ops_));
-  if (index == count_) ++count_;
-  writeback_.Wrote(fd_, page_bytes_);
+Status PagedFileStore::WritePages(uint64_t first, uint64_t count, const uint8_t* data) {
+  if (first > count_)
+    return Status::InvalidArgument(name_ + ": page " + std::to_string(first) + " written out of order");
+  MKTREE_RETURN_IF_ERROR(PwriteFull(fd_, data, count * page_bytes_, (1 + first) * page_bytes_, name_, *ops_));
+  count_ = std::max(count_, first + count);
+  writeback_.Wrote(fd_, count * page_bytes_);
   return Status::Ok();
 }
 

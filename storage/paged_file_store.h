@@ -33,7 +33,8 @@ class PagedFileStore : public PageStore {
   uint64_t page_count() const override { return count_; }
   const std::string& name() const override { return name_; }
   Status ReadPage(uint64_t index, uint8_t* out) const override;
-  Status WritePage(uint64_t index, const uint8_t* data) override;
+  Status WritePage(uint64_t index, const uint8_t* data) override { return WritePages(index, 1, data); }
+  Status WritePages(uint64_t first, uint64_t count, const uint8_t* data) override;
   Status Sync() override;
 
   // Sets up the reads of a store opened for reading. With `direct_io`, pages are read with O_DIRECT where the

@@ -23,8 +23,12 @@ WriteBehindPageStore::~WriteBehindPageStore() {
 
 Status WriteBehindPageStore::WriteBatch(const Batch& b) {
   const uint64_t page = base_->page_bytes();
-  for (size_t i = 0; i < b.index.size(); ++i)
-    MKTREE_RETURN_IF_ERROR(base_->WritePage(b.index[i], b.bytes.data() + i * page));
+  // Runs of consecutive pages (a build writes little else) in one call each.
+  for (size_t i = 0, run = 1; i < b.index.size(); i += run) {
+    run = 1;
+    while (i + run < b.index.size() && b.index[i + run] == b.index[i] + run) ++run;
+    MKTREE_RETURN_IF_ERROR(base_->WritePages(b.index[i], run, b.bytes.data() + i * page));
+  }
   return Status::Ok();
 }
 

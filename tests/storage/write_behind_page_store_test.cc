@@ -7,6 +7,8 @@
 #include <vector>
 
 #include "storage/memory_page_store.h"
+#include "storage/paged_file_store.h"
+#include "test_dirs.h"
 
 namespace mktree {
 namespace {
@@ -71,6 +73,42 @@ TEST(WriteBehindPageStoreTest, BaseGetsEveryPageInOrderFromOneThread) {
     ASSERT_TRUE(base.memory.ReadPage(i, got.data()).ok());
     EXPECT_EQ(got, PageOf(i)) << i;
   }
+}
+
+// Counts the paged file's write calls.
+class CountingOps : public FileOps {
+ public:
+  ssize_t Pwrite(int fd, const void* buf, size_t n, uint64_t offset) override {
+    ++writes;
+    return FileOps::Pwrite(fd, buf, n, offset);
+  }
+  int writes = 0;
+};
+
+// A paged file takes each run of consecutive pages in one write; a rewrite splits the run.
+TEST(WriteBehindPageStoreTest, PagedFileGetsRunsOfPagesInOneWriteEach) {
+  testing::TempDir dir;
+  CountingOps ops;
+  auto file = PagedFileStore::Create(dir.file("p.pages"), kPage, ops);
+  ASSERT_TRUE(file.ok()) << file.status().ToString();
+  const int created = ops.writes;  // the empty header
+  {
+    WriteBehindPageStore pages(file->get(), 8 * kPage);
+    for (uint64_t i = 0; i < 30; ++i) ASSERT_TRUE(pages.WritePage(i, PageOf(i).data()).ok());
+    ASSERT_TRUE(pages.WritePage(3, PageOf(3, 9).data()).ok());  // a rewrite
+    ASSERT_TRUE(pages.WritePage(30, PageOf(30).data()).ok());
+    ASSERT_TRUE(pages.WritePage(31, PageOf(31).data()).ok());
+    ASSERT_TRUE(pages.Flush().ok());
+  }
+  // Batches of 8: 0..7, 8..15, 16..23 one write each; then 24..29, 3, 30 (three runs); then 31.
+  EXPECT_EQ(ops.writes - created, 3 + 3 + 1);
+  EXPECT_EQ((*file)->page_count(), 32u);
+  std::vector<uint8_t> got(kPage);
+  for (uint64_t i = 0; i < 32; ++i) {
+    ASSERT_TRUE((*file)->ReadPage(i, got.data()).ok());
+    EXPECT_EQ(got, PageOf(i, i == 3 ? 9 : 0)) << i;
+  }
+  EXPECT_EQ((*file)->WritePages(33, 1, PageOf(33).data()).code(), Status::Code::kInvalidArgument);
 }
 
 TEST(WriteBehindPageStoreTest, SmallStoreIsWrittenAtFlushWithoutAThread) {
