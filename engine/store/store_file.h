@@ -110,6 +110,7 @@ class StoreWriter {
   ObjectTable objects_;  // count, leaf digests and sources; the directory comes from records_ at Commit
   std::vector<uint32_t> leaf_count_;  // objects appended per leaf
   std::unordered_map<std::string, uint32_t> source_index_;
+  uint32_t last_source_ = UINT32_MAX;  // the source of the last object appended (an index into sources)
   std::unique_ptr<RecordPager> records_;  // made at the first AppendObject, after the leaf pages
   uint64_t leaf_pages_ = 0;
   std::vector<uint8_t> record_;
