@@ -1,6 +1,8 @@
 // PageStore: fixed-size pages addressed by index, behind one interface (HDF5, paged file, memory,
-// fault-injecting wrapper). Thread safety: ReadPage may be called from many threads at once;
-// WritePage/Sync only from the single writer, never concurrently with reads.
+// fault-injecting wrapper). Thread safety: ReadPage may be called from many threads at once; writes never
+// run concurrently with reads. The file stores (paged file, HDF5) also take writes of distinct pages from
+// two threads at once (a store's leaf pages and its record pages, engine/store/store_file.h); the others
+// from one writer.
 #pragma once
 
 #include <cstdint>
@@ -23,7 +25,8 @@ class PageStore {
   virtual uint64_t page_count() const = 0;
   // Reads page `index` (page_bytes() bytes) into `out`. Error names the store and the page.
   virtual Status ReadPage(uint64_t index, uint8_t* out) const = 0;
-  // Writes page `index`; pages are written in increasing index order during a build.
+  // Writes page `index`. The file stores accept any index (page_count() becomes the largest written + 1,
+  // and the writer checks that no page is left out); the memory store only index <= page_count().
   virtual Status WritePage(uint64_t index, const uint8_t* data) = 0;
   // Writes pages first .. first + count - 1 from `count` pages of bytes back to back: one system call
   // where the store can (small writes cost the page cache several times what large ones do per byte).

@@ -112,10 +112,9 @@ Status PagedFileStore::ReadPage(uint64_t index, uint8_t* out) const {
 }
 
 Status PagedFileStore::WritePages(uint64_t first, uint64_t count, const uint8_t* data) {
-  if (first > count_)
-    return Status::InvalidArgument(name_ + ": page " + std::to_string(first) + " written out of order");
   MKTREE_RETURN_IF_ERROR(PwriteFull(fd_, data, count * page_bytes_, (1 + first) * page_bytes_, name_, *ops_));
-  count_ = std::max(count_, first + count);
+  std::lock_guard<std::mutex> lock(write_mu_);
+  count_.store(std::max(count_.load(std::memory_order_relaxed), first + count), std::memory_order_relaxed);
   writeback_.Wrote(fd_, count * page_bytes_);
   return Status::Ok();
 }

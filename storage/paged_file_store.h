@@ -6,9 +6,11 @@
 // Thread safety: as PageStore (reads with pread, from any thread).
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <span>
 #include <string>
 #include <vector>
@@ -30,7 +32,7 @@ class PagedFileStore : public PageStore {
   ~PagedFileStore() override;
 
   uint64_t page_bytes() const override { return page_bytes_; }
-  uint64_t page_count() const override { return count_; }
+  uint64_t page_count() const override { return count_.load(std::memory_order_relaxed); }
   const std::string& name() const override { return name_; }
   Status ReadPage(uint64_t index, uint8_t* out) const override;
   Status WritePage(uint64_t index, const uint8_t* data) override { return WritePages(index, 1, data); }
@@ -47,7 +49,7 @@ class PagedFileStore : public PageStore {
   int fd() const { return fd_; }
   FileOps& ops() const { return *ops_; }
   // The file offset just past the pages: where sections start.
-  uint64_t end_of_pages() const { return (1 + count_) * page_bytes_; }
+  uint64_t end_of_pages() const { return (1 + page_count()) * page_bytes_; }
   // An error from close(2) is returned: some filesystems (NFS) report a deferred write error, such as a
   // full disk, only there.
   Status Close();
@@ -57,8 +59,9 @@ class PagedFileStore : public PageStore {
   int fd_;
   int direct_fd_ = -1;
   uint64_t page_bytes_;
-  uint64_t count_;
-  FileOps* ops_;  // writes (the writer's; fault injection in tests)
+  std::atomic<uint64_t> count_;  // written under write_mu_
+  std::mutex write_mu_;          // the count and the writeback pacing, for writes from two threads
+  FileOps* ops_;                 // writes (the writer's; fault injection in tests)
   storage_internal::WritebackPacer writeback_;
 };
 

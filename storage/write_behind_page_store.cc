@@ -11,6 +11,13 @@ WriteBehindPageStore::WriteBehindPageStore(PageStore* base, uint64_t batch_bytes
           std::max<uint64_t>(1, batch_bytes / std::max<uint64_t>(1, base->page_bytes())))),
       count_(base->page_count()) {}
 
+WriteBehindPageStore::WriteBehindPageStore(PageStore* base, uint64_t first_page, uint64_t batch_bytes)
+    : base_(base),
+      first_page_(first_page),
+      batch_pages_(static_cast<size_t>(
+          std::max<uint64_t>(1, batch_bytes / std::max<uint64_t>(1, base->page_bytes())))),
+      count_(0) {}
+
 WriteBehindPageStore::~WriteBehindPageStore() {
   {
     std::lock_guard<std::mutex> lock(mu_);
@@ -27,7 +34,7 @@ Status WriteBehindPageStore::WriteBatch(const Batch& b) {
   for (size_t i = 0, run = 1; i < b.index.size(); i += run) {
     run = 1;
     while (i + run < b.index.size() && b.index[i + run] == b.index[i] + run) ++run;
-    MKTREE_RETURN_IF_ERROR(base_->WritePages(b.index[i], run, b.bytes.data() + i * page));
+    MKTREE_RETURN_IF_ERROR(base_->WritePages(first_page_ + b.index[i], run, b.bytes.data() + i * page));
   }
   return Status::Ok();
 }
@@ -68,7 +75,11 @@ void WriteBehindPageStore::Submit() {
 
 Status WriteBehindPageStore::WritePage(uint64_t index, const uint8_t* data) {
   if (index > count_)
-    return Status::InvalidArgument(name() + ": page " + std::to_string(index) + " written out of order");
+    return Status::InvalidArgument(name() + ": page " + std::to_string(first_page_ + index) +
+                                   " written out of order");
+  if (index >= limit_)
+    return Status::InvalidArgument(name() + ": page " + std::to_string(first_page_ + index) +
+                                   " written past the " + std::to_string(limit_) + " pages of its stream");
   {
     std::lock_guard<std::mutex> lock(mu_);
     if (!error_.ok()) return error_;
@@ -98,7 +109,7 @@ Status WriteBehindPageStore::Flush() {
 
 Status WriteBehindPageStore::ReadPage(uint64_t index, uint8_t* out) const {
   MKTREE_RETURN_IF_ERROR(const_cast<WriteBehindPageStore*>(this)->Flush());
-  return base_->ReadPage(index, out);
+  return base_->ReadPage(first_page_ + index, out);
 }
 
 Status WriteBehindPageStore::Sync() {

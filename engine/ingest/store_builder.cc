@@ -7,6 +7,7 @@
 #endif
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -399,9 +400,51 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
     }
     return geometry.ReadMany(&w->ranges);
   };
+  // 4. The object table and record pages, in id order, records streamed from their spill (read in large
+  //    blocks), one at a time, on a thread of their own while the leaf pages are written: the record
+  //    pages start at the leaf pages' total, which the tree fixes (StoreWriter::BeginObjects).
+  std::vector<uint32_t> leaf_of(report.objects, kNoIndex);
+  for (uint32_t leaf = 0; leaf < leaf_count; ++leaf)
+    for (uint64_t i = result.leaf_offsets[leaf]; i < result.leaf_offsets[leaf + 1]; ++i)
+      leaf_of[result.leaf_objects[i]] = leaf;
+  const uint64_t leaf_pages =
+      leaf_count == 0 ? 0 : uint64_t{tree.leaves.back().first_page} + tree.leaves.back().page_count;
+  MKTREE_RETURN_IF_ERROR(writer.BeginObjects(leaf_pages));
+  std::atomic<bool> stop_table{false};
+  auto write_table = [&]() -> Status {
+    StoredRecord record;
+    std::vector<uint8_t> bytes;
+    SpillCursor record_cursor(records_spill);
+    for (ObjectId id = 0; id < report.objects && !stop_table.load(std::memory_order_relaxed); ++id) {
+      if (leaf_of[id] == kNoIndex) return Status::Internal("object " + std::to_string(id) + " is in no leaf");
+      uint32_t len = 0;
+      MKTREE_RETURN_IF_ERROR(record_cursor.Read(sizeof len, &len));
+      bytes.resize(4 + uint64_t{len});
+      std::memcpy(bytes.data(), &len, 4);
+      MKTREE_RETURN_IF_ERROR(record_cursor.Read(len, bytes.data() + 4));
+      uint64_t used = 0;
+      if (Status st = ParseRecord(bytes.data(), bytes.size(), &used, &record);
+          !st.ok() || record.source >= sources.size())
+        return Status::Internal(records_spill.path() + ": object " + std::to_string(id) +
+                                ": spilled record unreadable");
+      MKTREE_RETURN_IF_ERROR(writer.AppendObject(id, leaf_of[id], record.box, record.name,
+                                                 sources[record.source], record.attributes));
+    }
+    return Status::Ok();
+  };
+  std::future<Status> table = std::async(std::launch::async, write_table);
+  // An early return below stops the table's thread and waits for it before what it reads is destroyed.
+  struct TableGuard {
+    std::atomic<bool>& stop;
+    std::future<Status>& table;
+    ~TableGuard() {
+      stop = true;
+      if (table.valid()) table.wait();
+    }
+  } table_guard{stop_table, table};
+
   Window windows[2];
   std::vector<std::span<const uint8_t>> entries;
-  std::vector<uint32_t> leaf_of(report.objects, kNoIndex);
   uint64_t page = 0;
   if (leaf_count > 0) {
     plan(0, &windows[0]);
@@ -422,7 +465,6 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
       entries.clear();
       for (uint64_t i = result.leaf_offsets[leaf]; i < result.leaf_offsets[leaf + 1]; ++i) {
         const ObjectId id = result.leaf_objects[i];
-        leaf_of[id] = leaf;
         entries.emplace_back(w.bytes.data() + at, entry_bytes[id]);
         auto parsed = ParseObjectEntry(w.bytes.data() + at, entry_bytes[id]);
         if (!parsed.ok()) return parsed.status();
@@ -446,32 +488,13 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
   if (!tree.IndexLeafFilter())
     return Status::Internal("leaf filter does not match the leaves' object counts");
   progress(IngestStage::kWritePages, tree.leaves.size(), tree.leaves.size());
-  // Freed, not cleared (`v = {}` keeps the capacity), with the leaves' objects (leaf_of has them now):
-  // 16 bytes an object otherwise held through the object table and Commit, the write stage's peak.
+  // Freed, not cleared (`v = {}` keeps the capacity), with the leaves' objects: 16 bytes an object
+  // otherwise held through the rest of the object table and Commit.
   std::vector<uint64_t>().swap(spill_offset);
   std::vector<uint32_t>().swap(entry_bytes);
   std::vector<ObjectId>().swap(result.leaf_objects);
-
-  // 4. The object table and record pages, in id order, records streamed from their spill (read in large
-  //    blocks), one at a time.
-  StoredRecord record;
-  SpillCursor record_cursor(records_spill);
-  for (ObjectId id = 0; id < report.objects; ++id) {
-    if (leaf_of[id] == kNoIndex) return Status::Internal("object " + std::to_string(id) + " is in no leaf");
-    uint32_t len = 0;
-    MKTREE_RETURN_IF_ERROR(record_cursor.Read(sizeof len, &len));
-    record_bytes.resize(4 + uint64_t{len});
-    std::memcpy(record_bytes.data(), &len, 4);
-    MKTREE_RETURN_IF_ERROR(record_cursor.Read(len, record_bytes.data() + 4));
-    uint64_t used = 0;
-    if (Status st = ParseRecord(record_bytes.data(), record_bytes.size(), &used, &record);
-        !st.ok() || record.source >= sources.size())
-      return Status::Internal(records_spill.path() + ": object " + std::to_string(id) +
-                              ": spilled record unreadable");
-    MKTREE_RETURN_IF_ERROR(writer.AppendObject(id, leaf_of[id], record.box, record.name,
-                                               sources[record.source], record.attributes));
-    if (id % kProgressEvery == 0) progress(IngestStage::kWriteTable, id, report.objects);
-  }
+  progress(IngestStage::kWriteTable, 0, report.objects);
+  MKTREE_RETURN_IF_ERROR(table.get());
   progress(IngestStage::kWriteTable, report.objects, report.objects);
   std::vector<uint32_t>().swap(leaf_of);
   MKTREE_RETURN_IF_ERROR(writer.Commit(std::move(tree), result.stats.ToJson()));

@@ -120,7 +120,8 @@ StoreWriter::StoreWriter(std::string final_path, std::string temp_path, StoreOpt
       lock_(std::move(lock)) {}
 
 StoreWriter::~StoreWriter() {
-  pages_.reset();  // its thread may be writing to the backend
+  record_pages_.reset();  // their threads may be writing to the backend
+  pages_.reset();
   if (!done_) {
     backend_->Abort();
     ::unlink(temp_path_.c_str());
@@ -173,6 +174,23 @@ Status LoadCodecDictionary(std::vector<uint8_t> bytes, CodecOptions* c) {
   return Status::Ok();
 }
 
+Status StoreWriter::BeginObjects(uint64_t leaf_pages) {
+  if (done_) return Status::InvalidArgument(final_path_ + ": writer already committed");
+  if (records_) return Status::InvalidArgument(final_path_ + ": objects already begun");
+  if (pages_->page_count() > leaf_pages)
+    return Status::InvalidArgument(final_path_ + ": " + std::to_string(pages_->page_count()) +
+                                   " leaf pages written, more than the " + std::to_string(leaf_pages) +
+                                   " declared");
+  leaf_pages_ = leaf_pages;
+  pages_->SetLimit(leaf_pages);
+  record_pages_ = std::make_unique<WriteBehindPageStore>(&backend_->pages(), leaf_pages,
+                                                         WriteBehindPageStore::kDefaultBatchBytes);
+  WriteBehindPageStore* out = record_pages_.get();
+  records_ = std::make_unique<RecordPager>(
+      out->page_bytes(), [out](const uint8_t* page) { return out->WritePage(out->page_count(), page); });
+  return Status::Ok();
+}
+
 Status StoreWriter::AppendObject(ObjectId id, uint32_t leaf, const Box3f& box, std::string_view name,
                                  std::string_view source, std::span<const ObjectAttribute> attributes) {
   if (done_) return Status::InvalidArgument(final_path_ + ": writer already committed");
@@ -180,15 +198,11 @@ Status StoreWriter::AppendObject(ObjectId id, uint32_t leaf, const Box3f& box, s
     return Status::InvalidArgument(final_path_ + ": object " + std::to_string(id) +
                                    " appended out of order (expected " + std::to_string(objects_.size()) +
                                    ")");
-  PageStore& pages = *pages_;
   if (!records_) {
-    // The record pages follow the leaf pages, which are all written by now. A failed leaf page write
-    // surfaces here rather than at Commit, after the whole object table.
+    // The leaf pages written so far are all there are. A failed leaf page write surfaces here rather than
+    // at Commit, after the whole object table.
     MKTREE_RETURN_IF_ERROR(pages_->Flush());
-    leaf_pages_ = pages.page_count();
-    records_ = std::make_unique<RecordPager>(pages.page_bytes(), [this, &pages](const uint8_t* page) {
-      return pages.WritePage(pages.page_count(), page);
-    });
+    MKTREE_RETURN_IF_ERROR(BeginObjects(pages_->page_count()));
   }
   // Objects come in runs from one source file: the last one is checked before the map is (a string built
   // and hashed per object otherwise).
@@ -222,7 +236,8 @@ Status StoreWriter::Commit(MKTree tree, const std::string& stats_json) {
   if (done_) return Status::InvalidArgument(final_path_ + ": writer already committed");
   auto fail = [&](Status st) {
     done_ = true;
-    (void)pages_->Flush();  // its thread stops writing before the file is closed
+    (void)pages_->Flush();  // their threads stop writing before the file is closed
+    if (record_pages_) (void)record_pages_->Flush();
     backend_->Abort();
     ::unlink(temp_path_.c_str());
     return st;
@@ -233,9 +248,13 @@ Status StoreWriter::Commit(MKTree tree, const std::string& stats_json) {
         " differs from the store's " + std::to_string(backend_->pages().page_bytes())));
   if (records_) {
     if (Status st = records_->Finish(); !st.ok()) return fail(st);
+    if (Status st = record_pages_->Flush(); !st.ok()) return fail(st);
     objects_.record_directory = records_->TakeDirectory();
-    if (pages_->page_count() != leaf_pages_ + objects_.record_directory.size())
-      return fail(Status::InvalidArgument(final_path_ + ": leaf pages written after the first object"));
+    if (record_pages_->page_count() != objects_.record_directory.size())
+      return fail(Status::Internal(final_path_ + ": record pages written do not match their directory"));
+    if (pages_->page_count() != leaf_pages_)
+      return fail(Status::InvalidArgument(final_path_ + ": " + std::to_string(pages_->page_count()) + " of " +
+                                          std::to_string(leaf_pages_) + " leaf pages written"));
   }
   // The objects appended must be the tree's: each leaf's count (ValidateStructure can only check sums).
   if (leaf_count_.size() > tree.leaves.size())

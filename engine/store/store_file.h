@@ -54,7 +54,8 @@ struct StoreOptions {
   FileOps* file_ops = nullptr;
 };
 
-// Thread safety: a StoreWriter is used by one thread.
+// Thread safety: a StoreWriter is used by one thread, but for AppendObject after BeginObjects (which may
+// run on a second thread until Commit).
 class StoreWriter {
  public:
   // Takes the writer lock, removes the temporary stores of killed writers and creates
@@ -68,9 +69,16 @@ class StoreWriter {
   // They reach the file on a thread of their own (storage/write_behind_page_store.h): a failed write is
   // returned by a later WritePage, the first AppendObject or Commit.
   PageStore& pages();
-  // The objects, appended in id order 0..N-1, after every leaf page is written: each object's leaf goes
-  // to the object table, its record (box in the store frame, name, source file, attributes) to the record
-  // pages, which follow the leaf pages and are written as they fill (no name is held in RAM).
+  // Declares that the store has `leaf_pages` leaf pages, written through pages() (before or after this
+  // call), and that the objects start: from now on AppendObject may run on one other thread while this
+  // one writes leaf pages (their record pages go to the pages after the leaf pages, on a thread of their
+  // own). Pages() then refuses pages from leaf_pages on, and Commit fails unless every leaf page was
+  // written. Without it, the first AppendObject declares the leaf pages written so far.
+  // REQUIRES: no object appended yet.
+  Status BeginObjects(uint64_t leaf_pages);
+  // The objects, appended in id order 0..N-1: each object's leaf goes to the object table, its record (box
+  // in the store frame, name, source file, attributes) to the record pages, which follow the leaf pages
+  // and are written as they fill (no name is held in RAM).
   // REQUIRES: id == number of objects appended so far.
   Status AppendObject(ObjectId id, uint32_t leaf, const Box3f& box, std::string_view name,
                       std::string_view source, std::span<const ObjectAttribute> attributes);
@@ -111,7 +119,8 @@ class StoreWriter {
   std::vector<uint32_t> leaf_count_;  // objects appended per leaf
   std::unordered_map<std::string, uint32_t> source_index_;
   uint32_t last_source_ = UINT32_MAX;  // the source of the last object appended (an index into sources)
-  std::unique_ptr<RecordPager> records_;  // made at the first AppendObject, after the leaf pages
+  std::unique_ptr<WriteBehindPageStore> record_pages_;  // the pages after the leaf pages
+  std::unique_ptr<RecordPager> records_;                // made by BeginObjects, writes to record_pages_
   uint64_t leaf_pages_ = 0;
   std::vector<uint8_t> record_;
   bool done_ = false;

@@ -222,7 +222,7 @@ TEST_P(WriterFaultTest, EveryWriteFaultIsAnErrorOrAStoreThatNeverAnswersWrongly)
   ASSERT_TRUE(Build(1, nullptr).ok());  // the old store back
   old_hash_ = FileHash(path_);
   const uint64_t writes = count.calls(FaultyFileOps::Op::kPwrite);
-  // Consecutive leaf pages go out in writes of up to 1 MiB (storage/write_behind_page_store.h), so each
+  // Consecutive leaf pages go out in writes of up to 256 KiB (storage/write_behind_page_store.h), so each
   // fault below damages or cuts short a run of pages, then the sections and the header.
   ASSERT_GT(writes, 8u);
   int silent_caught = 0;  // silent damage refused before the rename

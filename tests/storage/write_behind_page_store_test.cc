@@ -108,7 +108,36 @@ TEST(WriteBehindPageStoreTest, PagedFileGetsRunsOfPagesInOneWriteEach) {
     ASSERT_TRUE((*file)->ReadPage(i, got.data()).ok());
     EXPECT_EQ(got, PageOf(i, i == 3 ? 9 : 0)) << i;
   }
-  EXPECT_EQ((*file)->WritePages(33, 1, PageOf(33).data()).code(), Status::Code::kInvalidArgument);
+}
+
+// Two streams into one paged file, as StoreWriter writes leaf and record pages: the second from page 20
+// on, both at once, each in order and limited to its own pages.
+TEST(WriteBehindPageStoreTest, TwoStreamsFillOnePagedFileAtOnce) {
+  testing::TempDir dir;
+  auto file = PagedFileStore::Create(dir.file("p.pages"), kPage, DefaultFileOps());
+  ASSERT_TRUE(file.ok()) << file.status().ToString();
+  WriteBehindPageStore leaves(file->get(), 4 * kPage);
+  WriteBehindPageStore records(file->get(), 20, 4 * kPage);
+  leaves.SetLimit(20);
+  std::thread other([&] {
+    for (uint64_t i = 0; i < 15; ++i) ASSERT_TRUE(records.WritePage(i, PageOf(20 + i).data()).ok());
+    ASSERT_TRUE(records.Flush().ok());
+  });
+  for (uint64_t i = 0; i < 20; ++i) ASSERT_TRUE(leaves.WritePage(i, PageOf(i).data()).ok());
+  const Status past = leaves.WritePage(20, PageOf(20).data());
+  EXPECT_EQ(past.code(), Status::Code::kInvalidArgument) << past.ToString();
+  EXPECT_NE(past.message().find("past the 20 pages"), std::string::npos) << past.ToString();
+  ASSERT_TRUE(leaves.Flush().ok());
+  other.join();
+  EXPECT_EQ(records.page_count(), 15u);
+  EXPECT_EQ((*file)->page_count(), 35u);
+  std::vector<uint8_t> got(kPage);
+  for (uint64_t i = 0; i < 35; ++i) {
+    ASSERT_TRUE((*file)->ReadPage(i, got.data()).ok());
+    EXPECT_EQ(got, PageOf(i)) << i;
+  }
+  ASSERT_TRUE(records.ReadPage(3, got.data()).ok());
+  EXPECT_EQ(got, PageOf(23));
 }
 
 TEST(WriteBehindPageStoreTest, SmallStoreIsWrittenAtFlushWithoutAThread) {

@@ -8,11 +8,13 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <filesystem>
 #include <fstream>
 #include <thread>
 
 #include "engine/store/leaf_codec.h"
 #include "engine/store/leaf_reader.h"
+#include "storage/memory_page_store.h"
 #include "storage/page_cache.h"
 #include "store/store_test_util.h"
 
@@ -201,6 +203,53 @@ TEST_P(StoreFileTest, EveryLeafRoundTripsAndTheStoreReopensEqual) {
   EXPECT_TRUE(OpenAndReadAll(path).ok());
   const uint64_t total = s.pages().page_count();
   EXPECT_FALSE(s.pages().ReadPage(total, std::vector<uint8_t>(s.pages().page_bytes()).data()).ok());
+}
+
+// The object table written on another thread while the leaf pages are (as ingest does, after
+// BeginObjects) gives the store the sequential order gives; a leaf page left out fails the commit.
+TEST_P(StoreFileTest, ObjectsAppendedWhileLeafPagesAreWrittenGiveTheSameStore) {
+  const std::string sequential = dir_.file("sequential.mkt"), together = dir_.file("together.mkt");
+  ASSERT_TRUE(Write(sequential, 600, 17).ok());
+  MemoryPageStore leaves(Options().params.mem_page());
+  BuiltStore built;
+  ASSERT_TRUE(testing::BuildTestStore(objects_, Options().codec, Options().params, &leaves, &built).ok());
+  ASSERT_GT(leaves.page_count(), 8u);
+  std::vector<uint8_t> page(leaves.page_bytes());
+  for (const bool leave_one_out : {false, true}) {
+    SCOPED_TRACE(leave_one_out ? "a leaf page left out" : "every leaf page");
+    auto w = StoreWriter::Create(together, Options());
+    ASSERT_TRUE(w.ok()) << w.status().ToString();
+    ASSERT_TRUE((*w)->BeginObjects(leaves.page_count()).ok());
+    Status table;
+    std::thread other([&] {
+      for (const SceneObject& o : objects_) {
+        table = (*w)->AppendObject(o.id, built.object_leaf[o.id], o.Aabb(), o.name, o.source, o.attributes);
+        if (!table.ok()) return;
+      }
+    });
+    const uint64_t written = leaves.page_count() - (leave_one_out ? 1 : 0);
+    for (uint64_t p = 0; p < written; ++p) {
+      ASSERT_TRUE(leaves.ReadPage(p, page.data()).ok());
+      ASSERT_TRUE((*w)->pages().WritePage(p, page.data()).ok());
+    }
+    const Status past = (*w)->pages().WritePage(leaves.page_count(), page.data());
+    EXPECT_EQ(past.code(), Status::Code::kInvalidArgument) << past.ToString();
+    other.join();
+    ASSERT_TRUE(table.ok()) << table.ToString();
+    const Status st = (*w)->Commit(built.tree, "{\"objects\": 600}");
+    if (leave_one_out) {
+      EXPECT_FALSE(st.ok());
+      EXPECT_NE(st.message().find("leaf pages written"), std::string::npos) << st.ToString();
+      w->reset();
+      EXPECT_TRUE(OpenAndReadAll(together).ok()) << "the previous store is kept";
+      for (const auto& f : std::filesystem::directory_iterator(dir_.path()))
+        EXPECT_EQ(f.path().string().find(".tmp."), std::string::npos) << f.path();
+      continue;
+    }
+    ASSERT_TRUE(st.ok()) << st.ToString();
+    EXPECT_TRUE(OpenAndReadAll(together).ok());
+    if (GetParam().backend == Backend::kPagedFile) EXPECT_EQ(ReadFile(together), ReadFile(sequential));
+  }
 }
 
 TEST_P(StoreFileTest, EmptyStore) {
