@@ -248,7 +248,9 @@ TEST_P(StoreFileTest, ObjectsAppendedWhileLeafPagesAreWrittenGiveTheSameStore) {
     }
     ASSERT_TRUE(st.ok()) << st.ToString();
     EXPECT_TRUE(OpenAndReadAll(together).ok());
-    if (GetParam().backend == Backend::kPagedFile) EXPECT_EQ(ReadFile(together), ReadFile(sequential));
+    if (GetParam().backend == Backend::kPagedFile) {
+      EXPECT_EQ(ReadFile(together), ReadFile(sequential));
+    }
   }
 }
 
