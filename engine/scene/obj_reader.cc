@@ -9,6 +9,7 @@
 #include <cerrno>
 #include <condition_variable>
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
 #include <deque>
 #include <limits>
@@ -20,6 +21,8 @@
 #include <vector>
 
 #include "engine/scene/obj_chunk.h"
+#include "storage/file_ops.h"
+#include "storage/file_util.h"
 
 namespace mktree {
 namespace {
@@ -113,39 +116,103 @@ class VertexIndexMap {
   std::vector<uint32_t> window_used_;
 };
 
-// The global vertex table, in fixed-size blocks: growth never copies the table or needs twice its size,
-// so its footprint stays 24 bytes per vertex (plus at most one partly filled block). Doubles, because
-// coordinates far from 0 (UTM, geocentric) lose their detail in float32. A block is mapped with its pages
-// already present: the table is most of a large OBJ's memory, and taking its page faults one 4 KiB page at
-// a time cost the applying thread more than filling them.
+// The global vertex table: every vertex read so far, as OBJ faces may use any of them. Doubles, because
+// coordinates far from 0 (UTM, geocentric) lose their detail in float32. Fixed-size blocks, of which the
+// most recent `ram_blocks` stay in RAM and older ones go to a spill file: memory stays bounded however
+// many vertices the file has (24 bytes each), and faces, which nearly always use the vertices just before
+// them, rarely read back. A block in RAM is reused for the next one once spilled, and mapped with its
+// pages present when new (faulting them in 4 KiB at a time cost the applying thread more than filling
+// them).
 class VertexTable {
  public:
-  VertexTable() = default;
+  // Keeps up to ram_bytes of blocks in RAM (one at least).
+  VertexTable(std::string path, size_t ram_bytes, std::string spill_dir)
+      : path_(std::move(path)),
+        spill_dir_(std::move(spill_dir)),
+        ram_(std::max<size_t>(ram_bytes / kBlockBytes, 1)) {}
   VertexTable(const VertexTable&) = delete;
   VertexTable& operator=(const VertexTable&) = delete;
   ~VertexTable() {
-    for (double* b : blocks_) ::munmap(b, kBlockBytes);
+    for (double* b : ram_)
+      if (b != nullptr) ::munmap(b, kBlockBytes);
+    if (fd_ >= 0) ::close(fd_);
   }
   size_t size() const { return size_; }
-  void Push(const double xyz[3]) {
-    if ((size_ & kBlockMask) == 0) {
-      void* b = ::mmap(nullptr, kBlockBytes, PROT_READ | PROT_WRITE,
-                       MAP_PRIVATE | MAP_ANONYMOUS | MAP_POPULATE, -1, 0);
-      if (b == MAP_FAILED) throw std::bad_alloc();
-      blocks_.push_back(static_cast<double*>(b));
-    }
-    std::memcpy(&blocks_.back()[3 * (size_ & kBlockMask)], xyz, 3 * sizeof(double));
+  Status Push(const double xyz[3]) {
+    if ((size_ & kBlockMask) == 0) MKTREE_RETURN_IF_ERROR(StartBlock(size_ >> kBlockShift));
+    std::memcpy(&ram_[(size_ >> kBlockShift) % ram_.size()][3 * (size_ & kBlockMask)], xyz,
+                3 * sizeof(double));
     ++size_;
+    return Status::Ok();
   }
-  const double* At(uint32_t v) const { return &blocks_[v >> kBlockShift][3 * (v & kBlockMask)]; }
+  // Vertex v's coordinates, valid until the next call; nullptr when a spilled one cannot be read (error()).
+  // REQUIRES v < size().
+  const double* At(uint32_t v) {
+    const size_t block = v >> kBlockShift;
+    if (block >= first_in_ram_) return &ram_[block % ram_.size()][3 * (v & kBlockMask)];
+    const uint64_t at = uint64_t{block} * kBlockBytes + 3 * sizeof(double) * (v & kBlockMask);
+    if (Status st = storage_internal::PreadFull(fd_, read_back_, sizeof read_back_, at, spill_name_);
+        !st.ok()) {
+      error_ = st;
+      return nullptr;
+    }
+    return read_back_;
+  }
+  const Status& error() const { return error_; }
 
  private:
   static constexpr int kBlockShift = 16;
   static constexpr size_t kBlockVertices = size_t{1} << kBlockShift;
   static constexpr size_t kBlockMask = kBlockVertices - 1;
   static constexpr size_t kBlockBytes = 3 * sizeof(double) * kBlockVertices;
-  std::vector<double*> blocks_;
+
+  // Makes room for block `block` (the next one), spilling the oldest block in RAM when all are in use.
+  Status StartBlock(size_t block) {
+    double*& slot = ram_[block % ram_.size()];
+    if (block - first_in_ram_ == ram_.size()) {
+      if (fd_ < 0) MKTREE_RETURN_IF_ERROR(OpenSpill());
+      MKTREE_RETURN_IF_ERROR(storage_internal::PwriteFull(
+          fd_, slot, kBlockBytes, uint64_t{first_in_ram_} * kBlockBytes, spill_name_, DefaultFileOps()));
+      ++first_in_ram_;
+      return Status::Ok();  // the spilled block's memory holds the new one
+    }
+    void* b = ::mmap(nullptr, kBlockBytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS | MAP_POPULATE,
+                     -1, 0);
+    if (b == MAP_FAILED) throw std::bad_alloc();
+    slot = static_cast<double*>(b);
+    return Status::Ok();
+  }
+
+  // An unnamed file in spill_dir_ ($TMPDIR or /tmp when empty), gone when closed.
+  Status OpenSpill() {
+    std::string dir = spill_dir_;
+    if (dir.empty()) {
+      const char* tmp = std::getenv("TMPDIR");
+      dir = tmp != nullptr && *tmp != '\0' ? tmp : "/tmp";
+    }
+    spill_name_ = dir + " (the vertex spill of " + path_ + ")";
+#ifdef O_TMPFILE
+    fd_ = ::open(dir.c_str(), O_TMPFILE | O_RDWR | O_CLOEXEC, 0600);
+#endif
+    if (fd_ < 0) {
+      std::string name = dir + "/.mktree-vertices.XXXXXX";
+      fd_ = ::mkstemp(name.data());
+      if (fd_ < 0)
+        return Status::IOError(dir + ": cannot create the spill file for the vertices of " + path_ + ": " +
+                               std::strerror(errno));
+      ::unlink(name.c_str());
+    }
+    return Status::Ok();
+  }
+
+  const std::string path_, spill_dir_;
+  std::vector<double*> ram_;  // block b, when b >= first_in_ram_, is ram_[b % ram_.size()]
+  size_t first_in_ram_ = 0;   // blocks before it are in the spill file, at b * kBlockBytes
   size_t size_ = 0;
+  int fd_ = -1;
+  std::string spill_name_;
+  double read_back_[3] = {0, 0, 0};
+  Status error_;
 };
 
 template <typename T>
@@ -235,7 +302,7 @@ class ObjReader final : public SceneSource {
   uint64_t base_line_ = 0;  // lines before the current chunk
   uint64_t last_line_ = 0;  // line of the last operation applied
 
-  VertexTable positions_;
+  VertexTable positions_;  // constructed with the options' RAM budget and spill folder
   uint64_t texcoord_count_ = 0, normal_count_ = 0;
 
   GroupRule group_rule_ = GroupRule::kUnknown;
@@ -260,7 +327,8 @@ ObjReader::ObjReader(std::string path, std::unique_ptr<InputFile> file, ObjectId
       file_(std::move(file)),
       chunk_bytes_(std::max<size_t>(options.chunk_bytes, 1)),
       chunk_count_((file_->size + chunk_bytes_ - 1) / chunk_bytes_),
-      next_id_(first_id) {
+      next_id_(first_id),
+      positions_(path_, options.vertex_ram_bytes, options.spill_dir) {
   int threads = options.threads;
   if (threads < 0) threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   threads = static_cast<int>(std::min<uint64_t>(threads, chunk_count_ > 1 ? chunk_count_ : 0));
@@ -422,7 +490,10 @@ Status ObjReader::AddVertices(const ObjChunk& c, const ObjOp& op) {
     return ErrorAt(base_line_ + op.line + k, "more than 2^32 - 2 vertices",
                    c.unterminated_line == op.line + k);
   }
-  for (uint32_t i = 0; i < op.count; ++i) positions_.Push(&c.vertices[vertex_at_ + 3 * size_t{i}]);
+  for (uint32_t i = 0; i < op.count; ++i) {
+    if (Status st = positions_.Push(&c.vertices[vertex_at_ + 3 * size_t{i}]); !st.ok())
+      return ErrorAt(base_line_ + op.line + i, st.message());
+  }
   vertex_at_ += 3 * size_t{op.count};
   return Status::Ok();
 }
@@ -448,6 +519,7 @@ Status ObjReader::AddFace(const int64_t* refs, uint64_t parts, int stride, uint6
     uint32_t local = local_of_global_.FindOrInsert(v, static_cast<uint32_t>(mesh_.vertex_count()), &inserted);
     if (inserted) {
       const double* p = positions_.At(v);
+      if (p == nullptr) return ErrorAt(base_line_ + line, positions_.error().message());
       mesh_.vertices.push_back(p[0]);
       mesh_.vertices.push_back(p[1]);
       mesh_.vertices.push_back(p[2]);

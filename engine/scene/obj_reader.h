@@ -62,8 +62,13 @@ Result<std::unique_ptr<SceneSource>> OpenObjFile(const std::string& path, Object
 struct ObjReadOptions {
   // Parsing threads besides the caller's; 0 parses on the caller's thread. -1: one per hardware thread.
   int threads = -1;
-  // Bytes per chunk (cut at the next line end); at most threads + 2 chunks are in flight.
+  // Bytes per chunk (cut at the next line end); at most threads + 4 chunks are in flight.
   size_t chunk_bytes = size_t{1} << 18;
+  // Every vertex is kept, as faces may use any earlier one (24 bytes each): this many bytes of the most
+  // recent in RAM, older ones in a spill file, read back when a face uses them.
+  size_t vertex_ram_bytes = size_t{512} << 20;
+  // Where the spill file goes (unnamed, removed when the reader is); empty: $TMPDIR, else /tmp.
+  std::string spill_dir;
 };
 Result<std::unique_ptr<SceneSource>> OpenObjFile(const std::string& path, ObjectId first_id,
                                                  const ObjReadOptions& options);

@@ -202,6 +202,48 @@ TEST(ObjReaderTest, DecimalCoordinatesReadAsStrtodReadsThem) {
     EXPECT_EQ(objs[0].mesh.vertices[i], std::strtod(numbers[i].c_str(), nullptr)) << numbers[i];
 }
 
+// Vertices beyond the RAM budget go to the spill file and are read back when a face uses them: the same
+// objects as with every vertex in RAM. 300k vertices (four and a half blocks) under a one-block budget;
+// faces use recent vertices (relative), the first ones (absolute, spilled long ago) and some in between.
+TEST(ObjReaderTest, VerticesPastTheRamBudgetAreSpilledAndReadBack) {
+  std::string obj;
+  const int n = 300000;
+  for (int i = 0; i < n; ++i) {
+    obj +=
+        "v " + std::to_string(i) + ".25 " + std::to_string(i % 977) + " -" + std::to_string(i % 13) + ".5\n";
+    if (i % 1000 == 999) {
+      obj += "o part" + std::to_string(i / 1000) + "\nf -1 -2 -3\n";
+      obj += "f 1 2 " + std::to_string(i / 2 + 1) + "\n";
+      obj += "f " + std::to_string(i - 70000 > 0 ? i - 70000 : 3) + " -4 " + std::to_string(i + 1) + "\n";
+    }
+  }
+  const std::string path = WriteTemp(obj);
+  testing::TempDir spill;
+  ObjReadOptions small;
+  small.vertex_ram_bytes = 1;  // one block
+  small.spill_dir = spill.path().string();
+  auto want = ReadAllFrom(OpenObjFile(path, 0));
+  auto got = ReadAllFrom(OpenObjFile(path, 0, small));
+  ASSERT_TRUE(want.ok()) << want.status().ToString();
+  ASSERT_TRUE(got.ok()) << got.status().ToString();
+  ASSERT_EQ(got->size(), want->size());
+  ASSERT_EQ(got->size(), static_cast<size_t>(n / 1000));
+  for (size_t i = 0; i < got->size(); ++i) {
+    EXPECT_EQ((*got)[i].name, (*want)[i].name);
+    EXPECT_EQ((*got)[i].mesh.vertices, (*want)[i].mesh.vertices) << (*got)[i].name;
+    EXPECT_EQ((*got)[i].mesh.triangles, (*want)[i].mesh.triangles) << (*got)[i].name;
+  }
+  EXPECT_TRUE(fs::is_empty(spill.path()));  // the spill file has no name
+
+  // A spill folder that cannot hold the file: an error naming the OBJ file and the line.
+  small.spill_dir = (spill.path() / "missing").string();
+  auto failed = ReadAllFrom(OpenObjFile(path, 0, small));
+  ASSERT_FALSE(failed.ok());
+  EXPECT_EQ(failed.status().message().rfind(path + ":", 0), 0u) << failed.status().ToString();
+  EXPECT_NE(failed.status().message().find("spill file for the vertices"), std::string::npos)
+      << failed.status().ToString();
+}
+
 // UTM-sized coordinates keep their millimetres: float32 would round 5000000.0001 to 5000000.
 TEST(ObjReaderTest, CoordinatesFarFromZeroKeepTheirDetail) {
   auto objs = ReadOk(
