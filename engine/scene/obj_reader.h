@@ -23,8 +23,9 @@
 //
 // Coordinates are read as doubles (the input's precision, whatever the distance from 0).
 //
-// Memory: OBJ vertex indices are global to the file, so the reader keeps the global vertex table
-// (double x, y, z: 24 bytes per `v` line) plus the current object's mesh and its re-indexing map. Nothing
+// Memory: OBJ vertex indices are global to the file, so the reader keeps the global vertex table (double
+// x, y, z: 24 bytes per `v` line), up to ObjReadOptions::vertex_ram_bytes of the most recent vertices in
+// RAM and the older ones in a spill file, plus the current object's mesh and its re-indexing map. Nothing
 // else grows with the file: it is read (pread into reused buffers) and parsed in chunks (ObjReadOptions), a
 // fixed number of them in flight. Not memory-mapped: a file truncated while being read is an IOError naming
 // the file and the line where the missing bytes begin, where a mapping would die of SIGBUS.
