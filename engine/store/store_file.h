@@ -65,7 +65,8 @@ class StoreWriter {
   // Removes the temporary file unless committed, and releases the lock.
   ~StoreWriter();
 
-  // Where leaf pages go: write pages 0, 1, 2, ... in increasing order (rewriting a page is allowed).
+  // Where leaf pages go: write pages 0, 1, 2, ... in increasing order (rewriting a page is allowed), all
+  // from one thread.
   // They reach the file on a thread of their own (storage/write_behind_page_store.h): a failed write is
   // returned by a later WritePage, the first AppendObject or Commit.
   PageStore& pages();
