@@ -161,8 +161,7 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
   SpillFile& records_spill = **record_spill;
   // The distinct input files, by the index the spilled records carry (a few: one per input file).
   std::vector<std::string> sources;
-  std::unordered_map<std::string, uint32_t> source_index;
-  uint32_t last_source = UINT32_MAX;
+  SourceIndex source_index(&sources);
   std::vector<uint8_t> record_bytes;
 
   // 1. Stream the objects: encoded on worker threads (object_encoder.h), spilled here in id order;
@@ -207,14 +206,10 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
     if (auto offset = geometry.Append(encoded.entry.data(), encoded.entry.size()); !offset.ok())
       return offset.status();
     // The object's record (box, source, name, attributes) as the store encodes it, spilled in id order.
-    // Objects come in runs from one file: the last source is checked before the map is hashed.
-    if (last_source >= sources.size() || sources[last_source] != obj.source) {
-      auto [src, added] = source_index.try_emplace(obj.source, static_cast<uint32_t>(sources.size()));
-      if (added) sources.push_back(obj.source);
-      last_source = src->second;
-    }
     record_bytes.clear();
-    if (Status st = EncodeRecord(encoded.box, last_source, obj.name, obj.attributes, &record_bytes); !st.ok())
+    if (Status st =
+            EncodeRecord(encoded.box, source_index.Of(obj.source), obj.name, obj.attributes, &record_bytes);
+        !st.ok())
       return Status::InvalidArgument("object " + std::to_string(obj.id) + " '" + obj.name.substr(0, 100) +
                                      "': " + st.message());
     if (auto st = records_spill.Append(record_bytes.data(), record_bytes.size()); !st.ok())

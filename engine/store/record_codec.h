@@ -15,6 +15,7 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <unordered_map>
 #include <vector>
 
 #include "mktree/geometry.h"
@@ -65,6 +66,25 @@ Status DecodeRecordDirectory(std::span<const uint8_t> in, std::vector<uint32_t>*
 // objects, starting at id 0, non-decreasing, every id below object_count. Errors: Corruption with `what`.
 Status ValidateRecordDirectory(std::span<const uint32_t> directory, uint64_t object_count,
                                const std::string& what);
+
+// Numbers the distinct source files of a store's objects in order of first use, appending each new one to
+// *names (a record carries the number). Objects come in runs from one file, so the last one is compared
+// before the map is consulted (a string built and hashed per object otherwise).
+class SourceIndex {
+ public:
+  explicit SourceIndex(std::vector<std::string>* names) : names_(names) {}
+  uint32_t Of(std::string_view source) {
+    if (last_ < names_->size() && (*names_)[last_] == source) return last_;
+    auto [it, added] = index_.try_emplace(std::string(source), static_cast<uint32_t>(names_->size()));
+    if (added) names_->emplace_back(source);
+    return last_ = it->second;
+  }
+
+ private:
+  std::vector<std::string>* names_;
+  std::unordered_map<std::string, uint32_t> index_;
+  uint32_t last_ = UINT32_MAX;
+};
 
 // Packs records into sealed pages, written in order through `write` as they fill.
 class RecordPager {

@@ -204,21 +204,14 @@ Status StoreWriter::AppendObject(ObjectId id, uint32_t leaf, const Box3f& box, s
     MKTREE_RETURN_IF_ERROR(pages_->Flush());
     MKTREE_RETURN_IF_ERROR(BeginObjects(pages_->page_count()));
   }
-  // Objects come in runs from one source file: the last one is checked before the map is (a string built
-  // and hashed per object otherwise).
-  if (last_source_ >= objects_.sources.size() || objects_.sources[last_source_] != source) {
-    auto [it, added] =
-        source_index_.try_emplace(std::string(source), static_cast<uint32_t>(objects_.sources.size()));
-    if (added) objects_.sources.emplace_back(source);
-    last_source_ = it->second;
-  }
+  const uint32_t source_index = sources_.Of(source);
   // Every leaf has a page, all written by now: a larger index is in no leaf.
   if (leaf >= leaf_pages_)
     return Status::InvalidArgument(final_path_ + ": object " + std::to_string(id) + " put in leaf " +
                                    std::to_string(leaf) + " of a store of " + std::to_string(leaf_pages_) +
                                    " leaf pages");
   record_.clear();
-  Status st = EncodeRecord(box, last_source_, leaf, name, attributes, &record_);
+  Status st = EncodeRecord(box, source_index, leaf, name, attributes, &record_);
   if (!st.ok())
     return Status::InvalidArgument(final_path_ + ": object " + std::to_string(id) + ": " + st.message());
   MKTREE_RETURN_IF_ERROR(records_->Add(id, record_));

@@ -118,8 +118,7 @@ class StoreWriter {
   std::unique_ptr<Lock> lock_;
   ObjectTable objects_;  // count, leaf digests and sources; the directory comes from records_ at Commit
   std::vector<uint32_t> leaf_count_;  // objects appended per leaf
-  std::unordered_map<std::string, uint32_t> source_index_;
-  uint32_t last_source_ = UINT32_MAX;  // the source of the last object appended (an index into sources)
+  SourceIndex sources_{&objects_.sources};
   std::unique_ptr<WriteBehindPageStore> record_pages_;  // the pages after the leaf pages
   std::unique_ptr<RecordPager> records_;                // made by BeginObjects, writes to record_pages_
   uint64_t leaf_pages_ = 0;
