@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 
@@ -29,6 +30,26 @@ FileOps& DefaultFileOps() {
 namespace mktree::storage_internal {
 
 std::string ErrnoText(int err) { return std::strerror(err); }
+
+Result<UnnamedFile> OpenUnnamedFile(const std::string& dir, const std::string& stem,
+                                    const std::string& what) {
+  UnnamedFile file;
+  file.where = dir;
+  if (file.where.empty()) {
+    const char* tmp = std::getenv("TMPDIR");
+    file.where = tmp != nullptr && *tmp != '\0' ? tmp : "/tmp";
+  }
+#ifdef O_TMPFILE
+  file.fd = ::open(file.where.c_str(), O_TMPFILE | O_RDWR | O_CLOEXEC, 0600);
+  if (file.fd >= 0) return file;
+#endif
+  std::string name = file.where + "/" + stem + ".XXXXXX";
+  file.fd = ::mkostemp(name.data(), O_CLOEXEC);
+  if (file.fd < 0) return Status::IOError(file.where + ": cannot create " + what + ": " + ErrnoText(errno));
+  ::unlink(name.c_str());
+  file.where = std::move(name);
+  return file;
+}
 
 Status PreadFull(int fd, void* buf, size_t n, uint64_t offset, const std::string& name) {
   auto* p = static_cast<uint8_t*>(buf);

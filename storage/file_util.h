@@ -31,6 +31,15 @@ class WritebackPacer {
  private:
   uint64_t pending_ = 0;
 };
+// A scratch file that has no name, so that a killed process leaves nothing behind: O_TMPFILE in `dir`,
+// or, where the filesystem refuses that, `dir`/`stem`.XXXXXX unlinked as soon as it is created.
+// An empty `dir` means $TMPDIR, else /tmp. `where` is the folder, or the short-lived name, for errors.
+struct UnnamedFile {
+  int fd = -1;
+  std::string where;
+};
+// IOError "DIR: cannot create WHAT: why" when neither works.
+Result<UnnamedFile> OpenUnnamedFile(const std::string& dir, const std::string& stem, const std::string& what);
 // Reads up to n bytes from the start of `path`; returns how many were read. Anything but a regular file
 // (a directory, FIFO, device) is InvalidArgument, without blocking.
 Result<size_t> ReadPrefix(const std::string& path, void* buf, size_t n);

@@ -9,6 +9,8 @@
 #include <cstring>
 #include <memory>
 
+#include "storage/file_util.h"
+
 namespace mktree {
 
 namespace {
@@ -46,19 +48,9 @@ SpillFile::~SpillFile() {
 }
 
 Result<std::unique_ptr<SpillFile>> SpillFile::Create(const std::string& dir, const std::string& stem) {
-  std::string pattern = (dir.empty() ? std::string(".") : dir) + "/" + stem + ".XXXXXX";
-#ifdef O_TMPFILE
-  // An unnamed file where the filesystem supports it: nothing to leave behind whenever the build dies.
-  if (int fd = ::open(dir.empty() ? "." : dir.c_str(), O_TMPFILE | O_RDWR | O_CLOEXEC, 0600); fd >= 0)
-    return std::unique_ptr<SpillFile>(new SpillFile(fd, pattern));
-#endif
-  std::vector<char> buf(pattern.begin(), pattern.end());
-  buf.push_back('\0');
-  int fd = ::mkstemp(buf.data());
-  if (fd < 0) return Status::IOError(pattern + ": cannot create spill file: " + std::strerror(errno));
-  // Unlinked at once: the open descriptor keeps it alive, and a killed build leaves no spill behind.
-  ::unlink(buf.data());
-  return std::unique_ptr<SpillFile>(new SpillFile(fd, std::string(buf.data())));
+  MKTREE_ASSIGN_OR_RETURN(storage_internal::UnnamedFile file,
+                          storage_internal::OpenUnnamedFile(dir.empty() ? "." : dir, stem, "a spill file"));
+  return std::unique_ptr<SpillFile>(new SpillFile(file.fd, std::move(file.where)));
 }
 
 Result<uint64_t> SpillFile::Append(const void* data, uint64_t size) {

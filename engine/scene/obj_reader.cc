@@ -118,9 +118,9 @@ class VertexIndexMap {
 
 // The global vertex table: every vertex read so far, as OBJ faces may use any of them. Doubles, because
 // coordinates far from 0 (UTM, geocentric) lose their detail in float32. Fixed-size blocks, of which the
-// most recent `ram_blocks` stay in RAM and older ones go to a spill file: memory stays bounded however
-// many vertices the file has (24 bytes each), and faces, which nearly always use the vertices just before
-// them, rarely read back. A block in RAM is reused for the next one once spilled, and mapped with its
+// most recent (up to a budget of bytes) stay in RAM and older ones go to a spill file: memory stays bounded
+// however many vertices the file has (24 bytes each), and faces, which nearly always use the vertices just
+// before them, rarely read back. A block in RAM is reused for the next one once spilled, and mapped with its
 // pages present when new (faulting them in 4 KiB at a time cost the applying thread more than filling
 // them).
 class VertexTable {
@@ -150,13 +150,26 @@ class VertexTable {
   const double* At(uint32_t v) {
     const size_t block = v >> kBlockShift;
     if (block >= first_in_ram_) return &ram_[block % ram_.size()][3 * (v & kBlockMask)];
-    const uint64_t at = uint64_t{block} * kBlockBytes + 3 * sizeof(double) * (v & kBlockMask);
-    if (Status st = storage_internal::PreadFull(fd_, read_back_, sizeof read_back_, at, spill_name_);
-        !st.ok()) {
-      error_ = st;
-      return nullptr;
+    // A spilled vertex: read back with its page of neighbours, which the next faces most likely use.
+    const uint32_t page = v >> kReadBackShift;
+    const size_t slot = page % kReadBackSlots;
+    if (read_back_.empty()) {
+      read_back_.resize(kReadBackSlots * kReadBackPage * 3);
+      read_back_page_.assign(kReadBackSlots, kNoPage);
     }
-    return read_back_;
+    double* at = &read_back_[slot * kReadBackPage * 3];
+    if (read_back_page_[slot] != page) {
+      read_back_page_[slot] = kNoPage;
+      if (Status st =
+              storage_internal::PreadFull(fd_, at, kReadBackPage * 3 * sizeof(double),
+                                          uint64_t{page} * kReadBackPage * 3 * sizeof(double), spill_name_);
+          !st.ok()) {
+        error_ = st;
+        return nullptr;
+      }
+      read_back_page_[slot] = page;
+    }
+    return at + 3 * (v & (kReadBackPage - 1));
   }
   const Status& error() const { return error_; }
 
@@ -165,6 +178,13 @@ class VertexTable {
   static constexpr size_t kBlockVertices = size_t{1} << kBlockShift;
   static constexpr size_t kBlockMask = kBlockVertices - 1;
   static constexpr size_t kBlockBytes = 3 * sizeof(double) * kBlockVertices;
+  // Spilled vertices are read back a page of 256 (6 KiB) at a time into 256 slots (1.5 MiB), a page
+  // number's slot being fixed: faces that walk a spilled mesh in order cost one read per page.
+  static constexpr int kReadBackShift = 8;
+  static constexpr size_t kReadBackPage = size_t{1} << kReadBackShift;
+  static constexpr size_t kReadBackSlots = 256;
+  static constexpr uint32_t kNoPage = ~uint32_t{0};
+  static_assert(kReadBackShift <= kBlockShift, "a read-back page lies in one block");
 
   // Makes room for block `block` (the next one), spilling the oldest block in RAM when all are in use.
   Status StartBlock(size_t block) {
@@ -183,25 +203,12 @@ class VertexTable {
     return Status::Ok();
   }
 
-  // An unnamed file in spill_dir_ ($TMPDIR or /tmp when empty), gone when closed.
   Status OpenSpill() {
-    std::string dir = spill_dir_;
-    if (dir.empty()) {
-      const char* tmp = std::getenv("TMPDIR");
-      dir = tmp != nullptr && *tmp != '\0' ? tmp : "/tmp";
-    }
-    spill_name_ = dir + " (the vertex spill of " + path_ + ")";
-#ifdef O_TMPFILE
-    fd_ = ::open(dir.c_str(), O_TMPFILE | O_RDWR | O_CLOEXEC, 0600);
-#endif
-    if (fd_ < 0) {
-      std::string name = dir + "/.mktree-vertices.XXXXXX";
-      fd_ = ::mkstemp(name.data());
-      if (fd_ < 0)
-        return Status::IOError(dir + ": cannot create the spill file for the vertices of " + path_ + ": " +
-                               std::strerror(errno));
-      ::unlink(name.c_str());
-    }
+    MKTREE_ASSIGN_OR_RETURN(storage_internal::UnnamedFile file,
+                            storage_internal::OpenUnnamedFile(spill_dir_, ".mktree-vertices",
+                                                              "the spill file for the vertices of " + path_));
+    fd_ = file.fd;
+    spill_name_ = file.where + " (the vertex spill of " + path_ + ")";
     return Status::Ok();
   }
 
@@ -211,7 +218,8 @@ class VertexTable {
   size_t size_ = 0;
   int fd_ = -1;
   std::string spill_name_;
-  double read_back_[3] = {0, 0, 0};
+  std::vector<double> read_back_;         // kReadBackSlots pages of spilled vertices, allocated on first use
+  std::vector<uint32_t> read_back_page_;  // the page each slot holds, or kNoPage
   Status error_;
 };
 

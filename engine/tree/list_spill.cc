@@ -12,6 +12,8 @@
 #include <sys/mman.h>
 #endif
 
+#include "storage/file_util.h"
+
 namespace mktree::build {
 namespace {
 
@@ -24,26 +26,13 @@ ListSpill::~ListSpill() {
 }
 
 Status ListSpill::Open(const std::string& dir, uint32_t n, std::array<BuildVector<uint32_t>, 6>* lists) {
-  std::string d = dir;
-  if (d.empty()) {
-    const char* tmp = std::getenv("TMPDIR");
-    d = tmp != nullptr && *tmp != '\0' ? tmp : "/tmp";
-  }
-  where_ = d;
   n_ = n;
   lists_ = lists;
-#ifdef O_TMPFILE
-  fd_ = ::open(d.c_str(), O_TMPFILE | O_RDWR | O_CLOEXEC, 0600);
-#endif
-  if (fd_ < 0) {
-    std::string name = d + "/.mktree-lists-spill.XXXXXX";
-    std::vector<char> path(name.begin(), name.end());
-    path.push_back('\0');
-    fd_ = mkstemp(path.data());
-    if (fd_ < 0) return Status::IOError(d + ": cannot create the tree build's spill file: " + Errno());
-    unlink(path.data());
-    where_ = path.data();
-  }
+  MKTREE_ASSIGN_OR_RETURN(
+      storage_internal::UnnamedFile file,
+      storage_internal::OpenUnnamedFile(dir, ".mktree-lists-spill", "the tree build's spill file"));
+  fd_ = file.fd;
+  where_ = std::move(file.where);
   return Status::Ok();
 }
 

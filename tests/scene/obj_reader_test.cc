@@ -244,6 +244,52 @@ TEST(ObjReaderTest, VerticesPastTheRamBudgetAreSpilledAndReadBack) {
       << failed.status().ToString();
 }
 
+// One mesh whose vertices all come before its faces, past the RAM budget: faces read the spilled vertices
+// back in order, backwards and scattered, across read-back pages and blocks.
+TEST(ObjReaderTest, OneMeshLargerThanTheRamBudgetReadsItsSpilledVerticesBack) {
+  std::string obj = "o big\n";
+  const int n = 200000;  // three 65,536-vertex blocks and part of a fourth
+  for (int i = 0; i < n; ++i)
+    obj += "v " + std::to_string(i % 1013) + ".5 " + std::to_string(i) + " " + std::to_string(i % 7) + "\n";
+  for (int i = 1; i + 2 <= n; i += 97)
+    obj += "f " + std::to_string(i) + " " + std::to_string(i + 1) + " " + std::to_string(i + 2) + "\n";
+  for (int i = n; i > 2; i -= 131)
+    obj += "f " + std::to_string(i) + " " + std::to_string(i - 1) + " " + std::to_string(i - 2) + "\n";
+  uint64_t x = 12345;
+  for (int k = 0; k < 3000; ++k) {
+    int v[3];
+    for (int& e : v) {
+      x = x * 6364136223846793005ULL + 1442695040888963407ULL;
+      e = static_cast<int>((x >> 33) % n) + 1;
+    }
+    obj +=
+        "f " + std::to_string(v[0]) + " " + std::to_string(v[1]) + " -" + std::to_string(n - v[2] + 1) + "\n";
+  }
+  const std::string path = WriteTemp(obj);
+  testing::TempDir spill;
+  ObjReadOptions small;
+  small.vertex_ram_bytes = 1;
+  small.spill_dir = spill.path().string();
+  auto want = ReadAllFrom(OpenObjFile(path, 0));
+  auto got = ReadAllFrom(OpenObjFile(path, 0, small));
+  ASSERT_TRUE(want.ok()) << want.status().ToString();
+  ASSERT_TRUE(got.ok()) << got.status().ToString();
+  ASSERT_EQ(got->size(), 1u);
+  ASSERT_EQ(want->size(), 1u);
+  EXPECT_EQ((*got)[0].mesh.vertices, (*want)[0].mesh.vertices);
+  EXPECT_EQ((*got)[0].mesh.triangles, (*want)[0].mesh.triangles);
+  // Against the file itself: vertex i (0-based) has y = i, so face t of the forward walk has y 97t, 97t+1,
+  // 97t+2, and face t of the backward walk has n-1-131t, n-2-131t, n-3-131t.
+  const Mesh& m = (*got)[0].mesh;
+  const size_t forward = (n - 2 + 96) / 97;
+  ASSERT_GE(m.triangles.size() / 3, forward + 100);
+  auto y = [&](size_t t, int c) { return m.vertices[3 * size_t{m.triangles[3 * t + c]} + 1]; };
+  for (size_t t = 0; t < forward; ++t)
+    for (int c = 0; c < 3; ++c) ASSERT_EQ(y(t, c), 97.0 * t + c) << "face " << t;
+  for (size_t t = 0; t < 100; ++t)
+    for (int c = 0; c < 3; ++c) ASSERT_EQ(y(forward + t, c), n - 1 - 131.0 * t - c) << "face " << forward + t;
+}
+
 // UTM-sized coordinates keep their millimetres: float32 would round 5000000.0001 to 5000000.
 TEST(ObjReaderTest, CoordinatesFarFromZeroKeepTheirDetail) {
   auto objs = ReadOk(

@@ -34,6 +34,7 @@
 #include "engine/clash/clash_engine.h"
 #include "engine/clash/pair_rules.h"
 #include "engine/query/store_database.h"
+#include "storage/file_util.h"
 #include "tools/clash_lines.h"
 #include "tools/cli_numbers.h"
 #include "tools/mpi/mpi_util.h"
@@ -152,22 +153,14 @@ using File = std::unique_ptr<std::FILE, FileCloser>;
 // An unnamed file in $TMPDIR (default /tmp): std::tmpfile ignores TMPDIR, and a large self-clash's pairs
 // (about 104 bytes each) belong on the disk the user chose. No name, so a killed rank leaves nothing.
 Result<File> TempFile() {
-  const char* env = std::getenv("TMPDIR");
-  const std::string dir = env && *env ? env : "/tmp";
-  int fd = -1;
-#ifdef O_TMPFILE
-  fd = ::open(dir.c_str(), O_TMPFILE | O_RDWR | O_CLOEXEC, 0600);
-#endif
-  if (fd < 0) {  // a filesystem without O_TMPFILE: a named file, unlinked at once
-    std::string name = dir + "/mktree-pairs.XXXXXX";
-    fd = ::mkstemp(name.data());
-    if (fd >= 0) ::unlink(name.c_str());
-  }
-  std::FILE* f = fd >= 0 ? ::fdopen(fd, "w+b") : nullptr;
+  MKTREE_ASSIGN_OR_RETURN(
+      storage_internal::UnnamedFile file,
+      storage_internal::OpenUnnamedFile("", "mktree-pairs", "a temporary file for the pairs"));
+  std::FILE* f = ::fdopen(file.fd, "w+b");
   if (!f) {
     const std::string why = std::strerror(errno);
-    if (fd >= 0) ::close(fd);
-    return Status::IOError("cannot make a temporary file for the pairs in " + dir + ": " + why);
+    ::close(file.fd);
+    return Status::IOError(file.where + ": cannot open a temporary file for the pairs: " + why);
   }
   return File(f);
 }
