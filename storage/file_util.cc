@@ -33,21 +33,20 @@ std::string ErrnoText(int err) { return std::strerror(err); }
 
 Result<UnnamedFile> OpenUnnamedFile(const std::string& dir, const std::string& stem,
                                     const std::string& what) {
-  UnnamedFile file;
-  file.where = dir;
-  if (file.where.empty()) {
+  std::string folder = dir;
+  if (folder.empty()) {
     const char* tmp = std::getenv("TMPDIR");
-    file.where = tmp != nullptr && *tmp != '\0' ? tmp : "/tmp";
+    folder = tmp != nullptr && *tmp != '\0' ? tmp : "/tmp";
   }
+  UnnamedFile file;
+  file.where = folder + "/" + stem + ".XXXXXX";
 #ifdef O_TMPFILE
-  file.fd = ::open(file.where.c_str(), O_TMPFILE | O_RDWR | O_CLOEXEC, 0600);
+  file.fd = ::open(folder.c_str(), O_TMPFILE | O_RDWR | O_CLOEXEC, 0600);
   if (file.fd >= 0) return file;
 #endif
-  std::string name = file.where + "/" + stem + ".XXXXXX";
-  file.fd = ::mkostemp(name.data(), O_CLOEXEC);
-  if (file.fd < 0) return Status::IOError(file.where + ": cannot create " + what + ": " + ErrnoText(errno));
-  ::unlink(name.c_str());
-  file.where = std::move(name);
+  file.fd = ::mkostemp(file.where.data(), O_CLOEXEC);
+  if (file.fd < 0) return Status::IOError(folder + ": cannot create " + what + ": " + ErrnoText(errno));
+  ::unlink(file.where.c_str());
   return file;
 }
 

@@ -33,7 +33,8 @@ class WritebackPacer {
 };
 // A scratch file that has no name, so that a killed process leaves nothing behind: O_TMPFILE in `dir`,
 // or, where the filesystem refuses that, `dir`/`stem`.XXXXXX unlinked as soon as it is created.
-// An empty `dir` means $TMPDIR, else /tmp. `where` is the folder, or the short-lived name, for errors.
+// An empty `dir` means $TMPDIR, else /tmp. `where` names the file in errors: dir/stem.XXXXXX, the X's
+// filled in when it had a name.
 struct UnnamedFile {
   int fd = -1;
   std::string where;

@@ -126,8 +126,9 @@ std::optional<uint64_t> Decimal(std::string_view text) {
 
 bool IsGenerator(const std::string& input) { return input.rfind("tanker:", 0) == 0; }
 
-// "tanker:N[:SEED]" builds straight from the generator, without a scene file.
-Result<SceneOpener> OpenerFor(const std::string& input) {
+// "tanker:N[:SEED]" builds straight from the generator, without a scene file. A scene reader's scratch
+// file goes to `spill_dir`, with the build's.
+Result<SceneOpener> OpenerFor(const std::string& input, const std::string& spill_dir) {
   if (IsGenerator(input)) {
     const std::string_view spec = std::string_view(input).substr(7);
     const size_t colon = spec.find(':');
@@ -143,7 +144,7 @@ Result<SceneOpener> OpenerFor(const std::string& input) {
   }
   // Refused before anything is read (the scene reader would say the same, but only once it got there).
   MKTREE_RETURN_IF_ERROR(storage_internal::CheckInputFile(input));
-  return SceneOpener([input](ObjectId first) { return OpenSceneFile(input, first); });
+  return SceneOpener([input, spill_dir](ObjectId first) { return OpenSceneFile(input, first, spill_dir); });
 }
 
 // The caller's objects as a scene stream: numbered in order, checked as a reader checks a file.
@@ -199,8 +200,9 @@ Result<BuildStats> BuildFromFiles(const std::vector<std::string>& inputs, const 
   MKTREE_ASSIGN_OR_RETURN(IngestOptions opts, ToIngestOptions(options));
   if (inputs.empty()) return Status::InvalidArgument(store_path + ": not built: no input");
   std::vector<SceneOpener> openers;
+  const std::string spill_dir = IngestSpillDir(store_path, opts.spill_dir);
   for (const std::string& in : inputs) {
-    MKTREE_ASSIGN_OR_RETURN(SceneOpener opener, OpenerFor(in));
+    MKTREE_ASSIGN_OR_RETURN(SceneOpener opener, OpenerFor(in, spill_dir));
     openers.push_back(std::move(opener));
   }
   MKTREE_RETURN_IF_ERROR(storage_internal::CheckOutputFile(store_path, inputs));

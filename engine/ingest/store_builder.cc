@@ -42,12 +42,6 @@ constexpr uint64_t kProgressEvery = 1 << 15;
 // gather well, small enough to be a minor part of the memory bound.
 constexpr uint64_t kWindowBytes = 4 << 20;
 
-std::string SpillDir(const std::string& store_path, const std::string& requested) {
-  if (!requested.empty()) return requested;
-  std::filesystem::path parent = std::filesystem::path(store_path).parent_path();
-  return parent.empty() ? std::string(".") : parent.string();
-}
-
 // Boxes rounded by more than this fraction of their object's size draw a warning.
 constexpr double kBoxRoundingWarnFraction = 1.0 / 16;
 
@@ -150,7 +144,7 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
   if (!writer_or.ok()) return writer_or.status();
   StoreWriter& writer = **writer_or;
   const std::string stem = std::filesystem::path(store_path).filename().string();
-  const std::string dir = SpillDir(store_path, options.spill_dir);
+  const std::string dir = IngestSpillDir(store_path, options.spill_dir);
   // Spills of the store's own directory are covered by its lock; a shared spill_dir is not.
   if (options.spill_dir.empty()) RemoveStaleSpills(dir, stem);
   auto geometry_spill = SpillFile::Create(dir, "." + stem + ".geometry-spill");
@@ -499,6 +493,12 @@ static Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& 
   if (::stat(store_path.c_str(), &st) == 0) report.store_bytes = static_cast<uint64_t>(st.st_size);
   report.total_seconds = Seconds(start);
   return report;
+}
+
+std::string IngestSpillDir(const std::string& store_path, const std::string& requested) {
+  if (!requested.empty()) return requested;
+  std::filesystem::path parent = std::filesystem::path(store_path).parent_path();
+  return parent.empty() ? std::string(".") : parent.string();
 }
 
 Result<IngestReport> BuildStore(const std::vector<SceneOpener>& inputs, const std::string& store_path,

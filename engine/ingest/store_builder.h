@@ -74,6 +74,10 @@ struct IngestReport {
 // extent, not of its distance from 0; vertices are in each object's local frame regardless.
 Vec3d ChooseStoreOrigin(const Box3d& first);
 
+// Where a build of `store_path` puts its spill files: `requested` (IngestOptions::spill_dir), or else the
+// store's folder.
+std::string IngestSpillDir(const std::string& store_path, const std::string& requested);
+
 // Reads every input in order, builds the MKtree and writes the store at `store_path`.
 // An empty scene (no object with geometry) is an InvalidArgument error; nothing is left behind.
 Result<IngestReport> BuildStore(const std::vector<SceneOpener>& inputs, const std::string& store_path,

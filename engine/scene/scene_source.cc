@@ -30,10 +30,15 @@ Result<int> OpenSceneInput(const std::string& path) {
   return fd;
 }
 
-Result<std::unique_ptr<SceneSource>> OpenSceneFile(const std::string& path, ObjectId first_id) {
+Result<std::unique_ptr<SceneSource>> OpenSceneFile(const std::string& path, ObjectId first_id,
+                                                   const std::string& spill_dir) {
   std::string ext = std::filesystem::path(path).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
-  if (ext == ".obj") return OpenObjFile(path, first_id);  // streamed; assimp would load it whole
+  if (ext == ".obj") {  // streamed; assimp would load it whole
+    ObjReadOptions options;
+    options.spill_dir = spill_dir;
+    return OpenObjFile(path, first_id, options);
+  }
   if (ext == ".mks") return OpenMkSceneFile(path, first_id);
   return OpenAssimpFile(path, first_id);
 }

@@ -29,6 +29,8 @@ class SceneSource {
 Result<int> OpenSceneInput(const std::string& path);
 
 // Opens `path` by extension: .obj with the streaming OBJ reader; everything else through assimp.
-Result<std::unique_ptr<SceneSource>> OpenSceneFile(const std::string& path, ObjectId first_id = 0);
+// `spill_dir` takes a reader's scratch file (the OBJ vertices past its RAM budget); empty: $TMPDIR or /tmp.
+Result<std::unique_ptr<SceneSource>> OpenSceneFile(const std::string& path, ObjectId first_id = 0,
+                                                   const std::string& spill_dir = "");
 
 }  // namespace mktree

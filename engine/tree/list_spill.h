@@ -51,7 +51,7 @@ class ListSpill {
 
  private:
   int fd_ = -1;
-  std::string where_;  // the directory, for errors
+  std::string where_;  // names the file in errors
   uint32_t n_ = 0;
   std::array<BuildVector<uint32_t>, 6>* lists_ = nullptr;
   void Evict(int l, uint32_t lo, uint32_t hi);

@@ -28,6 +28,7 @@
 
 #include "engine/generator/tanker_generator.h"
 #include "engine/ingest/shard_build.h"
+#include "engine/ingest/store_builder.h"
 #include "engine/scene/mkscene_format.h"
 #include "engine/scene/scene_source.h"
 #include "tools/mpi/mpi_util.h"
@@ -101,7 +102,8 @@ struct Input {
   SceneOpener opener;
 };
 
-Result<Input> InputFor(const std::string& input) {
+// A scene reader's scratch file (OBJ vertices past the reader's budget) goes to `spill_dir`.
+Result<Input> InputFor(const std::string& input, const std::string& spill_dir) {
   Input in;
   if (input.rfind("tanker:", 0) == 0) {
     const std::string spec = input.substr(7);
@@ -112,7 +114,7 @@ Result<Input> InputFor(const std::string& input) {
     in.tanker = true;
     in.opener = [n = in.n, seed = in.seed](ObjectId first) { return MakeTankerSource(n, seed, first); };
   } else {
-    in.opener = [input](ObjectId first) { return OpenSceneFile(input, first); };
+    in.opener = [input, spill_dir](ObjectId first) { return OpenSceneFile(input, first, spill_dir); };
     in.path = input;
     const std::string ext = std::filesystem::path(input).extension().string();
     in.mks = ext.size() == 4 && std::tolower(static_cast<unsigned char>(ext[1])) == 'm' &&
@@ -303,7 +305,7 @@ int RunBuild(int argc, char** argv, int rank, int ranks) {
   std::vector<SceneOpener> openers;
   bool ok = true;
   for (const std::string& in : a.inputs) {
-    auto input = InputFor(in);
+    auto input = InputFor(in, IngestSpillDir(a.output, ""));
     if (!input.ok()) {
       ok = fail(input.status().message());
     } else {
