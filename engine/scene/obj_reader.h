@@ -67,7 +67,7 @@ struct ObjReadOptions {
   size_t chunk_bytes = size_t{1} << 18;
   // Every vertex is kept, as faces may use any earlier one (24 bytes each): this many bytes of the most
   // recent in RAM, older ones in a spill file, read back when a face uses them.
-  size_t vertex_ram_bytes = size_t{512} << 20;
+  size_t vertex_ram_bytes = size_t{64} << 20;
   // Where the spill file goes (unnamed, removed when the reader is); empty: $TMPDIR, else /tmp.
   std::string spill_dir;
 };
