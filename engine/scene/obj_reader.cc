@@ -276,6 +276,7 @@ class ObjReader final : public SceneSource {
   bool Fill(LoadedChunk* c, size_t to) const;
 
   Status ErrorAt(uint64_t line, const std::string& what, bool unterminated = false) const;
+  Status SpillErrorAt(uint64_t line, const Status& st) const;
   Status ChunkError(const ObjChunk& c) const;
   // Resolves refs[0, parts) into face_, adding new vertices to the mesh; EndFace adds the triangles.
   Status AddFace(const int64_t* refs, uint64_t parts, int stride, uint64_t line);
@@ -483,6 +484,11 @@ Status ObjReader::ErrorAt(uint64_t line, const std::string& what, bool untermina
   return Status::Corruption(std::move(msg));
 }
 
+// The vertex spill's failures (all of them I/O) are no fault of the OBJ file: not Corruption.
+Status ObjReader::SpillErrorAt(uint64_t line, const Status& st) const {
+  return Status::IOError(path_ + ":" + std::to_string(line) + ": " + st.message());
+}
+
 Status ObjReader::ChunkError(const ObjChunk& c) const {
   const uint64_t line = base_line_ + c.error_line;
   if (c.error_unsupported)
@@ -500,7 +506,7 @@ Status ObjReader::AddVertices(const ObjChunk& c, const ObjOp& op) {
   }
   for (uint32_t i = 0; i < op.count; ++i) {
     if (Status st = positions_.Push(&c.vertices[vertex_at_ + 3 * size_t{i}]); !st.ok())
-      return ErrorAt(base_line_ + op.line + i, st.message());
+      return SpillErrorAt(base_line_ + op.line + i, st);
   }
   vertex_at_ += 3 * size_t{op.count};
   return Status::Ok();
@@ -527,7 +533,7 @@ Status ObjReader::AddFace(const int64_t* refs, uint64_t parts, int stride, uint6
     uint32_t local = local_of_global_.FindOrInsert(v, static_cast<uint32_t>(mesh_.vertex_count()), &inserted);
     if (inserted) {
       const double* p = positions_.At(v);
-      if (p == nullptr) return ErrorAt(base_line_ + line, positions_.error().message());
+      if (p == nullptr) return SpillErrorAt(base_line_ + line, positions_.error());
       mesh_.vertices.push_back(p[0]);
       mesh_.vertices.push_back(p[1]);
       mesh_.vertices.push_back(p[2]);

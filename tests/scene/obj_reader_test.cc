@@ -2,10 +2,12 @@
 #include "engine/scene/obj_reader.h"
 
 #include <gtest/gtest.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <cctype>
 #include <cmath>
+#include <csignal>
 #include <cstdint>
 #include <cstdlib>
 #include <filesystem>
@@ -239,9 +241,31 @@ TEST(ObjReaderTest, VerticesPastTheRamBudgetAreSpilledAndReadBack) {
   small.spill_dir = (spill.path() / "missing").string();
   auto failed = ReadAllFrom(OpenObjFile(path, 0, small));
   ASSERT_FALSE(failed.ok());
+  EXPECT_EQ(failed.status().code(), Status::Code::kIOError) << failed.status().ToString();
   EXPECT_EQ(failed.status().message().rfind(path + ":", 0), 0u) << failed.status().ToString();
   EXPECT_NE(failed.status().message().find("spill file for the vertices"), std::string::npos)
       << failed.status().ToString();
+
+  // A spill that cannot grow (a full disk; here the file size limit, 1 MiB, under a 1.5 MiB block): an I/O
+  // error naming the OBJ file and the spill.
+  small.spill_dir = spill.path().string();
+  struct sigaction ignore {
+  }, old{};
+  ignore.sa_handler = SIG_IGN;
+  ASSERT_EQ(sigaction(SIGXFSZ, &ignore, &old), 0);
+  rlimit saved{};
+  ASSERT_EQ(getrlimit(RLIMIT_FSIZE, &saved), 0);
+  rlimit limit = saved;
+  limit.rlim_cur = 1 << 20;
+  ASSERT_EQ(setrlimit(RLIMIT_FSIZE, &limit), 0);
+  auto full = ReadAllFrom(OpenObjFile(path, 0, small));
+  setrlimit(RLIMIT_FSIZE, &saved);
+  sigaction(SIGXFSZ, &old, nullptr);
+  ASSERT_FALSE(full.ok());
+  EXPECT_EQ(full.status().code(), Status::Code::kIOError) << full.status().ToString();
+  EXPECT_EQ(full.status().message().rfind(path + ":", 0), 0u) << full.status().ToString();
+  EXPECT_NE(full.status().message().find("vertex spill"), std::string::npos) << full.status().ToString();
+  EXPECT_TRUE(fs::is_empty(spill.path()));
 }
 
 // One mesh whose vertices all come before its faces, past the RAM budget: faces read the spilled vertices
