@@ -116,7 +116,7 @@ StoreWriter::StoreWriter(std::string final_path, std::string temp_path, StoreOpt
       temp_path_(std::move(temp_path)),
       opts_(std::move(opts)),
       backend_(std::move(backend)),
-      pages_(std::make_unique<WriteBehindPageStore>(&backend_->pages())),
+      pages_(std::make_unique<WriteBehindPageStore>(&backend_->pages(), opts_.write_batch_bytes)),
       lock_(std::move(lock)) {}
 
 StoreWriter::~StoreWriter() {
@@ -183,8 +183,8 @@ Status StoreWriter::BeginObjects(uint64_t leaf_pages) {
                                    " declared");
   leaf_pages_ = leaf_pages;
   pages_->SetLimit(leaf_pages);
-  record_pages_ = std::make_unique<WriteBehindPageStore>(&backend_->pages(), leaf_pages,
-                                                         WriteBehindPageStore::kDefaultBatchBytes);
+  record_pages_ =
+      std::make_unique<WriteBehindPageStore>(&backend_->pages(), leaf_pages, opts_.write_batch_bytes);
   WriteBehindPageStore* out = record_pages_.get();
   records_ = std::make_unique<RecordPager>(
       out->page_bytes(), [out](const uint8_t* page) { return out->WritePage(out->page_count(), page); });

@@ -52,6 +52,9 @@ struct StoreOptions {
   bool direct_io = false;            // reads only (see ReadOptions); ignored when writing
   // The writer's system calls (storage/file_ops.h); null: POSIX. Tests inject faults through it.
   FileOps* file_ops = nullptr;
+  // Bytes of consecutive pages the writer gathers into one write (WriteBehindPageStore); tests set one
+  // page, so that a fault can hit each page's write.
+  uint64_t write_batch_bytes = WriteBehindPageStore::kDefaultBatchBytes;
 };
 
 // Thread safety: a StoreWriter is used by one thread, but for AppendObject after BeginObjects (which may
