@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -28,6 +29,7 @@ struct BuildArgs {
   uint32_t split_budget = 64;
   std::string split_policy = "compact";
   uint32_t shards = 0;
+  std::string spill_dir;
   bool quiet = false;
 };
 
@@ -79,6 +81,12 @@ int RunBuild(const BuildArgs& a) {
     files.push_back(in);
   }
   if (Status st = CheckOutputFile(a.output, files); !st.ok()) return Fail(st.message());
+  if (!a.spill_dir.empty()) {
+    std::error_code ec;
+    if (!std::filesystem::is_directory(a.spill_dir, ec))
+      return Fail("--spill-dir " + a.spill_dir + ": not a directory");
+    opts.spill_dir = a.spill_dir;
+  }
   Progress progress(a.quiet);
   opts.progress = [&](BuildStage s, uint64_t done, uint64_t total) {
     progress.Update(BuildStageName(s), done, total);
@@ -136,6 +144,10 @@ void RegisterBuild(CLI::App& app, CommandRun* run) {
       ->capture_default_str();
   AddNumberOption(cmd, "--shards", &args->shards,
                   "Build a sharded store of K shards (docs/shards.md): -o names its manifest; 0: one store");
+  cmd->add_option(
+      "--spill-dir", args->spill_dir,
+      "Folder for the build's temporary files (the scene's geometry and records, the tree's lists, "
+      "OBJ vertices past 64 MiB; unnamed, gone when the build ends); default: the store's folder");
   cmd->add_flag("-q,--quiet", args->quiet, "No progress and no summary");
   cmd->callback([run, args] { *run = [args] { return RunBuild(*args); }; });
 }

@@ -217,6 +217,31 @@ TEST_F(CliTest, BadBuildArgumentsAreRefused) {
   EXPECT_EQ(Files(), std::vector<std::string>{"two.obj"});
 }
 
+// --spill-dir takes the build's temporary files elsewhere: the same store, nothing left in the folder; a
+// folder that is not one is refused before anything is read.
+TEST_F(CliTest, SpillDirHoldsTheBuildsTemporaryFiles) {
+  Write("two.obj", kCube);
+  fs::create_directory(P("spills"));
+  for (const char* backend : {"hdf5", "pagefile"}) {
+    SCOPED_TRACE(backend);
+    const std::string common = "build " + P("two.obj") + " --quiet --backend " + backend;
+    ASSERT_EQ(Mktree(common + " -o " + P("here.mkt")).code, 0);
+    RunResult r = Mktree(common + " -o " + P("there.mkt") + " --spill-dir " + P("spills"));
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_TRUE(fs::is_empty(P("spills")));
+    if (std::string(backend) == "pagefile")
+      EXPECT_EQ(mktree::testing::Slurp(P("here.mkt")), mktree::testing::Slurp(P("there.mkt")));
+    fs::remove(P("here.mkt"));
+    fs::remove(P("there.mkt"));
+  }
+  for (const std::string& bad : {P("missing"), P("two.obj")}) {
+    RunResult r = Mktree("build " + P("two.obj") + " -o " + P("o.mkt") + " --spill-dir " + bad);
+    EXPECT_NE(r.code, 0);
+    EXPECT_NE(r.err.find("--spill-dir " + bad + ": not a directory"), std::string::npos) << r.err;
+  }
+  EXPECT_EQ(Files(), (std::vector<std::string>{"spills", "two.obj"}));
+}
+
 TEST_F(CliTest, BadQueriesNameFileAndLine) {
   Write("two.obj", kCube);
   ASSERT_EQ(Mktree("build " + P("two.obj") + " -o " + P("two.mkt") + " --quiet").code, 0);
