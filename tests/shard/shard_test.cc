@@ -232,7 +232,7 @@ TEST_P(RealScenes, AnswerAsTheUnshardedStoreAndBruteForce) {
   for (uint32_t k = 1; k <= 4; ++k) {
     SCOPED_TRACE("shards " + std::to_string(k));
     o.shards = k;
-    const std::string path = (dir.path() / ("s" + std::to_string(k) + ".mkts")).string();
+    const std::string path = (dir.path() / (std::string("s") + std::to_string(k) + ".mkts")).string();
     auto built = BuildFromFiles({file}, path, o);
     ASSERT_TRUE(built.ok()) << built.status().ToString();
     auto sharded = Database::Open(path);
