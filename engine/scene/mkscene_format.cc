@@ -23,7 +23,6 @@ constexpr uint32_t kObjectTag = 0x424f4b4d;  // "MKOB" in file order
 constexpr uint32_t kEndTag = 0x4e454b4d;     // "MKEN" in file order
 constexpr size_t kHeaderBytes = 16;
 constexpr size_t kEndBytes = 24;
-constexpr size_t kIoBufferBytes = 1 << 20;
 
 std::string ErrnoText() { return std::strerror(errno); }
 
@@ -80,20 +79,73 @@ void LoadArray(const uint8_t* p, size_t count, std::vector<T>* out) {
   }
 }
 
+// Positional reads of an .mks file through a window of it (1 MiB): walking small records reads each byte
+// once, a large record is skipped or read straight into place. pread, not stdio: stdio read the file a
+// block a call (glibc's setvbuf without a caller's buffer keeps the block size). Closes the file.
+class WindowReader {
+ public:
+  static constexpr size_t kWindow = size_t{1} << 20;
+  WindowReader(std::string path, std::FILE* f, uint64_t size) : path_(std::move(path)), f_(f), size_(size) {}
+  WindowReader(const WindowReader&) = delete;
+  WindowReader& operator=(const WindowReader&) = delete;
+  ~WindowReader() { std::fclose(f_); }
+  uint64_t size() const { return size_; }
+  // n bytes at `offset`, valid until the next call (the window grows to n if it must).
+  Result<const uint8_t*> At(uint64_t offset, size_t n) {
+    if (offset < begin_ || offset + n > begin_ + buf_.size()) {
+      if (offset > size_ || n > size_ - offset)
+        return Status::Corruption(path_ + ": truncated at offset " + std::to_string(offset));
+      MKTREE_RETURN_IF_ERROR(
+          Fill(offset, std::max<uint64_t>(n, std::min<uint64_t>(kWindow, size_ - offset))));
+    }
+    return buf_.data() + (offset - begin_);
+  }
+  // Copies n bytes at `offset` to `dst`. REQUIRES offset + n <= size() (the caller says which record is
+  // short). An end of file here means the file shrank after it was opened: an IOError.
+  Status Read(uint64_t offset, size_t n, uint8_t* dst) {
+    while (n > 0) {
+      if (offset >= begin_ && offset - begin_ < buf_.size()) {
+        const size_t k = static_cast<size_t>(std::min<uint64_t>(n, buf_.size() - (offset - begin_)));
+        std::memcpy(dst, buf_.data() + (offset - begin_), k);
+        dst += k;
+        offset += k;
+        n -= k;
+        continue;
+      }
+      if (n >= kWindow) return storage_internal::PreadFull(::fileno(f_), dst, n, offset, path_);
+      MKTREE_RETURN_IF_ERROR(Fill(offset, std::min<uint64_t>(kWindow, size_ - offset)));
+    }
+    return Status::Ok();
+  }
+
+ private:
+  Status Fill(uint64_t offset, uint64_t bytes) {
+    buf_.resize(static_cast<size_t>(bytes));
+    begin_ = offset;
+    Status st = storage_internal::PreadFull(::fileno(f_), buf_.data(), buf_.size(), offset, path_);
+    if (!st.ok()) buf_.clear();
+    return st;
+  }
+
+  const std::string path_;
+  std::FILE* const f_;
+  const uint64_t size_;
+  uint64_t begin_ = 0;
+  std::vector<uint8_t> buf_;
+};
+
 class MkSceneSource final : public SceneSource {
  public:
   MkSceneSource(std::string path, std::FILE* file, uint64_t file_size, ObjectId first_id, uint32_t version,
                 uint64_t begin = kHeaderBytes, uint64_t first_index = 0, uint64_t limit = UINT64_MAX)
       : path_(std::move(path)),
-        file_(file),
+        file_(path_, file, file_size),
         file_size_(file_size),
         first_id_(first_id),
         coordinate_bytes_(version == 1 ? 4 : 8),
         offset_(begin),
         first_index_(first_index),
         limit_(limit) {}
-  ~MkSceneSource() override { std::fclose(file_); }
-
   Result<bool> Next(SceneObject* out) override {
     if (done_) return false;
     if (failed_) return Status::Internal(path_ + ": Next() after an error");
@@ -108,9 +160,7 @@ class MkSceneSource final : public SceneSource {
                               std::to_string(offset_) + "): " + what);
   }
 
-  // Reads `n` more bytes of the current record into record_, through a window of the file read with
-  // pread: stdio read the file a block a call (glibc's setvbuf without a caller's buffer keeps the
-  // block size).
+  // Reads `n` more bytes of the current record into record_.
   Status Read(size_t n) {
     const uint64_t have = offset_ + record_.size();
     if (n > file_size_ - have)
@@ -119,37 +169,7 @@ class MkSceneSource final : public SceneSource {
                      std::to_string(file_size_ - have) + " left");
     const size_t at = record_.size();
     record_.resize(at + n);
-    uint8_t* dst = record_.data() + at;
-    uint64_t pos = have;
-    while (n > 0) {
-      if (pos >= window_begin_ && pos - window_begin_ < window_.size()) {
-        const size_t k = static_cast<size_t>(std::min<uint64_t>(n, window_.size() - (pos - window_begin_)));
-        std::memcpy(dst, window_.data() + (pos - window_begin_), k);
-        dst += k;
-        pos += k;
-        n -= k;
-        continue;
-      }
-      // A window at pos, or a record part as large as a window straight into place.
-      const bool direct = n >= kIoBufferBytes;
-      if (!direct) {
-        window_.resize(static_cast<size_t>(std::min<uint64_t>(kIoBufferBytes, file_size_ - pos)));
-        window_begin_ = pos;
-      }
-      // An end of file here means the file shrank after it was opened (its size was checked): an IOError.
-      if (Status st = storage_internal::PreadFull(::fileno(file_), direct ? dst : window_.data(),
-                                                  direct ? n : window_.size(), pos, path_);
-          !st.ok()) {
-        window_.clear();
-        return st;
-      }
-      if (direct) {
-        dst += n;
-        pos += n;
-        n = 0;
-      }
-    }
-    return Status::Ok();
+    return file_.Read(have, n, record_.data() + at);
   }
 
   Result<bool> ReadRecord(SceneObject* out) {
@@ -216,7 +236,7 @@ class MkSceneSource final : public SceneSource {
   }
 
   const std::string path_;
-  std::FILE* const file_;
+  WindowReader file_;
   const uint64_t file_size_;
   const ObjectId first_id_;
   const uint64_t coordinate_bytes_;  // 4 (version 1) or 8
@@ -227,9 +247,7 @@ class MkSceneSource final : public SceneSource {
   bool done_ = false;
   bool failed_ = false;
   std::vector<uint8_t> record_;
-  std::vector<float> floats_;    // version 1 coordinates
-  std::vector<uint8_t> window_;  // the file's bytes from window_begin_ (Read)
-  uint64_t window_begin_ = 0;
+  std::vector<float> floats_;  // version 1 coordinates
 };
 
 }  // namespace
@@ -274,37 +292,6 @@ Result<OpenedScene> OpenScene(const std::string& path) {
   }
   return OpenedScene{f, static_cast<uint64_t>(st.st_size), Load<uint32_t>(header + 8)};
 }
-
-// Positional reads through a window of the file: walking small records reads each byte once, a large
-// record is skipped.
-class WindowReader {
- public:
-  static constexpr size_t kWindow = size_t{1} << 20;
-  WindowReader(const std::string& path, std::FILE* f, uint64_t size) : path_(path), f_(f), size_(size) {}
-  ~WindowReader() { std::fclose(f_); }
-  // n <= kWindow bytes at `offset`, valid until the next call.
-  Result<const uint8_t*> At(uint64_t offset, size_t n) {
-    if (offset < begin_ || offset + n > begin_ + buf_.size()) {
-      if (offset > size_ || n > size_ - offset)
-        return Status::Corruption(path_ + ": truncated at offset " + std::to_string(offset));
-      buf_.resize(std::max<uint64_t>(n, std::min<uint64_t>(kWindow, size_ - offset)));
-      begin_ = offset;
-      if (Status st = storage_internal::PreadFull(::fileno(f_), buf_.data(), buf_.size(), offset, path_);
-          !st.ok()) {
-        buf_.clear();
-        return st;
-      }
-    }
-    return buf_.data() + (offset - begin_);
-  }
-
- private:
-  const std::string& path_;
-  std::FILE* f_;
-  uint64_t size_;
-  uint64_t begin_ = 0;
-  std::vector<uint8_t> buf_;
-};
 
 // The size of the record at `p` from its header, or 0 when it is not an object record (wrong tag, or
 // lengths that run past `limit`).
