@@ -1,6 +1,5 @@
 #include "engine/ingest/spill_file.h"
 
-#include <fcntl.h>
 #include <sys/uio.h>
 #include <unistd.h>
 

@@ -1,10 +1,8 @@
 #include "engine/tree/list_spill.h"
 
-#include <fcntl.h>
 #include <unistd.h>
 
 #include <cerrno>
-#include <cstdlib>
 #include <cstring>
 #include <vector>
 
