@@ -19,6 +19,21 @@ class [[nodiscard]] Status {
   enum class Code { kOk = 0, kInvalidArgument, kNotFound, kCorruption, kIOError, kUnsupported, kInternal };
 
   Status() = default;
+  // An ok Status has no message: copying one (MKTREE_RETURN_IF_ERROR on a named Status, once per query)
+  // copies no string.
+  Status(const Status& o) : code_(o.code_) {
+    if (o.code_ != Code::kOk) message_ = o.message_;
+  }
+  Status& operator=(const Status& o) {
+    code_ = o.code_;
+    if (o.code_ != Code::kOk)
+      message_ = o.message_;
+    else
+      message_.clear();
+    return *this;
+  }
+  Status(Status&&) noexcept = default;
+  Status& operator=(Status&&) noexcept = default;
   static Status Ok() { return Status(); }
   static Status InvalidArgument(std::string msg) { return Status(Code::kInvalidArgument, std::move(msg)); }
   static Status NotFound(std::string msg) { return Status(Code::kNotFound, std::move(msg)); }

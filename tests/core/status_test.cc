@@ -67,5 +67,26 @@ TEST(StatusTest, ReturnIfErrorPassesTheFirstErrorOn) {
   EXPECT_EQ(Chain("3").code(), Status::Code::kInternal);
 }
 
+// Status copies only a failure's message (an ok one has none); copies and assignments keep code and text.
+TEST(StatusTest, CopiesAndAssignmentsKeepCodeAndMessage) {
+  const Status failed = Status::IOError("store.mkt: page 3: short read");
+  Status copy(failed);
+  EXPECT_EQ(copy.ToString(), "I/O error: store.mkt: page 3: short read");
+  Status assigned = Status::Ok();
+  assigned = failed;
+  EXPECT_EQ(assigned.code(), Status::Code::kIOError);
+  EXPECT_EQ(assigned.message(), failed.message());
+  assigned = Status::Ok();  // an ok Status over a failed one leaves no message behind
+  EXPECT_TRUE(assigned.ok());
+  EXPECT_EQ(assigned.message(), "");
+  EXPECT_EQ(assigned.ToString(), "ok");
+  Status self = failed;
+  const Status& alias = self;
+  self = alias;
+  EXPECT_EQ(self.message(), failed.message());
+  Status moved(std::move(copy));
+  EXPECT_EQ(moved.message(), failed.message());
+}
+
 }  // namespace
 }  // namespace mktree
