@@ -147,7 +147,7 @@ void RegisterBuild(CLI::App& app, CommandRun* run) {
   cmd->add_option(
       "--spill-dir", args->spill_dir,
       "Folder for the build's temporary files (the scene's geometry and records, the tree's lists, "
-      "OBJ vertices past 64 MiB; unnamed, gone when the build ends); default: the store's folder");
+      "the OBJ reader's older vertices; unnamed, gone when the build ends); default: the store's folder");
   cmd->add_flag("-q,--quiet", args->quiet, "No progress and no summary");
   cmd->callback([run, args] { *run = [args] { return RunBuild(*args); }; });
 }
