@@ -430,6 +430,9 @@ TouchObject TouchOf(const Impl& x, NarrowStats* st) {
   return {&x.mesh, &x.Hierarchy(st), &x.kdop, x.projection_slack, x.solid() ? &x.Classifier(st) : nullptr};
 }
 
+double TranslationDepthBound(const Impl& a, const Impl& b, const Vec3d* ta, const Vec3d* tb, double enough,
+                             double lower, NarrowStats* st);
+
 // `ta`, `tb`: a meeting triangle of each when the surfaces meet; null for containment (a component inside
 // the other: no certificate can hold).
 void SetDepth(const Impl& a, const Impl& b, double gap, double enough, const Vec3d* ta, const Vec3d* tb,
@@ -475,7 +478,9 @@ void SetDepth(const Impl& a, const Impl& b, double gap, double enough, const Vec
   if (!a.solid() || !b.solid()) {  // a surface has no inside: depth_lower stays 0
     // Only the cheap planes: on the real scenes the undecided surface pairs are terrain crossing
     // buildings, where the search finds nothing and costs as much as the rest of the narrow phase.
-    if (undecided) certify(TouchStage::kCheap);
+    if (undecided && !certify(TouchStage::kCheap) && std::isfinite(enough) && r->depth_upper > enough && ta &&
+        tb)
+      r->depth_upper = std::min(r->depth_upper, TranslationDepthBound(a, b, ta, tb, enough, 0, st));
     r->distance = -r->depth_upper;
     return;
   }
@@ -486,12 +491,16 @@ void SetDepth(const Impl& a, const Impl& b, double gap, double enough, const Vec
   lower = DeepestEdgePoint(a, b, lower, stop, st);
   lower = DeepestEdgePoint(b, a, lower, stop, st);
   if (undecided && lower == 0 && certify_undecided()) return;
+  // Still undecided (no point deeper than `enough`, no certificate of 0): a short translation may part them.
+  if (std::isfinite(enough) && lower <= enough && r->depth_upper > enough && ta && tb)
+    r->depth_upper = std::min(r->depth_upper, TranslationDepthBound(a, b, ta, tb, enough, lower, st));
   r->distance = -r->depth_upper;
   r->depth_lower = std::min(lower, r->depth_upper);
 }
 
-// A vertex of some component of solid `x` inside solid `y`, when no triangles meet.
-bool ComponentInside(const Impl& x, const Impl& y, Vec3d* point, NarrowStats* st) {
+// A vertex of some component of solid `x` (moved by `shift`) inside solid `y`, when no triangles meet.
+bool ComponentInside(const Impl& x, const Impl& y, Vec3d* point, NarrowStats* st,
+                     const Vec3d& shift = {0, 0, 0}) {
   // The classifier counts points within its tolerance of y's surface as inside; such a point decides
   // nothing here (no triangles meet, so it may lie just outside), and a vertex clear of it is used.
   const SolidClassifier& cy = y.Classifier(st);
@@ -499,8 +508,12 @@ bool ComponentInside(const Impl& x, const Impl& y, Vec3d* point, NarrowStats* st
   x.BuildVertexLists();
   const double tol2 = 4 * cy.tolerance() * cy.tolerance();
   bool unsure = false;
+  auto moved = [&](size_t i) {
+    const Vec3d v = VertexAt(x.mesh, i);
+    return Vec3d{v.x + shift.x, v.y + shift.y, v.z + shift.z};
+  };
   for (uint32_t v : x.vertex_lists->component) {
-    const Vec3d p = VertexAt(x.mesh, v);
+    const Vec3d p = moved(v);
     if (!y.kdop.Contains(p)) continue;
     ++st->containment_tests;
     if (!cy.Contains(p)) continue;
@@ -512,7 +525,7 @@ bool ComponentInside(const Impl& x, const Impl& y, Vec3d* point, NarrowStats* st
   }
   if (!unsure) return false;
   for (size_t i = 0; i < x.mesh.vertex_count(); ++i) {  // rare: any vertex of x clear of y's surface
-    const Vec3d p = VertexAt(x.mesh, i);
+    const Vec3d p = moved(i);
     if (!y.kdop.Contains(p) || hy.PointDistanceSquared(p, tol2) <= tol2) continue;
     ++st->containment_tests;
     if (cy.Contains(p)) {
@@ -521,6 +534,82 @@ bool ComponentInside(const Impl& x, const Impl& y, Vec3d* point, NarrowStats* st
     }
   }
   return false;
+}
+
+// Do solids a, moved by t, and b not meet at all? The moved copy's vertices are a's plus t rounded, so
+// its surfaces must keep a gap that rounding cannot close, and wider than twice either classifier's
+// tolerance, so that the containment tests (a's vertices plus t against b, b's minus t against a, with
+// the classifiers a and b already have) meet no vertex on the other's surface. The copy's hierarchy is
+// a's, shifted.
+bool ApartWhenMoved(const Impl& a, const Impl& b, const Vec3d& t, NarrowStats* st) {
+  const TriangleHierarchy& ha = a.Hierarchy(st);
+  const TriangleHierarchy& hb = b.Hierarchy(st);
+  // Most directions that part the meeting triangles still leave others meeting: found without a copy.
+  if (TriangleHierarchy::FindMeetingMoved(ha, t, hb, &st->triangle_tests)) return false;
+  thread_local Mesh moved;
+  moved.vertices.resize(a.mesh.vertices.size());
+  for (size_t i = 0; i < moved.vertices.size(); i += 3) {
+    moved.vertices[i] = a.mesh.vertices[i] + t.x;
+    moved.vertices[i + 1] = a.mesh.vertices[i + 1] + t.y;
+    moved.vertices[i + 2] = a.mesh.vertices[i + 2] + t.z;
+  }
+  moved.triangles = a.mesh.triangles;
+  const TriangleHierarchy hm(ha, moved, t);
+  // A surface has no inside (and one lying in a solid does not meet it): only two solids test containment.
+  const bool solids = a.solid() && b.solid();
+  const double tolerance = solids ? std::max(a.Classifier(st).tolerance(), b.Classifier(st).tolerance()) : 0;
+  const double slack = a.projection_slack + b.projection_slack +
+                       48 * DBL_EPSILON * (std::fabs(t.x) + std::fabs(t.y) + std::fabs(t.z));
+  const double need = std::max(2 * tolerance, slack);
+  ClosestPoints c;
+  Vec3d p;
+  return !TriangleHierarchy::ClosestBelow(hm, hb, need, &c, &st->triangle_tests) &&
+         (!solids ||
+          (!ComponentInside(a, b, &p, st, t) && !ComponentInside(b, a, &p, st, {-t.x, -t.y, -t.z})));
+}
+
+// The translation certificate (docs/clash.md section 2): when a moved by some t with |t| <= enough meets
+// b nowhere, the depth is at most |t|. It decides members that touch but whose stored vertices cross by
+// rounding, and overlaps shallower than T, where no plane separates the whole objects (a plate in the
+// corner of an angle). Tried along the meeting triangles' normals and the 26-DOP's directions, both ways,
+// at just under `enough`; then shorter along the direction that worked, down to `lower`. Returns the
+// shortest length that worked, rounded up, or +infinity.
+double TranslationDepthBound(const Impl& a, const Impl& b, const Vec3d* ta, const Vec3d* tb, double enough,
+                             double lower, NarrowStats* st) {
+  std::array<Vec3d, 2 + kKdopDirections> dirs;
+  size_t n = 0;
+  for (const Vec3d* tri : {ta, tb}) {
+    const Vec3d u{tri[1].x - tri[0].x, tri[1].y - tri[0].y, tri[1].z - tri[0].z};
+    const Vec3d v{tri[2].x - tri[0].x, tri[2].y - tri[0].y, tri[2].z - tri[0].z};
+    const Vec3d c{u.y * v.z - u.z * v.y, u.z * v.x - u.x * v.z, u.x * v.y - u.y * v.x};
+    const double len = std::sqrt(c.x * c.x + c.y * c.y + c.z * c.z);
+    if (len > 0 && std::isfinite(len)) dirs[n++] = {c.x / len, c.y / len, c.z / len};
+  }
+  for (int k = 0; k < kKdopDirections; ++k) {
+    const double s = kKdopInverseLength[k];
+    dirs[n++] = {kKdopAxes[k][0] * s, kKdopAxes[k][1] * s, kKdopAxes[k][2] * s};
+  }
+  // A unit direction's length is 1 within a few ulp: lengths are tried a little short and reported up.
+  constexpr double kShort = 1 - 1e-6, kUp = 1 + 1e-9;
+  double length = enough * kShort;
+  for (size_t k = 0; k < 2 * n; ++k) {
+    const Vec3d d = k % 2 == 0 ? dirs[k / 2] : Vec3d{-dirs[k / 2].x, -dirs[k / 2].y, -dirs[k / 2].z};
+    auto along = [&](double len) { return Vec3d{d.x * len, d.y * len, d.z * len}; };
+    // Most directions leave the meeting triangles meeting: one test rules them out.
+    const Vec3d t = along(length);
+    const Vec3d moved[3] = {{ta[0].x + t.x, ta[0].y + t.y, ta[0].z + t.z},
+                            {ta[1].x + t.x, ta[1].y + t.y, ta[1].z + t.z},
+                            {ta[2].x + t.x, ta[2].y + t.y, ta[2].z + t.z}};
+    ++st->triangle_tests;
+    if (TrianglesMeet(moved, tb) || !ApartWhenMoved(a, b, t, st)) continue;
+    for (int step = 0; step < 4; ++step) {
+      const double shorter = length / 8;
+      if (shorter <= lower || !ApartWhenMoved(a, b, along(shorter), st)) break;
+      length = shorter;
+    }
+    return length * kUp;
+  }
+  return std::numeric_limits<double>::infinity();
 }
 
 }  // namespace

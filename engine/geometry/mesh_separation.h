@@ -18,7 +18,9 @@
 // largest distance to the other's surface of a point of one solid's surface inside the other solid (vertices,
 // and edge points between the other surface's crossings; 0 when none is inside, or when either is a surface),
 // clamped to depth_upper. A touch certificate (engine/geometry/touch_certificate.h: a plane weakly
-// separating the vertex sets, or a convex piece the other's surface misses) makes both 0, exactly.
+// separating the vertex sets, or a convex piece the other's surface misses) makes both 0, exactly. With a
+// finite depth_lower_enough, a pair still undecided gets the translation certificate: a translation no
+// longer than it after which the two meet nowhere bounds depth_upper (docs/clash.md section 2).
 //
 // Thread-safety: a ClashShape may be shared by threads; its lazily built parts are built once
 // (std::call_once) and the same whichever thread builds them. Separate is a pure function of its
@@ -141,7 +143,8 @@ struct SeparateOptions {
   // Stop raising depth_lower once it exceeds this: a caller that only needs to know whether the depth
   // exceeds the touch tolerance T passes T (the pair is then hard, and the search for deeper points,
   // the costliest part of a meeting pair, ends). depth_lower is then still a valid lower bound, but may
-  // depend on the order of the arguments.
+  // depend on the order of the arguments. A pair whose bounds straddle it tries the translation
+  // certificate, which may lower depth_upper to at most this (also depending on the order).
   double depth_lower_enough = std::numeric_limits<double>::infinity();
 };
 Separation Separate(const ClashShape& a, const ClashShape& b, double max_distance, NarrowStats* stats,

@@ -39,6 +39,20 @@ double BoxDistanceSquared(const Box3d& a, const Box3d& b) {
   return d2;
 }
 
+TriangleHierarchy::TriangleHierarchy(const TriangleHierarchy& base, const Mesh& moved, const Vec3d& shift)
+    : nodes_(base.nodes_),
+      vertices_(moved.vertices.data()),
+      triangles_(moved.triangles.data()),
+      mesh_index_(base.mesh_index_) {
+  const double s[3] = {shift.x, shift.y, shift.z};
+  for (Node& n : nodes_) {
+    for (int k = 0; k < 3; ++k) {
+      n.box.min[k] += s[k];
+      n.box.max[k] += s[k];
+    }
+  }
+}
+
 TriangleHierarchy::TriangleHierarchy(const Mesh& mesh)
     : vertices_(mesh.vertices.data()), triangles_(mesh.triangles.data()) {
   const size_t n = mesh.triangle_count();
@@ -165,9 +179,34 @@ bool OpenA(const TriangleHierarchy::Node& na, const TriangleHierarchy::Node& nb)
 
 }  // namespace
 
-bool TriangleHierarchy::FindMeeting(const TriangleHierarchy& a, const TriangleHierarchy& b, Pair* found,
-                                    uint64_t* tests) {
-  if (a.nodes_.empty() || b.nodes_.empty()) return false;
+namespace {
+
+// FindMeeting's walk; kMoved: a's corners and boxes plus `shift` (each sum rounded as a moved copy's).
+template <bool kMoved>
+bool FindMeetingWalk(const TriangleHierarchy& a, const TriangleHierarchy& b, const Vec3d& shift,
+                     TriangleHierarchy::Pair* found, uint64_t* tests) {
+  using Node = TriangleHierarchy::Node;
+  using Triangle = TriangleHierarchy::Triangle;
+  constexpr uint32_t kLeaf = TriangleHierarchy::kLeafTriangles;
+  const std::vector<Node>& an = a.nodes();
+  const std::vector<Node>& bn = b.nodes();
+  if (an.empty() || bn.empty()) return false;
+  const double sh[3] = {shift.x, shift.y, shift.z};
+  auto box_of_a = [&](const Node& n) {
+    if constexpr (!kMoved) return n.box;
+    Box3d m = n.box;
+    for (int k = 0; k < 3; ++k) {
+      m.min[k] += sh[k];
+      m.max[k] += sh[k];
+    }
+    return m;
+  };
+  auto triangle_of_a = [&](uint32_t i) {
+    Triangle t = a.triangle(i);
+    if constexpr (kMoved)
+      for (Vec3d& v : t) v = {v.x + shift.x, v.y + shift.y, v.z + shift.z};
+    return t;
+  };
   uint64_t n_tests = 0;
   bool met = false;
   thread_local std::vector<NodePair> stack;  // per thread: no allocation per query
@@ -176,17 +215,17 @@ bool TriangleHierarchy::FindMeeting(const TriangleHierarchy& a, const TriangleHi
   while (!stack.empty() && !met) {
     const NodePair p = stack.back();
     stack.pop_back();
-    const Node& na = a.nodes_[p.a];
-    const Node& nb = b.nodes_[p.b];
-    if (!BoxesMeet(na.box, nb.box)) continue;
+    const Node& na = an[p.a];
+    const Node& nb = bn[p.b];
+    if (!BoxesMeet(box_of_a(na), nb.box)) continue;
     if (na.leaf() && nb.leaf()) {
       // b's triangles and boxes once per leaf pair, not once per triangle of a (the same tests in the
       // same order).
-      std::array<Triangle, kLeafTriangles> tb;
-      std::array<Box3d, kLeafTriangles> boxes_b;
+      std::array<Triangle, kLeaf> tb;
+      std::array<Box3d, kLeaf> boxes_b;
       uint32_t nb_ready = 0;
       for (uint32_t i = na.first; i < na.first + na.count && !met; ++i) {
-        const Triangle ti = a.triangle(i);
+        const Triangle ti = triangle_of_a(i);
         const Box3d bi = TriangleBox(ti);
         if (!BoxesMeet(bi, nb.box)) continue;
         for (; nb_ready < nb.count; ++nb_ready) {
@@ -213,6 +252,19 @@ bool TriangleHierarchy::FindMeeting(const TriangleHierarchy& a, const TriangleHi
   }
   if (tests) *tests += n_tests;
   return met;
+}
+
+}  // namespace
+
+bool TriangleHierarchy::FindMeeting(const TriangleHierarchy& a, const TriangleHierarchy& b, Pair* found,
+                                    uint64_t* tests) {
+  return FindMeetingWalk<false>(a, b, Vec3d{0, 0, 0}, found, tests);
+}
+
+bool TriangleHierarchy::FindMeetingMoved(const TriangleHierarchy& a, const Vec3d& shift,
+                                         const TriangleHierarchy& b, uint64_t* tests) {
+  Pair found;
+  return FindMeetingWalk<true>(a, b, shift, &found, tests);
 }
 
 bool TriangleHierarchy::ClosestBelow(const TriangleHierarchy& a, const TriangleHierarchy& b, double bound,

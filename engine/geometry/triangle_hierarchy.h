@@ -32,6 +32,10 @@ class TriangleHierarchy {
   // REQUIRES: every triangle index < mesh.vertex_count(); the mesh's vertices outlive the hierarchy
   // unchanged (it reads them).
   explicit TriangleHierarchy(const Mesh& mesh);
+  // The hierarchy of `moved`, a copy of base's mesh with every vertex coordinate plus shift (each sum
+  // rounded): base's tree with its boxes shifted the same way. Rounded addition is monotonic, so the
+  // shifted boxes still hold the moved corners. REQUIRES: moved's triangles are base's mesh's.
+  TriangleHierarchy(const TriangleHierarchy& base, const Mesh& moved, const Vec3d& shift);
 
   using Triangle = std::array<Vec3d, 3>;
   struct Node {
@@ -57,6 +61,10 @@ class TriangleHierarchy {
   // A meeting triangle pair, or false. `tests` (may be null) counts exact triangle tests.
   static bool FindMeeting(const TriangleHierarchy& a, const TriangleHierarchy& b, Pair* found,
                           uint64_t* tests);
+  // The same for a's mesh with every vertex coordinate plus `shift` (each sum rounded, as in a moved copy),
+  // without making the copy: for trying translations.
+  static bool FindMeetingMoved(const TriangleHierarchy& a, const Vec3d& shift, const TriangleHierarchy& b,
+                               uint64_t* tests);
 
   // The closest triangle pair at distance < `bound` (> 0), or false when every pair is at >= bound.
   // REQUIRES: no triangle pair meets (the exact meeting test is skipped). `tests` counts distance tests.

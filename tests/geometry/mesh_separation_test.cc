@@ -16,6 +16,7 @@
 #include "engine/geometry/triangle_pair.h"
 #include "geometry/mesh_files.h"
 #include "geometry/test_meshes.h"
+#include "geometry/touch_meshes.h"
 
 namespace mktree {
 namespace {
@@ -422,6 +423,101 @@ TEST(Separate, DepthBoundsHoldForOverlappingBoxes) {
     }
   }
   EXPECT_GT(exact, 10);  // a box corner deep inside the other makes the lower bound exact too
+}
+
+// An L-shaped prism (arms 1 thick, 10 long, z in [0, 1]) and a box in its inner corner pushed px into
+// the upright arm and py into the lying one. No plane parts them and the projections overlap by 0.8 at
+// least (the box can leave upward), but moving the box by (px, py) does: the depth is hypot(px, py).
+struct CornerPair {
+  Mesh l, box;
+};
+CornerPair BoxInCorner(double px, double py) {
+  CornerPair c;
+  c.l = testing::Prism({{0, 0}, {10, 0}, {10, 1}, {1, 1}, {1, 10}, {0, 10}}, testing::Fan(6), 0, 1);
+  c.box = testing::Box({1 - px, 1 - py, 0.2}, {3, 3, 0.8});
+  return c;
+}
+
+// The translation certificate: a box touching the corner (its vertices crossing by 1e-7, as float32
+// rounding leaves touching members) is a touch at T = 2 mm, though no plane and no projection shows it.
+TEST(Separate, TranslationCertificateDecidesACornerTouch) {
+  const CornerPair c = BoxInCorner(1e-7, 1e-7);
+  const ClashShape l(c.l), box(c.box);
+  ASSERT_TRUE(l.solid() && box.solid());
+  SeparateOptions t;
+  t.depth_lower_enough = 0.002;
+  for (const auto& [x, y] : {std::pair{&l, &box}, std::pair{&box, &l}}) {
+    NarrowStats st;
+    const Separation r = Separate(*x, *y, 0, &st, t);
+    ASSERT_EQ(r.meeting, Meeting::kSurfacesMeet);
+    EXPECT_GT(r.depth_lower, 0);
+    EXPECT_LE(r.depth_lower, std::hypot(1e-7, 1e-7) + 1e-12);
+    EXPECT_GE(r.depth_upper, std::hypot(1e-7, 1e-7));  // an upper bound on the true depth
+    EXPECT_LE(r.depth_upper, 1e-6);                    // shortened along the diagonal that parted them
+    EXPECT_EQ(r.distance, -r.depth_upper);
+    EXPECT_LE(st.hierarchies_built, 2u);  // the moved copies' hierarchies are not the objects' parts
+  }
+  // Without a finite `enough` nothing asks the class: the projection bound stays.
+  const Separation plain = Separate(l, box, 0, nullptr);
+  EXPECT_GE(plain.depth_upper, 0.8 - 1e-12);
+  EXPECT_EQ(plain.meeting, Meeting::kSurfacesMeet);
+}
+
+// The same with the L as a surface (one cap triangle left out: open): a surface has no inside, so only
+// its triangles must part, and the translation decides it too.
+TEST(Separate, TranslationCertificateDecidesASurfaceInACorner) {
+  CornerPair c = BoxInCorner(1e-7, 1e-7);
+  c.l.triangles.resize(c.l.triangles.size() - 3);
+  const ClashShape l(c.l), box(c.box);
+  ASSERT_FALSE(l.solid());
+  SeparateOptions t;
+  t.depth_lower_enough = 0.002;
+  const Separation r = Separate(box, l, 0, nullptr, t);
+  ASSERT_EQ(r.meeting, Meeting::kSurfacesMeet);
+  EXPECT_EQ(r.depth_lower, 0);
+  EXPECT_GE(r.depth_upper, std::hypot(1e-7, 1e-7));
+  EXPECT_LE(r.depth_upper, 1e-6);
+  // 5 mm into both arms: no translation of 2 mm parts them.
+  CornerPair deep = BoxInCorner(0.005, 0.005);
+  deep.l.triangles.resize(deep.l.triangles.size() - 3);
+  const ClashShape dl(deep.l), dbox(deep.box);
+  EXPECT_GT(Separate(dbox, dl, 0, nullptr, t).depth_upper, 0.002);
+}
+
+// Never a touch deeper than T: over pushes on both sides of T the certificate says touch only where the
+// true depth hypot(px, py) is at most T, and every depth_upper bounds the true depth.
+TEST(Separate, TranslationCertificateNeverHidesAClash) {
+  constexpr double kT = 0.002;
+  SeparateOptions t;
+  t.depth_lower_enough = kT;
+  std::mt19937_64 rng(36);
+  std::uniform_real_distribution<double> push(0, 2.5 * kT);
+  int touches = 0, hard = 0;
+  for (int i = 0; i < 60; ++i) {
+    // The first four: one side only, or both at 0.7 T (parted only along the diagonal).
+    const double px = i < 4 ? (i & 1 ? 0.0 : kT * 0.7) : push(rng);
+    const double py = i < 4 ? (i & 2 ? 0.0 : kT * 0.7) : push(rng);
+    if (px == 0 && py == 0) continue;
+    const CornerPair c = BoxInCorner(px, py);
+    const ClashShape l(c.l), box(c.box);
+    const double depth = std::hypot(px, py);
+    const Separation r = Separate(box, l, 0, nullptr, t);
+    ASSERT_EQ(r.meeting, Meeting::kSurfacesMeet) << px << " " << py;
+    EXPECT_GE(r.depth_upper, depth * (1 - 1e-9)) << px << " " << py;
+    EXPECT_LE(r.depth_lower, depth * (1 + 1e-9)) << px << " " << py;
+    if (r.depth_upper <= kT) {
+      ++touches;
+      EXPECT_LE(depth, kT) << px << " " << py;
+    } else {
+      ++hard;
+    }
+    // The certificate finds the diagonal whenever it parts them at T.
+    if (std::max(px, py) * std::sqrt(2.0) < kT * 0.999) {
+      EXPECT_LE(r.depth_upper, kT) << px << " " << py;
+    }
+  }
+  EXPECT_GT(touches, 5);
+  EXPECT_GT(hard, 5);
 }
 
 TEST(Separate, TranslationInvariance) {
