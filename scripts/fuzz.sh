@@ -9,7 +9,7 @@
 #                    only units that add coverage and replay clean are added (--time 0 --merge: merge only)
 #   --timeout S      an input running longer is a finding (timeout-*; default 10)
 #   --rss-limit-mb M a process using more, or a single allocation larger, is a finding (oom-*; default 2048)
-#   target           obj mks queries store_open store_hdf5 leaf (default: all)
+#   target           obj obj_chunks mks queries store_open store_hdf5 leaf (default: all)
 #
 # Installs clang-14 and libclang-rt-14-dev (libFuzzer) when missing, then configures and builds build-fuzz
 # (MKTREE_BUILD_FUZZERS: ASan + UBSan + coverage) if needed.
@@ -36,7 +36,7 @@ merge=0
 timeout=10
 rss=2048
 targets=()
-all_targets=(obj mks queries store_open store_hdf5 leaf)
+all_targets=(obj obj_chunks mks queries store_open store_hdf5 leaf)
 while (($#)); do
   case $1 in
     --time) time_per_target=$2; shift 2 ;;
@@ -98,7 +98,8 @@ worker() {  # target bin work worker-index end
   local t=$1 bin=$2 work=$3 w=$4 end=$5 i=0 now log
   local args=(-timeout="$timeout" -rss_limit_mb="$rss" -max_len="$(max_len "$t")" -print_final_stats=1
               -artifact_prefix="$work/artifacts/")
-  [[ -f $root/tests/fuzz/$t.dict ]] && args+=(-dict="$root/tests/fuzz/$t.dict")
+  local dict=$root/tests/fuzz/${t%_chunks}.dict  # obj_chunks reads OBJ files too
+  [[ -f $dict ]] && args+=(-dict="$dict")
   while now=$(date +%s); ((now < end)); do
     log=$work/logs/w$w-$i.log
     i=$((i + 1))

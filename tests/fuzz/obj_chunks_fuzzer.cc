@@ -48,7 +48,8 @@ bool Same(const mktree::SceneObject& x, const mktree::SceneObject& y) {
 }
 
 [[noreturn]] void Differ(const char* what, const Read& one, const Read& chunked) {
-  std::fprintf(stderr, "obj_chunks: %s differs: one chunk %zu objects, error '%s'; chunked %zu objects, error '%s'\n",
+  std::fprintf(stderr,
+               "obj_chunks: %s differs: one chunk %zu objects, error '%s'; chunked %zu objects, error '%s'\n",
                what, one.objects.size(), one.error.c_str(), chunked.objects.size(), chunked.error.c_str());
   std::abort();
 }
