@@ -432,6 +432,10 @@ TouchObject TouchOf(const Impl& x, NarrowStats* st) {
 
 double TranslationDepthBound(const Impl& a, const Impl& b, const Vec3d* ta, const Vec3d* tb, double enough,
                              double lower, NarrowStats* st);
+// Two solids try the translation certificate only when no point of one lies deeper than this share of
+// `enough` in the other: contacts that rounding makes cross. Deeper overlaps rarely part within `enough`
+// and each tries every direction (steel: 133 such pairs, 37 decided, the self-clash 10 % slower).
+constexpr double kTranslationLowerShare = 1.0 / 1024;
 
 // `ta`, `tb`: a meeting triangle of each when the surfaces meet; null for containment (a component inside
 // the other: no certificate can hold).
@@ -491,8 +495,10 @@ void SetDepth(const Impl& a, const Impl& b, double gap, double enough, const Vec
   lower = DeepestEdgePoint(a, b, lower, stop, st);
   lower = DeepestEdgePoint(b, a, lower, stop, st);
   if (undecided && lower == 0 && certify_undecided()) return;
-  // Still undecided (no point deeper than `enough`, no certificate of 0): a short translation may part them.
-  if (std::isfinite(enough) && lower <= enough && r->depth_upper > enough && ta && tb)
+  // Still undecided (no point deeper than a share of `enough`, no certificate of 0): a short translation
+  // may part them.
+  if (std::isfinite(enough) && lower <= enough * kTranslationLowerShare && r->depth_upper > enough && ta &&
+      tb)
     r->depth_upper = std::min(r->depth_upper, TranslationDepthBound(a, b, ta, tb, enough, lower, st));
   r->distance = -r->depth_upper;
   r->depth_lower = std::min(lower, r->depth_upper);

@@ -485,7 +485,8 @@ TEST(Separate, TranslationCertificateDecidesASurfaceInACorner) {
 }
 
 // Never a touch deeper than T: over pushes on both sides of T the certificate says touch only where the
-// true depth hypot(px, py) is at most T, and every depth_upper bounds the true depth.
+// true depth hypot(px, py) is at most T, and every depth_upper bounds the true depth. The L is a surface
+// here: two solids overlapping this deep do not try the certificate (kTranslationLowerShare).
 TEST(Separate, TranslationCertificateNeverHidesAClash) {
   constexpr double kT = 0.002;
   SeparateOptions t;
@@ -498,13 +499,13 @@ TEST(Separate, TranslationCertificateNeverHidesAClash) {
     const double px = i < 4 ? (i & 1 ? 0.0 : kT * 0.7) : push(rng);
     const double py = i < 4 ? (i & 2 ? 0.0 : kT * 0.7) : push(rng);
     if (px == 0 && py == 0) continue;
-    const CornerPair c = BoxInCorner(px, py);
+    CornerPair c = BoxInCorner(px, py);
+    c.l.triangles.resize(c.l.triangles.size() - 3);
     const ClashShape l(c.l), box(c.box);
     const double depth = std::hypot(px, py);
     const Separation r = Separate(box, l, 0, nullptr, t);
     ASSERT_EQ(r.meeting, Meeting::kSurfacesMeet) << px << " " << py;
     EXPECT_GE(r.depth_upper, depth * (1 - 1e-9)) << px << " " << py;
-    EXPECT_LE(r.depth_lower, depth * (1 + 1e-9)) << px << " " << py;
     if (r.depth_upper <= kT) {
       ++touches;
       EXPECT_LE(depth, kT) << px << " " << py;
