@@ -480,8 +480,9 @@ void SetDepth(const Impl& a, const Impl& b, double gap, double enough, const Vec
   }
   auto certify_undecided = [&] { return certify(TouchStage::kCheap) || certify(TouchStage::kSearch); };
   if (!a.solid() || !b.solid()) {  // a surface has no inside: depth_lower stays 0
-    // Only the cheap planes: on the real scenes the undecided surface pairs are terrain crossing
-    // buildings, where the search finds nothing and costs as much as the rest of the narrow phase.
+    // Only the cheap planes of the touch certificate: on the real scenes the undecided surface pairs are
+    // terrain crossing buildings, where its search finds nothing and costs as much as the rest of the
+    // narrow phase. Then the translation certificate.
     if (undecided && !certify(TouchStage::kCheap) && std::isfinite(enough) && r->depth_upper > enough && ta &&
         tb)
       r->depth_upper = std::min(r->depth_upper, TranslationDepthBound(a, b, ta, tb, enough, 0, st));
@@ -542,11 +543,11 @@ bool ComponentInside(const Impl& x, const Impl& y, Vec3d* point, NarrowStats* st
   return false;
 }
 
-// Do solids a, moved by t, and b not meet at all? The moved copy's vertices are a's plus t rounded, so
-// its surfaces must keep a gap that rounding cannot close, and wider than twice either classifier's
-// tolerance, so that the containment tests (a's vertices plus t against b, b's minus t against a, with
-// the classifiers a and b already have) meet no vertex on the other's surface. The copy's hierarchy is
-// a's, shifted.
+// Do a, moved by t, and b not meet at all? The moved copy's vertices are a's plus t rounded, so its
+// surfaces must keep a gap that rounding cannot close and, for two solids, wider than twice either
+// classifier's tolerance, so that the containment tests (a's vertices plus t against b, b's minus t against
+// a, with the classifiers a and b already have) meet no vertex on the other's surface. The copy's hierarchy
+// is a's, shifted.
 bool ApartWhenMoved(const Impl& a, const Impl& b, const Vec3d& t, NarrowStats* st) {
   const TriangleHierarchy& ha = a.Hierarchy(st);
   const TriangleHierarchy& hb = b.Hierarchy(st);
@@ -576,10 +577,10 @@ bool ApartWhenMoved(const Impl& a, const Impl& b, const Vec3d& t, NarrowStats* s
 
 // The translation certificate (docs/clash.md section 2): when a moved by some t with |t| <= enough meets
 // b nowhere, the depth is at most |t|. It decides members that touch but whose stored vertices cross by
-// rounding, and overlaps shallower than T, where no plane separates the whole objects (a plate in the
-// corner of an angle). Tried along the meeting triangles' normals and the 26-DOP's directions, both ways,
-// at just under `enough`; then shorter along the direction that worked, down to `lower`. Returns the
-// shortest length that worked, rounded up, or +infinity.
+// rounding where no plane separates the whole objects (a plate in the corner of an angle), and surfaces
+// that overlap by less than `enough`. Tried along the meeting triangles' normals and the 26-DOP's directions,
+// both ways, at just under `enough`; then shorter along the direction that worked, down to `lower`. Returns
+// the shortest length that worked, rounded up, or +infinity.
 double TranslationDepthBound(const Impl& a, const Impl& b, const Vec3d* ta, const Vec3d* tb, double enough,
                              double lower, NarrowStats* st) {
   std::array<Vec3d, 2 + kKdopDirections> dirs;
