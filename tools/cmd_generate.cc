@@ -6,9 +6,9 @@
 #include <memory>
 #include <string>
 
-#include "engine/generator/obj_writer.h"
 #include "engine/generator/tanker_generator.h"
 #include "engine/scene/mkscene_format.h"
+#include "engine/scene/obj_writer.h"
 #include "tools/cli_numbers.h"
 #include "tools/command.h"
 #include "tools/path_checks.h"

@@ -14,7 +14,7 @@
 
 #include "engine/store/object_codec.h"
 #include "engine/store/store_file.h"
-#include "engine/tree/tree_stats.h"
+#include "engine/viz/level_groups.h"
 #include "mktree/status.h"
 
 namespace mktree {
@@ -38,9 +38,9 @@ using GroupCounts = std::array<uint64_t, kLevelGroups>;
 using LevelVisitor = std::function<Status(uint32_t leaf, const ObjectEntryView& entry, LevelGroup group)>;
 
 // Reads every leaf of `store` once (through a PageCache that holds only the pinned leaf) and calls `visit`
-// for each of its objects with its group at level `k` (GroupAtLevel). `progress` (optional) gets
-// (leaves done, leaves total). Errors (unreadable or corrupt pages) name the store and page.
-// REQUIRES: k >= 0.
+// for each of its objects with its group at level `k` (GroupAtLevel, level_groups.h). `progress` (optional)
+// gets (leaves done, leaves total). Errors (unreadable or corrupt pages) name the store and page. REQUIRES: k
+// >= 0.
 Status ForEachObjectAtLevel(const StoreReader& store, int k, const LevelVisitor& visit,
                             const std::function<void(uint64_t, uint64_t)>& progress = {});
 

@@ -6,8 +6,8 @@
 #include <string>
 #include <vector>
 
-#include "engine/generator/obj_writer.h"
 #include "engine/ingest/store_builder.h"
+#include "engine/scene/obj_writer.h"
 #include "engine/scene/vector_scene_source.h"
 #include "mktree/database.h"
 #include "query/scene_fixtures.h"

@@ -1,4 +1,4 @@
-#include "engine/generator/obj_writer.h"
+#include "engine/scene/obj_writer.h"
 
 #include <charconv>
 #include <cstring>
