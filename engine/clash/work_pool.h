@@ -11,6 +11,8 @@
 #include <thread>
 #include <vector>
 
+#include "mktree/status.h"
+
 namespace mktree::clash {
 
 class WorkPool {
@@ -43,5 +45,12 @@ class WorkPool {
   size_t n_ = 0, next_ = 0, busy_ = 0, started_ = 0;
   std::exception_ptr error_;
 };
+
+// The first error of `errors` (one per iteration of a loop, in order), or Ok.
+inline Status FirstError(const std::vector<Status>& errors) {
+  for (const Status& e : errors)
+    if (!e.ok()) return e;
+  return Status::Ok();
+}
 
 }  // namespace mktree::clash

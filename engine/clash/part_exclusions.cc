@@ -1,0 +1,42 @@
+#include "engine/clash/part_exclusions.h"
+
+#include <functional>
+#include <memory>
+#include <queue>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include "engine/store/record_codec.h"
+
+namespace mktree::clash {
+
+Status MakePartExclusions(const PartNumbering& parts, const ClashOptions& o, std::optional<Exclusions>* out) {
+  const size_t np = parts.part_count();
+  // Global ids come in increasing order: the parts' next ids in a heap (ids increase within a part).
+  Status names_status;
+  std::vector<std::unique_ptr<RecordReader>> names;
+  for (size_t k = 0; k < np; ++k)
+    names.push_back(std::make_unique<RecordReader>(parts.store(k).reader.record_layout(), nullptr,
+                                                   parts.store(k).verify_checksums));
+  std::vector<uint64_t> cursor(np, 0);
+  using Head = std::pair<uint64_t, size_t>;  // (global id, part)
+  std::priority_queue<Head, std::vector<Head>, std::greater<Head>> heads;
+  if (!o.exclude_group_separator.empty())
+    for (size_t k = 0; k < np; ++k)
+      if (parts.object_count(k) > 0) heads.push({parts.global_id(k, 0), k});
+  out->emplace(o, parts.global_count(), [&](uint64_t g) -> std::string_view {
+    if (!names_status.ok() || heads.empty() || heads.top().first != g) return {};
+    const size_t k = heads.top().second;
+    heads.pop();
+    const uint64_t at = cursor[k]++;
+    if (cursor[k] < parts.object_count(k))
+      heads.push({parts.global_id(k, static_cast<ObjectId>(cursor[k])), k});
+    auto r = names[k]->Get(static_cast<uint32_t>(at), nullptr);
+    if (!r.ok()) names_status = r.status();
+    return r.ok() ? std::string_view((*r)->name) : std::string_view();
+  });
+  return names_status;
+}
+
+}  // namespace mktree::clash
