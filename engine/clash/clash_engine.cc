@@ -148,16 +148,13 @@ uint64_t DecodedLeafBytes(const LoadedLeaf& l) {
   return bytes;
 }
 
-// ReadLeaf with one duplicate-id scratch for every pinned leaf: ReadLeaf leaves it all zero, and each
-// PinnedLeaf's own would keep a bit per object of the store (a batch pins up to hundreds of leaves).
-Status ReadPinned(const ClashStore& st, uint32_t leaf, IoCount* io, std::vector<uint64_t>* seen,
+// LeafSource::Read with one duplicate-id scratch for every pinned leaf: a read leaves it all zero, and
+// each PinnedLeaf's own would keep a bit per object of the store (a batch pins up to hundreds of leaves).
+Status ReadPinned(const LeafSource& st, uint32_t leaf, IoCount* io, std::vector<uint64_t>* seen,
                   PinnedLeaf* out, uint64_t page_base = 0) {
-  const StoreReader& reader = st.reader;
-  const MKTree& tree = reader.tree();
-  const LeafInfo& info = tree.leaves[leaf];
+  const LeafInfo& info = st.reader().tree().leaves[leaf];
   out->seen.swap(*seen);
-  const Status s = ReadLeaf(st.cache, reader.pages().name(), leaf, info, reader.objects(),
-                            tree.params.mem_page(), st.verify_checksums, &io->q, out);
+  const Status s = st.Read(leaf, &io->q, out);
   out->seen.swap(*seen);
   if (s.ok()) io->Mark(info, page_base);
   return s;
@@ -212,9 +209,9 @@ Status FirstError(const std::vector<Status>& errors) {
 
 }  // namespace
 
-Status RunSelfClash(const ClashStore& st, const ClashOptions& o, const ClashVisitor& visit,
+Status RunSelfClash(const LeafSource& st, const ClashOptions& o, const ClashVisitor& visit,
                     ClashStats* stats) {
-  return RunMultiClash({ClashPart{st, nullptr}}, nullptr, o, visit, stats);
+  return RunMultiClash({ClashPart{&st, nullptr}}, nullptr, o, visit, stats);
 }
 
 Status RunMultiClash(const std::vector<ClashPart>& parts, const ClashPartPairs& want, const ClashOptions& o,
@@ -231,7 +228,7 @@ Status RunMultiClash(const std::vector<ClashPart>& parts, const ClashPartPairs& 
   std::vector<uint64_t> page_base(np + 1, 0);
   uint64_t global_count = 0, cache_bytes = 0;
   for (size_t k = 0; k < np; ++k) {
-    const StoreReader& r = parts[k].store.reader;
+    const StoreReader& r = parts[k].leaves->reader();
     const MKTree& t = r.tree();
     leaf_base[k + 1] = leaf_base[k] + static_cast<uint32_t>(t.leaves.size());
     part_of.resize(leaf_base[k + 1], static_cast<uint32_t>(k));
@@ -242,7 +239,7 @@ Status RunMultiClash(const std::vector<ClashPart>& parts, const ClashPartPairs& 
       return Status::Internal(r.path() + ": the part's id map does not match its objects");
     global_count = std::max<uint64_t>(
         global_count, ids ? (ids->empty() ? 0 : ids->back() + uint64_t{1}) : r.object_count());
-    cache_bytes += parts[k].store.cache.capacity() * t.params.mem_page();
+    cache_bytes += parts[k].leaves->cache().capacity() * t.params.mem_page();
   }
   auto global_id = [&](size_t k, ObjectId id) { return parts[k].ids ? (*parts[k].ids)[id] : id; };
   auto wanted = [&](uint32_t i, uint32_t j) { return !want || want(i, j); };
@@ -253,20 +250,20 @@ Status RunMultiClash(const std::vector<ClashPart>& parts, const ClashPartPairs& 
   Status names_status;
   std::vector<std::unique_ptr<RecordReader>> names;
   for (const ClashPart& part : parts)
-    names.push_back(std::make_unique<RecordReader>(part.store.reader.record_layout(), nullptr,
-                                                   part.store.verify_checksums));
+    names.push_back(std::make_unique<RecordReader>(part.leaves->reader().record_layout(), nullptr,
+                                                   part.leaves->verify_checksums()));
   std::vector<uint64_t> cursor(np, 0);
   using Head = std::pair<uint64_t, size_t>;  // (global id, part)
   std::priority_queue<Head, std::vector<Head>, std::greater<Head>> heads;
   if (!o.exclude_group_separator.empty())
     for (size_t k = 0; k < np; ++k)
-      if (parts[k].store.reader.object_count() > 0) heads.push({global_id(k, 0), k});
+      if (parts[k].leaves->reader().object_count() > 0) heads.push({global_id(k, 0), k});
   const clash::Exclusions ex(o, global_count, [&](uint64_t g) -> std::string_view {
     if (!names_status.ok() || heads.empty() || heads.top().first != g) return {};
     const size_t k = heads.top().second;
     heads.pop();
     const uint64_t at = cursor[k]++;
-    if (cursor[k] < parts[k].store.reader.object_count())
+    if (cursor[k] < parts[k].leaves->reader().object_count())
       heads.push({global_id(k, static_cast<ObjectId>(cursor[k])), k});
     auto r = names[k]->Get(static_cast<uint32_t>(at), nullptr);
     if (!r.ok()) names_status = r.status();
@@ -281,7 +278,7 @@ Status RunMultiClash(const std::vector<ClashPart>& parts, const ClashPartPairs& 
   std::vector<clash::NeededObjects> needed(np);
   std::vector<uint8_t> filtered(np, 0);
   for (uint32_t k = 0; k < np; ++k) {
-    const MKTree& t = parts[k].store.reader.tree();
+    const MKTree& t = parts[k].leaves->reader().tree();
     filtered[k] = clash::InitNeeded(t, &needed[k]);
     if (!wanted(k, k)) continue;
     std::vector<clash::LeafPair> own = clash::TreeLeafPairs(t, o.clearance);
@@ -290,9 +287,9 @@ Status RunMultiClash(const std::vector<ClashPart>& parts, const ClashPartPairs& 
     for (const clash::LeafPair& lp : own) pairs.push_back({lp.p + leaf_base[k], lp.q + leaf_base[k]});
   }
   for (uint32_t i = 0; i < np; ++i) {
-    const MKTree& ti = parts[i].store.reader.tree();
+    const MKTree& ti = parts[i].leaves->reader().tree();
     for (uint32_t j = i + 1; j < np; ++j) {
-      const MKTree& tj = parts[j].store.reader.tree();
+      const MKTree& tj = parts[j].leaves->reader().tree();
       if (!wanted(i, j) || ti.empty() || tj.empty() ||
           !clash::GrownMeet(clash::ToBox3d(ti.nodes[0].box), clash::ToBox3d(tj.nodes[0].box), o.clearance))
         continue;
@@ -314,17 +311,17 @@ Status RunMultiClash(const std::vector<ClashPart>& parts, const ClashPartPairs& 
   std::vector<uint64_t> leaf_bytes(total_leaves);
   for (uint32_t g = 0; g < total_leaves; ++g)
     leaf_bytes[g] =
-        DecodedLeafEstimate(parts[part_of[g]].store.reader.tree().leaves[g - leaf_base[part_of[g]]]);
+        DecodedLeafEstimate(parts[part_of[g]].leaves->reader().tree().leaves[g - leaf_base[part_of[g]]]);
   clash::SweepPlan plan;
   if (np == 1) {
-    plan = clash::PlanSweep(parts[0].store.reader.tree(), std::move(pairs), leaf_bytes, s.window_budget_bytes,
-                            kBatchPairs);
+    plan = clash::PlanSweep(parts[0].leaves->reader().tree(), std::move(pairs), leaf_bytes,
+                            s.window_budget_bytes, kBatchPairs);
   } else {
     Box3f root;
     std::vector<Box3f> boxes(total_leaves);
     bool any = false;
     for (size_t k = 0; k < np; ++k) {
-      const MKTree& t = parts[k].store.reader.tree();
+      const MKTree& t = parts[k].leaves->reader().tree();
       for (size_t l = 0; l < t.leaves.size(); ++l) boxes[leaf_base[k] + l] = t.leaves[l].box;
       if (t.empty()) continue;
       if (!any) {
@@ -342,7 +339,7 @@ Status RunMultiClash(const std::vector<ClashPart>& parts, const ClashPartPairs& 
   s.leaf_reads = plan.leaf_reads;
   s.leaf_rereads = plan.leaf_rereads;
   s.broad_seconds = Since(start);
-  const Vec3d origin = parts[0].store.reader.tree().origin;
+  const Vec3d origin = parts[0].leaves->reader().tree().origin;
 
   std::vector<std::unique_ptr<LoadedLeaf>> window(total_leaves);
   uint64_t window_bytes = 0;
@@ -380,7 +377,7 @@ Status RunMultiClash(const std::vector<ClashPart>& parts, const ClashPartPairs& 
     for (size_t i = 0; i < b.load.size(); ++i) {
       const uint32_t k = part_of[b.load[i]];
       const uint32_t leaf = b.load[i] - leaf_base[k];
-      const ClashStore& st = parts[k].store;
+      const LeafSource& st = *parts[k].leaves;
       MKTREE_RETURN_IF_ERROR(ReadPinned(st, leaf, &io, &seen, &pinned[i], page_base[k]));
       auto l = std::make_unique<LoadedLeaf>();
       const auto& entries = pinned[i].view.entries();
@@ -388,7 +385,7 @@ Status RunMultiClash(const std::vector<ClashPart>& parts, const ClashPartPairs& 
       for (uint32_t pos = 0; pos < entries.size(); ++pos) {
         l->objects[pos].id = global_id(k, entries[pos].id);
         l->objects[pos].box = clash::ToBox3d(entries[pos].box);
-        if (needed[k](st.reader.tree(), leaf, pos)) tasks.push_back({i, pos});
+        if (needed[k](st.reader().tree(), leaf, pos)) tasks.push_back({i, pos});
       }
       loaded.push_back(std::move(l));
     }
@@ -399,9 +396,7 @@ Status RunMultiClash(const std::vector<ClashPart>& parts, const ClashPartPairs& 
       LoadedObject& obj = loaded[task.load]->objects[task.pos];
       obj.resolution = CoordinateResolution(e.box);
       obj.mesh = std::make_unique<Mesh>();
-      const StoreReader& part_reader = parts[part_of[b.load[task.load]]].store.reader;
-      errors[k] = DecodeStoredMesh(part_reader.path(), part_reader.options().codec.dictionary.get(), e,
-                                   obj.mesh.get());
+      errors[k] = parts[part_of[b.load[task.load]]].leaves->DecodeMesh(e, obj.mesh.get());
       if (errors[k].ok()) obj.shape = std::make_unique<ClashShape>(*obj.mesh, StoredEdges(e));
     });
     for (size_t i = 0; i < b.load.size(); ++i) pinned[i].Release();
@@ -429,8 +424,8 @@ Status RunMultiClash(const std::vector<ClashPart>& parts, const ClashPartPairs& 
           [&](size_t k) {
             const clash::LeafPair& lp = plan.pairs[b.pair_begin + from + k];
             work[k].Clear();
-            errors[k] = TestLeafPair(parts[part_of[lp.p]].store.reader.path(), *window[lp.p], *window[lp.q],
-                                     lp.p == lp.q, o, ex, origin, &work[k]);
+            errors[k] = TestLeafPair(parts[part_of[lp.p]].leaves->reader().path(), *window[lp.p],
+                                     *window[lp.q], lp.p == lp.q, o, ex, origin, &work[k]);
           },
           [&] { emit_previous(); });
       MKTREE_RETURN_IF_ERROR(FirstError(errors));
@@ -487,7 +482,7 @@ Status CheckCollideMesh(const Mesh& mesh, const std::optional<RigidTransform>& t
   return Status::Ok();
 }
 
-Status RunCollide(const ClashStore& st, const Mesh& mesh, const std::optional<RigidTransform>& transform,
+Status RunCollide(const LeafSource& st, const Mesh& mesh, const std::optional<RigidTransform>& transform,
                   const ClashOptions& o, const ClashVisitor& visit, ClashStats* stats) {
   ClashStats local;
   ClashStats& s = stats ? *stats : local;
@@ -495,7 +490,7 @@ Status RunCollide(const ClashStore& st, const Mesh& mesh, const std::optional<Ri
   MKTREE_RETURN_IF_ERROR(clash::CheckOptions(o));
   MKTREE_RETURN_IF_ERROR(CheckCollideMesh(mesh, transform));
   const Clock::time_point start = Clock::now();
-  const StoreReader& reader = st.reader;
+  const StoreReader& reader = st.reader();
   const MKTree& tree = reader.tree();
   s.store_pages = StorePages(tree);
 
@@ -604,7 +599,7 @@ Status RunCollide(const ClashStore& st, const Mesh& mesh, const std::optional<Ri
           w[k].Clear();
           const ObjectEntryView& e = c.pins[c.candidates[k].pin].view.entry(c.candidates[k].pos);
           Mesh mesh;
-          errors[k] = DecodeStoredMesh(reader.path(), reader.options().codec.dictionary.get(), e, &mesh);
+          errors[k] = st.DecodeMesh(e, &mesh);
           if (!errors[k].ok()) return;
           const ClashShape other(mesh, StoredEdges(e));
           const double r = CoordinateResolution(e.box);
