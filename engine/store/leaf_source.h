@@ -29,7 +29,7 @@ class LeafSource {
       : reader_(&reader), cache_(&cache), verify_checksums_(verify_checksums) {}
 
   const StoreReader& reader() const { return *reader_; }
-  PageCache& cache() const { return *cache_; }
+  const PageCache& cache() const { return *cache_; }
   bool verify_checksums() const { return verify_checksums_; }
   // The name leaf and page errors carry (the page store's).
   const std::string& store_name() const { return reader_->pages().name(); }
