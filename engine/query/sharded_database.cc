@@ -1,6 +1,6 @@
 // The Database over a sharded store (docs/shards.md): the manifest's top levels route each query to the
-// shards whose stores' root boxes it meets; each shard is an ordinary store's Database, whose local ids
-// the shard's id file maps to global ones.
+// shards whose stores' root boxes it meets; each shard is a StoreDatabase, whose local ids the shard's id
+// file maps to global ones, and whose LeafSource a clash over all shards reads.
 #include "engine/query/sharded_database.h"
 
 #include <algorithm>
