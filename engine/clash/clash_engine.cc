@@ -47,9 +47,9 @@ Status MoveIntoStoreFrame(const Mesh& mesh, const std::optional<RigidTransform>&
 
 }  // namespace
 
-Status RunSelfClash(const ClashStore& st, const ClashOptions& o, const ClashVisitor& visit,
+Status RunSelfClash(const LeafSource& st, const ClashOptions& o, const ClashVisitor& visit,
                     ClashStats* stats) {
-  return RunMultiClash({ClashPart{st, nullptr}}, nullptr, o, visit, stats);
+  return RunMultiClash({ClashPart{&st, nullptr}}, nullptr, o, visit, stats);
 }
 
 Status RunMultiClash(const std::vector<ClashPart>& parts, const ClashPartPairs& want, const ClashOptions& o,
@@ -130,7 +130,7 @@ Status CheckCollideMesh(const Mesh& mesh, const std::optional<RigidTransform>& t
   return Status::Ok();
 }
 
-Status RunCollide(const ClashStore& st, const Mesh& mesh, const std::optional<RigidTransform>& transform,
+Status RunCollide(const LeafSource& st, const Mesh& mesh, const std::optional<RigidTransform>& transform,
                   const ClashOptions& o, const ClashVisitor& visit, ClashStats* stats) {
   ClashStats local;
   ClashStats& s = stats ? *stats : local;
@@ -138,7 +138,7 @@ Status RunCollide(const ClashStore& st, const Mesh& mesh, const std::optional<Ri
   MKTREE_RETURN_IF_ERROR(clash::CheckOptions(o));
   MKTREE_RETURN_IF_ERROR(CheckCollideMesh(mesh, transform));
   const StageClock::time_point start = StageClock::now();
-  const MKTree& tree = st.reader.tree();
+  const MKTree& tree = st.reader().tree();
   s.store_pages = clash::StorePages(tree);
   Mesh q;
   MKTREE_RETURN_IF_ERROR(MoveIntoStoreFrame(mesh, transform, tree.origin, &q));

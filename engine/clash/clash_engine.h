@@ -6,29 +6,21 @@
 #include <optional>
 #include <vector>
 
-#include "engine/store/store_file.h"
+#include "engine/store/leaf_source.h"
 #include "mktree/clash.h"
 #include "mktree/status.h"
-#include "storage/page_cache.h"
 
 namespace mktree {
 
-// Where the engine reads: the store, its page cache, and whether pages are verified on first read.
-struct ClashStore {
-  const StoreReader& reader;
-  PageCache& cache;
-  bool verify_checksums = true;
-};
-
 // Every pair of the store's objects that clashes under `options`, to `visit` in the plan's order.
 // `stats` (may be null) is reset and filled. Errors name the store.
-Status RunSelfClash(const ClashStore& store, const ClashOptions& options, const ClashVisitor& visit,
+Status RunSelfClash(const LeafSource& leaves, const ClashOptions& options, const ClashVisitor& visit,
                     ClashStats* stats);
 
 // One store of a clash over several stores (the shards of a sharded store: one frame, disjoint objects):
-// its view, and the global id of each local id (increasing; null: the local ids are the global ones).
+// its leaves, and the global id of each local id (increasing; null: the local ids are the global ones).
 struct ClashPart {
-  ClashStore store;
+  const LeafSource* leaves = nullptr;
   const std::vector<ObjectId>* ids = nullptr;
 };
 
@@ -45,7 +37,7 @@ Status RunMultiClash(const std::vector<ClashPart>& parts, const ClashPartPairs& 
 // Every object of the store that clashes with `mesh` (world coordinates) moved by `transform`; pairs
 // have b = kCollideObject. InvalidArgument for an empty mesh, a non-finite vertex, an index out of range
 // or a transform that is not a proper rotation.
-Status RunCollide(const ClashStore& store, const Mesh& mesh, const std::optional<RigidTransform>& transform,
+Status RunCollide(const LeafSource& leaves, const Mesh& mesh, const std::optional<RigidTransform>& transform,
                   const ClashOptions& options, const ClashVisitor& visit, ClashStats* stats);
 
 // Adds the counts and phase seconds of `b` to `a` (the window's bytes: the larger; total_seconds is left

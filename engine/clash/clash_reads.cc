@@ -17,21 +17,18 @@ void IoCount::Fill(ClashStats* s) const {
   s->distinct_pages = static_cast<uint64_t>(std::count(touched.begin(), touched.end(), 1));
 }
 
-Status ReadPinned(const ClashStore& st, uint32_t leaf, IoCount* io, std::vector<uint64_t>* seen,
+Status ReadPinned(const LeafSource& st, uint32_t leaf, IoCount* io, std::vector<uint64_t>* seen,
                   PinnedLeaf* out, uint64_t page_base) {
-  const StoreReader& reader = st.reader;
-  const MKTree& tree = reader.tree();
-  const LeafInfo& info = tree.leaves[leaf];
+  const LeafInfo& info = st.reader().tree().leaves[leaf];
   out->seen.swap(*seen);
-  const Status s = ReadLeaf(st.cache, reader.pages().name(), leaf, info, reader.objects(),
-                            tree.params.mem_page(), st.verify_checksums, &io->q, out);
+  const Status s = st.Read(leaf, &io->q, out);
   out->seen.swap(*seen);
   if (s.ok()) io->Mark(info, page_base);
   return s;
 }
 
-Status DecodeMesh(const ClashStore& st, const ObjectEntryView& e, Mesh* mesh) {
-  return DecodeStoredMesh(st.reader.path(), st.reader.options().codec.dictionary.get(), e, mesh);
+Status DecodeMesh(const LeafSource& st, const ObjectEntryView& e, Mesh* mesh) {
+  return st.DecodeMesh(e, mesh);
 }
 
 std::optional<EdgeCheck> StoredEdges(const ObjectEntryView& e) {

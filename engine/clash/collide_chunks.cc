@@ -24,17 +24,17 @@ struct CollideChunks::Chunk {
   std::vector<Candidate> candidates;
 };
 
-CollideChunks::CollideChunks(const ClashStore& st, const std::vector<uint32_t>& leaves,
+CollideChunks::CollideChunks(const LeafSource& st, const std::vector<uint32_t>& leaves,
                              const ClashShape& object, const Box3d& object_box, const ClashOptions& o,
                              ClashStats* s)
     : st_(st),
       leaves_(leaves),
       object_(object),
       object_box_(object_box),
-      origin_(st.reader.tree().origin),
+      origin_(st.reader().tree().origin),
       o_(o),
       s_(s),
-      reported_((st.reader.object_count() + 63) / 64) {}
+      reported_((st.reader().object_count() + 63) / 64) {}
 
 Status CollideChunks::Run(WorkPool& pool, PairEmitter emit) {
   Chunk chunks[2];
@@ -132,7 +132,7 @@ Status CollideChunks::CheckReportedOnce(const std::vector<PairWork>& w, size_t c
     for (const ClashPair& p : w[k].found) {
       const uint64_t bit = uint64_t{1} << (p.a & 63);
       if (reported_[p.a >> 6] & bit)
-        return Status::Corruption(st_.reader.path() + ": object " + std::to_string(p.a) +
+        return Status::Corruption(st_.reader().path() + ": object " + std::to_string(p.a) +
                                   " is in two leaves (their id digests were made to collide)");
       reported_[p.a >> 6] |= bit;
     }

@@ -23,7 +23,7 @@ class CollideChunks {
  public:
   // `object`: the query object's shape in the store's frame, `object_box` its bounds. All must outlive
   // this; `s` gets the read seconds and, once Run succeeds, the candidate counts and the I/O counts.
-  CollideChunks(const ClashStore& st, const std::vector<uint32_t>& leaves, const ClashShape& object,
+  CollideChunks(const LeafSource& st, const std::vector<uint32_t>& leaves, const ClashShape& object,
                 const Box3d& object_box, const ClashOptions& o, ClashStats* s);
 
   // Tests every candidate, handing its pairs to `emit` in leaf order, then candidate order. The first
@@ -41,7 +41,7 @@ class CollideChunks {
   Status Test(const ObjectEntryView& e, PairWork* w) const;
   Status CheckReportedOnce(const std::vector<PairWork>& w, size_t count);
 
-  const ClashStore& st_;
+  const LeafSource& st_;
   const std::vector<uint32_t>& leaves_;
   const ClashShape& object_;
   const Box3d object_box_;

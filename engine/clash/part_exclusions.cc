@@ -17,8 +17,8 @@ Status MakePartExclusions(const PartNumbering& parts, const ClashOptions& o, std
   Status names_status;
   std::vector<std::unique_ptr<RecordReader>> names;
   for (size_t k = 0; k < np; ++k)
-    names.push_back(std::make_unique<RecordReader>(parts.store(k).reader.record_layout(), nullptr,
-                                                   parts.store(k).verify_checksums));
+    names.push_back(std::make_unique<RecordReader>(parts.store(k).reader().record_layout(), nullptr,
+                                                   parts.store(k).verify_checksums()));
   std::vector<uint64_t> cursor(np, 0);
   using Head = std::pair<uint64_t, size_t>;  // (global id, part)
   std::priority_queue<Head, std::vector<Head>, std::greater<Head>> heads;

@@ -13,7 +13,7 @@ Result<PartNumbering> PartNumbering::Make(const std::vector<ClashPart>& parts) {
   n.leaf_base_.assign(np + 1, 0);
   n.page_base_.assign(np + 1, 0);
   for (size_t k = 0; k < np; ++k) {
-    const StoreReader& r = parts[k].store.reader;
+    const StoreReader& r = parts[k].leaves->reader();
     const MKTree& t = r.tree();
     n.trees_.push_back(&t);
     n.paths_.push_back(&r.path());
@@ -27,7 +27,7 @@ Result<PartNumbering> PartNumbering::Make(const std::vector<ClashPart>& parts) {
       return Status::Internal(r.path() + ": the part's id map does not match its objects");
     n.global_count_ = std::max<uint64_t>(
         n.global_count_, ids ? (ids->empty() ? 0 : ids->back() + uint64_t{1}) : r.object_count());
-    n.cache_bytes_ += parts[k].store.cache.capacity() * t.params.mem_page();
+    n.cache_bytes_ += parts[k].leaves->cache().capacity() * t.params.mem_page();
   }
   return n;
 }

@@ -19,7 +19,7 @@ class PartNumbering {
   static Result<PartNumbering> Make(const std::vector<ClashPart>& parts);
 
   size_t part_count() const { return parts_->size(); }
-  const ClashStore& store(size_t k) const { return (*parts_)[k].store; }
+  const LeafSource& store(size_t k) const { return *(*parts_)[k].leaves; }
   const MKTree& tree(size_t k) const { return *trees_[k]; }
   const std::string& path(size_t k) const { return *paths_[k]; }
 

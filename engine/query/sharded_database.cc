@@ -1,6 +1,8 @@
 // The Database over a sharded store (docs/shards.md): the manifest's top levels route each query to the
-// shards whose stores' root boxes it meets; each shard is an ordinary store's Database, whose local ids
-// the shard's id file maps to global ones.
+// shards whose stores' root boxes it meets; each shard is a StoreDatabase, whose local ids the shard's id
+// file maps to global ones, and whose LeafSource a clash over all shards reads.
+#include "engine/query/sharded_database.h"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -20,12 +22,6 @@
 
 namespace mktree {
 
-Result<bool> Database::VisitUntilPerShard(const Query& query, const StoppableVisitor& visit,
-                                          QueryStats* stats, std::vector<ShardQueryStats>* per_shard) const {
-  if (per_shard) per_shard->clear();
-  return VisitUntil(query, visit, stats);
-}
-
 namespace {
 
 bool FiniteQuery(const Query& q) {
@@ -39,7 +35,7 @@ bool FiniteQuery(const Query& q) {
 
 class ShardedDatabase final : public Database {
  public:
-  ShardedDatabase(std::string path, Manifest m, std::vector<std::unique_ptr<Database>> shards,
+  ShardedDatabase(std::string path, Manifest m, std::vector<std::unique_ptr<StoreDatabase>> shards,
                   std::vector<std::vector<ObjectId>> ids)
       : path_(std::move(path)), m_(std::move(m)), shards_(std::move(shards)), ids_(std::move(ids)) {
     // Each top node's box: the union of its shards' root boxes (children follow their parent in preorder).
@@ -191,8 +187,7 @@ class ShardedDatabase final : public Database {
 
   std::vector<ClashPart> ClashParts() const {
     std::vector<ClashPart> parts;
-    for (size_t s = 0; s < shards_.size(); ++s)
-      parts.push_back(ClashPart{StoreClashView(*shards_[s]), &ids_[s]});
+    for (size_t s = 0; s < shards_.size(); ++s) parts.push_back(ClashPart{&shards_[s]->leaves(), &ids_[s]});
     return parts;
   }
 
@@ -213,7 +208,7 @@ class ShardedDatabase final : public Database {
 
   std::string path_;
   Manifest m_;
-  std::vector<std::unique_ptr<Database>> shards_;
+  std::vector<std::unique_ptr<StoreDatabase>> shards_;
   std::vector<std::vector<ObjectId>> ids_;  // per shard: global id of each local id, increasing
   std::vector<Box3f> box_;                  // per top node
   Box3d bounds_;
@@ -251,8 +246,7 @@ Status ShardedDatabase::Collide(const Mesh& mesh, const std::optional<RigidTrans
       ClashStats st;
       if (std::find(route.begin(), route.end(), s) == route.end()) {
         // Unreached: none of its pages is read, but its pages are the store's.
-        for (const LeafInfo& l : StoreClashView(*shards_[s]).reader.tree().leaves)
-          st.store_pages += l.page_count;
+        for (const LeafInfo& l : shards_[s]->reader().tree().leaves) st.store_pages += l.page_count;
         AddClashStats(&total, st);
         continue;
       }
@@ -339,7 +333,7 @@ Result<std::unique_ptr<Database>> OpenShardedDatabase(const std::string& manifes
   const uint32_t k = m.top.shard_count;
   OpenOptions shard_options = options;
   shard_options.cache_pages = (options.cache_pages + k - 1) / k;
-  std::vector<std::unique_ptr<Database>> shards;
+  std::vector<std::unique_ptr<StoreDatabase>> shards;
   std::vector<std::vector<ObjectId>> ids;
   for (uint32_t s = 0; s < k; ++s) {
     const ShardEntry& e = m.shards[s];

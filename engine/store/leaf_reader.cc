@@ -260,13 +260,4 @@ Result<bool> ReadCachedLeaf(PageCache& cache, const std::string& store_name, uin
   return true;
 }
 
-Result<PinnedLeaf> ReadLeaf(PageCache& cache, const std::string& store_name, uint32_t leaf,
-                            const LeafInfo& info, const ObjectTable& objects, uint64_t mem_page,
-                            bool verify_checksums, QueryStats* stats) {
-  PinnedLeaf out;
-  MKTREE_RETURN_IF_ERROR(
-      ReadLeaf(cache, store_name, leaf, info, objects, mem_page, verify_checksums, stats, &out));
-  return out;
-}
-
 }  // namespace mktree

@@ -1,5 +1,7 @@
 // Reading one leaf through the page cache: its pages pinned (each a cache lookup, a miss being a disk
-// access) and parsed into a LeafView that stays valid as long as the PinnedLeaf holds them.
+// access) and parsed into a LeafView that stays valid as long as the PinnedLeaf holds them. The engine
+// reads a store's leaves through LeafSource (leaf_source.h), which calls these with the store's pieces;
+// pages with no store around them (the leaf fuzzer, the page cache's tests) call them directly.
 #pragma once
 
 #include <atomic>
@@ -122,17 +124,5 @@ Status ParsePinned(const std::string& store_name, uint64_t mem_page, PinnedLeaf*
 Result<bool> ReadCachedLeaf(PageCache& cache, const std::string& store_name, uint32_t leaf,
                             const LeafInfo& info, const ObjectTable& objects, uint64_t mem_page,
                             bool verify_checksums, QueryStats* stats, PinnedLeaf* out, bool decode);
-// The same, into a new PinnedLeaf.
-Result<PinnedLeaf> ReadLeaf(PageCache& cache, const std::string& store_name, uint32_t leaf,
-                            const LeafInfo& info, const ObjectTable& objects, uint64_t mem_page,
-                            bool verify_checksums, QueryStats* stats);
-
-// DecodeObjectMesh with the store's dictionary (StoreReader::options().codec.dictionary), naming the
-// store in its error (the entry's own checks cannot know the file).
-inline Status DecodeStoredMesh(const std::string& store_name, const CodecDictionary* dictionary,
-                               const ObjectEntryView& e, Mesh* mesh) {
-  Status st = DecodeObjectMesh(e, mesh, dictionary);
-  return st.ok() ? st : Status::Corruption(store_name + ": " + st.message());
-}
 
 }  // namespace mktree

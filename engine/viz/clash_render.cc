@@ -5,7 +5,7 @@
 #include <cstdio>
 #include <vector>
 
-#include "engine/store/leaf_reader.h"
+#include "engine/store/leaf_source.h"
 #include "storage/atomic_file.h"
 
 namespace mktree {
@@ -30,9 +30,7 @@ Result<Box3f> StoredObjectBox(const StoreReader& store, uint64_t id) {
   MKTREE_ASSIGN_OR_RETURN(const uint32_t leaf, store.ObjectLeaf(static_cast<ObjectId>(id)));
   PageCache cache(&store.pages(), 0);
   PinnedLeaf read;
-  MKTREE_RETURN_IF_ERROR(ReadLeaf(cache, store.pages().name(), leaf, store.tree().leaves[leaf],
-                                  store.objects(), store.tree().params.mem_page(),
-                                  /*verify_checksums=*/true, nullptr, &read));
+  MKTREE_RETURN_IF_ERROR(LeafSource(store, cache, /*verify_checksums=*/true).Read(leaf, nullptr, &read));
   for (const ObjectEntryView& e : read.view.entries())
     if (e.id == id) return e.box;
   return Status::Corruption(store.path() + ": object " + std::to_string(id) + " is not in its leaf " +
@@ -146,8 +144,7 @@ Result<ClashRenderReport> RenderClashes(const StoreReader& store, const ClashMar
             fade = kNeutralFade;  // the other pairs stay visible, but behind the focus pair in emphasis too
           }
         }
-        MKTREE_RETURN_IF_ERROR(
-            DecodeStoredMesh(store.path(), store.options().codec.dictionary.get(), e, &mesh));
+        MKTREE_RETURN_IF_ERROR(DecodeStoredMesh(store, e, &mesh));
         report.triangles += shader.Draw(mesh, ClashColour(c), e.id, layer, ss, &raster, fade);
         return Status::Ok();
       },

@@ -2,7 +2,7 @@
 
 #include <vector>
 
-#include "engine/store/leaf_reader.h"
+#include "engine/store/leaf_source.h"
 
 namespace mktree {
 
@@ -40,11 +40,11 @@ Status ForEachObjectAtLevel(const StoreReader& store, int k, const LevelVisitor&
   const MKTree& tree = store.tree();
   // Capacity 0: a page lives only while pinned, so RAM is one leaf whatever the store size.
   PageCache cache(&store.pages(), 0);
+  const LeafSource leaves(store, cache, /*verify_checksums=*/true);
   const uint64_t n = tree.leaves.size();
   PinnedLeaf read;  // reused leaf after leaf: its buffers are allocated once
   for (uint32_t leaf = 0; leaf < n; ++leaf) {
-    MKTREE_RETURN_IF_ERROR(ReadLeaf(cache, store.pages().name(), leaf, tree.leaves[leaf], store.objects(),
-                                    tree.params.mem_page(), /*verify_checksums=*/true, nullptr, &read));
+    MKTREE_RETURN_IF_ERROR(leaves.Read(leaf, nullptr, &read));
     for (const ObjectEntryView& e : read.view.entries())
       MKTREE_RETURN_IF_ERROR(visit(leaf, e, GroupAtLevel(tree, leaf, e.box, k)));
     if (progress && (leaf % 256 == 0 || leaf + 1 == n)) progress(leaf + 1, n);

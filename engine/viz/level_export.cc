@@ -11,7 +11,7 @@
 #include <memory>
 #include <vector>
 
-#include "engine/store/leaf_reader.h"
+#include "engine/store/leaf_source.h"
 #include "engine/viz/clash_render.h"
 #include "engine/viz/spool_file.h"
 
@@ -337,8 +337,7 @@ Result<ExportReport> ExportLevel(const StoreReader& store, const std::string& ou
           report.triangles[gi] += 12;
           return sink->Add(gi, corners, 8, kBoxTriangles, 12);
         }
-        MKTREE_RETURN_IF_ERROR(
-            DecodeStoredMesh(store.path(), store.options().codec.dictionary.get(), e, &mesh));
+        MKTREE_RETURN_IF_ERROR(DecodeStoredMesh(store, e, &mesh));
         const auto nv = static_cast<uint32_t>(mesh.vertex_count()),
                    nt = static_cast<uint32_t>(mesh.triangle_count());
         report.vertices[gi] += nv;

@@ -8,7 +8,7 @@
 #include <cstring>
 #include <limits>
 
-#include "engine/store/leaf_reader.h"
+#include "engine/store/leaf_source.h"
 #include "engine/tree/split_tree_walk.h"
 #include "storage/atomic_file.h"
 
@@ -157,8 +157,7 @@ Result<RenderReport> RenderLevel(const StoreReader& store, const std::string& pn
       store, o.level,
       [&](uint32_t, const ObjectEntryView& e, LevelGroup g) -> Status {
         ++report.objects[GroupIndex(g)];
-        MKTREE_RETURN_IF_ERROR(
-            DecodeStoredMesh(store.path(), store.options().codec.dictionary.get(), e, &mesh));
+        MKTREE_RETURN_IF_ERROR(DecodeStoredMesh(store, e, &mesh));
         report.triangles += shader.Draw(mesh, GroupColour(g), e.id, 0, ss, &raster);
         return Status::Ok();
       },

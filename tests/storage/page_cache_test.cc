@@ -214,7 +214,8 @@ class PageCacheFaultTest : public ::testing::Test {
 TEST_F(PageCacheFaultTest, FlippedBytesAndShortReadsAreCorruptionNotWrongAnswers) {
   const LeafInfo& leaf = built.tree.leaves[1];
   auto parse = [&](PageCache& cache) -> Status {
-    return ReadLeaf(cache, faulty.name(), 1, leaf, built.objects, mem.page_bytes(), true, nullptr).status();
+    PinnedLeaf pinned;
+    return ReadLeaf(cache, faulty.name(), 1, leaf, built.objects, mem.page_bytes(), true, nullptr, &pinned);
   };
   {
     PageCache cache(&faulty, 8);

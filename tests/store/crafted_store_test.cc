@@ -10,7 +10,7 @@
 #include <functional>
 #include <random>
 
-#include "engine/store/leaf_reader.h"
+#include "engine/store/leaf_source.h"
 #include "storage/page_cache.h"
 
 namespace mktree {
@@ -33,11 +33,10 @@ class CraftedStoreTest : public ::testing::TestWithParam<Backend> {
     auto r = StoreReader::Open(path_);
     if (!r.ok()) return r.status();
     PageCache cache(&(*r)->pages(), 4);
+    const LeafSource leaves(**r, cache, true);
     PinnedLeaf pinned;
-    const MKTree& t = (*r)->tree();
-    for (uint32_t l = 0; l < t.leaves.size(); ++l)
-      MKTREE_RETURN_IF_ERROR(ReadLeaf(cache, path_, l, t.leaves[l], (*r)->objects(), t.params.mem_page(),
-                                      true, nullptr, &pinned));
+    for (uint32_t l = 0; l < (*r)->tree().leaves.size(); ++l)
+      MKTREE_RETURN_IF_ERROR(leaves.Read(l, nullptr, &pinned));
     // And every object's record (its leaf among them).
     for (ObjectId id = 0; id < (*r)->object_count(); ++id)
       MKTREE_RETURN_IF_ERROR((*r)->ObjectLeaf(id, &cache, true, nullptr).status());

@@ -18,7 +18,7 @@
 #include <fstream>
 #include <set>
 
-#include "engine/store/leaf_reader.h"
+#include "engine/store/leaf_source.h"
 #include "engine/store/store_file.h"
 #include "storage/page_cache.h"
 #include "store/store_test_util.h"
@@ -108,10 +108,10 @@ class FullDiskTest : public ::testing::TestWithParam<Backend> {
     ASSERT_EQ((*r)->object_count(), objects.size());
     for (const SceneObject& o : objects) ASSERT_EQ(*(*r)->ObjectName(o.id), o.name);
     PageCache cache(&(*r)->pages(), 0);
+    const LeafSource leaves(**r, cache, true);
     size_t seen = 0;
     for (uint32_t l = 0; l < (*r)->tree().leaves.size(); ++l) {
-      auto v = ReadLeaf(cache, path, l, (*r)->tree().leaves[l], (*r)->objects(), (*r)->pages().page_bytes(),
-                        true, nullptr);
+      auto v = leaves.Read(l, nullptr);
       ASSERT_TRUE(v.ok()) << v.status().ToString();
       for (const auto& e : v->view.entries()) {
         Mesh m;

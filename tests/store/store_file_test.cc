@@ -13,7 +13,7 @@
 #include <thread>
 
 #include "engine/store/leaf_codec.h"
-#include "engine/store/leaf_reader.h"
+#include "engine/store/leaf_source.h"
 #include "storage/memory_page_store.h"
 #include "storage/page_cache.h"
 #include "store/store_test_util.h"
@@ -121,9 +121,9 @@ class StoreFileTest : public ::testing::TestWithParam<Param> {
     auto r = StoreReader::Open(path);
     if (!r.ok()) return r.status();
     PageCache cache(&(*r)->pages(), 0);
+    const LeafSource leaves(**r, cache, true);
     for (uint32_t l = 0; l < (*r)->tree().leaves.size(); ++l) {
-      auto v = ReadLeaf(cache, path, l, (*r)->tree().leaves[l], (*r)->objects(), (*r)->pages().page_bytes(),
-                        true, nullptr);
+      auto v = leaves.Read(l, nullptr);
       if (!v.ok()) return v.status();
       for (const auto& e : v->view.entries()) {
         Mesh m;
@@ -675,10 +675,11 @@ TEST_P(StoreFileTest, PagesChangedOnDiskAfterTheirFirstReadAreStillRefused) {
   const LeafInfo leaf = (*r)->tree().leaves[0];
   PageCache cache(&(*r)->pages(), 0);
   const uint64_t mem_page = (*r)->pages().page_bytes();
-  ASSERT_TRUE(ReadLeaf(cache, path, 0, leaf, (*r)->objects(), mem_page, true, nullptr).ok());
+  const LeafSource leaves(**r, cache, true);
+  ASSERT_TRUE(leaves.Read(0, nullptr).ok());
   if (GetParam().backend != Backend::kPagedFile) return;  // (where HDF5 keeps the page is its business)
   FlipByte(path, (1 + leaf.first_page) * mem_page + 100, 0x10);
-  auto again = ReadLeaf(cache, path, 0, leaf, (*r)->objects(), mem_page, true, nullptr);
+  auto again = leaves.Read(0, nullptr);
   EXPECT_EQ(again.status().code(), Status::Code::kCorruption) << again.status().ToString();
 }
 

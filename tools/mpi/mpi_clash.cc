@@ -521,7 +521,7 @@ int RunClash(int argc, char** argv, int rank, int ranks) {
   ClashStats stats;
   if (ok) {
     std::vector<ClashPart> parts;
-    for (const OpenShard& s : shards) parts.push_back(ClashPart{StoreClashView(*s.db), &s.ids});
+    for (const OpenShard& s : shards) parts.push_back(ClashPart{&s.db->leaves(), &s.ids});
     ClashOptions o = a.o;
     o.max_pairs = std::numeric_limits<uint64_t>::max();  // the cap is rank 0's, over every rank's pairs
     Status sort_status;
@@ -538,8 +538,7 @@ int RunClash(int argc, char** argv, int rank, int ranks) {
     stats.store_pages = 0;
     for (const OpenShard& s : shards)
       if (RankOfShard(s.index, k, ranks) == rank)
-        for (const LeafInfo& l : StoreClashView(*s.db).reader.tree().leaves)
-          stats.store_pages += l.page_count;
+        for (const LeafInfo& l : s.db->reader().tree().leaves) stats.store_pages += l.page_count;
     if (ok) {
       const Status fs = sorter.Finish();
       if (!fs.ok()) ok = fail(fs.message());

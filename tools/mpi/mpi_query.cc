@@ -92,8 +92,8 @@ Result<OpenShard> OpenOneShard(const std::string& manifest, const Manifest& m, u
     return Status::Corruption(ShardFilePath(manifest, e.ids.name) +
                               ": object count differs from the manifest's");
   const uint64_t cache = (4096 + m.shards.size() - 1) / m.shards.size();  // as the one-process Database
-  MKTREE_ASSIGN_OR_RETURN(o.db,
-                          Database::Open(ShardFilePath(manifest, e.store.name), {.cache_pages = cache}));
+  MKTREE_ASSIGN_OR_RETURN(auto reader, StoreReader::Open(ShardFilePath(manifest, e.store.name)));
+  o.db = OpenStoreDatabase(std::move(reader), {.cache_pages = cache});
   return o;
 }
 

@@ -11,6 +11,7 @@
 #include <utility>
 #include <vector>
 
+#include "engine/query/store_database.h"
 #include "engine/shard/manifest.h"
 #include "mktree/database.h"
 
@@ -85,7 +86,7 @@ inline int RankOfShard(uint32_t shard, uint32_t shards, int ranks) {
 // One shard of a manifest opened on a rank: its store's Database (local ids) and its id file.
 struct OpenShard {
   uint32_t index = 0;
-  std::unique_ptr<Database> db;
+  std::unique_ptr<StoreDatabase> db;
   std::vector<ObjectId> ids;  // local -> global
 };
 // Shard s of the manifest, checked as Database::Open(manifest) checks it before opening its store, with

@@ -1,0 +1,22 @@
+// Database::Open: the one entry point above both implementations, a sharded store's manifest
+// (sharded_database.h) or a store file (store_database.h).
+#include "engine/core/guarded.h"
+#include "engine/query/sharded_database.h"
+#include "engine/query/store_database.h"
+#include "engine/shard/manifest.h"
+#include "engine/store/store_file.h"
+#include "mktree/database.h"
+
+namespace mktree {
+
+Result<std::unique_ptr<Database>> Database::Open(const std::string& path, const OpenOptions& options) {
+  return Guarded(path, [&]() -> Result<std::unique_ptr<Database>> {
+    if (IsManifestFile(path)) return OpenShardedDatabase(path, options);
+    ReadOptions ro;
+    ro.direct_io = options.direct_io;
+    MKTREE_ASSIGN_OR_RETURN(auto reader, StoreReader::Open(path, ro));
+    return std::unique_ptr<Database>(OpenStoreDatabase(std::move(reader), options));
+  });
+}
+
+}  // namespace mktree
