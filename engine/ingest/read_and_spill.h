@@ -19,8 +19,8 @@ namespace mktree {
 
 // Where stage 1 puts its spill files and how it writes them.
 struct SpillPlace {
-  std::string dir;   // IngestSpillDir
-  std::string stem;  // the spills are named "<dir>/.<stem>.{geometry,record}-spill.XXXXXX" while unnamed
+  std::string dir;         // IngestSpillDir
+  std::string stem;        // the spills are "<dir>/.<stem>.{geometry,record}-spill.XXXXXX" (spill_file.h)
   FileOps* ops = nullptr;  // null: POSIX
 };
 
