@@ -14,6 +14,12 @@ namespace mktree {
 ssize_t FileOps::Pwrite(int fd, const void* buf, size_t n, uint64_t offset) {
   return ::pwrite(fd, buf, n, static_cast<off_t>(offset));
 }
+ssize_t FileOps::Pread(int fd, void* buf, size_t n, uint64_t offset) {
+  return ::pread(fd, buf, n, static_cast<off_t>(offset));
+}
+ssize_t FileOps::Preadv(int fd, const iovec* iov, int count, uint64_t offset) {
+  return ::preadv(fd, iov, count, static_cast<off_t>(offset));
+}
 int FileOps::Ftruncate(int fd, uint64_t size) { return ::ftruncate(fd, static_cast<off_t>(size)); }
 int FileOps::Fsync(int fd) { return ::fsync(fd); }
 int FileOps::Rename(const std::string& from, const std::string& to) {
@@ -50,11 +56,11 @@ Result<UnnamedFile> OpenUnnamedFile(const std::string& dir, const std::string& s
   return file;
 }
 
-Status PreadFull(int fd, void* buf, size_t n, uint64_t offset, const std::string& name) {
+Status PreadFull(int fd, void* buf, size_t n, uint64_t offset, const std::string& name, FileOps& ops) {
   auto* p = static_cast<uint8_t*>(buf);
   size_t done = 0;
   while (done < n) {
-    const ssize_t r = ::pread(fd, p + done, n - done, static_cast<off_t>(offset + done));
+    const ssize_t r = ops.Pread(fd, p + done, n - done, offset + done);
     if (r < 0) {
       if (errno == EINTR) continue;
       return Status::IOError(name + ": read at offset " + std::to_string(offset + done) + ": " +

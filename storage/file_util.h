@@ -13,7 +13,8 @@ namespace mktree::storage_internal {
 std::string ErrnoText(int err);
 // Reads exactly n bytes at `offset` (retrying on EINTR and partial reads); a short read is an IOError
 // that says "truncated".
-Status PreadFull(int fd, void* buf, size_t n, uint64_t offset, const std::string& name);
+Status PreadFull(int fd, void* buf, size_t n, uint64_t offset, const std::string& name,
+                 FileOps& ops = DefaultFileOps());
 Status PwriteFull(int fd, const void* buf, size_t n, uint64_t offset, const std::string& name,
                   FileOps& ops = DefaultFileOps());
 Result<uint64_t> FileSize(int fd, const std::string& name);

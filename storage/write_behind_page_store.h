@@ -30,7 +30,8 @@ class WriteBehindPageStore : public PageStore {
   // stream of pages into the same base, written while another stream writes the pages before first_page
   // (file stores only: page_store.h). Starts empty; never reads the base's count.
   WriteBehindPageStore(PageStore* base, uint64_t first_page, uint64_t batch_bytes);
-  // Writes of 256 KiB cost the page cache no more per byte than larger ones (12 KiB ones cost 3x).
+  // Writes of 256 KiB cost the page cache no more per byte than larger ones; small ones cost several times
+  // more (bench/README.md).
   static constexpr uint64_t kDefaultBatchBytes = uint64_t{256} << 10;
   // Stops the writer thread; pages not yet written are dropped (the caller flushes what it keeps).
   ~WriteBehindPageStore() override;

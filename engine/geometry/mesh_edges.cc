@@ -94,7 +94,7 @@ void Tally(const EdgeUses& u, EdgeCheck* r) {
 }
 
 // Sorts the edge keys (undirected edge << 1 | direction) and tallies each run of one undirected edge.
-// One sort of 8-byte keys; the original three sorts (directed, reversed, undirected) cost ~3x.
+// One sort of 8-byte keys, not three (directed, reversed, undirected): bench/README.md.
 void TallySorted(std::vector<uint64_t>* keys, EdgeCheck* r) {
   std::sort(keys->begin(), keys->end());
   const std::vector<uint64_t>& k = *keys;

@@ -3,9 +3,8 @@
 // Triangles with two equal corners (after welding) have no area and are ignored.
 //
 // Cost: vertices are welded through a hash table (O(V)); edge uses are counted in a hash table up to
-// ~21k triangles (O(T)) and sorted once above (O(T log T)). Measured ~1 us for a tanker object (20
-// vertices, 35 triangles), 2.5-3x less than the earlier four-sort version; ingest computes it for every
-// object and stores it. At query time pass the stored result to SolidClassifier
+// a threshold of triangles (O(T)) and sorted once above (O(T log T)); bench/README.md has its cost.
+// Ingest computes it for every object and stores it. At query time pass the stored result to SolidClassifier
 // (SolidClassifierOptions::edges) rather than recomputing it.
 //
 // Thread-safety: pure functions (scratch buffers are per thread).

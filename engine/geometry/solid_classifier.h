@@ -20,7 +20,7 @@
 //   holes it is the solid a user sees, with the holes "patched" smoothly (a point in the bunny's body has
 //   w ~ 1, a point outside w ~ 0); an open sheet (a single plate face) encloses nothing (|w| < 1/2 off
 //   the sheet) so only contact with the surface counts. |w| rather than w makes inverted orientation
-//   irrelevant. Cost: one atan2 per triangle per query, no acceleration (bunny, 69k triangles: ~5 ms).
+//   irrelevant. Cost: one atan2 per triangle per query, no acceleration (bench/README.md).
 //
 // Surface contact (both methods): a point within `tolerance()` of a triangle is on the surface and
 //   therefore inside (closed solid). tolerance = 1e-9 x bounding-box diagonal + 4 ulp(largest
@@ -50,8 +50,8 @@
 namespace mktree {
 
 struct SolidClassifierOptions {
-  // Queries the caller expects to run on this classifier. A yz grid over the triangles (O(T) to build,
-  // a few ms for 50k triangles) is built only when it pays off; one brute-force parity query costs
+  // Queries the caller expects to run on this classifier. A yz grid over the triangles (O(T) to build)
+  // is built only when it pays off; one brute-force parity query costs
   // about what building the grid costs / kGridBreakEven.
   size_t expected_queries = 1;
   // The mesh's edge check, if known (store it per object at ingest); computed (O(T log T)) otherwise.
@@ -98,9 +98,8 @@ class SolidClassifier {
   std::vector<uint32_t> cell_tris_;
 };
 
-// Grid pays off when expected_queries >= this. Measured (Release, one core): building the grid costs
-// 6 brute-force parity queries on armadillo (2.9 ms vs 0.45 ms) and 20 on fandisk (1.1 ms vs 56 us);
-// a grid query then costs ~0.5 us instead.
+// Grid pays off when expected_queries >= this: building the grid costs a handful to a few tens of
+// brute-force parity queries, and a grid query far less than one (bench/README.md).
 inline constexpr size_t kGridBreakEven = 8;
 // Below this many triangles a brute-force query is as fast as a grid lookup.
 inline constexpr size_t kGridMinTriangles = 256;

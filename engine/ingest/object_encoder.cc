@@ -17,7 +17,7 @@ namespace mktree {
 namespace {
 
 // Batches amortise the hand-off (one lock and wake-up per batch, not per object) yet stay small enough
-// that a few in flight cost little RAM: the tanker's objects average ~660 bytes, so a batch is ~0.3 MiB.
+// that a few in flight cost little RAM (a batch of typical objects is well under kBatchRawBytes).
 constexpr size_t kBatchObjects = 512;
 constexpr uint64_t kBatchRawBytes = 2 << 20;
 // Meshes larger than this are freed after use rather than kept for the next object read into their slot,

@@ -20,9 +20,9 @@ constexpr size_t kMaxIovecs = 1024;  // Linux UIO_MAXIOV
 constexpr size_t kCursorBlockBytes = 1 << 20;
 
 // preadv until every byte of iov[0, n) is read; advances through the iovecs on short reads.
-Status PreadvFull(int fd, iovec* iov, size_t n, uint64_t offset, const std::string& path) {
+Status PreadvFull(FileOps& ops, int fd, iovec* iov, size_t n, uint64_t offset, const std::string& path) {
   while (n > 0) {
-    const ssize_t got = ::preadv(fd, iov, static_cast<int>(n), static_cast<off_t>(offset));
+    const ssize_t got = ops.Preadv(fd, iov, static_cast<int>(n), offset);
     if (got < 0 && errno == EINTR) continue;
     if (got <= 0)
       return Status::IOError(path + ": read failed: " + (got < 0 ? std::strerror(errno) : "short read"));
@@ -46,10 +46,11 @@ SpillFile::~SpillFile() {
   if (fd_ >= 0) ::close(fd_);
 }
 
-Result<std::unique_ptr<SpillFile>> SpillFile::Create(const std::string& dir, const std::string& stem) {
+Result<std::unique_ptr<SpillFile>> SpillFile::Create(const std::string& dir, const std::string& stem,
+                                                     FileOps& ops) {
   MKTREE_ASSIGN_OR_RETURN(storage_internal::UnnamedFile file,
                           storage_internal::OpenUnnamedFile(dir.empty() ? "." : dir, stem, "a spill file"));
-  return std::unique_ptr<SpillFile>(new SpillFile(file.fd, std::move(file.where)));
+  return std::unique_ptr<SpillFile>(new SpillFile(file.fd, std::move(file.where), ops));
 }
 
 Result<uint64_t> SpillFile::Append(const void* data, uint64_t size) {
@@ -74,8 +75,7 @@ Status SpillFile::Flush() {
 Status SpillFile::WriteBuffer() {
   size_t done = 0;
   while (done < buffer_.size()) {
-    ssize_t n =
-        ::pwrite(fd_, buffer_.data() + done, buffer_.size() - done, static_cast<off_t>(flushed_ + done));
+    ssize_t n = ops_->Pwrite(fd_, buffer_.data() + done, buffer_.size() - done, flushed_ + done);
     if (n < 0) {
       if (errno == EINTR) continue;
       return Status::IOError(path_ + ": write failed: " + std::strerror(errno));
@@ -93,7 +93,7 @@ Status SpillFile::ReadAt(uint64_t offset, uint64_t size, void* out) const {
   auto* p = static_cast<uint8_t*>(out);
   uint64_t done = 0;
   while (done < size) {
-    ssize_t n = ::pread(fd_, p + done, size - done, static_cast<off_t>(offset + done));
+    ssize_t n = ops_->Pread(fd_, p + done, size - done, offset + done);
     if (n < 0 && errno == EINTR) continue;
     if (n <= 0)
       return Status::IOError(path_ + ": read failed: " + (n < 0 ? std::strerror(errno) : "short read"));
@@ -110,7 +110,7 @@ Status SpillFile::ReadMany(std::vector<Range>* ranges) const {
   iov.reserve(kMaxIovecs);
   uint64_t run_start = 0, run_end = 0;  // file range the pending iovecs cover
   auto flush = [&]() -> Status {
-    Status st = PreadvFull(fd_, iov.data(), iov.size(), run_start, path_);
+    Status st = PreadvFull(*ops_, fd_, iov.data(), iov.size(), run_start, path_);
     iov.clear();
     return st;
   };

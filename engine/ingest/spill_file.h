@@ -2,7 +2,8 @@
 // streams in, and read back by offset once the tree is known. The file has no name (O_TMPFILE) or, where
 // the filesystem refuses that, is unlinked as soon as it is created ("<dir>/<stem>.XXXXXX"), so it
 // disappears with its descriptor, even when the process is killed (BuildStore removes the rare named
-// leftover of a build killed between the two steps).
+// leftover of a build killed between the two steps). Its writes and reads go through a FileOps
+// (storage/file_ops.h), so that tests inject faults; an error names the file.
 #pragma once
 
 #include <cstdint>
@@ -11,6 +12,7 @@
 #include <vector>
 
 #include "mktree/status.h"
+#include "storage/file_ops.h"
 
 namespace mktree {
 
@@ -20,8 +22,10 @@ class SpillFile {
   SpillFile(const SpillFile&) = delete;
   SpillFile& operator=(const SpillFile&) = delete;
 
-  // Creates a new spill file in `dir` named after `stem`.
-  static Result<std::unique_ptr<SpillFile>> Create(const std::string& dir, const std::string& stem);
+  // Creates a new spill file in `dir` named after `stem`, written and read through `ops` (which must
+  // outlive it).
+  static Result<std::unique_ptr<SpillFile>> Create(const std::string& dir, const std::string& stem,
+                                                   FileOps& ops = DefaultFileOps());
 
   // Appends bytes (buffered); returns the offset they start at.
   Result<uint64_t> Append(const void* data, uint64_t size);
@@ -45,10 +49,11 @@ class SpillFile {
   const std::string& path() const { return path_; }
 
  private:
-  SpillFile(int fd, std::string path) : fd_(fd), path_(std::move(path)) {}
+  SpillFile(int fd, std::string path, FileOps& ops) : fd_(fd), path_(std::move(path)), ops_(&ops) {}
   Status WriteBuffer();  // writes out what Append buffered, keeping the buffer
   int fd_ = -1;
   std::string path_;
+  FileOps* ops_;
   std::vector<uint8_t> buffer_;
   uint64_t size_ = 0;     // bytes appended, buffered or not
   uint64_t flushed_ = 0;  // bytes on disk

@@ -10,7 +10,8 @@
 // (temporary name, fsync, rename). On any error the temporary store and the spill files are removed.
 // The store's writer (and with it the writer lock, docs/cli.md) is taken before anything else: a second
 // build of the same store fails at once, and the leftovers of killed builds are removed before this one
-// writes.
+// writes. The build runs as named stages (read and spill, the tree, the leaf pages, the records):
+// build_stages.h.
 #pragma once
 
 #include <cstdint>
@@ -50,6 +51,10 @@ struct IngestOptions {
   // The store frame's origin; unset: ChooseStoreOrigin of the first object. The shards of a sharded store
   // share the scene's frame, so that their float32 boxes are the unsharded store's.
   std::optional<Vec3d> origin;
+  // The spill files' writes and reads (the object and record spills; the tree build's list spill unless
+  // tuning.spill_file_ops is set); null: POSIX. Tests inject faults through it (storage/file_ops.h); it
+  // must outlive the build. The store's own writes go through store.file_ops.
+  FileOps* spill_file_ops = nullptr;
 };
 
 struct IngestReport {

@@ -125,10 +125,11 @@ class VertexIndexMap {
 // them).
 class VertexTable {
  public:
-  // Keeps up to ram_bytes of blocks in RAM (one at least).
-  VertexTable(std::string path, size_t ram_bytes, std::string spill_dir)
+  // Keeps up to ram_bytes of blocks in RAM (one at least); the spill is written and read through `ops`.
+  VertexTable(std::string path, size_t ram_bytes, std::string spill_dir, FileOps& ops)
       : path_(std::move(path)),
         spill_dir_(std::move(spill_dir)),
+        ops_(ops),
         ram_(std::max<size_t>(ram_bytes / kBlockBytes, 1)) {}
   VertexTable(const VertexTable&) = delete;
   VertexTable& operator=(const VertexTable&) = delete;
@@ -160,9 +161,9 @@ class VertexTable {
     double* at = &read_back_[slot * kReadBackPage * 3];
     if (read_back_page_[slot] != page) {
       read_back_page_[slot] = kNoPage;
-      if (Status st =
-              storage_internal::PreadFull(fd_, at, kReadBackPage * 3 * sizeof(double),
-                                          uint64_t{page} * kReadBackPage * 3 * sizeof(double), spill_name_);
+      if (Status st = storage_internal::PreadFull(fd_, at, kReadBackPage * 3 * sizeof(double),
+                                                  uint64_t{page} * kReadBackPage * 3 * sizeof(double),
+                                                  spill_name_, ops_);
           !st.ok()) {
         error_ = st;
         return nullptr;
@@ -192,7 +193,7 @@ class VertexTable {
     if (block - first_in_ram_ == ram_.size()) {
       if (fd_ < 0) MKTREE_RETURN_IF_ERROR(OpenSpill());
       MKTREE_RETURN_IF_ERROR(storage_internal::PwriteFull(
-          fd_, slot, kBlockBytes, uint64_t{first_in_ram_} * kBlockBytes, spill_name_, DefaultFileOps()));
+          fd_, slot, kBlockBytes, uint64_t{first_in_ram_} * kBlockBytes, spill_name_, ops_));
       ++first_in_ram_;
       return Status::Ok();  // the spilled block's memory holds the new one
     }
@@ -213,6 +214,7 @@ class VertexTable {
   }
 
   const std::string path_, spill_dir_;
+  FileOps& ops_;
   std::vector<double*> ram_;  // block b, when b >= first_in_ram_, is ram_[b % ram_.size()]
   size_t first_in_ram_ = 0;   // blocks before it are in the spill file, at b * kBlockBytes
   size_t size_ = 0;
@@ -337,7 +339,8 @@ ObjReader::ObjReader(std::string path, std::unique_ptr<InputFile> file, ObjectId
       chunk_bytes_(std::max<size_t>(options.chunk_bytes, 1)),
       chunk_count_((file_->size + chunk_bytes_ - 1) / chunk_bytes_),
       next_id_(first_id),
-      positions_(path_, options.vertex_ram_bytes, options.spill_dir) {
+      positions_(path_, options.vertex_ram_bytes, options.spill_dir,
+                 options.spill_file_ops ? *options.spill_file_ops : DefaultFileOps()) {
   int threads = options.threads;
   if (threads < 0) threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   threads = static_cast<int>(std::min<uint64_t>(threads, chunk_count_ > 1 ? chunk_count_ : 0));

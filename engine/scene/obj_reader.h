@@ -52,6 +52,7 @@
 #include <string>
 
 #include "engine/scene/scene_source.h"
+#include "storage/file_ops.h"
 
 namespace mktree {
 
@@ -70,6 +71,9 @@ struct ObjReadOptions {
   size_t vertex_ram_bytes = size_t{64} << 20;
   // Where the spill file goes (unnamed, removed when the reader is); empty: $TMPDIR, else /tmp.
   std::string spill_dir;
+  // The spill file's writes and reads (storage/file_ops.h); null: POSIX. Tests inject faults through it;
+  // it must outlive the reader.
+  FileOps* spill_file_ops = nullptr;
 };
 Result<std::unique_ptr<SceneSource>> OpenObjFile(const std::string& path, ObjectId first_id,
                                                  const ObjReadOptions& options);

@@ -109,7 +109,7 @@ void InverseTransform(const uint8_t* in, size_t vc, size_t nt, std::vector<float
 
 // Every local coordinate on an axis lies in [2^k, 2^k + extent] with 2^k the power of two just above the
 // box's extent on that axis (2^-100 for a flat axis): one exponent for all, so that float32 holds them as
-// fixed point (the XOR transform then zeroes their high bits as it did for world coordinates; measured in
+// fixed point (the XOR transform then zeroes their high bits as it did for world coordinates;
 // bench/coordinate_bench.cc) and rounding costs at most extent * 2^-22.
 double LocalBase(float lo, float hi) {
   const double extent = static_cast<double>(hi) - lo;
@@ -168,8 +168,8 @@ uint64_t StoredBytes(std::span<const uint8_t> samples, std::span<const size_t> s
 std::vector<uint8_t> TrainDictionary(std::span<const uint8_t> samples, std::span<const size_t> sizes,
                                      int level) {
   if (sizes.empty() || sizes.size() > std::numeric_limits<unsigned>::max()) return {};
-  // Measured (bench/dict_bench.cc): 64 KiB is best on the tanker and the 4 MiB steel scene, 16 KiB on the
-  // 1 MiB duplex; a sixty-fourth of the sample follows that.
+  // A sixty-fourth of the sample, within 4-64 KiB: what bench/dict_bench.cc found best across scenes
+  // (bench/README.md).
   const size_t capacity = std::clamp<size_t>(samples.size() / 64, size_t{4} << 10, size_t{64} << 10);
   // What the sample stores without a dictionary, on another thread while the dictionary trains.
   std::future<uint64_t> without =

@@ -8,8 +8,8 @@
 // box.min + 2^k, with 2^k the power of two just above the box's extent (2^-100 when it is 0), so every
 // local coordinate of an axis has the same exponent and the decoder recovers vertex = box.min + (local -
 // 2^k) in double. A vertex so keeps 2^-22 of the object's own size wherever the object lies, and stays in
-// its box. Measured (bench/coordinate_bench.cc): as small as world float32 on the tanker, whose world
-// float32 coordinates move a small object's corners by 82 % of its size at UTM-sized coordinates.
+// its box. Why, against world float32 coordinates, which lose a small object's shape at UTM-sized
+// coordinates: bench/coordinate_bench.cc and bench/README.md.
 //
 // Entry layout (little-endian):
 //   offset size field
@@ -25,8 +25,8 @@
 //   44     4    stored geometry bytes (what follows the header)
 //   48     ...  geometry
 // Raw geometry: float32 local vertices (x, y, z interleaved), then uint32 triangle indices.
-// Transform 1 (lossless, applied before zstd; measured to shrink pipe prisms ~1.4x and boxes ~1.3x
-// further): vertex floats are split into x, y, z planes and each value's bits are XORed with the previous
+// Transform 1 (lossless, applied before zstd, so that zstd finds more to shrink; bench/README.md): vertex
+// floats are split into x, y, z planes and each value's bits are XORed with the previous
 // value in its plane (repeated coordinates become zero); triangle indices become zigzag-encoded deltas;
 // then both arrays are byte-shuffled (all byte 0s, then all byte 1s, ...).
 // An entry whose compressed geometry would not be smaller than the raw bytes is stored raw (codec 0).
@@ -58,8 +58,8 @@ namespace mktree {
 
 // A store's zstd dictionary (store format 6): trained at ingest on the first objects' geometry
 // (TrainDictionary), kept once in the store and shared by all its zstd entries (codec kZstdDict). Each
-// object's frame then needs no literal table of its own: measured (bench/dict_bench.cc), a quarter of
-// the compression CPU and 45 % fewer geometry bytes on the tanker, 2-29 % fewer on the real scenes.
+// object's frame then needs no literal table of its own: less compression CPU and fewer geometry bytes
+// (bench/dict_bench.cc; the figures are in bench/README.md).
 // Thread safety: immutable once loaded; any number of threads may compress or decompress with it.
 class CodecDictionary {
  public:
@@ -83,8 +83,8 @@ class CodecDictionary {
 };
 
 // What ingest trains a dictionary on: the packed geometry (PackObjectGeometry) of the first objects, whole
-// objects up to this many bytes. 4 MiB gives the tanker's best bytes (1 and 8 MiB are worse or no better)
-// and holds all of the steel scene, whose bytes it improves over 2 MiB (bench/README.md, dict_bench).
+// objects up to this many bytes: the size that stored the benchmark scenes in the fewest bytes
+// (bench/README.md, dict_bench).
 inline constexpr size_t kDictionarySampleBytes = size_t{4} << 20;
 // zstd's fastCover search steps over its segment sizes k (50 to 2000): 1 tries k = 50 and 2000. Training
 // runs on one core before any object is encoded, and more steps cost time for no better stores overall
@@ -100,12 +100,12 @@ std::vector<uint8_t> TrainDictionary(std::span<const uint8_t> samples, std::span
 
 struct CodecOptions {
   Codec codec = Codec::kZstd;  // how geometry is stored in leaf entries
-  // zstd compression level (1..19; negative = fast modes). 3, because pages are what queries pay for:
-  // measured on 1M tanker objects read back from OBJ text (how users' scenes arrive), level -1 stores
-  // 11% more pages (26,804 vs 24,153) and builds no faster (the OBJ parser bounds it: 9.8 vs 9.6 s).
-  // From the generator, -1 builds 22% faster (179k vs 147k objects/s) for 1.3% more pages: pass
-  // --zstd-level -1 where ingest speed matters more than pages. Levels 1 and 3 cost the same on objects
-  // this small (~660 B raw).
+  // zstd compression level, as mktree/build.h allows: ZSTD_minCLevel() (negative: fast modes) to
+  // ZSTD_maxCLevel() (22); 0: zstd's default. 3, because pages are what queries pay for: on scenes read
+  // from OBJ text (how users' scenes arrive), level -1 stores more pages and builds no faster (the OBJ
+  // parser bounds it); from the generator, -1 builds faster for a few more pages: pass --zstd-level -1
+  // where ingest speed matters more than pages. Levels 1 and 3 cost the same on small objects. (The
+  // figures: bench/README.md, "Figures that used to sit in code comments".)
   int zstd_level = 3;
   bool shuffle = true;  // apply transform 1 before zstd (ignored with kNone)
   // The store's dictionary (with kZstd): entries are compressed with it (codec kZstdDict). Null: none.
@@ -115,7 +115,7 @@ struct CodecOptions {
 inline constexpr uint32_t kObjectEntryHeaderBytes = 48;
 
 // Facts about an object's mesh that ingest computes once so that exact queries need not (the edge check
-// is O(T log T): 23 ms for a 52k-triangle mesh, paid per query otherwise).
+// is O(T log T), paid per query otherwise).
 enum ShapeFlags : uint8_t {
   kShapeKnown = 1,      // the other bits are meaningful
   kShapeEvenEdges = 2,  // every undirected edge is used an even number of times (ray parity applies)

@@ -11,9 +11,9 @@
 
 #include "engine/tree/build_layout.h"
 #include "engine/tree/build_memory.h"
+#include "engine/tree/build_tuning.h"
 #include "engine/tree/list_spill.h"
 #include "engine/tree/mktree.h"
-#include "engine/tree/mktree_builder.h"
 #include "mktree/geometry.h"
 
 namespace mktree::build {

@@ -2,16 +2,14 @@
 // query skips a leaf the tree routes it to when none of that leaf's objects' boxes can meet the query.
 //
 // Why: the MKtree partitions objects, not space, so a leaf's box R is the union of its objects' boxes and
-// holds much free space (a 40 m pipe stretches R across a compartment). Measured on the 1M tanker
-// without it: a random point reaches 7.8 leaves of which 0.69 hold an answer (6.0 when SplitTrees made
-// nearly three times as many cuts: see BuildTuning::split_min_gain). The SplitTrees only speak for overlap
-// slabs; this speaks for the leaves.
+// holds much free space (a long pipe stretches R across a compartment): without the filter a random point
+// reaches several leaves for each one that holds an answer (bench/README.md; see also
+// BuildTuning::split_min_gain). The SplitTrees only speak for overlap slabs; this speaks for the leaves.
 //
 // Each object's float32 box is quantized to 10 bits per bound inside its leaf's box (8 bytes per object),
 // rounded outward, so the quantized box contains the real one: the filter can only let through a leaf
-// that has nothing (a false positive costs one read), never drop one that has something. (8 bits, in 6
-// bytes, let through 0.070 leaves per random point without an answer at 1M objects and 0.266 at 10M; 10
-// bits 0.017 and 0.065; 12 bits would need a ninth byte for 0.004 and 0.019.)
+// that has nothing (a false positive costs one read), never drop one that has something. 10 bits let
+// through about a quarter of the empty leaves 8 bits do, and 12 would need a ninth byte (bench/README.md).
 #pragma once
 
 #include <cstdint>

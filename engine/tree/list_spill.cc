@@ -23,8 +23,10 @@ ListSpill::~ListSpill() {
   if (fd_ >= 0) close(fd_);
 }
 
-Status ListSpill::Open(const std::string& dir, uint32_t n, std::array<BuildVector<uint32_t>, 6>* lists) {
+Status ListSpill::Open(const std::string& dir, uint32_t n, std::array<BuildVector<uint32_t>, 6>* lists,
+                       FileOps& ops) {
   n_ = n;
+  ops_ = &ops;
   lists_ = lists;
   MKTREE_ASSIGN_OR_RETURN(
       storage_internal::UnnamedFile file,
@@ -42,9 +44,9 @@ void ListSpill::StoreAt(int l, int at, uint32_t lo, uint32_t hi) {
 void ListSpill::Write(int l, uint32_t lo, uint32_t hi, const uint32_t* from) {
   const char* p = reinterpret_cast<const char*>(from);
   size_t left = size_t{hi - lo} * sizeof(uint32_t);
-  off_t at = static_cast<off_t>((uint64_t{static_cast<uint32_t>(l)} * n_ + lo) * sizeof(uint32_t));
+  uint64_t at = (uint64_t{static_cast<uint32_t>(l)} * n_ + lo) * sizeof(uint32_t);
   while (left > 0) {
-    const ssize_t w = pwrite(fd_, p, left, at);
+    const ssize_t w = ops_->Pwrite(fd_, p, left, at);
     if (w < 0 && errno == EINTR) continue;
     if (w <= 0) throw SpillError(where_ + ": writing the tree build's spill file: " + Errno());
     p += w, at += w, left -= static_cast<size_t>(w);
@@ -74,9 +76,9 @@ void ListSpill::Evict(int l, uint32_t lo, uint32_t hi) {
 void ListSpill::Read(int l, uint32_t lo, uint32_t hi, uint32_t* to) {
   char* p = reinterpret_cast<char*>(to);
   size_t left = size_t{hi - lo} * sizeof(uint32_t);
-  off_t at = static_cast<off_t>((uint64_t{static_cast<uint32_t>(l)} * n_ + lo) * sizeof(uint32_t));
+  uint64_t at = (uint64_t{static_cast<uint32_t>(l)} * n_ + lo) * sizeof(uint32_t);
   while (left > 0) {
-    const ssize_t r = pread(fd_, p, left, at);
+    const ssize_t r = ops_->Pread(fd_, p, left, at);
     if (r < 0 && errno == EINTR) continue;
     if (r < 0) throw SpillError(where_ + ": reading the tree build's spill file: " + Errno());
     if (r == 0) throw SpillError(where_ + ": the tree build's spill file is shorter than written");

@@ -4,7 +4,8 @@
 // enough is loaded into the lists' own storage and built in RAM. The file holds list l's position p at
 // (l * n + p) * 4, as RAM does, so a node's range is one stretch of each list; after the six lists come
 // stretches 6 and 7 of n positions each, which BuildMKTree and DoneRanges (build_state.h) use: the ids and
-// the final list 0 wait there for Finish. Internal to engine/tree.
+// the final list 0 wait there for Finish. Its writes and reads go through a FileOps (storage/file_ops.h,
+// BuildTuning::spill_file_ops), so that tests inject faults. Internal to engine/tree.
 #pragma once
 
 #include <array>
@@ -15,6 +16,7 @@
 
 #include "engine/tree/build_memory.h"
 #include "mktree/status.h"
+#include "storage/file_ops.h"
 
 namespace mktree::build {
 
@@ -33,8 +35,10 @@ class ListSpill {
 
   // Creates the file in `dir` ("" : $TMPDIR, else /tmp) for lists of n positions. It has no name
   // (O_TMPFILE) or, where the filesystem refuses that, is unlinked as soon as it is created, so it
-  // disappears with its descriptor whatever way the build ends.
-  Status Open(const std::string& dir, uint32_t n, std::array<BuildVector<uint32_t>, 6>* lists);
+  // disappears with its descriptor whatever way the build ends. Written and read through `ops`, which
+  // must outlive this.
+  Status Open(const std::string& dir, uint32_t n, std::array<BuildVector<uint32_t>, 6>* lists,
+              FileOps& ops = DefaultFileOps());
   bool open() const { return fd_ >= 0; }
 
   // Writes list l's positions [lo, hi) from RAM to the file and gives their RAM back (whole pages inside
@@ -51,6 +55,7 @@ class ListSpill {
 
  private:
   int fd_ = -1;
+  FileOps* ops_ = &DefaultFileOps();
   std::string where_;  // names the file in errors
   uint32_t n_ = 0;
   std::array<BuildVector<uint32_t>, 6>* lists_ = nullptr;

@@ -203,8 +203,8 @@ void RouteBoxBreadthFirst(const MKTree& t, const Box3d& q, std::vector<uint32_t>
 }
 
 // Bytes a box query may read in RAM: nodes, SplitTrees, leaf infos and the leaf filter. Up to this the
-// depth-first walk was the faster on the tanker (4.5 MiB at 300k objects); beyond, waiting for memory
-// is most of a walk and the prefetching one wins (9 MiB at 600k: even; 14 MiB at 1M). bench/README.md.
+// depth-first walk is the faster; beyond, waiting for memory is most of a walk and the prefetching one
+// wins (bench/README.md).
 constexpr uint64_t kDepthFirstMaxTreeBytes = uint64_t{6} << 20;
 
 uint64_t RoutedBytes(const MKTree& t) {

@@ -123,7 +123,8 @@ Result<BuildResult> BuildMKTree(std::vector<BuildObject> records, const BuildPar
                                                            : kNoIndex;
   build::ListSpill spill;
   if (n > ram_objects) {
-    MKTREE_RETURN_IF_ERROR(spill.Open(tuning.spill_dir, n, &state.lists));
+    MKTREE_RETURN_IF_ERROR(spill.Open(tuning.spill_dir, n, &state.lists,
+                                      tuning.spill_file_ops ? *tuning.spill_file_ops : DefaultFileOps()));
     state.spill = &spill;
     state.ram_node_objects = ram_objects;
   }

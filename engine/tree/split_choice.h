@@ -16,7 +16,7 @@
 // kGuardBalance); steps 2-3 are SplitChooser::Choose, in O(N) per axis over the presorted keys: along
 // either key order a(k) and b(k) never decrease, so |Sm| = #(min_w < b) - #(max_w <= a) is counted by two
 // cursors moving forward. Candidate::BetterThan is step 3's order, with two refinements that
-// BuildTuning (mktree_builder.h) switches: near the leaves (fill_aware), page waste ranks first among the
+// BuildTuning (build_tuning.h) switches: near the leaves (fill_aware), page waste ranks first among the
 // candidates whose |Sm| is within the fill slack of the least; under SplitPolicy::kCompact only the
 // node's wide axes are tried and ties go to the smaller N1 x margin(R(Sn1)) + N2 x margin(R(Sn2)) before
 // the slab. With kSoa and fill_aware off the choice is the rule above exactly.

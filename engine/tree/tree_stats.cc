@@ -57,7 +57,8 @@ TreeStats ComputeTreeStats(const MKTree& tree, uint64_t object_count,
   s.mem_page = tree.params.mem_page();
   s.has_overlap_counts = !overlap_counts.empty() && overlap_counts.size() == tree.nodes.size();
   if (tree.empty()) return s;
-  // The shape of every node's SplitTree (most of the work: a 1M-object tree has 865k SplitTree nodes),
+  // The shape of every node's SplitTree (most of the work: a tree has about as many SplitTree nodes as
+  // objects),
   // by node index, in two halves when there are two threads; the walk below sums them in its own order.
   std::vector<SplitTreeShape> shapes(tree.nodes.size());
   auto measure = [&](size_t lo, size_t hi) {

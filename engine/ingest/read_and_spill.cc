@@ -1,0 +1,276 @@
+#include "engine/ingest/read_and_spill.h"
+
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <deque>
+#include <filesystem>
+#include <limits>
+
+#include "engine/ingest/object_encoder.h"
+#include "engine/store/record_codec.h"
+
+namespace mktree {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double Seconds(Clock::time_point since) {
+  return std::chrono::duration<double>(Clock::now() - since).count();
+}
+
+constexpr uint64_t kProgressEvery = 1 << 15;
+
+// Boxes rounded by more than this fraction of their object's size draw a warning.
+constexpr double kBoxRoundingWarnFraction = 1.0 / 16;
+
+// Objects whose float32 box in the store frame is coarse against their size: counted, and the worst kept.
+struct CoarseBoxes {
+  uint64_t count = 0;
+  double worst_ratio = 0;
+  ObjectId worst_id = 0;
+  std::string worst_name;
+  double worst_size = 0, worst_rounding = 0;
+
+  void Check(const SceneObject& obj, const Box3f& box) {
+    double size = 0, far = 0;
+    for (int i = 0; i < 3; ++i) {
+      size = std::max(size, static_cast<double>(box.max[i]) - box.min[i]);
+      far = std::max({far, std::fabs(double{box.min[i]}), std::fabs(double{box.max[i]})});
+    }
+    const double rounding = far * 0x1p-23;  // float32's spacing near `far`, within a factor of 2
+    if (rounding <= kBoxRoundingWarnFraction * size) return;
+    ++count;
+    const double ratio = size > 0 ? rounding / size : std::numeric_limits<double>::infinity();
+    if (count == 1 || ratio > worst_ratio) {
+      worst_ratio = ratio;
+      worst_id = obj.id;
+      worst_name = obj.name;
+      worst_size = size;
+      worst_rounding = rounding;
+    }
+  }
+  std::string Warning(const Vec3d& origin) const {
+    std::string name = worst_name.substr(0, 100);
+    for (char& c : name)
+      if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) c = '?';  // one line, whatever the name holds
+    char buf[512];
+    std::snprintf(
+        buf, sizeof buf,
+        "%llu objects lie so far from the store's origin (%.17g, %.17g, %.17g) that their float32 boxes "
+        "are rounded by more than 1/16 of their size (worst: object %u '%.100s', size %.3g, rounding "
+        "%.3g): AABB-mode answers and routing treat them as that much larger; exact answers are not "
+        "affected",
+        static_cast<unsigned long long>(count), origin.x, origin.y, origin.z, worst_id, name.c_str(),
+        worst_size, worst_rounding);
+    return buf;
+  }
+};
+
+// The objects of every input in order, numbered from 0; collects the sources' warnings.
+class SceneReader {
+ public:
+  SceneReader(const std::vector<SceneOpener>& inputs, const IngestOptions& options,
+              std::vector<std::string>* warnings)
+      : inputs_(inputs), options_(options), warnings_(warnings) {}
+
+  // Fills *obj with the next object; false after the last input's last object.
+  Result<bool> Next(SceneObject* obj) {
+    for (;;) {
+      if (!source_) {
+        if (input_ == inputs_.size()) return false;
+        auto opened = inputs_[input_](next_id_);
+        if (!opened.ok()) return opened.status();
+        source_ = std::move(opened).value();
+      }
+      auto more = source_->Next(obj);
+      if (!more.ok()) return more.status();
+      if (*more) break;
+      for (std::string& w : source_->TakeWarnings()) warnings_->push_back(std::move(w));
+      source_.reset();
+      ++input_;
+    }
+    if (obj->id != next_id_)
+      return Status::Internal("object '" + obj->name + "': source gave id " + std::to_string(obj->id) +
+                              ", expected " + std::to_string(next_id_));
+    if (next_id_ == kNoIndex) return Status::InvalidArgument("too many objects: ids are 32-bit");
+    ++next_id_;
+    // Reported here, on the calling thread, not by the sink (a drain thread): a progress callback may
+    // need the caller's thread (Python checks Ctrl-C only on its main thread).
+    if (next_id_ % kProgressEvery == 0) ReportProgress(options_, IngestStage::kRead, next_id_, 0);
+    return true;
+  }
+  ObjectId objects_read() const { return next_id_; }
+
+ private:
+  const std::vector<SceneOpener>& inputs_;
+  const IngestOptions& options_;
+  std::vector<std::string>* warnings_;
+  ObjectId next_id_ = 0;
+  size_t input_ = 0;
+  std::unique_ptr<SceneSource> source_;
+};
+
+// The encoder's sink: spills each object's entry and record in id order and keeps its BuildObject.
+// Called on one thread at a time (EncodeObjects).
+class ObjectSpiller {
+ public:
+  ObjectSpiller(SpilledObjects* out, IngestReport* report)
+      : out_(out), report_(report), source_index_(&out->sources) {}
+
+  Status Spill(const SceneObject& obj, const EncodedObject& encoded) {
+    coarse_.Check(obj, encoded.box);
+    BuildObject rec;
+    rec.id = obj.id;
+    rec.box = encoded.box;
+    rec.encoded_bytes = static_cast<uint32_t>(encoded.entry.size());
+    // Entries go back to back in id order: their offsets are the prefix sums of the sizes.
+    if (auto offset = out_->entries->Append(encoded.entry.data(), encoded.entry.size()); !offset.ok())
+      return offset.status();
+    // The object's record (box, source, name, attributes) as the store encodes it, spilled in id order.
+    record_bytes_.clear();
+    if (Status st =
+            EncodeRecord(encoded.box, source_index_.Of(obj.source), obj.name, obj.attributes, &record_bytes_);
+        !st.ok())
+      return Status::InvalidArgument("object " + std::to_string(obj.id) + " '" + obj.name.substr(0, 100) +
+                                     "': " + st.message());
+    if (auto st = out_->records->Append(record_bytes_.data(), record_bytes_.size()); !st.ok())
+      return st.status();
+    out_->objects.push_back(rec);
+    report_->triangles += obj.mesh.triangle_count();
+    report_->raw_geometry_bytes += obj.mesh.RawGeometryBytes();
+    report_->encoded_bytes += rec.encoded_bytes;
+    return Status::Ok();
+  }
+  const CoarseBoxes& coarse() const { return coarse_; }
+
+ private:
+  SpilledObjects* out_;
+  IngestReport* report_;
+  SourceIndex source_index_;
+  std::vector<uint8_t> record_bytes_;
+  CoarseBoxes coarse_;
+};
+
+// Trains the store's dictionary (object_codec.h) on `first` and the objects after it, read ahead into
+// *ahead and packed as the encoder will pack them, and hands it to the encoder. An object that cannot be
+// packed ends the sample; the encoder reports it in order.
+Status TrainStoreDictionary(const SceneObject& first, SceneReader* reader, std::deque<SceneObject>* ahead,
+                            EncoderOptions* encoder, IngestReport* report) {
+  const auto train_start = Clock::now();
+  std::vector<uint8_t> sample;
+  std::vector<size_t> sizes;
+  auto add = [&](const SceneObject& obj) {
+    const size_t before = sample.size();
+    if (!PackObjectGeometry(obj, encoder->origin, encoder->codec.shuffle, &sample).ok()) return false;
+    if (sample.size() > kDictionarySampleBytes) {  // whole objects only
+      sample.resize(before);
+      return false;
+    }
+    sizes.push_back(sample.size() - before);
+    return true;
+  };
+  for (bool more = add(first); more;) {
+    SceneObject obj;
+    auto got = reader->Next(&obj);
+    if (!got.ok()) return got.status();
+    if (!*got) break;
+    ahead->push_back(std::move(obj));
+    more = add(ahead->back());
+  }
+  std::vector<uint8_t> dictionary = TrainDictionary(sample, sizes, encoder->codec.zstd_level);
+  if (!dictionary.empty()) {
+    auto loaded = CodecDictionary::Load(std::move(dictionary), encoder->codec.zstd_level);
+    if (!loaded.ok())
+      return Status::Internal("the dictionary just trained does not load: " + loaded.status().message());
+    encoder->codec.dictionary = *loaded;
+  }
+  report->dictionary_bytes = encoder->codec.dictionary ? encoder->codec.dictionary->bytes().size() : 0;
+  report->dictionary_seconds = Seconds(train_start);
+  return Status::Ok();
+}
+
+void TrimMalloc() {
+#if defined(__GLIBC__)
+  malloc_trim(0);
+#endif
+}
+
+}  // namespace
+
+void RemoveStaleSpills(const std::string& dir, const std::string& stem) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    for (const char* kind : {".geometry-spill.", ".record-spill.", ".name-spill."}) {
+      const std::string prefix = "." + stem + kind;
+      if (name.size() == prefix.size() + 6 && name.compare(0, prefix.size(), prefix) == 0) {
+        std::error_code rm;
+        fs::remove(it->path(), rm);
+      }
+    }
+  }
+}
+
+Result<ReadAndSpillOutput> ReadAndSpill(const std::vector<SceneOpener>& inputs, const IngestOptions& options,
+                                        const SpillPlace& place, IngestReport* report) {
+  ReadAndSpillOutput out;
+  SpilledObjects& spilled = out.spilled;
+  FileOps& ops = place.ops != nullptr ? *place.ops : DefaultFileOps();
+  MKTREE_ASSIGN_OR_RETURN(spilled.entries,
+                          SpillFile::Create(place.dir, "." + place.stem + ".geometry-spill", ops));
+  MKTREE_ASSIGN_OR_RETURN(spilled.records,
+                          SpillFile::Create(place.dir, "." + place.stem + ".record-spill", ops));
+
+  SceneReader reader(inputs, options, &report->warnings);
+  // The store frame, chosen from the first object before any is encoded (entries hold boxes in it).
+  SceneObject first;
+  MKTREE_ASSIGN_OR_RETURN(bool first_pending, reader.Next(&first));
+  report->origin = options.origin  ? *options.origin
+                   : first_pending ? ChooseStoreOrigin(first.mesh.Bounds())
+                                   : Vec3d{};
+  EncoderOptions encoder;
+  encoder.codec = options.store.codec;
+  encoder.codec.dictionary.reset();
+  encoder.origin = report->origin;
+  encoder.threads = options.threads;
+  // The objects read ahead to train the dictionary, handed to the encoder after `first`.
+  std::deque<SceneObject> ahead;
+  if (first_pending && encoder.codec.codec == Codec::kZstd)
+    MKTREE_RETURN_IF_ERROR(TrainStoreDictionary(first, &reader, &ahead, &encoder, report));
+  // Training's buffers (the sample, zstd's tables) are free: hand them back before encoding.
+  TrimMalloc();
+  out.dictionary = encoder.codec.dictionary;
+  auto read_all = [&](SceneObject* obj) -> Result<bool> {
+    if (first_pending) {
+      std::swap(*obj, first);
+      first_pending = false;
+      return true;
+    }
+    if (ahead.empty()) return reader.Next(obj);
+    std::swap(*obj, ahead.front());
+    ahead.pop_front();
+    return true;
+  };
+  ObjectSpiller spiller(&spilled, report);
+  MKTREE_RETURN_IF_ERROR(
+      EncodeObjects(encoder, read_all,
+                    [&](const SceneObject& obj, const EncodedObject& e) { return spiller.Spill(obj, e); }));
+  // The pipeline's threads freed their batches and buffers into their own malloc arenas, which keep the
+  // pages; hand them back before the tree build, the build's memory peak.
+  TrimMalloc();
+  if (spiller.coarse().count > 0) report->warnings.push_back(spiller.coarse().Warning(report->origin));
+  report->objects = reader.objects_read();
+  ReportProgress(options, IngestStage::kRead, report->objects, report->objects);
+  MKTREE_RETURN_IF_ERROR(spilled.entries->Flush());
+  MKTREE_RETURN_IF_ERROR(spilled.records->Flush());
+  return out;
+}
+
+}  // namespace mktree
