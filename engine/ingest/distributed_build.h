@@ -54,8 +54,8 @@ struct DistributedBuildOptions {
   uint64_t round_bytes = kExchangeRoundBytes;
   // This rank's errors, its inputs' warnings, and rank 0's notes on how the scene was read, as they come.
   std::function<void(const std::string&)> error, warning, note;
-  // Called on the rank at "exchanged" (its spills received) and "staged" (its first shard built under its
-  // staging names): tests kill a rank there.
+  // Called on the rank at "exchanged" (its spills received) and "staged" (after each of its shards is built
+  // under its staging names): tests kill a rank at the first.
   std::function<void(const char* point)> checkpoint;
 };
 
