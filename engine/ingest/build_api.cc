@@ -10,6 +10,7 @@
 #include <system_error>
 
 #include "engine/generator/tanker_generator.h"
+#include "engine/generator/tanker_spec.h"
 #include "engine/ingest/shard_build.h"
 #include "engine/ingest/store_builder.h"
 #include "mktree/build.h"
@@ -116,30 +117,16 @@ Result<BuildStats> BuildSharded(const std::vector<SceneOpener>& openers, const s
   return s;
 }
 
-std::optional<uint64_t> Decimal(std::string_view text) {
-  uint64_t v = 0;
-  if (text.empty() || text[0] < '0' || text[0] > '9') return std::nullopt;
-  auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
-  if (ec != std::errc() || end != text.data() + text.size()) return std::nullopt;
-  return v;
-}
-
-bool IsGenerator(const std::string& input) { return input.rfind("tanker:", 0) == 0; }
-
 // "tanker:N[:SEED]" builds straight from the generator, without a scene file. A scene reader's scratch
 // file goes to `spill_dir`, with the build's.
 Result<SceneOpener> OpenerFor(const std::string& input, const std::string& spill_dir) {
-  if (IsGenerator(input)) {
-    const std::string_view spec = std::string_view(input).substr(7);
-    const size_t colon = spec.find(':');
-    const std::optional<uint64_t> n = Decimal(spec.substr(0, colon));
-    const std::optional<uint64_t> seed =
-        colon == std::string_view::npos ? std::optional<uint64_t>(1) : Decimal(spec.substr(colon + 1));
-    if (!n || !seed || *n == 0 || *n > (uint64_t{1} << 32))
+  if (IsTankerSpec(input)) {
+    const std::optional<TankerSpec> spec = ParseTankerSpec(input);
+    if (!spec)
       return Status::InvalidArgument(input +
                                      ": expected tanker:N or tanker:N:SEED in decimal, 1 <= N <= 2^32");
-    return SceneOpener([n = *n, seed = *seed](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
-      return MakeTankerSource(n, seed, first);
+    return SceneOpener([spec = *spec](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
+      return MakeTankerSource(spec.objects, spec.seed, first);
     });
   }
   // Refused before anything is read (the scene reader would say the same, but only once it got there).

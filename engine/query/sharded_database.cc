@@ -16,6 +16,7 @@
 #include "engine/clash/pair_rules.h"
 #include "engine/core/guarded.h"
 #include "engine/query/ordered_batch.h"
+#include "engine/query/shard_open.h"
 #include "engine/query/store_database.h"
 #include "engine/shard/manifest.h"
 #include "engine/store/store_file.h"
@@ -336,35 +337,9 @@ Result<std::unique_ptr<Database>> OpenShardedDatabase(const std::string& manifes
   std::vector<std::unique_ptr<StoreDatabase>> shards;
   std::vector<std::vector<ObjectId>> ids;
   for (uint32_t s = 0; s < k; ++s) {
-    const ShardEntry& e = m.shards[s];
-    const std::string store_path = ShardFilePath(manifest_path, e.store.name);
-    const std::string ids_path = ShardFilePath(manifest_path, e.ids.name);
-    const std::string of = " (shard " + std::to_string(s) + " of " + manifest_path + ")";
-    for (const auto& [path, info] : {std::pair{store_path, e.store}, std::pair{ids_path, e.ids}}) {
-      auto fp = FingerprintFile(path);
-      if (!fp.ok()) return fp.status();
-      if (fp->bytes != info.bytes)
-        return Status::Corruption(path + ": " + std::to_string(fp->bytes) + " bytes, the manifest says " +
-                                  std::to_string(info.bytes) + of);
-      if (fp->fingerprint != info.fingerprint)
-        return Status::Corruption(path + ": not the file the manifest was built with (checksum)" + of);
-    }
-    ReadOptions ro;
-    ro.direct_io = options.direct_io;
-    MKTREE_ASSIGN_OR_RETURN(auto reader, StoreReader::Open(store_path, ro));
-    if (reader->object_count() != e.objects || reader->tree().empty() ||
-        !(reader->tree().nodes[0].box == e.box))
-      return Status::Corruption(store_path + ": objects or bounds differ from the manifest's" + of);
-    const Vec3d& o = reader->tree().origin;
-    if (o.x != m.origin.x || o.y != m.origin.y || o.z != m.origin.z)
-      return Status::Corruption(store_path + ": its frame is not the manifest's" + of);
-    MKTREE_ASSIGN_OR_RETURN(std::vector<ObjectId> shard_ids,
-                            ReadShardIds(ids_path, m.build_id, s, m.objects));
-    if (shard_ids.size() != e.objects)
-      return Status::Corruption(ids_path + ": " + std::to_string(shard_ids.size()) + " ids for " +
-                                std::to_string(e.objects) + " objects" + of);
-    shards.push_back(OpenStoreDatabase(std::move(reader), shard_options));
-    ids.push_back(std::move(shard_ids));
+    MKTREE_ASSIGN_OR_RETURN(ManifestShard shard, OpenManifestShard(manifest_path, m, s, shard_options));
+    shards.push_back(std::move(shard.db));
+    ids.push_back(std::move(shard.ids));
   }
   // Every global id in exactly one shard: the shards' increasing ids, merged (a heap of the shards' next
   // ids), are 0, 1, 2, ...

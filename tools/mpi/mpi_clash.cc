@@ -1,7 +1,7 @@
 // mktree-mpi clash: the self-clash of a sharded store (docs/shards.md, "Clash on MPI ranks"), each rank
 // finding the pairs of its shard group.
 //   mpirun -n R mktree-mpi clash MANIFEST [--clearance C] [--touch-tolerance T] [--max-pairs N] [--no-touch]
-//                                [--exclude-group SEP] [--threads N] [--summary] [--names]
+//                                [--exclude-group SEP] [--threads N] [--cache-pages N] [--summary] [--names]
 // Rank r owns the shards the build wrote there (RankOfShard). A pair of objects in shards i <= j is found by
 // the owner of i alone: the pairs inside its shards and, for j > i whose root box grown by C meets i's, the
 // pairs between i and j (j's store opened read-only on r too, checked as the Database checks it). Each rank
@@ -37,6 +37,7 @@
 #include "storage/file_util.h"
 #include "tools/clash_lines.h"
 #include "tools/cli_numbers.h"
+#include "tools/mpi/mpi_cli.h"
 #include "tools/mpi/mpi_util.h"
 
 namespace mktree {
@@ -61,65 +62,69 @@ constexpr size_t kReadPairs = (size_t{64} << 10) / sizeof(ClashPair);
 struct ClashArgs {
   std::string manifest;
   ClashOptions o;
+  uint64_t cache_pages = 4096;  // over the manifest's shards, as `mktree clash`
   bool summary = false;
   bool names = false;
 };
 
-bool ParseClash(int argc, char** argv, ClashArgs* a, std::string* err) {
-  a->o.threads = 1;  // as `mktree-mpi query`: ranks on one machine share its cores
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
-    const std::string v = i + 1 < argc ? argv[i + 1] : "";
-    auto real = [&](double* out) {
-      auto d = tools::ParseReal(v);
-      ++i;
-      if (!d || !std::isfinite(*d) || *d < 0) return *err = arg + " must be a finite number >= 0", false;
-      *out = *d;
-      return true;
-    };
-    auto count = [&](uint64_t* out, uint64_t most) {
-      uint64_t n = 0;
-      auto [end, ec] = std::from_chars(v.data(), v.data() + v.size(), n);
-      ++i;
-      if (v.empty() || ec != std::errc() || end != v.data() + v.size() || n > most)
-        return *err = arg + " must be 0 to " + std::to_string(most), false;
-      *out = n;
-      return true;
-    };
-    if (arg == "--clearance") {
-      if (!real(&a->o.clearance)) return false;
-    } else if (arg == "--touch-tolerance") {
-      if (!real(&a->o.touch_tolerance)) return false;
-    } else if (arg == "--max-pairs") {
-      if (!count(&a->o.max_pairs, std::numeric_limits<uint64_t>::max())) return false;
-    } else if (arg == "--threads") {
-      uint64_t n = 0;
-      if (!count(&n, 65536)) return false;
-      a->o.threads = static_cast<unsigned>(n);
-    } else if (arg == "--exclude-group") {
-      if (v.empty()) return *err = "--exclude-group needs a separator", false;
-      a->o.exclude_group_separator = v;
-      ++i;
-    } else if (arg == "--no-touch") {
-      a->o.report_touch = false;
-    } else if (arg == "--summary") {
-      a->summary = true;
-    } else if (arg == "--names") {
-      a->names = true;
-    } else if (!arg.empty() && arg[0] == '-') {
-      return *err = "unknown option " + arg, false;
-    } else if (a->manifest.empty()) {
-      a->manifest = arg;
-    } else {
-      return *err = "one manifest only: " + arg, false;
-    }
-  }
-  if (a->manifest.empty())
-    return *err =
-               "usage: mktree-mpi clash MANIFEST [--clearance C] [--touch-tolerance T] [--max-pairs N] "
-               "[--no-touch] [--exclude-group SEP] [--threads N] [--summary] [--names]",
-           false;
+constexpr char kUsage[] =
+    "usage: mktree-mpi clash MANIFEST [--clearance C] [--touch-tolerance T] [--max-pairs N] "
+    "[--no-touch] [--exclude-group SEP] [--threads N] [--cache-pages N] [--summary] [--names]";
+
+// A distance option: a finite number >= 0.
+bool DistanceOption(const std::string& flag, const std::string& text, double* out, int rank) {
+  if (text.empty()) return true;
+  const auto d = tools::ParseReal(text);
+  if (!d || !std::isfinite(*d) || *d < 0)
+    return UsageError(rank, flag + " must be a finite number >= 0"), false;
+  *out = *d;
   return true;
+}
+
+// A count option from 0 to most.
+bool CountOf(const std::string& flag, const std::string& text, uint64_t most, uint64_t* out, int rank) {
+  if (text.empty()) return true;
+  const auto n = CountOption(text, most);
+  if (!n) return UsageError(rank, flag + " must be 0 to " + std::to_string(most)), false;
+  *out = *n;
+  return true;
+}
+
+// -1 to go on, else the exit status.
+int ParseClash(int argc, char** argv, int rank, ClashArgs* a) {
+  CLI::App app{"mktree-mpi clash: the self-clash of a sharded store, each rank its shard group", "clash"};
+  std::vector<std::string> manifests;
+  std::string clearance, touch, max_pairs, threads, cache_pages, exclude;
+  app.add_option("manifest", manifests, "The sharded store's manifest");
+  app.add_option("--clearance", clearance, "Clearance C: pairs closer than C are reported");
+  app.add_option("--touch-tolerance", touch, "Touch tolerance T: meeting pairs with depth <= T are touches");
+  app.add_option("--max-pairs", max_pairs, "Report at most N pairs (the rest are counted)");
+  app.add_option("--threads", threads, "Each rank's clash threads (0: one per core)");
+  app.add_option("--cache-pages", cache_pages, "Page cache, in pages, over the shards");
+  app.add_option("--exclude-group", exclude, "Skip pairs whose names agree up to this separator");
+  bool no_touch = false;
+  app.add_flag("--no-touch", no_touch, "Count touch pairs without printing them");
+  app.add_flag("--summary", a->summary, "A last line with counts and statistics");
+  app.add_flag("--names", a->names, "Each pair's object names as name_a, name_b");
+  if (const int code = ParseMpiCommandLine(&app, argc, argv, rank); code >= 0) return code;
+  a->o.threads = 1;  // as `mktree-mpi query`: ranks on one machine share its cores
+  uint64_t n = a->o.threads;
+  if (!DistanceOption("--clearance", clearance, &a->o.clearance, rank) ||
+      !DistanceOption("--touch-tolerance", touch, &a->o.touch_tolerance, rank) ||
+      !CountOf("--max-pairs", max_pairs, std::numeric_limits<uint64_t>::max(), &a->o.max_pairs, rank) ||
+      !CountOf("--threads", threads, 65536, &n, rank) ||
+      !CountOf("--cache-pages", cache_pages, std::numeric_limits<uint64_t>::max(), &a->cache_pages, rank))
+    return 2;
+  a->o.threads = static_cast<unsigned>(n);
+  if (app.count("--exclude-group")) {
+    if (exclude.empty()) return UsageError(rank, "--exclude-group needs a separator");
+    a->o.exclude_group_separator = exclude;
+  }
+  if (no_touch) a->o.report_touch = false;
+  if (manifests.size() > 1) return UsageError(rank, "one manifest only: " + manifests[1]);
+  if (manifests.empty()) return UsageError(rank, kUsage);
+  a->manifest = manifests[0];
+  return -1;
 }
 
 uint64_t PeakRss() {
@@ -474,79 +479,58 @@ class RankSource {
   RemoteStream* remote_ = nullptr;
 };
 
-}  // namespace
+bool FailOnRank(int rank, const std::string& message) {
+  std::fprintf(stderr, "error: rank %d: %s\n", rank, message.c_str());
+  return false;
+}
 
-int RunClash(int argc, char** argv, int rank, int ranks) {
-  const auto start = std::chrono::steady_clock::now();
-  ClashArgs a;
-  std::string err;
-  if (!ParseClash(argc, argv, &a, &err)) {
-    if (rank == 0) std::fprintf(stderr, "error: %s\n", err.c_str());
-    return 2;
-  }
-  auto fail = [&](const std::string& message) {
-    std::fprintf(stderr, "error: rank %d: %s\n", rank, message.c_str());
-    return false;
-  };
-  bool ok = true;
-  auto m = ReadManifest(a.manifest);
-  if (!m.ok()) ok = fail(m.status().message());
-  const auto run_pairs = RunPairs();
-  if (!run_pairs.ok()) ok = fail(run_pairs.status().message());
-  if (!AllOk(ok)) return 1;
-  const uint32_t k = static_cast<uint32_t>(m->shards.size());
-  const double c = a.o.clearance;
-  // The shards this rank reads: its own, and those above one of its own whose root box grown by C meets it.
+// The shards rank `rank` reads: its own, and those above one of its own whose root box grown by C meets it.
+std::vector<uint8_t> ShardsToOpen(const Manifest& m, double c, int rank, int ranks) {
+  const uint32_t k = static_cast<uint32_t>(m.shards.size());
   std::vector<uint8_t> open(k, 0);
   for (uint32_t i = 0; i < k; ++i) {
     if (RankOfShard(i, k, ranks) != rank) continue;
     open[i] = 1;
     for (uint32_t j = i + 1; j < k; ++j)
-      if (clash::GrownMeet(clash::ToBox3d(m->shards[i].box), clash::ToBox3d(m->shards[j].box), c))
-        open[j] = 1;
+      if (clash::GrownMeet(clash::ToBox3d(m.shards[i].box), clash::ToBox3d(m.shards[j].box), c)) open[j] = 1;
   }
-  std::vector<OpenShard> shards;
-  for (uint32_t s = 0; s < k && ok; ++s) {
-    if (!open[s]) continue;
-    auto o = OpenOneShard(a.manifest, *m, s);
-    if (!o.ok())
-      ok = fail(o.status().message());
-    else
-      shards.push_back(std::move(*o));
-  }
-  // Sorted as they come: a run is sorted and written when full, so RAM grows by at most one run on top of
-  // the clash's own (measured: sorting a spill after the clash peaked as high, the clash's memory being
-  // still held, and wrote every pair once more).
-  PairSorter sorter(*run_pairs);
-  ClashStats stats;
-  if (ok) {
-    std::vector<ClashPart> parts;
-    for (const OpenShard& s : shards) parts.push_back(ClashPart{&s.db->leaves(), &s.ids});
-    ClashOptions o = a.o;
-    o.max_pairs = std::numeric_limits<uint64_t>::max();  // the cap is rank 0's, over every rank's pairs
-    Status sort_status;
-    const Status st = RunMultiClash(
-        parts, [&](uint32_t i, uint32_t) { return RankOfShard(shards[i].index, k, ranks) == rank; }, o,
-        [&](const ClashPair& p) {
-          if (sort_status.ok()) sort_status = sorter.Add(p);
-        },
-        &stats);
-    if (!st.ok()) ok = fail(st.message());
-    if (ok && !sort_status.ok()) ok = fail(sort_status.message());
-    // The store's pages are counted by the shards' owners (a shard read for its pairs with a lower one
-    // is read here too: its reads count, its size does not).
-    stats.store_pages = 0;
-    for (const OpenShard& s : shards)
-      if (RankOfShard(s.index, k, ranks) == rank)
-        for (const LeafInfo& l : s.db->reader().tree().leaves) stats.store_pages += l.page_count;
-    if (ok) {
-      const Status fs = sorter.Finish();
-      if (!fs.ok()) ok = fail(fs.message());
-    }
-  }
-  if (!AllOk(ok)) return 1;
+  return open;
+}
 
-  // Statistics: every rank's, summed on rank 0 (peak RSS gathered after the merge, below).
+// This rank's pairs into the sorter (finished when every pair is in) and its statistics; false after an
+// error, printed.
+bool ClashOnRank(const ClashArgs& a, const std::vector<OpenShard>& shards, uint32_t k, int rank, int ranks,
+                 PairSorter* sorter, ClashStats* stats) {
+  auto fail = [rank](const std::string& message) { return FailOnRank(rank, message); };
+  bool ok = true;
+  std::vector<ClashPart> parts;
+  for (const OpenShard& s : shards) parts.push_back(ClashPart{&s.db->leaves(), &s.ids});
+  ClashOptions o = a.o;
+  o.max_pairs = std::numeric_limits<uint64_t>::max();  // the cap is rank 0's, over every rank's pairs
+  Status sort_status;
+  const Status st = RunMultiClash(
+      parts, [&](uint32_t i, uint32_t) { return RankOfShard(shards[i].index, k, ranks) == rank; }, o,
+      [&](const ClashPair& p) {
+        if (sort_status.ok()) sort_status = sorter->Add(p);
+      },
+      stats);
+  if (!st.ok()) ok = fail(st.message());
+  if (ok && !sort_status.ok()) ok = fail(sort_status.message());
+  // The store's pages are counted by the shards' owners (a shard read for its pairs with a lower one
+  // is read here too: its reads count, its size does not).
+  stats->store_pages = 0;
+  for (const OpenShard& s : shards)
+    if (RankOfShard(s.index, k, ranks) == rank)
+      for (const LeafInfo& l : s.db->reader().tree().leaves) stats->store_pages += l.page_count;
+  if (ok) {
+    const Status fs = sorter->Finish();
+    if (!fs.ok()) ok = fail(fs.message());
+  }
+  return ok;
+}
+
+// Every rank's statistics, summed on rank 0.
+ClashStats SumOnRankZero(const ClashStats& stats, int rank, int ranks) {
   std::vector<uint8_t> mine(sizeof(ClashStats));
   std::memcpy(mine.data(), &stats, sizeof stats);
   const auto all = Gather(mine, rank, ranks);
@@ -556,7 +540,18 @@ int RunClash(int argc, char** argv, int rank, int ranks) {
     std::memcpy(&s, b.data(), sizeof s);
     AddClashStats(&total, s);
   }
+  return total;
+}
 
+// What rank 0 printed of the pairs.
+struct Printed {
+  uint64_t reported = 0, capped = 0;
+  bool write_failed = false;
+};
+
+// The ranks' sorted pairs, printed by rank 0; false after an error.
+bool MergePairs(const ClashArgs& a, const std::vector<OpenShard>& shards, PairSorter* sorter, int rank,
+                int ranks, Printed* printed) {
   // Pairs: the ranks' sorted streams merged on rank 0. A rank sends only to rank 0 (blocking) and rank 0
   // receives from the rank whose pair it needs next, so no rank waits on a cycle. Every rank's messages
   // end with an end or failure message, all received by rank 0 (Drain), so an error ends every rank; an
@@ -564,9 +559,11 @@ int RunClash(int argc, char** argv, int rank, int ranks) {
   // rank exits 1.
   const size_t message_bytes = std::clamp(kRank0MessageBudget / static_cast<size_t>(std::max(ranks - 1, 1)),
                                           kMinMessageBytes, kMaxMessageBytes);
-  LocalStream local(&sorter, &shards, a.names);
-  uint64_t reported = 0, capped = 0;
-  bool write_failed = false;
+  LocalStream local(sorter, &shards, a.names);
+  uint64_t& reported = printed->reported;
+  uint64_t& capped = printed->capped;
+  bool& write_failed = printed->write_failed;
+  bool ok = true;
   if (rank != 0) {
     ok = SendPairs(&local, a.names, message_bytes, rank);
   } else {
@@ -593,14 +590,20 @@ int RunClash(int argc, char** argv, int rank, int ranks) {
         write_failed = true;
     }
     for (RemoteStream& r : remotes) r.Drain();
-    if (!st.ok()) ok = fail(st.message());
+    if (!st.ok()) ok = FailOnRank(rank, st.message());
   }
+  return ok;
+}
 
-  // Peak RSS: the largest rank's, taken after the sort and the merge.
+// Rank 0, when the pairs were merged (merged_ok): the summary line (with the largest rank's peak RSS,
+// taken after the sort and the merge) and the flush of the output; false after an error (or !merged_ok).
+bool FinishOutput(const ClashArgs& a, ClashStats* total, const Printed& printed, bool merged_ok, int rank,
+                  int ranks, std::chrono::steady_clock::time_point start) {
   std::vector<uint8_t> rss(sizeof(uint64_t));
   const uint64_t my_rss = PeakRss();
   std::memcpy(rss.data(), &my_rss, sizeof my_rss);
   const auto all_rss = Gather(rss, rank, ranks);
+  bool ok = merged_ok, write_failed = printed.write_failed;
   if (rank == 0) {
     uint64_t peak_rss = 0;
     for (const auto& b : all_rss) {
@@ -609,15 +612,54 @@ int RunClash(int argc, char** argv, int rank, int ranks) {
       peak_rss = std::max(peak_rss, r);
     }
     if (ok && a.summary) {
-      total.reported_pairs = reported;
-      total.capped_pairs = capped;
-      total.total_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-      const std::string line = tools::SummaryLine(total, peak_rss);
+      total->reported_pairs = printed.reported;
+      total->capped_pairs = printed.capped;
+      total->total_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      const std::string line = tools::SummaryLine(*total, peak_rss);
       if (std::fwrite(line.data(), 1, line.size(), stdout) != line.size()) write_failed = true;
     }
     if (ok && (std::fflush(stdout) != 0 || write_failed))
-      ok = fail("cannot write the pairs to standard output");
+      ok = FailOnRank(rank, "cannot write the pairs to standard output");
   }
+  return ok;
+}
+
+}  // namespace
+
+int RunClash(int argc, char** argv, int rank, int ranks) {
+  const auto start = std::chrono::steady_clock::now();
+  ClashArgs a;
+  if (const int code = ParseClash(argc, argv, rank, &a); code >= 0) return code;
+  auto fail = [rank](const std::string& message) { return FailOnRank(rank, message); };
+  bool ok = true;
+  auto m = ReadManifest(a.manifest);
+  if (!m.ok()) ok = fail(m.status().message());
+  const auto run_pairs = RunPairs();
+  if (!run_pairs.ok()) ok = fail(run_pairs.status().message());
+  if (!AllOk(ok)) return 1;
+  const uint32_t k = static_cast<uint32_t>(m->shards.size());
+  const std::vector<uint8_t> open = ShardsToOpen(*m, a.o.clearance, rank, ranks);
+  std::vector<OpenShard> shards;
+  for (uint32_t s = 0; s < k && ok; ++s) {
+    if (!open[s]) continue;
+    auto o = OpenOneShard(a.manifest, *m, s, a.cache_pages);
+    if (!o.ok())
+      ok = fail(o.status().message());
+    else
+      shards.push_back(std::move(*o));
+  }
+  // Sorted as they come: a run is sorted and written when full, so RAM grows by at most one run on top of
+  // the clash's own (measured: sorting a spill after the clash peaked as high, the clash's memory being
+  // still held, and wrote every pair once more).
+  PairSorter sorter(*run_pairs);
+  ClashStats stats;
+  if (ok) ok = ClashOnRank(a, shards, k, rank, ranks, &sorter, &stats);
+  if (!AllOk(ok)) return 1;
+  // Statistics: every rank's, summed on rank 0 (peak RSS gathered after the merge, in FinishOutput).
+  ClashStats total = SumOnRankZero(stats, rank, ranks);
+  Printed printed;
+  ok = MergePairs(a, shards, &sorter, rank, ranks, &printed);
+  ok = FinishOutput(a, &total, printed, ok, rank, ranks, start);
   if (!AllOk(ok)) return 1;
   if (rank != 0) return 0;
   std::fprintf(stderr, "clash of %u shards over %d ranks: %llu pairs, %llu pages read of %llu\n", k, ranks,

@@ -1,8 +1,9 @@
 // mktree-mpi: the sharded store over MPI ranks (docs/shards.md, "On MPI ranks").
 //   mpirun -n R mktree-mpi SCENE... -o MANIFEST --shards K [--backend hdf5|pagefile] [--threads N]
-//                          [--round-bytes B]
-//   mpirun -n R mktree-mpi query MANIFEST --queries FILE [--exact] [--cold] [--threads N]
+//                          [--round-bytes B] [-q]
+//   mpirun -n R mktree-mpi query MANIFEST --queries FILE [--exact] [--cold] [--threads N] [--cache-pages N]
 //   mpirun -n R mktree-mpi clash MANIFEST [--clearance C] [--touch-tolerance T] [--max-pairs N] ...
+// Each command parses its own command line with CLI11 (tools/mpi/mpi_cli.h).
 #include <mpi.h>
 
 #include <cstring>

@@ -1,18 +1,20 @@
 // mktree-mpi query: a query batch over a sharded store (docs/shards.md), each rank answering for its shards.
-//   mpirun -n R mktree-mpi query MANIFEST --queries FILE [--exact] [--cold] [--threads N]
+//   mpirun -n R mktree-mpi query MANIFEST --queries FILE [--exact] [--cold] [--threads N] [--cache-pages N]
 // Rank r opens the shards the build wrote there (RankOfShard), each an ordinary store answering with its
-// local ids, checked against the manifest (sizes, fingerprints, id file of the build); every rank reads the
+// local ids, checked as the one-process Database checks it (engine/query/shard_open.h); every rank reads the
 // query file and runs every query on its shards, in chunks; rank 0 gathers each chunk, maps nothing (the
 // ranks send global ids), merges each query's ids in order, sums the shards' statistics and prints one JSON
 // line a query, as `mktree query` does (query, kind, hits, and the counts).
 #include <algorithm>
-#include <charconv>
 #include <cstdio>
 #include <string>
 #include <vector>
 
+#include "engine/core/guarded.h"
+#include "engine/query/shard_open.h"
 #include "engine/shard/manifest.h"
 #include "mktree/database.h"
+#include "tools/mpi/mpi_cli.h"
 #include "tools/mpi/mpi_util.h"
 #include "tools/query_file.h"
 
@@ -25,37 +27,39 @@ constexpr size_t kChunk = 1024;
 struct QueryArgs {
   std::string manifest, queries;
   bool exact = false, cold = false;
-  unsigned threads = 1;  // as `mktree query`: ranks on one machine share its cores
+  unsigned threads = 1;         // as `mktree query`: ranks on one machine share its cores
+  uint64_t cache_pages = 4096;  // over the manifest's shards, as `mktree query`
 };
 
-bool ParseQuery(int argc, char** argv, QueryArgs* a, std::string* err) {
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
-    if (arg == "--queries") {
-      if (i + 1 >= argc) return *err = "--queries needs a file", false;
-      a->queries = argv[++i];
-    } else if (arg == "--exact") {
-      a->exact = true;
-    } else if (arg == "--cold") {
-      a->cold = true;
-    } else if (arg == "--threads") {
-      uint64_t n = 0;
-      const std::string v = i + 1 < argc ? argv[++i] : "";
-      auto [end, ec] = std::from_chars(v.data(), v.data() + v.size(), n);
-      if (v.empty() || ec != std::errc() || end != v.data() + v.size() || n > 65536)
-        return *err = "--threads must be 0 to 65536", false;
-      a->threads = static_cast<unsigned>(n);
-    } else if (!arg.empty() && arg[0] == '-') {
-      return *err = "unknown option " + arg, false;
-    } else if (a->manifest.empty()) {
-      a->manifest = arg;
-    } else {
-      return *err = "one manifest only: " + arg, false;
-    }
+constexpr char kUsage[] =
+    "usage: mktree-mpi query MANIFEST --queries FILE [--exact] [--cold] [--threads N] [--cache-pages N]";
+
+// -1 to go on, else the exit status.
+int ParseQuery(int argc, char** argv, int rank, QueryArgs* a) {
+  CLI::App app{"mktree-mpi query: a query batch over a sharded store, each rank its shards", "query"};
+  std::vector<std::string> manifests;
+  std::string threads, cache_pages;
+  app.add_option("manifest", manifests, "The sharded store's manifest");
+  app.add_option("--queries", a->queries, "File: one 'point X Y Z' or 'box X0 Y0 Z0 X1 Y1 Z1' a line");
+  app.add_flag("--exact", a->exact, "Exact geometry instead of AABBs");
+  app.add_flag("--cold", a->cold, "Empty the cache before each query");
+  app.add_option("--threads", threads, "Each rank's query threads (0: one per core)");
+  app.add_option("--cache-pages", cache_pages, "LRU page cache capacity in pages, over the shards");
+  if (const int code = ParseMpiCommandLine(&app, argc, argv, rank); code >= 0) return code;
+  if (manifests.size() > 1) return UsageError(rank, "one manifest only: " + manifests[1]);
+  if (!threads.empty()) {
+    const auto n = CountOption(threads, 65536);
+    if (!n) return UsageError(rank, "--threads must be 0 to 65536");
+    a->threads = static_cast<unsigned>(*n);
   }
-  if (a->manifest.empty() || a->queries.empty())
-    return *err = "usage: mktree-mpi query MANIFEST --queries FILE [--exact] [--cold] [--threads N]", false;
-  return true;
+  if (!cache_pages.empty()) {
+    const auto n = CountOption(cache_pages, UINT64_MAX);
+    if (!n) return UsageError(rank, "--cache-pages must be a whole number");
+    a->cache_pages = *n;
+  }
+  if (manifests.empty() || a->queries.empty()) return UsageError(rank, kUsage);
+  a->manifest = manifests[0];
+  return -1;
 }
 
 constexpr int kStats = 11;
@@ -76,34 +80,20 @@ QueryStats GetStats(const std::vector<uint8_t>& b, size_t* at) {
 
 }  // namespace
 
-// Shard s of the manifest, checked as Database::Open(manifest) checks it before opening its store.
-Result<OpenShard> OpenOneShard(const std::string& manifest, const Manifest& m, uint32_t s) {
-  const ShardEntry& e = m.shards[s];
-  for (const ShardFileInfo* f : {&e.store, &e.ids}) {
-    const std::string path = ShardFilePath(manifest, f->name);
-    MKTREE_ASSIGN_OR_RETURN(const ShardFileInfo got, FingerprintFile(path));
-    if (got.bytes != f->bytes || got.fingerprint != f->fingerprint)
-      return Status::Corruption(path + ": not the file manifest " + manifest + " was built with");
-  }
-  OpenShard o;
-  o.index = s;
-  MKTREE_ASSIGN_OR_RETURN(o.ids, ReadShardIds(ShardFilePath(manifest, e.ids.name), m.build_id, s, m.objects));
-  if (o.ids.size() != e.objects)
-    return Status::Corruption(ShardFilePath(manifest, e.ids.name) +
-                              ": object count differs from the manifest's");
-  const uint64_t cache = (4096 + m.shards.size() - 1) / m.shards.size();  // as the one-process Database
-  MKTREE_ASSIGN_OR_RETURN(auto reader, StoreReader::Open(ShardFilePath(manifest, e.store.name)));
-  o.db = OpenStoreDatabase(std::move(reader), {.cache_pages = cache});
-  return o;
+Result<OpenShard> OpenOneShard(const std::string& manifest, const Manifest& m, uint32_t s,
+                               uint64_t cache_pages) {
+  return Guarded(manifest, [&]() -> Result<OpenShard> {
+    const uint64_t k = m.shards.size();
+    OpenOptions shard_options;
+    shard_options.cache_pages = (cache_pages + k - 1) / k;  // as the one-process Database
+    MKTREE_ASSIGN_OR_RETURN(ManifestShard shard, OpenManifestShard(manifest, m, s, shard_options));
+    return OpenShard{s, std::move(shard.db), std::move(shard.ids)};
+  });
 }
 
 int RunQuery(int argc, char** argv, int rank, int ranks) {
   QueryArgs a;
-  std::string err;
-  if (!ParseQuery(argc, argv, &a, &err)) {
-    if (rank == 0) std::fprintf(stderr, "error: %s\n", err.c_str());
-    return 2;
-  }
+  if (const int code = ParseQuery(argc, argv, rank, &a); code >= 0) return code;
   auto fail = [&](const std::string& message) {
     std::fprintf(stderr, "error: rank %d: %s\n", rank, message.c_str());
     return false;
@@ -119,7 +109,7 @@ int RunQuery(int argc, char** argv, int rank, int ranks) {
   std::vector<OpenShard> shards;
   for (uint32_t s = 0; s < k && ok; ++s) {
     if (RankOfShard(s, k, ranks) != rank) continue;
-    auto o = OpenOneShard(a.manifest, *m, s);
+    auto o = OpenOneShard(a.manifest, *m, s, a.cache_pages);
     if (!o.ok())
       ok = fail(o.status().message());
     else

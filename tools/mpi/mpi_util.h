@@ -11,6 +11,7 @@
 #include <utility>
 #include <vector>
 
+#include "engine/ingest/distributed_build.h"  // RankOfShard
 #include "engine/query/store_database.h"
 #include "engine/shard/manifest.h"
 #include "mktree/database.h"
@@ -76,22 +77,16 @@ inline bool AllOk(bool ok) {
   return all == 1;
 }
 
-// The rank of shard s of K on R ranks: shards in blocks, floor(s R / K), so that neighbouring shards are on
-// one rank and an input whose nearby ids are nearby in space (a model exported deck by deck, the tanker)
-// moves few objects in the build's exchange. The query batch uses the same rank, where the build wrote it.
-inline int RankOfShard(uint32_t shard, uint32_t shards, int ranks) {
-  return static_cast<int>(uint64_t{shard} * static_cast<uint64_t>(ranks) / shards);
-}
-
 // One shard of a manifest opened on a rank: its store's Database (local ids) and its id file.
 struct OpenShard {
   uint32_t index = 0;
   std::unique_ptr<StoreDatabase> db;
   std::vector<ObjectId> ids;  // local -> global
 };
-// Shard s of the manifest, checked as Database::Open(manifest) checks it before opening its store, with
-// the one-process Database's cache (4,096 pages over the shards).
-Result<OpenShard> OpenOneShard(const std::string& manifest, const Manifest& m, uint32_t s);
+// Shard s of the manifest, opened and checked as Database::Open(manifest) opens it (OpenManifestShard), with
+// its share of `cache_pages` over the manifest's shards, as the one-process Database.
+Result<OpenShard> OpenOneShard(const std::string& manifest, const Manifest& m, uint32_t s,
+                               uint64_t cache_pages);
 
 // The commands (tools/mpi/mpi_build.cc, mpi_query.cc, mpi_clash.cc), on every rank after MPI_Init; the exit
 // status.
