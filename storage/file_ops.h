@@ -6,9 +6,10 @@
 // (tests/ingest/fault_injection_test.cc, tests/ingest/spill_fault_test.cc,
 // tests/storage/atomic_file_test.cc). Calls follow POSIX: -1 with errno set on failure.
 //
-// Thread safety: the store writer calls these from its one thread; a build's spills may call Pread and
-// Preadv from two threads at once (the leaf pages' read-ahead, the object table), so an override that
-// keeps state must guard it. DefaultFileOps() is stateless.
+// Thread safety: calls come from several threads at once: the store writer's leaf pages and record pages
+// are written by two write-behind threads into one file, and a build's spills are read by the leaf pages'
+// read-ahead and the object table's thread. An override that keeps state must guard it (atomics, as the
+// fault tests do). DefaultFileOps() is stateless.
 #pragma once
 
 #include <sys/types.h>

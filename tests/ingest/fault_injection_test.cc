@@ -10,6 +10,7 @@
 #include <unistd.h>
 #include <xxhash.h>
 
+#include <atomic>
 #include <cerrno>
 #include <filesystem>
 #include <fstream>
@@ -29,7 +30,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// A FileOps that counts calls of each kind and injects one fault at a chosen call.
+// A FileOps that counts calls of each kind and injects one fault at a chosen call. The store writer's
+// leaf and record pages are written on two threads at once (storage/file_ops.h), so the counts are atomic:
+// each call gets its own number, and exactly one call is the chosen one.
 class FaultyFileOps : public FileOps {
  public:
   enum class Op { kPwrite, kFtruncate, kFsync, kRename };
@@ -85,11 +88,11 @@ class FaultyFileOps : public FileOps {
     return -1;
   }
 
-  uint64_t calls_[4] = {};
+  std::atomic<uint64_t> calls_[4] = {};
   Op op_ = Op::kPwrite;
   uint64_t nth_ = 0;
   Fault fault_ = Fault::kNone;
-  bool fired_ = false;
+  std::atomic<bool> fired_{false};
 };
 
 std::vector<Query> SomeQueries(uint64_t seed) {
