@@ -11,7 +11,7 @@
 // finding the pairs, then sorting and writing their lines, as mktree's clash time includes its visitor), peak
 // RSS.
 //
-// Geometry: by default every object goes through the store's encoding (engine/store/object_codec.h) and
+// Geometry: by default every object goes through the store's encoding (engine/store_format/object_codec.h) and
 // back, so the peers test the very float32-local vertices mktree decodes; --world keeps the input's doubles.
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Polygon_mesh_processing/orient_polygon_soup.h>
@@ -45,7 +45,7 @@
 #include "engine/geometry/mesh_edges.h"
 #include "engine/ingest/store_builder.h"
 #include "engine/scene/scene_source.h"
-#include "engine/store/object_codec.h"
+#include "engine/store_format/object_codec.h"
 
 namespace mktree::bench {
 namespace {

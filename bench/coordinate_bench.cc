@@ -1,13 +1,13 @@
 // coordinate_bench: what each way of storing vertex coordinates costs in leaf bytes and what precision it
 // keeps, on the synthetic tanker at its own coordinates and moved to UTM-like coordinates. This is the
-// measurement behind the leaf entry's coordinate frame (engine/store/object_codec.h).
+// measurement behind the leaf entry's coordinate frame (engine/store_format/object_codec.h).
 //
 // Representations, each run through the codec's transform (XOR with the previous value per coordinate
 // plane, byte shuffle) and zstd level 3, as leaf entries are:
 //   float32 world   float32 of the world coordinates (the entry format before store format version 3)
 //   f32 from min    float32 of (world - box min): a local frame whose values span many exponents
 //   f32 local       float32 of (world - box min + 2^k), 2^k the power of two above the box's extent: one
-//                   exponent per axis (store format version 3, engine/store/object_codec.h)
+//                   exponent per axis (store format version 3, engine/store_format/object_codec.h)
 //   float64 world   the world coordinates as doubles
 // Reported per workload: mean geometry bytes an object after zstd, and the largest vertex error, absolute
 // and relative to the object's extent (the largest side of its box).

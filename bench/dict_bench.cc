@@ -1,5 +1,5 @@
 // dict_bench: what a zstd dictionary shared by a store's objects would save and cost against one
-// dictionary-less zstd frame per object (the leaf entry's geometry, engine/store/object_codec.h).
+// dictionary-less zstd frame per object (the leaf entry's geometry, engine/store_format/object_codec.h).
 //
 // For each object of the workload the bench takes the bytes the codec hands zstd (PackObjectGeometry:
 // local vertices and triangles after the shuffle transform), then per configuration:
@@ -32,7 +32,7 @@
 #include "engine/generator/tanker_generator.h"
 #include "engine/ingest/store_builder.h"
 #include "engine/scene/scene_source.h"
-#include "engine/store/object_codec.h"
+#include "engine/store_format/object_codec.h"
 
 namespace {
 

@@ -16,7 +16,7 @@
 #include <vector>
 
 #include "engine/scene/scene_source.h"
-#include "engine/store/object_codec.h"
+#include "engine/store_format/object_codec.h"
 #include "mktree/database.h"
 #include "mktree/status.h"
 

@@ -44,7 +44,7 @@
 #include "bench/peer_engine.h"
 #include "engine/generator/tanker_generator.h"
 #include "engine/ingest/store_builder.h"
-#include "engine/store/store_file.h"
+#include "engine/store_format/store_file.h"
 #include "mktree/database.h"
 
 namespace bg = boost::geometry;

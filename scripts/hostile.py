@@ -427,7 +427,7 @@ MASK64 = (1 << 64) - 1
 
 
 def id_hash(i):
-    """ObjectIdHash (engine/store/tree_codec.h): the splitmix64 finalizer of id + 1."""
+    """ObjectIdHash (engine/store_format/tree_codec.h): the splitmix64 finalizer of id + 1."""
     x = ((i + 1) * 0x9E3779B97F4A7C15) & MASK64
     x = ((x ^ (x >> 30)) * 0xBF58476D1CE4E5B9) & MASK64
     x = ((x ^ (x >> 27)) * 0x94D049BB133111EB) & MASK64

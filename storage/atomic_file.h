@@ -6,7 +6,7 @@
 //
 // AtomicFile does all of it for a writer that produces bytes. The store, whose backends create their file by
 // name (HDF5 opens it itself) and which reads the file back before the rename, uses the steps one by one:
-// AtomicTempPath, RemoveStaleTemps and RenameOverTarget (engine/store/store_file.cc).
+// AtomicTempPath, RemoveStaleTemps and RenameOverTarget (engine/store_format/store_file.cc).
 //
 // Every write, fsync and rename goes through FileOps (storage/file_ops.h), so that tests inject faults.
 #pragma once

@@ -1,4 +1,4 @@
-// POSIX file helpers that return Status and name the file (storage/ and the store files of engine/store).
+// POSIX file helpers that return Status and name the file (storage/ and the store files of engine/store_format).
 #pragma once
 
 #include <cstdint>

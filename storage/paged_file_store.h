@@ -2,7 +2,7 @@
 // (1 + i) * page_bytes), then checksummed sections back to back. PagedFileStore is its pages as a
 // PageStore; WriteSections/ReadSections handle the sections, described by a table of 24-byte entries
 // (offset u64, bytes u64, XXH3-64 u64) that the caller keeps in its header page. What the header and the
-// sections hold is the caller's (engine/store/paged_file.cc).
+// sections hold is the caller's (engine/store_format/paged_file_layout.cc).
 // Thread safety: as PageStore (reads with pread, from any thread).
 #pragma once
 

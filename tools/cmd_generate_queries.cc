@@ -6,7 +6,7 @@
 #include <cstdio>
 #include <optional>
 
-#include "engine/store/store_file.h"
+#include "engine/store_format/store_file.h"
 #include "storage/atomic_file.h"
 #include "tools/cli_numbers.h"
 #include "tools/command.h"

@@ -6,7 +6,7 @@
 #include <cstdio>
 
 #include "engine/shard/manifest.h"
-#include "engine/store/store_file.h"
+#include "engine/store_format/store_file.h"
 #include "mktree/database.h"
 #include "tools/cli_numbers.h"
 #include "tools/command.h"

@@ -6,7 +6,7 @@
 #include <optional>
 #include <vector>
 
-#include "engine/store/leaf_source.h"
+#include "engine/store_format/leaf_source.h"
 #include "mktree/clash.h"
 #include "mktree/status.h"
 

@@ -10,7 +10,7 @@
 
 #include "engine/clash/clash_engine.h"
 #include "engine/geometry/mesh_separation.h"
-#include "engine/store/leaf_reader.h"
+#include "engine/store_format/leaf_reader.h"
 #include "mktree/query_stats.h"
 
 namespace mktree::clash {

@@ -44,7 +44,7 @@ inline Box3d Grow(const Box3d& b, double c) {
 // InvalidArgument unless C and T are finite and >= 0.
 Status CheckOptions(const ClashOptions& o);
 
-// A pair's coordinate resolution: the sum of both objects' CoordinateResolution (engine/store/
+// A pair's coordinate resolution: the sum of both objects' CoordinateResolution (engine/store_format/
 // object_codec.h; 0 for a mesh that was never stored, as Collide's). Gaps and depths up to it are
 // rounding of the store's float32 vertices, not geometry: an exact touch in the input may be stored as a
 // gap or an overlap that small. Such pairs are touches (docs/clash.md §1).

@@ -7,7 +7,7 @@
 #include <utility>
 #include <vector>
 
-#include "engine/store/record_codec.h"
+#include "engine/store_format/record_codec.h"
 
 namespace mktree::clash {
 

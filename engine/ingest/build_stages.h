@@ -28,9 +28,9 @@ namespace mktree {
 
 // Objects 0..n-1 as the later stages take them.
 struct SpilledObjects {
-  // Leaf entries (engine/store/leaf_codec.h), back to back in id order; flushed.
+  // Leaf entries (engine/store_format/leaf_codec.h), back to back in id order; flushed.
   std::unique_ptr<SpillFile> entries;
-  // Records (EncodeRecord, engine/store/record_codec.h) in id order; flushed. The driver parks the entry
+  // Records (EncodeRecord, engine/store_format/record_codec.h) in id order; flushed. The driver parks the entry
   // sizes after them while the tree is built (ParkEntrySizes).
   std::unique_ptr<SpillFile> records;
   std::vector<std::string> sources;  // the source files the records' source numbers index

@@ -4,8 +4,8 @@
 #include <span>
 #include <utility>
 
-#include "engine/store/leaf_codec.h"
-#include "engine/store/object_codec.h"
+#include "engine/store_format/leaf_codec.h"
+#include "engine/store_format/object_codec.h"
 #include "engine/tree/leaf_filter.h"
 
 namespace mktree {

@@ -11,7 +11,7 @@
 #include <functional>
 #include <span>
 
-#include "engine/store/object_codec.h"
+#include "engine/store_format/object_codec.h"
 #include "mktree/scene.h"
 #include "mktree/status.h"
 
@@ -28,7 +28,7 @@ struct EncoderOptions {
   // Encoding threads: 1 runs every stage on the calling thread (no other thread); n > 1 starts n
   // encoders and a drain thread besides the reading caller; 0 means one per core.
   uint32_t threads = 0;
-  Vec3d origin;  // the store frame's origin (engine/store/object_codec.h)
+  Vec3d origin;  // the store frame's origin (engine/store_format/object_codec.h)
 };
 
 // Fills *obj with the next object; false at the end of the input. Called on the calling thread only.

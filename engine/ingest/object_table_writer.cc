@@ -2,7 +2,7 @@
 
 #include <cstring>
 
-#include "engine/store/record_codec.h"
+#include "engine/store_format/record_codec.h"
 
 namespace mktree {
 

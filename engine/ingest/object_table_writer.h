@@ -14,7 +14,7 @@
 #include <vector>
 
 #include "engine/ingest/build_stages.h"
-#include "engine/store/store_file.h"
+#include "engine/store_format/store_file.h"
 #include "engine/tree/mktree_builder.h"
 
 namespace mktree {

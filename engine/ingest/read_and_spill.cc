@@ -13,7 +13,7 @@
 #include <limits>
 
 #include "engine/ingest/object_encoder.h"
-#include "engine/store/record_codec.h"
+#include "engine/store_format/record_codec.h"
 
 namespace mktree {
 

@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "engine/ingest/build_stages.h"
-#include "engine/store/object_codec.h"
+#include "engine/store_format/object_codec.h"
 
 namespace mktree {
 

@@ -12,7 +12,7 @@
 #include <random>
 #include <string_view>
 
-#include "engine/store/store_file.h"
+#include "engine/store_format/store_file.h"
 
 namespace mktree {
 

@@ -22,7 +22,7 @@
 #include <vector>
 
 #include "engine/scene/scene_source.h"
-#include "engine/store/store_file.h"
+#include "engine/store_format/store_file.h"
 #include "engine/tree/mktree_builder.h"
 #include "engine/tree/tree_stats.h"
 #include "mktree/status.h"

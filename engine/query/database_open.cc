@@ -4,7 +4,7 @@
 #include "engine/query/sharded_database.h"
 #include "engine/query/store_database.h"
 #include "engine/shard/manifest.h"
-#include "engine/store/store_file.h"
+#include "engine/store_format/store_file.h"
 #include "mktree/database.h"
 
 namespace mktree {

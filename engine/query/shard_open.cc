@@ -3,7 +3,7 @@
 #include <utility>
 
 #include "engine/query/store_database.h"
-#include "engine/store/store_file.h"
+#include "engine/store_format/store_file.h"
 
 namespace mktree {
 

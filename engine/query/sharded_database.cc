@@ -19,7 +19,7 @@
 #include "engine/query/shard_open.h"
 #include "engine/query/store_database.h"
 #include "engine/shard/manifest.h"
-#include "engine/store/store_file.h"
+#include "engine/store_format/store_file.h"
 
 namespace mktree {
 

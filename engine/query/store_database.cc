@@ -20,9 +20,9 @@
 #include "engine/geometry/exact_geometry.h"
 #include "engine/query/ordered_batch.h"
 #include "engine/query/sorted_ids.h"
-#include "engine/store/leaf_reader.h"
-#include "engine/store/object_codec.h"
-#include "engine/store/record_codec.h"
+#include "engine/store_format/leaf_reader.h"
+#include "engine/store_format/object_codec.h"
+#include "engine/store_format/record_codec.h"
 
 namespace mktree {
 

@@ -10,8 +10,8 @@
 #include <optional>
 #include <string>
 
-#include "engine/store/leaf_source.h"
-#include "engine/store/store_file.h"
+#include "engine/store_format/leaf_source.h"
+#include "engine/store_format/store_file.h"
 #include "mktree/database.h"
 #include "storage/page_cache.h"
 

@@ -67,7 +67,7 @@ struct LeafInfo {
 struct MKTree {
   BuildParams params;
   // The store frame: every box here (nodes, leaves, leaf filter, entries) is in coordinates world - origin
-  // (engine/store/object_codec.h). Queries are moved into it before routing.
+  // (engine/store_format/object_codec.h). Queries are moved into it before routing.
   Vec3d origin;
   std::vector<TreeNode> nodes;  // nodes[0] is the root (when not empty)
   std::vector<SplitNode> split_nodes;

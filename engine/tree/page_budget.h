@@ -1,5 +1,5 @@
 // The byte budget of a leaf page: the one function the builder (InPage) and the leaf writer
-// (engine/store/leaf_codec.h) agree on. A leaf payload is a leaf header followed by one entry per object,
+// (engine/store_format/leaf_codec.h) agree on. A leaf payload is a leaf header followed by one entry per object,
 // cut into pages (storage/page_format.h); an object's entry size (header + encoded geometry) is decided
 // once, at ingest, by encoding that object alone (BuildObject::encoded_bytes), so the sum below is exact,
 // never an estimate.
@@ -11,7 +11,7 @@
 
 namespace mktree {
 
-inline constexpr uint64_t kLeafHeaderBytes = 16;  // see engine/store/leaf_codec.h for its fields
+inline constexpr uint64_t kLeafHeaderBytes = 16;  // see engine/store_format/leaf_codec.h for its fields
 
 // Encoded bytes of a leaf holding objects whose BuildObject::encoded_bytes add up to `sum_entry_bytes`.
 inline constexpr uint64_t LeafPayloadBytes(uint64_t sum_entry_bytes) {

@@ -34,7 +34,7 @@ inline uint8_t SplitChildrenEntered(const SplitNode& sn, const Box3d& q) {
 inline uint8_t SplitChildrenEntered(const SplitNode&, const SplitRegion&) { return 3; }
 
 // Pending nodes a walk holds at most: a store's SplitTrees have at most 64 levels (kMaxSplitTreeLevels,
-// engine/store/tree_codec.h), and a walk keeps at most one pending sibling per level.
+// engine/store_format/tree_codec.h), and a walk keeps at most one pending sibling per level.
 inline constexpr int kSplitWalkStack = 64;
 
 // Calls visit(cell) for each cell of the SplitTree at `root` that `query` meets, or visit(cell, region)

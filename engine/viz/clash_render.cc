@@ -5,7 +5,7 @@
 #include <cstdio>
 #include <vector>
 
-#include "engine/store/leaf_source.h"
+#include "engine/store_format/leaf_source.h"
 #include "storage/atomic_file.h"
 
 namespace mktree {

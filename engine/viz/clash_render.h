@@ -24,7 +24,7 @@
 #include <functional>
 #include <string>
 
-#include "engine/store/store_file.h"
+#include "engine/store_format/store_file.h"
 #include "engine/viz/clash_pairs_file.h"
 #include "engine/viz/level_colouring.h"
 #include "engine/viz/raster.h"

@@ -2,7 +2,7 @@
 
 #include <vector>
 
-#include "engine/store/leaf_source.h"
+#include "engine/store_format/leaf_source.h"
 
 namespace mktree {
 

@@ -12,8 +12,8 @@
 #include <cstdint>
 #include <functional>
 
-#include "engine/store/object_codec.h"
-#include "engine/store/store_file.h"
+#include "engine/store_format/object_codec.h"
+#include "engine/store_format/store_file.h"
 #include "engine/viz/level_groups.h"
 #include "mktree/status.h"
 

@@ -11,7 +11,7 @@
 #include <memory>
 #include <vector>
 
-#include "engine/store/leaf_source.h"
+#include "engine/store_format/leaf_source.h"
 #include "engine/viz/clash_render.h"
 #include "engine/viz/spool_file.h"
 

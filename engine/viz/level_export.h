@@ -10,7 +10,7 @@
 //     chunk is spooled per group to scratch files (glTF needs its sizes up front) and assembled at the end.
 //   Geometry: each object's mesh, decoded from its leaf entry. Boxes (`boxes`): each object's stored AABB
 //     as 8 vertices and 12 triangles. Positions are float32 in the store's frame (world minus the store's
-//     origin, engine/store/object_codec.h), so that coordinates far from 0 keep their detail; the origin is a
+//     origin, engine/store_format/object_codec.h), so that coordinates far from 0 keep their detail; the origin is a
 //     PLY comment ("comment origin X Y Z") and the translation of every glTF node.
 //
 // Memory: one leaf (the store is read leaf by leaf through a page cache holding only the pinned leaf) plus
@@ -22,7 +22,7 @@
 #include <functional>
 #include <string>
 
-#include "engine/store/store_file.h"
+#include "engine/store_format/store_file.h"
 #include "engine/viz/clash_pairs_file.h"
 #include "engine/viz/level_colouring.h"
 #include "mktree/status.h"

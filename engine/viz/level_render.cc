@@ -8,7 +8,7 @@
 #include <cstring>
 #include <limits>
 
-#include "engine/store/leaf_source.h"
+#include "engine/store_format/leaf_source.h"
 #include "engine/tree/split_tree_walk.h"
 #include "storage/atomic_file.h"
 

@@ -23,7 +23,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/store/store_file.h"
+#include "engine/store_format/store_file.h"
 #include "engine/viz/level_colouring.h"
 #include "engine/viz/raster.h"
 #include "mktree/status.h"

@@ -18,7 +18,7 @@ inline constexpr double kMaxCoordinate = 0x1p124;
 
 // Triangle mesh: double-precision vertices (x, y, z interleaved), uint32 triangles (three vertex indices
 // each). Readers give world coordinates at the precision of their input; a mesh decoded from a store is in
-// the store's frame (world minus the store's origin, see engine/store/object_codec.h).
+// the store's frame (world minus the store's origin, see engine/store_format/object_codec.h).
 struct Mesh {
   std::vector<double> vertices;     // 3 * vertex_count()
   std::vector<uint32_t> triangles;  // 3 * triangle_count()

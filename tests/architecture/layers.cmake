@@ -18,14 +18,14 @@ set(below_engine_geometry "mktree/" "engine/core/")
 set(below_engine_scene "mktree/" "storage/" "engine/core/")
 set(below_engine_generator "mktree/" "storage/" "engine/core/" "engine/scene/")
 set(below_engine_tree "mktree/" "storage/" "engine/core/")
-set(below_engine_store "mktree/" "storage/" "engine/core/" "engine/tree/")
+set(below_engine_store_format "mktree/" "storage/" "engine/core/" "engine/tree/")
 set(below_engine_shard "mktree/" "storage/" "engine/core/")
 set(below_engine_ingest "mktree/" "storage/" "engine/core/" "engine/geometry/" "engine/scene/" "engine/generator/"
-    "engine/tree/" "engine/store/" "engine/shard/")
-set(below_engine_clash "mktree/" "storage/" "engine/core/" "engine/geometry/" "engine/tree/" "engine/store/")
-set(below_engine_query "mktree/" "storage/" "engine/core/" "engine/geometry/" "engine/tree/" "engine/store/"
+    "engine/tree/" "engine/store_format/" "engine/shard/")
+set(below_engine_clash "mktree/" "storage/" "engine/core/" "engine/geometry/" "engine/tree/" "engine/store_format/")
+set(below_engine_query "mktree/" "storage/" "engine/core/" "engine/geometry/" "engine/tree/" "engine/store_format/"
     "engine/clash/" "engine/shard/")
-set(below_engine_viz "mktree/" "storage/" "engine/core/" "engine/tree/" "engine/store/")
+set(below_engine_viz "mktree/" "storage/" "engine/core/" "engine/tree/" "engine/store_format/")
 set(below_tools "mktree/" "storage/" "engine/")
 # The MPI front end (mktree-mpi) is a sibling of the command line above the engine: it may share the
 # command line's helpers, never the reverse.
@@ -35,7 +35,7 @@ set(below_python "mktree/")
 # Benchmarks measure the engine's layers directly; nothing includes them.
 set(below_bench "mktree/" "storage/" "engine/")
 set(folders include/mktree storage engine/core engine/geometry engine/scene engine/generator engine/tree
-    engine/store engine/shard engine/ingest engine/clash engine/query engine/viz tools tools/mpi python bench)
+    engine/store_format engine/shard engine/ingest engine/clash engine/query engine/viz tools tools/mpi python bench)
 
 # Every folder that holds sources (at any depth) must be placed in the layers above before it can hold code.
 set(roots include storage engine tools python bench)

@@ -1,5 +1,5 @@
 // The clash engine against brute force: every object pair's Separate over the geometry the store keeps
-// (tests/store/stored_geometry.h), without the tree, the leaf filter or the sweep.
+// (tests/store_format/stored_geometry.h), without the tree, the leaf filter or the sweep.
 #include "mktree/clash.h"
 
 #include <gtest/gtest.h>
@@ -21,11 +21,11 @@
 #include "engine/ingest/store_builder.h"
 #include "engine/scene/scene_source.h"
 #include "engine/scene/vector_scene_source.h"
-#include "engine/store/object_codec.h"
+#include "engine/store_format/object_codec.h"
 #include "geometry/touch_meshes.h"
 #include "mktree/database.h"
 #include "query/scene_fixtures.h"
-#include "store/stored_geometry.h"
+#include "store_format/stored_geometry.h"
 #include "test_dirs.h"
 
 namespace mktree {

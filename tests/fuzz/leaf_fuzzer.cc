@@ -1,5 +1,5 @@
-// Fuzz target: leaf decoding (engine/store/leaf_codec.h, engine/store/leaf_reader.h,
-// engine/store/object_codec.h).
+// Fuzz target: leaf decoding (engine/store_format/leaf_codec.h, engine/store_format/leaf_reader.h,
+// engine/store_format/object_codec.h).
 //
 // Input: byte 0 picks the mode (mod 4), byte 1 the page size (512 << (byte % 4)), the rest is the data.
 //   0: a run of object entries (ParseObjectEntry, then DecodeObjectMesh of each);
@@ -17,8 +17,8 @@
 #include <limits>
 #include <vector>
 
-#include "engine/store/leaf_reader.h"
-#include "engine/store/object_codec.h"
+#include "engine/store_format/leaf_reader.h"
+#include "engine/store_format/object_codec.h"
 #include "fuzz_util.h"
 #include "storage/byte_io.h"
 #include "storage/memory_page_store.h"

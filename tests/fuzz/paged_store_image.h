@@ -1,7 +1,7 @@
-// The paged-file store layout (docs/store_format.md, engine/store/paged_file.cc) as the store_open fuzz
+// The paged-file store layout (docs/store_format.md, engine/store_format/paged_file_layout.cc) as the store_open fuzz
 // target and the seed tool need it: assembling a file with valid checksums from its parts, and resealing a
 // mutated file's checksums. Checksums are not a MAC, so these are also what a crafted store looks like.
-// Kept in step with engine/store/paged_file.cc by the replay test's --min-accepted check on the seeds.
+// Kept in step with engine/store_format/paged_file_layout.cc by the replay test's --min-accepted check on the seeds.
 #pragma once
 
 #include <algorithm>
@@ -10,7 +10,7 @@
 #include <span>
 #include <vector>
 
-#include "engine/store/tree_codec.h"
+#include "engine/store_format/tree_codec.h"
 #include "storage/byte_io.h"
 #include "storage/page_codec.h"
 

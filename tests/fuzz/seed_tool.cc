@@ -15,8 +15,8 @@
 
 #include "engine/scene/mkscene_format.h"
 #include "engine/scene/obj_reader.h"
-#include "engine/store/leaf_codec.h"
-#include "engine/store/store_file.h"
+#include "engine/store_format/leaf_codec.h"
+#include "engine/store_format/store_file.h"
 #include "paged_store_image.h"
 
 namespace {

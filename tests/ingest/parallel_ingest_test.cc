@@ -14,8 +14,8 @@
 #include "engine/ingest/object_encoder.h"
 #include "engine/ingest/spill_file.h"
 #include "engine/ingest/store_builder.h"
-#include "engine/store/store_file.h"
-#include "engine/store/tree_codec.h"
+#include "engine/store_format/store_file.h"
+#include "engine/store_format/tree_codec.h"
 #include "test_dirs.h"
 
 namespace mktree {

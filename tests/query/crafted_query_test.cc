@@ -1,4 +1,4 @@
-// The public API on crafted stores (tests/store/crafted_store.h) and under memory limits: a tampered
+// The public API on crafted stores (tests/store_format/crafted_store.h) and under memory limits: a tampered
 // store gives a Corruption naming the file (at Database::Open or at the query that reads the bad leaf),
 // never a hang, a duplicated or missing id; RunBatch keeps the error's code and message; and an exception
 // (such as std::bad_alloc under RLIMIT_AS) never crosses the API. Crafted* suites run under a short
@@ -19,7 +19,7 @@
 #include <vector>
 
 #include "mktree/database.h"
-#include "store/crafted_store.h"
+#include "store_format/crafted_store.h"
 #include "tool_runner.h"
 
 namespace mktree {

@@ -15,7 +15,7 @@
 #include "engine/scene/vector_scene_source.h"
 #include "query/query_oracle.h"
 #include "query/scene_fixtures.h"
-#include "store/stored_geometry.h"
+#include "store_format/stored_geometry.h"
 #include "test_dirs.h"
 
 namespace mktree {

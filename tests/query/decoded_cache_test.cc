@@ -1,4 +1,4 @@
-// The decoded-leaf cache (engine/store/leaf_reader.h DecodedLeaf, attached to cached pages): warm answers
+// The decoded-leaf cache (engine/store_format/leaf_reader.h DecodedLeaf, attached to cached pages): warm answers
 // against brute force at cache sizes 0, one leaf, small and the whole store, in AABB and exact mode; page
 // counts as without it; attachments dropped with their pages; corruption refused on every read, never
 // cached; many threads sharing one Database (DecodedCache.Concurrent*, label concurrency); the warm
@@ -20,8 +20,8 @@
 #include "query/scene_fixtures.h"
 #include "storage/memory_page_store.h"
 #include "storage/page_cache.h"
-#include "store/crafted_store.h"
-#include "store/stored_geometry.h"
+#include "store_format/crafted_store.h"
+#include "store_format/stored_geometry.h"
 #include "test_dirs.h"
 
 namespace mktree {

@@ -13,7 +13,7 @@
 #include "engine/ingest/store_builder.h"
 #include "mktree/database.h"
 #include "query/scene_fixtures.h"
-#include "store/stored_geometry.h"
+#include "store_format/stored_geometry.h"
 #include "test_dirs.h"
 
 namespace mktree {

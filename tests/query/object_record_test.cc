@@ -10,11 +10,11 @@
 
 #include "engine/ingest/store_builder.h"
 #include "engine/scene/vector_scene_source.h"
-#include "engine/store/store_file.h"
+#include "engine/store_format/store_file.h"
 #include "mktree/database.h"
 #include "storage/page_codec.h"
-#include "store/store_test_util.h"
-#include "store/stored_geometry.h"
+#include "store_format/store_test_util.h"
+#include "store_format/stored_geometry.h"
 #include "tool_runner.h"
 
 namespace mktree {

@@ -1,5 +1,5 @@
 // What the query tests check answers against: a store built from objects in RAM, and brute force over
-// the geometry that store keeps (tests/store/stored_geometry.h), in its frame (ChooseStoreOrigin of the
+// the geometry that store keeps (tests/store_format/stored_geometry.h), in its frame (ChooseStoreOrigin of the
 // scene's first object).
 #pragma once
 
@@ -9,7 +9,7 @@
 #include "engine/ingest/store_builder.h"
 #include "engine/scene/vector_scene_source.h"
 #include "mktree/database.h"
-#include "store/stored_geometry.h"
+#include "store_format/stored_geometry.h"
 
 namespace mktree::testing {
 

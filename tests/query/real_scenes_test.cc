@@ -9,7 +9,7 @@
 #include "engine/geometry/exact_geometry.h"
 #include "engine/ingest/store_builder.h"
 #include "mktree/database.h"
-#include "store/stored_geometry.h"
+#include "store_format/stored_geometry.h"
 #include "test_dirs.h"
 
 namespace mktree {

@@ -14,7 +14,7 @@
 #include "query/query_oracle.h"
 #include "query/scene_fixtures.h"
 #include "storage/memory_page_store.h"
-#include "store/stored_geometry.h"
+#include "store_format/stored_geometry.h"
 #include "test_dirs.h"
 
 namespace mktree {

@@ -9,7 +9,7 @@
 #include <random>
 
 #include "engine/ingest/store_builder.h"
-#include "engine/store/store_file.h"
+#include "engine/store_format/store_file.h"
 #include "mktree/database.h"
 #include "query/query_oracle.h"
 #include "query/run_matches_visit.h"

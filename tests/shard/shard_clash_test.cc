@@ -16,12 +16,12 @@
 #include "engine/ingest/store_builder.h"
 #include "engine/scene/scene_source.h"
 #include "engine/shard/manifest.h"
-#include "engine/store/object_codec.h"
+#include "engine/store_format/object_codec.h"
 #include "mktree/build.h"
 #include "mktree/clash.h"
 #include "mktree/database.h"
 #include "query/scene_fixtures.h"
-#include "store/stored_geometry.h"
+#include "store_format/stored_geometry.h"
 #include "test_dirs.h"
 
 namespace mktree {

@@ -9,9 +9,9 @@
 #include <random>
 #include <thread>
 
-#include "engine/store/leaf_reader.h"
+#include "engine/store_format/leaf_reader.h"
 #include "storage/memory_page_store.h"
-#include "store/store_test_util.h"
+#include "store_format/store_test_util.h"
 
 namespace mktree {
 namespace {

@@ -1,4 +1,4 @@
-// The command line on crafted stores (tests/store/crafted_store.h) and under memory limits: `info
+// The command line on crafted stores (tests/store_format/crafted_store.h) and under memory limits: `info
 // --json` prints only statistics that are valid JSON with known keys, a store carrying others is refused
 // with one error line, and an open that needs more memory than allowed exits 1 with one `error:` line
 // instead of aborting. Crafted* suites run under a short timeout.
@@ -8,7 +8,7 @@
 #include <cstdlib>
 #include <filesystem>
 
-#include "store/crafted_store.h"
+#include "store_format/crafted_store.h"
 #include "tool_runner.h"
 
 namespace mktree {
