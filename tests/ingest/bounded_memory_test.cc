@@ -58,8 +58,10 @@ class HeavyPrisms final : public SceneSource {
 };
 
 TEST(BoundedMemory, GeometryTenTimesTheBudgetBuildsWithinIt) {
-  constexpr uint64_t kBudget = 48ull << 20;
-  constexpr uint32_t kObjects = 6000;
+  // The budget covers the build's fixed costs, which do not grow with the scene: the encoder threads'
+  // batches, the two write-behind page streams, the object table's thread and their malloc arenas.
+  constexpr uint64_t kBudget = 64ull << 20;
+  constexpr uint32_t kObjects = 8000;
   constexpr int kSides = 1200;  // 2400 vertices, 7196 triangles: ~115 KB raw each
   const uint64_t raw_per_object = 8 + 4 * (3ull * 2 * kSides) + 4 * (3ull * (2 * kSides + 2 * (kSides - 2)));
   ASSERT_GE(raw_per_object * kObjects, 10 * kBudget);
