@@ -11,8 +11,9 @@
 // finding the pairs, then sorting and writing their lines, as mktree's clash time includes its visitor), peak
 // RSS.
 //
-// Geometry: by default every object goes through the store's encoding (engine/store_format/object_codec.h) and
-// back, so the peers test the very float32-local vertices mktree decodes; --world keeps the input's doubles.
+// Geometry: by default every object goes through the store's encoding (engine/store_format/object_codec.h)
+// and back, so the peers test the very float32-local vertices mktree decodes; --world keeps the input's
+// doubles.
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Polygon_mesh_processing/orient_polygon_soup.h>
 #include <CGAL/Polygon_mesh_processing/polygon_soup_to_polygon_mesh.h>

@@ -1,4 +1,5 @@
-// POSIX file helpers that return Status and name the file (storage/ and the store files of engine/store_format).
+// POSIX file helpers that return Status and name the file (storage/ and the store files of
+// engine/store_format).
 #pragma once
 
 #include <cstdint>

@@ -1,8 +1,8 @@
 // PageStore: fixed-size pages addressed by index, behind one interface (HDF5, paged file, memory,
 // fault-injecting wrapper). Thread safety: ReadPage may be called from many threads at once; writes never
 // run concurrently with reads. The file stores (paged file, HDF5) also take writes of distinct pages from
-// two threads at once (a store's leaf pages and its record pages, engine/store_format/store_file.h); the others
-// from one writer.
+// two threads at once (a store's leaf pages and its record pages, engine/store_format/store_file.h); the
+// others from one writer.
 #pragma once
 
 #include <cstdint>

@@ -30,8 +30,8 @@ namespace mktree {
 struct SpilledObjects {
   // Leaf entries (engine/store_format/leaf_codec.h), back to back in id order; flushed.
   std::unique_ptr<SpillFile> entries;
-  // Records (EncodeRecord, engine/store_format/record_codec.h) in id order; flushed. The driver parks the entry
-  // sizes after them while the tree is built (ParkEntrySizes).
+  // Records (EncodeRecord, engine/store_format/record_codec.h) in id order; flushed. The driver parks the
+  // entry sizes after them while the tree is built (ParkEntrySizes).
   std::unique_ptr<SpillFile> records;
   std::vector<std::string> sources;  // the source files the records' source numbers index
   std::vector<BuildObject> objects;  // id (= index), box in the store frame, entry size

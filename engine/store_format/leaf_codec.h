@@ -1,6 +1,6 @@
 // A leaf on disk: its payload is a 16-byte leaf header followed by its objects' entries
-// (engine/store_format/object_codec.h), cut into PagesForLeaf() pages of MemPage bytes, each with a page header
-// (storage/page_codec.h).
+// (engine/store_format/object_codec.h), cut into PagesForLeaf() pages of MemPage bytes, each with a page
+// header (storage/page_codec.h).
 //
 // Leaf header (little-endian):
 //   offset size field

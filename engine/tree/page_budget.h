@@ -1,8 +1,8 @@
 // The byte budget of a leaf page: the one function the builder (InPage) and the leaf writer
-// (engine/store_format/leaf_codec.h) agree on. A leaf payload is a leaf header followed by one entry per object,
-// cut into pages (storage/page_format.h); an object's entry size (header + encoded geometry) is decided
-// once, at ingest, by encoding that object alone (BuildObject::encoded_bytes), so the sum below is exact,
-// never an estimate.
+// (engine/store_format/leaf_codec.h) agree on. A leaf payload is a leaf header followed by one entry per
+// object, cut into pages (storage/page_format.h); an object's entry size (header + encoded geometry) is
+// decided once, at ingest, by encoding that object alone (BuildObject::encoded_bytes), so the sum below is
+// exact, never an estimate.
 #pragma once
 
 #include <cstdint>

@@ -10,8 +10,8 @@
 //     chunk is spooled per group to scratch files (glTF needs its sizes up front) and assembled at the end.
 //   Geometry: each object's mesh, decoded from its leaf entry. Boxes (`boxes`): each object's stored AABB
 //     as 8 vertices and 12 triangles. Positions are float32 in the store's frame (world minus the store's
-//     origin, engine/store_format/object_codec.h), so that coordinates far from 0 keep their detail; the origin is a
-//     PLY comment ("comment origin X Y Z") and the translation of every glTF node.
+//     origin, engine/store_format/object_codec.h), so that coordinates far from 0 keep their detail; the
+//     origin is a PLY comment ("comment origin X Y Z") and the translation of every glTF node.
 //
 // Memory: one leaf (the store is read leaf by leaf through a page cache holding only the pinned leaf) plus
 // a few I/O buffers, whatever the scene size. The output appears only when complete (temporary file and

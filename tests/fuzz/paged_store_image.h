@@ -1,7 +1,8 @@
-// The paged-file store layout (docs/store_format.md, engine/store_format/paged_file_layout.cc) as the store_open fuzz
-// target and the seed tool need it: assembling a file with valid checksums from its parts, and resealing a
-// mutated file's checksums. Checksums are not a MAC, so these are also what a crafted store looks like.
-// Kept in step with engine/store_format/paged_file_layout.cc by the replay test's --min-accepted check on the seeds.
+// The paged-file store layout (docs/store_format.md, engine/store_format/paged_file_layout.cc) as the
+// store_open fuzz target and the seed tool need it: assembling a file with valid checksums from its parts,
+// and resealing a mutated file's checksums. Checksums are not a MAC, so these are also what a crafted store
+// looks like. Kept in step with engine/store_format/paged_file_layout.cc by the replay test's --min-accepted
+// check on the seeds.
 #pragma once
 
 #include <algorithm>

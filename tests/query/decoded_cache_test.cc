@@ -1,6 +1,6 @@
-// The decoded-leaf cache (engine/store_format/leaf_reader.h DecodedLeaf, attached to cached pages): warm answers
-// against brute force at cache sizes 0, one leaf, small and the whole store, in AABB and exact mode; page
-// counts as without it; attachments dropped with their pages; corruption refused on every read, never
+// The decoded-leaf cache (engine/store_format/leaf_reader.h DecodedLeaf, attached to cached pages): warm
+// answers against brute force at cache sizes 0, one leaf, small and the whole store, in AABB and exact mode;
+// page counts as without it; attachments dropped with their pages; corruption refused on every read, never
 // cached; many threads sharing one Database (DecodedCache.Concurrent*, label concurrency); the warm
 // window of leaves (Run) against one leaf at a time (VisitUntil): same answers and same counts.
 #include <gtest/gtest.h>

@@ -1,6 +1,6 @@
 // What the query tests check answers against: a store built from objects in RAM, and brute force over
-// the geometry that store keeps (tests/store_format/stored_geometry.h), in its frame (ChooseStoreOrigin of the
-// scene's first object).
+// the geometry that store keeps (tests/store_format/stored_geometry.h), in its frame (ChooseStoreOrigin of
+// the scene's first object).
 #pragma once
 
 #include <vector>

@@ -1,7 +1,8 @@
 // Crafted stores: what a user who tampers with a store can make, since checksums are not a MAC. A store
 // is held whole (pages and all) as a StoreImage, changed in RAM, and written through the backend writers
-// (engine/store_format/store_backend.h), which checksum whatever they are given: StoreWriter::Commit's validation is
-// bypassed, so only StoreReader::Open and the leaf reads stand between such a store and an answer.
+// (engine/store_format/store_backend.h), which checksum whatever they are given: StoreWriter::Commit's
+// validation is bypassed, so only StoreReader::Open and the leaf reads stand between such a store and an
+// answer.
 #pragma once
 
 #include <cstdio>

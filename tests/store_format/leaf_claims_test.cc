@@ -1,6 +1,6 @@
-// LeafClaims (engine/store_format/leaf_claims.h): the first leaf to claim an id keeps it, a later leaf holding it
-// is refused then and on every later claim, a leaf claims once, and copies and assignments of an object
-// table start with no claims.
+// LeafClaims (engine/store_format/leaf_claims.h): the first leaf to claim an id keeps it, a later leaf
+// holding it is refused then and on every later claim, a leaf claims once, and copies and assignments of an
+// object table start with no claims.
 #include "engine/store_format/leaf_claims.h"
 
 #include <gtest/gtest.h>

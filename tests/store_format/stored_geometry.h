@@ -1,5 +1,5 @@
-// What a store keeps of an object's geometry (engine/store_format/object_codec.h restates it; this is the tests'
-// oracle): the mesh in the store frame, rounded to float32 in the object's local frame, and its box.
+// What a store keeps of an object's geometry (engine/store_format/object_codec.h restates it; this is the
+// tests' oracle): the mesh in the store frame, rounded to float32 in the object's local frame, and its box.
 // Query tests compare answers with brute force over this stored geometry, and codec tests check that it
 // lies within float32's precision of the object's own size from the input.
 #pragma once
