@@ -12,6 +12,7 @@
 #include "engine/generator/tanker_generator.h"
 #include "engine/ingest/exchange_record.h"
 #include "engine/scene/mkscene_format.h"
+#include "engine/shard/rank_message.h"
 
 namespace mktree {
 
@@ -19,30 +20,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 double Since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
-
-template <typename T>
-void Put(std::vector<uint8_t>* b, const T& v) {
-  const size_t n = b->size();
-  b->resize(n + sizeof(T));
-  std::memcpy(b->data() + n, &v, sizeof(T));
-}
-template <typename T>
-T Get(const std::vector<uint8_t>& b, size_t* at) {
-  T v;
-  std::memcpy(&v, b.data() + *at, sizeof(T));
-  *at += sizeof(T);
-  return v;
-}
-void PutString(std::vector<uint8_t>* b, const std::string& s) {
-  Put<uint64_t>(b, s.size());
-  b->insert(b->end(), s.begin(), s.end());
-}
-std::string GetString(const std::vector<uint8_t>& b, size_t* at) {
-  const uint64_t n = Get<uint64_t>(b, at);
-  std::string s(reinterpret_cast<const char*>(b.data() + *at), n);
-  *at += n;
-  return s;
-}
 
 class EmptySource final : public SceneSource {
  public:

@@ -14,6 +14,7 @@
 #include "engine/ingest/distributed_build.h"  // RankOfShard
 #include "engine/query/store_database.h"
 #include "engine/shard/manifest.h"
+#include "engine/shard/rank_message.h"
 #include "mktree/database.h"
 
 namespace mktree {
@@ -44,30 +45,6 @@ inline std::vector<std::vector<uint8_t>> Gather(const std::vector<uint8_t>& mine
     for (int r = 0; r < ranks; ++r)
       out.emplace_back(all.begin() + offsets[r], all.begin() + offsets[r] + sizes[r]);
   return out;
-}
-
-template <typename T>
-void Put(std::vector<uint8_t>* b, const T& v) {
-  const size_t n = b->size();
-  b->resize(n + sizeof(T));
-  std::memcpy(b->data() + n, &v, sizeof(T));
-}
-template <typename T>
-T Get(const std::vector<uint8_t>& b, size_t* at) {
-  T v;
-  std::memcpy(&v, b.data() + *at, sizeof(T));
-  *at += sizeof(T);
-  return v;
-}
-inline void PutString(std::vector<uint8_t>* b, const std::string& s) {
-  Put<uint64_t>(b, s.size());
-  b->insert(b->end(), s.begin(), s.end());
-}
-inline std::string GetString(const std::vector<uint8_t>& b, size_t* at) {
-  const uint64_t n = Get<uint64_t>(b, at);
-  std::string s(reinterpret_cast<const char*>(b.data() + *at), n);
-  *at += n;
-  return s;
 }
 
 // Whether every rank's `ok` holds.
