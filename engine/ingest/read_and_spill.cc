@@ -13,6 +13,7 @@
 #include <limits>
 
 #include "engine/ingest/object_encoder.h"
+#include "engine/ingest/scene_inputs.h"
 #include "engine/store_format/record_codec.h"
 
 namespace mktree {
@@ -72,7 +73,8 @@ struct CoarseBoxes {
   }
 };
 
-// The objects of every input in order, numbered from 0; collects the sources' warnings.
+// The objects of every input in order (SceneInputs), reporting progress on the calling thread and
+// handing each finished input's warnings to the build's as it finishes.
 class SceneReader {
  public:
   SceneReader(const std::vector<SceneOpener>& inputs, const IngestOptions& options,
@@ -81,39 +83,21 @@ class SceneReader {
 
   // Fills *obj with the next object; false after the last input's last object.
   Result<bool> Next(SceneObject* obj) {
-    for (;;) {
-      if (!source_) {
-        if (input_ == inputs_.size()) return false;
-        auto opened = inputs_[input_](next_id_);
-        if (!opened.ok()) return opened.status();
-        source_ = std::move(opened).value();
-      }
-      auto more = source_->Next(obj);
-      if (!more.ok()) return more.status();
-      if (*more) break;
-      for (std::string& w : source_->TakeWarnings()) warnings_->push_back(std::move(w));
-      source_.reset();
-      ++input_;
-    }
-    if (obj->id != next_id_)
-      return Status::Internal("object '" + obj->name + "': source gave id " + std::to_string(obj->id) +
-                              ", expected " + std::to_string(next_id_));
-    if (next_id_ == kNoIndex) return Status::InvalidArgument("too many objects: ids are 32-bit");
-    ++next_id_;
+    Result<bool> more = inputs_.Next(obj);
+    for (std::string& w : inputs_.TakeWarnings()) warnings_->push_back(std::move(w));
+    if (!more.ok() || !*more) return more;
     // Reported here, on the calling thread, not by the sink (a drain thread): a progress callback may
     // need the caller's thread (Python checks Ctrl-C only on its main thread).
-    if (next_id_ % kProgressEvery == 0) ReportProgress(options_, IngestStage::kRead, next_id_, 0);
+    if (inputs_.objects_read() % kProgressEvery == 0)
+      ReportProgress(options_, IngestStage::kRead, inputs_.objects_read(), 0);
     return true;
   }
-  ObjectId objects_read() const { return next_id_; }
+  ObjectId objects_read() const { return inputs_.objects_read(); }
 
  private:
-  const std::vector<SceneOpener>& inputs_;
+  SceneInputs inputs_;
   const IngestOptions& options_;
   std::vector<std::string>* warnings_;
-  ObjectId next_id_ = 0;
-  size_t input_ = 0;
-  std::unique_ptr<SceneSource> source_;
 };
 
 // The encoder's sink: spills each object's entry and record in id order and keeps its BuildObject.

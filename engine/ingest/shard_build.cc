@@ -12,6 +12,7 @@
 #include <random>
 #include <string_view>
 
+#include "engine/ingest/scene_inputs.h"
 #include "engine/store_format/store_file.h"
 
 namespace mktree {
@@ -22,40 +23,6 @@ using Clock = std::chrono::steady_clock;
 double Seconds(Clock::time_point since) {
   return std::chrono::duration<double>(Clock::now() - since).count();
 }
-
-// Every input in order, numbered globally from 0, as BuildStore numbers them.
-class AllInputs final : public SceneSource {
- public:
-  explicit AllInputs(const std::vector<SceneOpener>& inputs) : inputs_(inputs) {}
-  Result<bool> Next(SceneObject* obj) override {
-    for (;;) {
-      if (!source_) {
-        if (input_ == inputs_.size()) return false;
-        MKTREE_ASSIGN_OR_RETURN(source_, inputs_[input_](next_id_));
-      }
-      MKTREE_ASSIGN_OR_RETURN(const bool more, source_->Next(obj));
-      if (more) break;
-      for (std::string& w : source_->TakeWarnings()) warnings_.push_back(std::move(w));
-      source_.reset();
-      ++input_;
-    }
-    if (obj->id != next_id_)
-      return Status::Internal("object '" + obj->name + "': source gave id " + std::to_string(obj->id) +
-                              ", expected " + std::to_string(next_id_));
-    if (next_id_ == kNoIndex) return Status::InvalidArgument("too many objects: ids are 32-bit");
-    ++next_id_;
-    return true;
-  }
-  std::vector<std::string>& warnings() { return warnings_; }
-  std::vector<std::string> TakeWarnings() override { return std::move(warnings_); }
-
- private:
-  const std::vector<SceneOpener>& inputs_;
-  size_t input_ = 0;
-  ObjectId next_id_ = 0;
-  std::unique_ptr<SceneSource> source_;
-  std::vector<std::string> warnings_;
-};
 
 // The objects of one shard (those of `all` that route to it), in order.
 class FilterShard final : public SceneSource {
@@ -176,7 +143,7 @@ uint64_t NewBuildId() {
 }
 
 std::unique_ptr<SceneSource> ChainInputs(const std::vector<SceneOpener>& inputs) {
-  return std::make_unique<AllInputs>(inputs);
+  return std::make_unique<SceneInputs>(inputs);
 }
 
 std::unique_ptr<SceneSource> ShardObjectsOf(std::unique_ptr<SceneSource> all, const TopLevels& top,
@@ -204,7 +171,7 @@ Result<ShardScan> ScanPart(SceneSource* part, const IngestOptions& options) {
 Result<ShardScan> ScanForShards(const std::vector<SceneOpener>& inputs,
                                 const std::function<bool(ObjectId)>& mine, const IngestOptions& options) {
   ShardScan scan;
-  AllInputs all(inputs);
+  SceneInputs all(inputs);
   SceneObject obj;
   for (;;) {
     MKTREE_ASSIGN_OR_RETURN(const bool more, all.Next(&obj));
@@ -215,7 +182,7 @@ Result<ShardScan> ScanForShards(const std::vector<SceneOpener>& inputs,
     if (options.progress && scan.objects % (1u << 16) == 0)
       options.progress(IngestStage::kRead, scan.objects, 0);
   }
-  scan.warnings = std::move(all.warnings());
+  scan.warnings = all.TakeWarnings();
   return scan;
 }
 
