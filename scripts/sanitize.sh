@@ -5,7 +5,8 @@
 # Usage: scripts/sanitize.sh address|thread [extra ctest arguments, e.g. -R PageCache]
 #   address  ASan + UBSan (+ LeakSanitizer) in build-asan/: the whole suite, except the tests labelled rss
 #            or memlimit (they assert on peak RSS or run under an address-space limit, which the
-#            sanitizer's shadow memory makes meaningless)
+#            sanitizer's shadow memory makes meaningless) and heavy (the slowest under ASan, whose code
+#            smaller tests cover; tests/CMakeLists.txt)
 #   thread   TSan in build-tsan/: the tests labelled concurrency (tests/CMakeLists.txt)
 # A finding fails its test (-fno-sanitize-recover=all; LeakSanitizer and TSan reports make the program
 # exit non-zero); suppressions, only for libraries we do not own: tests/sanitizers/.
@@ -15,7 +16,7 @@ cd "$(dirname "$0")/.."
 
 flavour="${1:-}"
 case "$flavour" in
-  address) build=build-asan; sanitize=address,undefined; select=(-LE "rss|memlimit") ;;
+  address) build=build-asan; sanitize=address,undefined; select=(-LE "rss|memlimit|heavy") ;;
   thread) build=build-tsan; sanitize=thread; select=(-L concurrency) ;;
   *) echo "usage: scripts/sanitize.sh address|thread [ctest arguments]" >&2; exit 2 ;;
 esac
