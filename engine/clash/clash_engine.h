@@ -22,6 +22,7 @@ Status RunSelfClash(const LeafSource& leaves, const ClashOptions& options, const
 struct ClashPart {
   const LeafSource* leaves = nullptr;
   const std::vector<ObjectId>* ids = nullptr;
+  const std::vector<bool>* hidden = nullptr;  // by local id: objects in no pair (null: none)
 };
 
 // Which pairs of parts (i <= j; i == j: the pairs inside part i) a clash over several stores covers.

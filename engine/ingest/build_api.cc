@@ -11,6 +11,7 @@
 
 #include "engine/generator/tanker_generator.h"
 #include "engine/generator/tanker_spec.h"
+#include "engine/ingest/caller_object_check.h"
 #include "engine/ingest/shard_build.h"
 #include "engine/ingest/store_builder.h"
 #include "mktree/build.h"
@@ -149,29 +150,7 @@ class CallerSource final : public SceneSource {
 
  private:
   Status Check(const SceneObject& obj) const {
-    const std::string what = "object " + std::to_string(next_id_) + " '" + obj.name + "'";
-    const Mesh& m = obj.mesh;
-    if (m.vertices.size() % 3 != 0)
-      return Status::InvalidArgument(what + ": " + std::to_string(m.vertices.size()) +
-                                     " vertex coordinates, not a multiple of 3");
-    if (m.triangles.size() % 3 != 0)
-      return Status::InvalidArgument(what + ": " + std::to_string(m.triangles.size()) +
-                                     " triangle indices, not a multiple of 3");
-    if (m.triangles.empty()) return Status::InvalidArgument(what + ": no triangle");
-    for (size_t i = 0; i < m.vertices.size(); ++i) {
-      const double c = m.vertices[i];
-      if (!std::isfinite(c) || std::fabs(c) > kMaxCoordinate)
-        return Status::InvalidArgument(what + ": vertex " + std::to_string(i / 3) + " has coordinate " +
-                                       std::to_string(c) + ": not finite or beyond kMaxCoordinate");
-    }
-    const size_t vertex_count = m.vertex_count();
-    for (size_t i = 0; i < m.triangles.size(); ++i) {
-      if (m.triangles[i] >= vertex_count)
-        return Status::InvalidArgument(what + ": triangle " + std::to_string(i / 3) + " refers to vertex " +
-                                       std::to_string(m.triangles[i]) + " of " +
-                                       std::to_string(vertex_count));
-    }
-    return Status::Ok();
+    return CheckCallerObject(obj, "object " + std::to_string(next_id_) + " '" + obj.name + "'");
   }
 
   ObjectSource source_;

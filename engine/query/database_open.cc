@@ -1,8 +1,11 @@
-// Database::Open: the one entry point above both implementations, a sharded store's manifest
-// (sharded_database.h) or a store file (store_database.h).
+// Database::Open: the one entry point above the implementations: a sharded store's manifest
+// (sharded_database.h), a store that has taken changes (revision_database.h) or a store file alone
+// (store_database.h).
 #include "engine/core/guarded.h"
+#include "engine/query/revision_database.h"
 #include "engine/query/sharded_database.h"
 #include "engine/query/store_database.h"
+#include "engine/revision/change_folder.h"
 #include "engine/shard/manifest.h"
 #include "engine/store_format/store_file.h"
 #include "mktree/database.h"
@@ -11,7 +14,14 @@ namespace mktree {
 
 Result<std::unique_ptr<Database>> Database::Open(const std::string& path, const OpenOptions& options) {
   return Guarded(path, [&]() -> Result<std::unique_ptr<Database>> {
-    if (IsManifestFile(path)) return OpenShardedDatabase(path, options);
+    if (IsManifestFile(path)) {
+      if (options.revision && *options.revision != 0)
+        return Status::NotFound(path + ": revision " + std::to_string(*options.revision) +
+                                " is not kept (a sharded store takes no changes: it has revision 0 only)");
+      return OpenShardedDatabase(path, options);
+    }
+    MKTREE_ASSIGN_OR_RETURN(StoreRevision at, OpenStoreRevision(path, options.revision));
+    if (at.hold) return OpenRevisionDatabase(path, std::move(at.hold), options);
     ReadOptions ro;
     ro.direct_io = options.direct_io;
     MKTREE_ASSIGN_OR_RETURN(auto reader, StoreReader::Open(path, ro));

@@ -50,8 +50,9 @@ Result<std::vector<uint8_t>> ReadWhole(const std::string& path, uint64_t max_byt
   return bytes;
 }
 
-Status WriteAtomically(const std::string& path, const std::vector<uint8_t>& bytes) {
-  MKTREE_ASSIGN_OR_RETURN(auto file, AtomicFile::Create(path));
+Status WriteAtomically(const std::string& path, const std::vector<uint8_t>& bytes,
+                       FileOps& ops = DefaultFileOps()) {
+  MKTREE_ASSIGN_OR_RETURN(auto file, AtomicFile::Create(path, ops));
   MKTREE_RETURN_IF_ERROR(file->Write(bytes.data(), bytes.size()));
   return file->Commit();
 }
@@ -213,7 +214,7 @@ Result<ShardFileInfo> FingerprintFile(const std::string& path) {
 }
 
 Status WriteShardIds(const std::string& path, uint64_t build_id, uint32_t shard,
-                     const std::vector<ObjectId>& ids) {
+                     const std::vector<ObjectId>& ids, FileOps& ops) {
   std::vector<uint8_t> b;
   b.reserve(40 + 4 * ids.size());
   ByteWriter w(&b);
@@ -224,7 +225,7 @@ Status WriteShardIds(const std::string& path, uint64_t build_id, uint32_t shard,
   w.Put<uint64_t>(ids.size());
   w.PutBytes(ids.data(), 4 * ids.size());
   AppendChecksum(&b);
-  return WriteAtomically(path, b);
+  return WriteAtomically(path, b, ops);
 }
 
 Result<std::vector<ObjectId>> ReadShardIds(const std::string& path, uint64_t build_id, uint32_t shard,

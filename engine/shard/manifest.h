@@ -12,6 +12,7 @@
 #include "engine/shard/top_levels.h"
 #include "mktree/geometry.h"
 #include "mktree/status.h"
+#include "storage/file_ops.h"
 
 namespace mktree {
 
@@ -53,7 +54,7 @@ Result<ShardFileInfo> FingerprintFile(const std::string& path);
 
 // The id file: magic, version, build id, shard, count, u32 ids (strictly increasing), XXH3-64 of it all.
 Status WriteShardIds(const std::string& path, uint64_t build_id, uint32_t shard,
-                     const std::vector<ObjectId>& ids);
+                     const std::vector<ObjectId>& ids, FileOps& ops = DefaultFileOps());
 Result<std::vector<ObjectId>> ReadShardIds(const std::string& path, uint64_t build_id, uint32_t shard,
                                            uint64_t total_objects);
 // The local id of global id `id` in a shard whose id file gave `ids` (strictly increasing), if it is there.

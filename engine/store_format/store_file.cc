@@ -91,8 +91,8 @@ class StoreWriter::Lock {
 
  private:
   static Status Busy(const std::string& final_path, const std::string& lock_path) {
-    return Status::IOError(final_path + ": another writer is building this store (lock " + lock_path +
-                           " is held)");
+    return Status::IOError(final_path + ": another writer is building or changing this store (lock " +
+                           lock_path + " is held)");
   }
   static std::mutex& TableMutex() {
     static std::mutex mu;
@@ -128,6 +128,11 @@ StoreWriter::~StoreWriter() {
   }
   backend_.reset();
   lock_.reset();
+}
+
+Result<std::shared_ptr<void>> StoreWriter::HoldLock(const std::string& final_path) {
+  MKTREE_ASSIGN_OR_RETURN(std::unique_ptr<Lock> lock, Lock::Acquire(final_path));
+  return std::shared_ptr<void>(std::move(lock));
 }
 
 Result<std::unique_ptr<StoreWriter>> StoreWriter::Create(const std::string& final_path,

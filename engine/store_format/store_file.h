@@ -65,6 +65,9 @@ class StoreWriter {
   // "<final_path>.tmp.<pid>". Fails if another writer is building final_path, if final_path exists and is
   // not a regular file (a directory, FIFO, device), or if params give an unusable page size.
   static Result<std::unique_ptr<StoreWriter>> Create(const std::string& final_path, const StoreOptions& opts);
+  // The writer lock of final_path alone, held until the returned object is destroyed: what a store's
+  // change writer holds (engine/changes), so that a build and a change of one store exclude each other.
+  static Result<std::shared_ptr<void>> HoldLock(const std::string& final_path);
   // Removes the temporary file unless committed, and releases the lock.
   ~StoreWriter();
 

@@ -54,6 +54,8 @@ struct CommitReport {
   std::vector<ObjectId> added_ids;  // the ids of ChangeBatch::add, in its order
   uint64_t objects = 0;             // live objects after the commit
   bool compacted = false;           // the commit passed the threshold and compaction ran after it
+  // Why that compaction failed (the commit stands; the changes stay beside the base); empty: it did not.
+  std::string compaction_error;
   double seconds = 0;
 };
 

@@ -73,6 +73,9 @@ struct OpenOptions {
   bool verify_checksums = true;
   // Bypass the OS page cache (O_DIRECT, paged-file backend) for honest cold reads.
   bool direct_io = false;
+  // The revision to answer (mktree/changes.h): unset, the newest; an older one while the store keeps it
+  // (NotFound naming the store and the revision when it is not kept).
+  std::optional<uint64_t> revision;
 };
 
 // A query: the objects containing `point`, or meeting `box` (intervals closed), tested as `mode` says.
@@ -153,6 +156,8 @@ class Database {
 
   // Opens the store at `path` (HDF5 or paged file, detected from the file). Reads only the header and
   // the in-RAM structure; refuses truncated, foreign or corrupt files with an error naming the file.
+  // A store that has taken changes (mktree/changes.h) answers options.revision, by default its newest,
+  // holding it (the writer does not retire it) until the Database is destroyed.
   // `path` may also be a sharded store's manifest (docs/shards.md, BuildOptions::shards): every shard
   // store and id file is opened and checked at once (a missing, damaged or foreign one is an error naming
   // it), each shard with a cache of ceil(cache_pages / shards) pages. The Database then answers every
@@ -178,6 +183,12 @@ class Database {
                                           QueryStats* stats, std::vector<ShardQueryStats>* per_shard) const;
   // Shards of a sharded store; 0 for an ordinary store.
   virtual uint32_t shard_count() const { return 0; }
+  // The revision this Database answers (mktree/changes.h): the one it opened, for as long as it is open;
+  // 0 for a store that has taken no change.
+  virtual uint64_t revision() const { return 0; }
+  // Above every id of this revision: object_count() for a store that has taken no change; with changes,
+  // ids removed or never given lie below it too (Object and ObjectGeometry refuse them).
+  virtual uint64_t id_limit() const { return object_count(); }
   // VisitUntil with a visitor that never stops.
   Status Visit(const Query& query, const ObjectVisitor& visit, QueryStats* stats) const;
   // Visit, the ids handed to `visit` a span at a time: the same ids in the same order and the same
@@ -227,11 +238,11 @@ class Database {
 
   // The store's file, as given to Open.
   virtual const std::string& path() const = 0;
-  virtual uint64_t object_count() const = 0;
+  virtual uint64_t object_count() const = 0;  // live objects
   // One object's record: name, source file, attributes and box. Records live in pages of the store, read
   // through the page cache like leaves: `stats` (may be null) is reset and counts the pages touched and
-  // read. InvalidArgument for an id >= object_count(); Corruption naming the store and the page if its
-  // record page is damaged.
+  // read. InvalidArgument for an id >= id_limit() or not live at this revision; Corruption naming the store
+  // and the page if its record page is damaged.
   virtual Result<ObjectRecord> Object(ObjectId id, QueryStats* stats = nullptr) const = 0;
   // One object's triangles in world coordinates (the stored vertices, float32 in the object's frame, plus
   // the store's origin in double), read from its leaf through the page cache. Errors as Object's.

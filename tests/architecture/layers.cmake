@@ -22,9 +22,13 @@ set(below_engine_store_format "mktree/" "storage/" "engine/core/" "engine/tree/"
 set(below_engine_shard "mktree/" "storage/" "engine/core/")
 set(below_engine_ingest "mktree/" "storage/" "engine/core/" "engine/geometry/" "engine/scene/" "engine/generator/"
     "engine/tree/" "engine/store_format/" "engine/shard/")
+set(below_engine_revision "mktree/" "storage/" "engine/core/" "engine/shard/")
 set(below_engine_clash "mktree/" "storage/" "engine/core/" "engine/geometry/" "engine/tree/" "engine/store_format/")
 set(below_engine_query "mktree/" "storage/" "engine/core/" "engine/geometry/" "engine/tree/" "engine/store_format/"
-    "engine/clash/" "engine/shard/")
+    "engine/clash/" "engine/shard/" "engine/revision/")
+# The changes a store takes: its writer builds delta and base stores (ingest) and reads revisions (query).
+set(below_engine_changes "mktree/" "storage/" "engine/core/" "engine/geometry/" "engine/scene/" "engine/tree/"
+    "engine/store_format/" "engine/shard/" "engine/ingest/" "engine/clash/" "engine/query/" "engine/revision/")
 set(below_engine_viz "mktree/" "storage/" "engine/core/" "engine/tree/" "engine/store_format/")
 set(below_tools "mktree/" "storage/" "engine/")
 # The MPI front end (mktree-mpi) is a sibling of the command line above the engine: it may share the
@@ -35,7 +39,7 @@ set(below_python "mktree/")
 # Benchmarks measure the engine's layers directly; nothing includes them.
 set(below_bench "mktree/" "storage/" "engine/")
 set(folders include/mktree storage engine/core engine/geometry engine/scene engine/generator engine/tree
-    engine/store_format engine/shard engine/ingest engine/clash engine/query engine/viz tools tools/mpi python bench)
+    engine/store_format engine/shard engine/revision engine/ingest engine/clash engine/query engine/changes engine/viz tools tools/mpi python bench)
 
 # Every folder that holds sources (at any depth) must be placed in the layers above before it can hold code.
 set(roots include storage engine tools python bench)

@@ -1,0 +1,588 @@
+// ChangeWriter: commits, delta merges, compaction, retirement (see change_writer.h and docs/changes.md).
+#include "engine/changes/change_writer.h"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <ctime>
+#include <filesystem>
+#include <map>
+#include <set>
+#include <unordered_map>
+
+#include "engine/changes/part_builder.h"
+#include "engine/core/guarded.h"
+#include "engine/ingest/caller_object_check.h"
+#include "engine/ingest/shard_build.h"
+#include "engine/query/revision_database.h"
+#include "engine/revision/change_folder.h"
+#include "engine/shard/manifest.h"
+#include "engine/store_format/store_file.h"
+#include "storage/atomic_file.h"
+#include "storage/file_util.h"
+
+namespace mktree {
+
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+double SecondsSince(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+// Deltas are merged while the one before the newest is at most this many times its size, so that their
+// sizes grow geometrically: a query visits O(log changes) of them, an object is rewritten O(log) times.
+constexpr uint64_t kMergeRatio = 2;
+
+Status FsyncFolder(const std::string& path, FileOps& ops) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0) return Status::IOError(path + ": open folder: " + storage_internal::ErrnoText(errno));
+  const int rc = ops.Fsync(fd);
+  const int err = errno;
+  ::close(fd);
+  if (rc != 0) return Status::IOError(path + ": fsync folder: " + storage_internal::ErrnoText(err));
+  return Status::Ok();
+}
+
+Status WriteRevisionFile(const std::string& folder, const RevisionManifest& m, FileOps& ops) {
+  const std::string text = EncodeRevisionManifest(m);
+  MKTREE_ASSIGN_OR_RETURN(auto file,
+                          AtomicFile::Create(ChangesFile(folder, RevisionFileName(m.revision)), ops));
+  MKTREE_RETURN_IF_ERROR(file->Write(text.data(), text.size()));
+  return file->Commit();
+}
+
+// Every file name a revision refers to.
+void NamesOf(const RevisionManifest& m, std::set<std::string>* names) {
+  auto add = [&](const RevisionFile& f) {
+    if (!f.name.empty()) names->insert(f.name);
+  };
+  add(m.base.store);
+  add(m.base.ids);
+  for (const RevisionPart& d : m.deltas) {
+    add(d.store);
+    add(d.ids);
+  }
+  for (const RevisionIdList& l : m.removals) add(l.file);
+  for (const RevisionIdList& l : m.touched) add(l.file);
+}
+
+class Writer final : public ChangeWriter {
+ public:
+  Writer(std::string store, ChangeOptions options, FileOps& ops, std::shared_ptr<void> lock)
+      : store_(std::move(store)),
+        folder_(ChangesFolder(store_)),
+        options_(options),
+        ops_(ops),
+        lock_(std::move(lock)) {}
+
+  Status Start();
+  Result<CommitReport> Commit(const ChangeBatch& batch) override {
+    return Guarded(store_, [&] { return CommitUnguarded(batch); });
+  }
+  Result<CompactReport> Compact() override {
+    return Guarded(store_, [&] { return CompactUnguarded(); });
+  }
+  Status SetKeep(uint32_t keep) override {
+    if (keep < 1 || keep > 1000000) return Status::InvalidArgument("keep must be from 1 to 1000000");
+    keep_ = keep;
+    return Status::Ok();
+  }
+  uint64_t revision() const override { return head_.revision; }
+
+ private:
+  Status Initialize();
+  Status OpenHead();
+  Result<CommitReport> CommitUnguarded(const ChangeBatch& batch);
+  Result<CompactReport> CompactUnguarded();
+  Status ResolveBatch(const ChangeBatch& batch, std::vector<ObjectId>* removed,
+                      std::vector<SceneObject>* written, uint64_t* replaced) const;
+  std::optional<std::pair<size_t, ObjectId>> LiveAt(ObjectId id) const;
+  Result<std::unordered_map<std::string, std::vector<ObjectId>>> LiveNames(
+      const std::set<std::string>& wanted) const;
+  Result<RevisionIdList> WriteIdList(const std::string& name, uint64_t made_at, std::vector<ObjectId> ids);
+  Status MergeDeltas(RevisionManifest* m);
+  Status CommitRevision(RevisionManifest m);
+  Result<std::pair<uint64_t, uint64_t>> RetireAndCollect();
+  Status RelinkStore();
+  PartBuild Part(const std::string& name, uint64_t made_at) const {
+    PartBuild b;
+    b.folder = folder_;
+    b.name = name;
+    b.history = head_.history;
+    b.made_at = made_at;
+    b.ingest = base_ingest_;
+    b.ingest.store.file_ops = &ops_;
+    b.ingest.spill_file_ops = &ops_;
+    b.ingest.input_name = "change batch";
+    return b;
+  }
+  std::string NewPartName(const char* kind, uint64_t revision) {
+    return std::string(kind) + "-" + std::to_string(revision) + "-" + std::to_string(++part_seq_);
+  }
+
+  std::string store_, folder_;
+  ChangeOptions options_;
+  FileOps& ops_;
+  std::shared_ptr<void> lock_;
+  RevisionManifest head_;
+  std::vector<RevisionPartDb> parts_;  // of head_
+  std::optional<uint32_t> keep_;
+  uint64_t part_seq_ = 0;
+  IngestOptions base_ingest_;  // how parts are built: like the head's base
+};
+
+Status Writer::Start() {
+  if (IsManifestFile(store_))
+    return Status::Unsupported(store_ + ": a sharded store takes no changes yet (docs/changes.md)");
+  MKTREE_RETURN_IF_ERROR(storage_internal::CheckInputFile(store_));
+  MKTREE_ASSIGN_OR_RETURN(std::vector<uint64_t> revisions, ListRevisionNumbers(folder_));
+  bool kept = !revisions.empty();
+  if (kept) {
+    MKTREE_ASSIGN_OR_RETURN(kept, StoreFileIsAKeptBase(store_, folder_, revisions));
+  }
+  if (!kept) return Initialize();
+  MKTREE_ASSIGN_OR_RETURN(head_, ReadRevisionFile(folder_, revisions.back()));
+  MKTREE_RETURN_IF_ERROR(OpenHead());
+  MKTREE_RETURN_IF_ERROR(RelinkStore());  // a compaction killed between its commit and the relink
+  return RetireAndCollect().status();
+}
+
+// The first change of a store: the folder, the store file linked in as the base of revision 0, and
+// revision 0's file. A folder of a store rebuilt since, or one a killed writer left without any revision,
+// is replaced whole.
+Status Writer::Initialize() {
+  std::error_code ec;
+  if (fs::exists(folder_, ec)) {
+    const std::string stale = folder_ + ".stale." + std::to_string(::getpid());
+    fs::rename(folder_, stale, ec);
+    if (ec)
+      return Status::IOError(folder_ + ": cannot set aside the changes of an older store: " + ec.message());
+    fs::remove_all(stale, ec);
+  }
+  if (!fs::create_directory(folder_, ec) && ec)
+    return Status::IOError(folder_ + ": cannot create the changes folder: " + ec.message());
+  MKTREE_ASSIGN_OR_RETURN(auto reader, StoreReader::Open(store_));
+  RevisionManifest m;
+  m.history = NewBuildId();
+  m.revision = 0;
+  m.time = std::time(nullptr);
+  m.message = "built";
+  m.next_id = m.live = reader->object_count();
+  m.base.made_at = 0;
+  m.base.objects = reader->object_count();
+  const std::string base_name = "base-0.mkt";
+  if (::link(store_.c_str(), ChangesFile(folder_, base_name).c_str()) != 0)
+    return Status::IOError(
+        ChangesFile(folder_, base_name) + ": cannot link the store into its changes folder: " +
+        storage_internal::ErrnoText(errno) + " (the folder must be on the store's file system)");
+  MKTREE_ASSIGN_OR_RETURN(m.base.store, FingerprintFile(ChangesFile(folder_, base_name)));
+  MKTREE_RETURN_IF_ERROR(FsyncFolder(folder_, ops_));
+  MKTREE_RETURN_IF_ERROR(FsyncFolder(fs::path(fs::absolute(store_)).parent_path().string(), ops_));
+  MKTREE_RETURN_IF_ERROR(WriteRevisionFile(folder_, m, ops_));
+  head_ = m;
+  return OpenHead();
+}
+
+Status Writer::OpenHead() {
+  OpenOptions o;
+  o.cache_pages = 4096;
+  std::vector<RevisionPartDb> reuse = std::move(parts_);
+  parts_.clear();
+  MKTREE_ASSIGN_OR_RETURN(parts_, OpenRevisionParts(store_, head_, o, &reuse));
+  base_ingest_ = PartIngestOptions(*parts_[0].db, options_.threads);
+  return Status::Ok();
+}
+
+std::optional<std::pair<size_t, ObjectId>> Writer::LiveAt(ObjectId id) const {
+  for (size_t p = parts_.size(); p-- > 0;) {
+    const RevisionPartDb& part = parts_[p];
+    std::optional<ObjectId> local;
+    if (part.ids.empty()) {
+      if (id < part.db->object_count()) local = id;
+    } else {
+      local = LocalIdOf(part.ids, id);
+    }
+    if (!local) continue;
+    if (part.hidden[*local]) return std::nullopt;
+    return std::pair{p, *local};
+  }
+  return std::nullopt;
+}
+
+// The live ids of each wanted name: one pass over the live objects' records.
+Result<std::unordered_map<std::string, std::vector<ObjectId>>> Writer::LiveNames(
+    const std::set<std::string>& wanted) const {
+  std::unordered_map<std::string, std::vector<ObjectId>> out;
+  if (wanted.empty()) return out;
+  for (const RevisionPartDb& part : parts_) {
+    for (uint64_t i = 0; i < part.hidden.size(); ++i) {
+      if (part.hidden[i]) continue;
+      MKTREE_ASSIGN_OR_RETURN(std::string name, part.db->ObjectName(static_cast<ObjectId>(i)));
+      if (wanted.count(name)) out[name].push_back(part.global(static_cast<ObjectId>(i)));
+    }
+  }
+  return out;
+}
+
+// The batch against the head: ids removed, objects written (added with new ids, replacing with theirs),
+// in increasing id. Nothing is written here.
+Status Writer::ResolveBatch(const ChangeBatch& batch, std::vector<ObjectId>* removed,
+                            std::vector<SceneObject>* written, uint64_t* replaced) const {
+  std::set<std::string> names(batch.remove_names.begin(), batch.remove_names.end());
+  for (const SceneObject& o : batch.replace_by_name) names.insert(o.name);
+  MKTREE_ASSIGN_OR_RETURN(const auto by_name, LiveNames(names));
+  std::set<ObjectId> used;
+  auto claim = [&](ObjectId id, const std::string& what) -> Status {
+    if (!LiveAt(id))
+      return Status::InvalidArgument(store_ + ": " + what + ": no object " + std::to_string(id) +
+                                     " at revision " + std::to_string(head_.revision) +
+                                     " (removed, or never added)");
+    if (!used.insert(id).second)
+      return Status::InvalidArgument(store_ + ": " + what + ": object " + std::to_string(id) +
+                                     " is changed twice in one batch");
+    return Status::Ok();
+  };
+  for (ObjectId id : batch.remove) {
+    MKTREE_RETURN_IF_ERROR(claim(id, "remove"));
+    removed->push_back(id);
+  }
+  for (const std::string& name : batch.remove_names) {
+    auto it = by_name.find(name);
+    if (it == by_name.end())
+      return Status::InvalidArgument(store_ + ": remove: no object named '" + name + "' at revision " +
+                                     std::to_string(head_.revision));
+    for (ObjectId id : it->second) {
+      MKTREE_RETURN_IF_ERROR(claim(id, "remove '" + name + "'"));
+      removed->push_back(id);
+    }
+  }
+  auto write = [&](const SceneObject& o, ObjectId id, const std::string& what) -> Status {
+    MKTREE_RETURN_IF_ERROR(CheckCallerObject(o, what));
+    written->push_back(o);
+    written->back().id = id;
+    return Status::Ok();
+  };
+  for (const SceneObject& o : batch.replace) {
+    const std::string what = "replace object " + std::to_string(o.id) + " '" + o.name + "'";
+    MKTREE_RETURN_IF_ERROR(claim(o.id, what));
+    MKTREE_RETURN_IF_ERROR(write(o, o.id, what));
+  }
+  for (const SceneObject& o : batch.replace_by_name) {
+    const std::string what = "replace '" + o.name + "'";
+    auto it = by_name.find(o.name);
+    if (it == by_name.end())
+      return Status::InvalidArgument(store_ + ": " + what + ": no object of that name at revision " +
+                                     std::to_string(head_.revision));
+    if (it->second.size() != 1)
+      return Status::InvalidArgument(store_ + ": " + what + ": " + std::to_string(it->second.size()) +
+                                     " objects have that name (a replace by name needs exactly one)");
+    MKTREE_RETURN_IF_ERROR(claim(it->second[0], what));
+    MKTREE_RETURN_IF_ERROR(write(o, it->second[0], what));
+  }
+  *replaced = written->size();
+  if (head_.next_id + batch.add.size() > uint64_t{1} << 32)
+    return Status::InvalidArgument(store_ + ": the batch would pass 2^32 object ids");
+  for (size_t i = 0; i < batch.add.size(); ++i) {
+    const SceneObject& o = batch.add[i];
+    MKTREE_RETURN_IF_ERROR(write(o, static_cast<ObjectId>(head_.next_id + i),
+                                 "add object " + std::to_string(i) + " '" + o.name + "'"));
+  }
+  std::sort(written->begin(), written->end(),
+            [](const SceneObject& a, const SceneObject& b) { return a.id < b.id; });
+  std::sort(removed->begin(), removed->end());
+  return Status::Ok();
+}
+
+Result<RevisionIdList> Writer::WriteIdList(const std::string& name, uint64_t made_at,
+                                           std::vector<ObjectId> ids) {
+  std::sort(ids.begin(), ids.end());
+  ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+  RevisionIdList l;
+  l.made_at = made_at;
+  l.count = ids.size();
+  const std::string path = ChangesFile(folder_, name);
+  MKTREE_RETURN_IF_ERROR(WriteShardIds(path, head_.history, static_cast<uint32_t>(made_at), ids, ops_));
+  MKTREE_ASSIGN_OR_RETURN(l.file, FingerprintFile(path));
+  return l;
+}
+
+Result<CommitReport> Writer::CommitUnguarded(const ChangeBatch& batch) {
+  const auto start = Clock::now();
+  std::vector<ObjectId> removed;
+  std::vector<SceneObject> written;
+  uint64_t replaced = 0;
+  MKTREE_RETURN_IF_ERROR(ResolveBatch(batch, &removed, &written, &replaced));
+  const uint64_t rev = head_.revision + 1;
+  RevisionManifest m = head_;
+  m.revision = rev;
+  m.time = std::time(nullptr);
+  m.message = batch.message;
+  m.compaction = false;
+  m.added = batch.add.size();
+  m.removed = removed.size();
+  m.replaced = replaced;
+  m.next_id = head_.next_id + batch.add.size();
+  m.live = head_.live + m.added - m.removed;
+  if (keep_) m.keep = *keep_;
+  CommitReport report;
+  for (size_t i = 0; i < batch.add.size(); ++i)
+    report.added_ids.push_back(static_cast<ObjectId>(head_.next_id + i));
+  if (!written.empty()) {
+    size_t at = 0;
+    IdOrderedObjects next = [&](SceneObject* out) -> Result<bool> {
+      if (at == written.size()) return false;
+      *out = written[at++];
+      return true;
+    };
+    MKTREE_ASSIGN_OR_RETURN(RevisionPart delta,
+                            BuildRevisionPart(Part(NewPartName("delta", rev), rev), next));
+    m.deltas.push_back(delta);
+  }
+  std::vector<ObjectId> touched = removed;
+  for (const SceneObject& o : written) touched.push_back(o.id);
+  if (!removed.empty()) {
+    MKTREE_ASSIGN_OR_RETURN(RevisionIdList l,
+                            WriteIdList(NewPartName("removed", rev) + ".ids", rev, removed));
+    m.removals.push_back(l);
+  }
+  if (!touched.empty()) {
+    MKTREE_ASSIGN_OR_RETURN(RevisionIdList l,
+                            WriteIdList(NewPartName("touched", rev) + ".ids", rev, touched));
+    m.touched.push_back(l);
+  }
+  MKTREE_RETURN_IF_ERROR(MergeDeltas(&m));
+  MKTREE_RETURN_IF_ERROR(CommitRevision(std::move(m)));
+  report.revision = rev;
+  report.added = batch.add.size();
+  report.removed = removed.size();
+  report.replaced = replaced;
+  report.objects = head_.live;
+  uint64_t beside = 0;
+  for (const RevisionPart& d : head_.deltas) beside += d.objects;
+  for (const RevisionIdList& r : head_.removals) beside += r.count;
+  if (options_.compact_threshold > 0 &&
+      static_cast<double>(beside) >
+          options_.compact_threshold * static_cast<double>(std::max<uint64_t>(head_.live, 1))) {
+    // The commit is durable whatever happens here: a failed compaction is reported, not returned.
+    if (head_.live == 0) {
+      report.compaction_error = "not compacted: no live object";
+    } else if (auto c = CompactUnguarded(); c.ok()) {
+      report.compacted = c->folded > 0;
+    } else {
+      report.compaction_error = c.status().ToString();
+    }
+  }
+  report.seconds = SecondsSince(start);
+  return report;
+}
+
+// Merges the newest deltas while the one before the newest is at most kMergeRatio times its size (live
+// objects only are carried over). m's parts are opened to read them.
+Status Writer::MergeDeltas(RevisionManifest* m) {
+  while (m->deltas.size() >= 2 &&
+         m->deltas[m->deltas.size() - 2].objects <= kMergeRatio * m->deltas.back().objects) {
+    OpenOptions o;
+    o.cache_pages = 4096;
+    MKTREE_ASSIGN_OR_RETURN(std::vector<RevisionPartDb> parts, OpenRevisionParts(store_, *m, o, &parts_));
+    const size_t n = parts.size();
+    LiveObjectStream live({&parts[n - 2], &parts[n - 1]});
+    IdOrderedObjects next = [&](SceneObject* out) { return live.Next(out); };
+    const uint64_t live_count = parts[n - 2].db->object_count() - parts[n - 2].hidden_count +
+                                parts[n - 1].db->object_count() - parts[n - 1].hidden_count;
+    m->deltas.resize(m->deltas.size() - 2);
+    if (live_count > 0) {
+      MKTREE_ASSIGN_OR_RETURN(RevisionPart merged,
+                              BuildRevisionPart(Part(NewPartName("merged", m->revision), m->revision), next));
+      m->deltas.push_back(merged);
+    }
+    for (RevisionPartDb& p : parts) parts_.push_back(std::move(p));  // open stores, for the next opening
+  }
+  return Status::Ok();
+}
+
+// The commit point: the revision file, written atomically. Then the head moves, old revisions retire and
+// files no kept revision names are removed.
+Status Writer::CommitRevision(RevisionManifest m) {
+  MKTREE_RETURN_IF_ERROR(WriteRevisionFile(folder_, m, ops_));
+  head_ = std::move(m);
+  MKTREE_RETURN_IF_ERROR(OpenHead());
+  return RetireAndCollect().status();
+}
+
+Result<CompactReport> Writer::CompactUnguarded() {
+  const auto start = Clock::now();
+  CompactReport report;
+  const bool keep_changed = keep_ && *keep_ != head_.keep;
+  if (head_.deltas.empty() && head_.removals.empty() && !keep_changed) {
+    report.revision = head_.revision;
+    report.objects = head_.live;
+    report.seconds = SecondsSince(start);
+    return report;
+  }
+  const uint64_t rev = head_.revision + 1;
+  RevisionManifest m = head_;
+  m.revision = rev;
+  m.time = std::time(nullptr);
+  m.message = "compaction";
+  m.compaction = true;
+  m.added = m.removed = m.replaced = 0;
+  if (keep_) m.keep = *keep_;
+  if (!head_.deltas.empty() || !head_.removals.empty()) {
+    std::vector<const RevisionPartDb*> all;
+    for (const RevisionPartDb& p : parts_) all.push_back(&p);
+    LiveObjectStream live(all);
+    IdOrderedObjects next = [&](SceneObject* out) { return live.Next(out); };
+    PartBuild b = Part(NewPartName("base", rev), rev);
+    b.identity_ids = true;
+    if (head_.live == 0)
+      return Status::Unsupported(store_ +
+                                 ": compaction of a store with no live object (remove fewer, or build anew)");
+    MKTREE_ASSIGN_OR_RETURN(m.base, BuildRevisionPart(b, next));
+    report.folded = head_.deltas.size() + head_.removals.size();
+    m.deltas.clear();
+    m.removals.clear();
+  }
+  MKTREE_RETURN_IF_ERROR(WriteRevisionFile(folder_, m, ops_));
+  head_ = std::move(m);
+  MKTREE_RETURN_IF_ERROR(OpenHead());
+  MKTREE_RETURN_IF_ERROR(RelinkStore());
+  MKTREE_ASSIGN_OR_RETURN(const auto retired, RetireAndCollect());
+  report.revision = rev;
+  report.objects = head_.live;
+  report.retired = retired.first;
+  report.bytes_freed = retired.second;
+  report.seconds = SecondsSince(start);
+  return report;
+}
+
+// The store file becomes (a hard link of) the newest base, so that the store's name holds the newest
+// objects' pages and an old base's pages are freed once no kept revision names it.
+Status Writer::RelinkStore() {
+  MKTREE_ASSIGN_OR_RETURN(const RevisionFile now, FingerprintFile(store_));
+  if (now.bytes == head_.base.store.bytes && now.fingerprint == head_.base.store.fingerprint)
+    return Status::Ok();
+  const std::string temp = store_ + ".relink." + std::to_string(::getpid());
+  ::unlink(temp.c_str());
+  if (::link(ChangesFile(folder_, head_.base.store.name).c_str(), temp.c_str()) != 0)
+    return Status::IOError(temp + ": cannot link the compacted base: " + storage_internal::ErrnoText(errno));
+  bool renamed = false;
+  Status st = RenameOverTarget(temp, store_, ops_, "the compacted store", &renamed);
+  if (!renamed) ::unlink(temp.c_str());
+  return st;
+}
+
+// Retires the revisions older than the newest `keep` that no reader holds, then removes every file of the
+// folder that no kept revision names (the leftovers of killed writers included). Returns the revisions
+// retired and the bytes of the files removed.
+Result<std::pair<uint64_t, uint64_t>> Writer::RetireAndCollect() {
+  MKTREE_ASSIGN_OR_RETURN(std::vector<uint64_t> revisions, ListRevisionNumbers(folder_));
+  uint64_t retired = 0, freed = 0;
+  const uint64_t keep = head_.keep;
+  std::set<std::string> names;
+  for (uint64_t r : revisions) {
+    if (r > head_.revision) {
+      // A revision file above the head: a writer killed after its commit point can only be the head, so
+      // this is impossible unless the head was read before a later commit; keep it.
+      continue;
+    }
+    if (head_.revision - r >= keep) {
+      MKTREE_ASSIGN_OR_RETURN(const bool gone, TryRetireRevision(folder_, r));
+      if (gone) {
+        ++retired;
+        continue;
+      }
+    }
+    auto m = ReadRevisionFile(folder_, r);
+    if (!m.ok()) {
+      if (m.status().code() == Status::Code::kNotFound) continue;
+      return m.status();
+    }
+    NamesOf(*m, &names);
+    names.insert(RevisionFileName(r));
+  }
+  std::error_code ec;
+  std::vector<fs::path> remove;
+  for (fs::directory_iterator it(folder_, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    uint64_t r = 0;
+    if (ParseRevisionFileName(name, &r) && r > head_.revision) continue;
+    if (!names.count(name)) remove.push_back(it->path());
+  }
+  if (ec) return Status::IOError(folder_ + ": " + ec.message());
+  for (const fs::path& p : remove) {
+    std::error_code size_ec;
+    const uint64_t bytes = fs::is_regular_file(p, size_ec) ? fs::file_size(p, size_ec) : 0;
+    if (fs::remove_all(p, size_ec) > 0 && !size_ec) freed += bytes;
+  }
+  // The touched lists the next commit carries: those after the oldest revision still kept.
+  MKTREE_ASSIGN_OR_RETURN(revisions, ListRevisionNumbers(folder_));
+  if (!revisions.empty()) {
+    const uint64_t oldest = revisions.front();
+    std::erase_if(head_.touched, [&](const RevisionIdList& l) { return l.made_at <= oldest; });
+  }
+  return std::pair{retired, freed};
+}
+
+}  // namespace
+
+Result<std::unique_ptr<ChangeWriter>> OpenChangeWriter(const std::string& store_path,
+                                                       const ChangeOptions& options, FileOps& ops) {
+  return Guarded(store_path, [&]() -> Result<std::unique_ptr<ChangeWriter>> {
+    if (!(options.compact_threshold >= 0)) return Status::InvalidArgument("compact_threshold must be >= 0");
+    MKTREE_ASSIGN_OR_RETURN(std::shared_ptr<void> lock, StoreWriter::HoldLock(store_path));
+    auto w = std::make_unique<Writer>(store_path, options, ops, std::move(lock));
+    MKTREE_RETURN_IF_ERROR(w->Start());
+    return std::unique_ptr<ChangeWriter>(std::move(w));
+  });
+}
+
+Result<std::unique_ptr<ChangeWriter>> ChangeWriter::Open(const std::string& store_path,
+                                                         const ChangeOptions& options) {
+  return OpenChangeWriter(store_path, options, DefaultFileOps());
+}
+
+Result<std::vector<RevisionInfo>> ListRevisions(const std::string& store_path) {
+  return Guarded(store_path, [&]() -> Result<std::vector<RevisionInfo>> {
+    const std::string folder = ChangesFolder(store_path);
+    MKTREE_ASSIGN_OR_RETURN(std::vector<uint64_t> revisions, ListRevisionNumbers(folder));
+    bool kept = !revisions.empty();
+    if (kept) {
+      MKTREE_ASSIGN_OR_RETURN(kept, StoreFileIsAKeptBase(store_path, folder, revisions));
+    }
+    std::vector<RevisionInfo> out;
+    if (!kept) {
+      MKTREE_ASSIGN_OR_RETURN(auto reader, StoreReader::Open(store_path));
+      RevisionInfo info;
+      info.objects = reader->object_count();
+      struct stat st;
+      if (::stat(store_path.c_str(), &st) == 0) info.time = st.st_mtime;
+      info.message = "built";
+      out.push_back(info);
+      return out;
+    }
+    for (uint64_t r : revisions) {
+      auto m = ReadRevisionFile(folder, r);
+      if (!m.ok()) {
+        if (m.status().code() == Status::Code::kNotFound) continue;  // retired meanwhile
+        return m.status();
+      }
+      RevisionInfo info;
+      info.revision = m->revision;
+      info.time = m->time;
+      info.added = m->added;
+      info.removed = m->removed;
+      info.replaced = m->replaced;
+      info.objects = m->live;
+      info.compaction = m->compaction;
+      info.message = m->message;
+      out.push_back(info);
+    }
+    return out;
+  });
+}
+
+}  // namespace mktree

@@ -1,0 +1,53 @@
+// The stores a change writer adds to its folder: a delta (a batch's added and replacing objects), a merge
+// of deltas, or a compaction's new base. Each is an ordinary store built by the same ingest as
+// `mktree build` (same page size, codec and frame as the base), its objects numbered 0..n-1 in increasing
+// global id, and an id file mapping them back (engine/revision/revision_manifest.h).
+// Thread safety: free functions and a single-threaded stream.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "engine/ingest/store_builder.h"
+#include "engine/query/revision_database.h"
+#include "engine/revision/revision_manifest.h"
+#include "mktree/scene.h"
+#include "mktree/status.h"
+
+namespace mktree {
+
+// The objects of a part, in strictly increasing global id (SceneObject::id is the global id).
+using IdOrderedObjects = std::function<Result<bool>(SceneObject* next)>;
+
+struct PartBuild {
+  std::string folder;  // the changes folder
+  std::string name;    // "<name>.mkt" and "<name>.ids" are written there
+  uint64_t history = 0;
+  uint64_t made_at = 0;
+  bool identity_ids = false;  // no id file when the ids are 0..n-1 (a base without gaps)
+  IngestOptions ingest;       // the base's store options and frame
+};
+
+// Builds the part; its files are durable when it returns. Errors name the object (its global id) or the
+// file. Nothing is left behind on an error.
+Result<RevisionPart> BuildRevisionPart(const PartBuild& build, const IdOrderedObjects& objects);
+
+// The live objects of `parts` (those not hidden) in increasing global id, read from their stores: world
+// coordinates, name, source and attributes as stored.
+class LiveObjectStream {
+ public:
+  explicit LiveObjectStream(const std::vector<const RevisionPartDb*>& parts);
+  Result<bool> Next(SceneObject* out);
+
+ private:
+  std::vector<const RevisionPartDb*> parts_;
+  std::vector<uint64_t> cursor_;  // per part: next local id to look at
+};
+
+// The ingest options that build a part like the store `base`: its backend, codec (a dictionary of its
+// own), page size, split parameters and frame.
+IngestOptions PartIngestOptions(const StoreDatabase& base, unsigned threads);
+
+}  // namespace mktree

@@ -1,0 +1,392 @@
+// The Database over one revision of a store with changes: the parts' answers merged, hidden objects
+// skipped, local ids mapped to global ones (see revision_database.h).
+#include "engine/query/revision_database.h"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <thread>
+
+#include "engine/clash/clash_engine.h"
+#include "engine/clash/pair_rules.h"
+#include "engine/core/guarded.h"
+#include "engine/query/ordered_batch.h"
+#include "engine/store_format/store_file.h"
+
+namespace mktree {
+
+namespace {
+
+Status CheckFile(const std::string& folder, const RevisionFile& want, const std::string& what) {
+  const std::string path = ChangesFile(folder, want.name);
+  auto got = FingerprintFile(path);
+  if (!got.ok()) {
+    if (got.status().code() == Status::Code::kNotFound)
+      return Status::Corruption(path + ": missing (" + what + " of the revision)");
+    return got.status();
+  }
+  if (got->bytes != want.bytes || got->fingerprint != want.fingerprint)
+    return Status::Corruption(path + ": not the file the revision was committed with (" + what +
+                              "; replaced, truncated or damaged)");
+  return Status::Ok();
+}
+
+// Ids of an id file of the folder (a part's map, or a removal list), checked against the manifest.
+Result<std::vector<ObjectId>> ReadIdFile(const std::string& folder, const RevisionManifest& m,
+                                         const RevisionFile& file, uint64_t made_at, uint64_t count,
+                                         const std::string& what) {
+  MKTREE_RETURN_IF_ERROR(CheckFile(folder, file, what));
+  const std::string path = ChangesFile(folder, file.name);
+  MKTREE_ASSIGN_OR_RETURN(std::vector<ObjectId> ids,
+                          ReadShardIds(path, m.history, static_cast<uint32_t>(made_at), m.next_id));
+  if (ids.size() != count)
+    return Status::Corruption(path + ": " + std::to_string(ids.size()) + " ids, the revision says " +
+                              std::to_string(count));
+  return ids;
+}
+
+bool FiniteQuery(const Query& q) {
+  if (q.kind == Query::Kind::kPoint)
+    return std::isfinite(q.point.x) && std::isfinite(q.point.y) && std::isfinite(q.point.z);
+  for (int i = 0; i < 3; ++i)
+    if (!std::isfinite(q.box.min[i]) || !std::isfinite(q.box.max[i]) || q.box.min[i] > q.box.max[i])
+      return false;
+  return true;
+}
+
+// Marks hidden[i] for the part's ids found in `gone` (sorted): a merge walk, as both are increasing.
+uint64_t MarkHidden(RevisionPartDb* part, const std::vector<ObjectId>& gone) {
+  const uint64_t n = part->db->object_count();
+  part->hidden.assign(n, false);
+  uint64_t hidden = 0;
+  size_t g = 0;
+  for (uint64_t i = 0; i < n && g < gone.size(); ++i) {
+    const ObjectId id = part->global(static_cast<ObjectId>(i));
+    while (g < gone.size() && gone[g] < id) ++g;
+    if (g < gone.size() && gone[g] == id) {
+      part->hidden[i] = true;
+      ++hidden;
+    }
+  }
+  return hidden;
+}
+
+class RevisionDatabase final : public Database {
+ public:
+  RevisionDatabase(std::string path, std::unique_ptr<RevisionHold> hold, std::vector<RevisionPartDb> parts)
+      : path_(std::move(path)), hold_(std::move(hold)), parts_(std::move(parts)) {
+    const RevisionManifest& m = hold_->manifest();
+    stats_json_ = "{\"revision\": " + std::to_string(m.revision) +
+                  ", \"live_objects\": " + std::to_string(m.live) + ", \"parts\": [";
+    double pages = 0;
+    for (size_t p = 0; p < parts_.size(); ++p) {
+      const StoreDatabase& db = *parts_[p].db;
+      stats_json_ += (p ? ", " : "") + db.stats_json();
+      const double opp = db.objects_per_page();
+      if (opp > 0) pages += static_cast<double>(db.object_count()) / opp;
+      if (db.object_count() > 0) bounds_ = p == 0 ? db.bounds() : Union(bounds_, db.bounds());
+      clash_parts_.push_back(ClashPart{&db.leaves(), parts_[p].ids.empty() ? nullptr : &parts_[p].ids,
+                                       parts_[p].hidden_count ? &parts_[p].hidden : nullptr});
+    }
+    stats_json_ += "]}";
+    objects_per_page_ = pages > 0 ? static_cast<double>(m.live) / pages : 0;
+  }
+
+  uint64_t revision() const override { return hold_->manifest().revision; }
+  uint64_t id_limit() const override { return hold_->manifest().next_id; }
+
+  Result<bool> VisitUntil(const Query& q, const StoppableVisitor& visit, QueryStats* stats) const override {
+    QueryStats total;
+    if (!FiniteQuery(q))
+      return Status::InvalidArgument(q.kind == Query::Kind::kPoint
+                                         ? "point query with a non-finite coordinate"
+                                         : "box query with a non-finite coordinate "
+                                           "or min > max");
+    uint64_t emitted = 0;
+    bool more = false, stopped = false;
+    for (const RevisionPartDb& part : parts_) {
+      Query pq = q;
+      pq.limit = Query::kNoLimit;
+      QueryStats st;
+      MKTREE_ASSIGN_OR_RETURN(const bool whole, part.db->VisitUntil(
+                                                    pq,
+                                                    [&](ObjectId local) {
+                                                      if (part.hidden[local]) return true;
+                                                      if (emitted == q.limit) {
+                                                        more = true;
+                                                        return false;
+                                                      }
+                                                      ++emitted;
+                                                      if (!visit(part.global(local))) {
+                                                        stopped = true;
+                                                        return false;
+                                                      }
+                                                      return true;
+                                                    },
+                                                    &st));
+      total += st;
+      if (!whole) break;
+    }
+    total.hits = emitted;
+    if (stats) *stats = total;
+    return !more && !stopped;
+  }
+
+  Status RunBatchStreamed(const QuerySource& source, const BatchOptions& options,
+                          const ResultVisitor& deliver) const override;
+
+  // One sweep over all the parts' leaves, hidden objects left out (ClashPart::hidden).
+  Status SelfClash(const ClashOptions& o, const ClashVisitor& visit, ClashStats* stats) const override {
+    return Guarded(path_, [&] { return RunMultiClash(clash_parts_, nullptr, o, visit, stats); });
+  }
+  Status Collide(const Mesh& mesh, const std::optional<RigidTransform>& transform, const ClashOptions& o,
+                 const ClashVisitor& visit, ClashStats* stats) const override;
+  void ClearCache() override {
+    for (auto& p : parts_) p.db->ClearCache();
+  }
+  const std::string& path() const override { return path_; }
+  uint64_t object_count() const override { return hold_->manifest().live; }
+  Result<ObjectRecord> Object(ObjectId id, QueryStats* stats) const override {
+    MKTREE_ASSIGN_OR_RETURN(const auto at, Locate(id));
+    MKTREE_ASSIGN_OR_RETURN(ObjectRecord r, parts_[at.first].db->Object(at.second, stats));
+    r.id = id;
+    return r;
+  }
+  Result<Mesh> ObjectGeometry(ObjectId id, QueryStats* stats) const override {
+    MKTREE_ASSIGN_OR_RETURN(const auto at, Locate(id));
+    return parts_[at.first].db->ObjectGeometry(at.second, stats);
+  }
+  Result<std::string> ObjectName(ObjectId id) const override {
+    MKTREE_ASSIGN_OR_RETURN(const auto at, Locate(id));
+    return parts_[at.first].db->ObjectName(at.second);
+  }
+  Box3d bounds() const override { return bounds_; }
+  double objects_per_page() const override { return objects_per_page_; }
+  const std::string& stats_json() const override { return stats_json_; }
+
+ private:
+  static Box3d Union(Box3d a, const Box3d& b) {
+    for (int i = 0; i < 3; ++i) {
+      a.min[i] = std::min(a.min[i], b.min[i]);
+      a.max[i] = std::max(a.max[i], b.max[i]);
+    }
+    return a;
+  }
+
+  // The part where `id` is live, and its local id there.
+  Result<std::pair<size_t, ObjectId>> Locate(ObjectId id) const {
+    for (size_t p = parts_.size(); p-- > 0;) {
+      const RevisionPartDb& part = parts_[p];
+      std::optional<ObjectId> local;
+      if (part.ids.empty()) {
+        if (id < part.db->object_count()) local = id;
+      } else {
+        local = LocalIdOf(part.ids, id);
+      }
+      if (!local) continue;
+      if (part.hidden[*local]) break;  // removed, or superseded by a later part (found first)
+      return std::pair{p, *local};
+    }
+    return Status::InvalidArgument(path_ + ": no object " + std::to_string(id) + " at revision " +
+                                   std::to_string(revision()) + " (removed, or never added)");
+  }
+
+  std::string path_;
+  std::unique_ptr<RevisionHold> hold_;
+  std::vector<RevisionPartDb> parts_;
+  std::vector<ClashPart> clash_parts_;
+  Box3d bounds_;
+  std::string stats_json_;
+  double objects_per_page_ = 0;
+};
+
+Status RevisionDatabase::Collide(const Mesh& mesh, const std::optional<RigidTransform>& transform,
+                                 const ClashOptions& o, const ClashVisitor& visit, ClashStats* stats) const {
+  return Guarded(path_, [&]() -> Status {
+    const auto start = std::chrono::steady_clock::now();
+    ClashStats local;
+    ClashStats& total = stats ? *stats : local;
+    total = ClashStats();
+    MKTREE_RETURN_IF_ERROR(clash::CheckOptions(o));
+    MKTREE_RETURN_IF_ERROR(CheckCollideMesh(mesh, transform));
+    for (const RevisionPartDb& part : parts_) {
+      ClashOptions so = o;
+      so.max_pairs = std::numeric_limits<uint64_t>::max();
+      std::atomic<uint64_t> hidden_pairs{0};
+      so.exclude = [&](ObjectId a, ObjectId b) {
+        if (part.hidden[a]) {
+          hidden_pairs.fetch_add(1, std::memory_order_relaxed);
+          return true;
+        }
+        return o.exclude && o.exclude(part.global(a), b);
+      };
+      uint64_t reported = 0, capped = 0;
+      ClashStats st;
+      MKTREE_RETURN_IF_ERROR(part.db->Collide(
+          mesh, transform, so,
+          [&](const ClashPair& p) {
+            if (total.reported_pairs + reported >= o.max_pairs) {
+              ++capped;
+              return;
+            }
+            ++reported;
+            ClashPair g = p;
+            g.a = part.global(p.a);
+            if (visit) visit(g);
+          },
+          &st));
+      st.reported_pairs = reported;
+      st.capped_pairs = capped;
+      st.excluded_pairs -= std::min(st.excluded_pairs, hidden_pairs.load());
+      st.candidate_pairs -= std::min(st.candidate_pairs, hidden_pairs.load());
+      AddClashStats(&total, st);
+    }
+    total.total_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return Status::Ok();
+  });
+}
+
+Status RevisionDatabase::RunBatchStreamed(const QuerySource& source, const BatchOptions& options,
+                                          const ResultVisitor& deliver) const {
+  return Guarded(path_, [&]() -> Status {
+    const unsigned threads =
+        options.threads ? options.threads : std::max(1u, std::thread::hardware_concurrency());
+    const uint64_t window = options.window ? options.window : 4 * uint64_t{threads};
+    // One query: each part runs it as a batch of one (cold: on its own empty cache); hidden ids dropped.
+    auto run = [&](const Query& q, const void*, QueryResult* r) -> Status {
+      r->hits.clear();
+      r->stats.Reset();
+      r->truncated = false;
+      if (!FiniteQuery(q)) return Status::InvalidArgument("query with a non-finite coordinate or min > max");
+      BatchOptions one;
+      one.threads = 1;
+      one.cold = options.cold;
+      one.ids = true;  // hidden ids must be seen to be dropped
+      uint64_t emitted = 0;
+      for (const RevisionPartDb& part : parts_) {
+        Query pq = q;
+        // A part with hidden objects may answer more ids than it counts: it runs without the limit.
+        pq.limit =
+            part.hidden_count ? Query::kNoLimit : (q.limit == Query::kNoLimit ? q.limit : q.limit - emitted);
+        bool given = false;
+        MKTREE_RETURN_IF_ERROR(part.db->RunBatchStreamed(
+            [&](Query* next) -> Result<bool> {
+              if (given) return false;
+              given = true;
+              *next = pq;
+              return true;
+            },
+            one,
+            [&](uint64_t, const QueryResult& pr) {
+              r->stats += pr.stats;
+              for (ObjectId local : pr.hits) {
+                if (part.hidden[local]) continue;
+                if (emitted == q.limit) {
+                  r->truncated = true;
+                  break;
+                }
+                ++emitted;
+                if (options.ids) r->hits.push_back(part.global(local));
+              }
+              if (pr.truncated) r->truncated = true;
+              return Status::Ok();
+            }));
+        if (r->truncated) break;
+      }
+      r->stats.hits = emitted;
+      std::sort(r->hits.begin(), r->hits.end());
+      return Status::Ok();
+    };
+    auto no_worker = [] { return std::unique_ptr<NoWorker>(); };
+    return RunOrderedBatch<NoWorker>(source, threads, window, path_, no_worker, run, deliver);
+  });
+}
+
+}  // namespace
+
+Result<std::vector<RevisionPartDb>> OpenRevisionParts(const std::string& store_path,
+                                                      const RevisionManifest& m, const OpenOptions& options,
+                                                      std::vector<RevisionPartDb>* reuse) {
+  const std::string folder = ChangesFolder(store_path);
+  const uint64_t k = 1 + m.deltas.size();
+  OpenOptions part_options = options;
+  part_options.cache_pages = (options.cache_pages + k - 1) / k;
+  part_options.revision.reset();
+  std::vector<RevisionPartDb> parts;
+  std::vector<const RevisionPart*> described{&m.base};
+  for (const RevisionPart& d : m.deltas) described.push_back(&d);
+  for (const RevisionPart* d : described) {
+    const std::string what =
+        d == &m.base ? "its base store" : "the changes of revision " + std::to_string(d->made_at);
+    const std::string path = ChangesFile(folder, d->store.name);
+    RevisionPartDb part;
+    if (reuse) {
+      auto it = std::find_if(reuse->begin(), reuse->end(),
+                             [&](const RevisionPartDb& r) { return r.db && r.db->path() == path; });
+      if (it != reuse->end()) {
+        part = std::move(*it);
+        reuse->erase(it);
+        parts.push_back(std::move(part));
+        continue;
+      }
+    }
+    MKTREE_RETURN_IF_ERROR(CheckFile(folder, d->store, what));
+    ReadOptions ro;
+    ro.direct_io = options.direct_io;
+    MKTREE_ASSIGN_OR_RETURN(auto reader, StoreReader::Open(path, ro));
+    part.db = OpenStoreDatabase(std::move(reader), part_options);
+    if (part.db->object_count() != d->objects)
+      return Status::Corruption(path + ": " + std::to_string(part.db->object_count()) +
+                                " objects, the revision says " + std::to_string(d->objects));
+    if (!d->ids.name.empty()) {
+      MKTREE_ASSIGN_OR_RETURN(part.ids,
+                              ReadIdFile(folder, m, d->ids, d->made_at, d->objects, what + "'s ids"));
+    } else if (d->objects > m.next_id) {
+      return Status::Corruption(path + ": more objects than the revision has ids");
+    }
+    parts.push_back(std::move(part));
+  }
+  // Hidden: removed ids, and in each part the ids of the parts after it.
+  std::vector<ObjectId> gone;
+  for (const RevisionIdList& r : m.removals) {
+    MKTREE_ASSIGN_OR_RETURN(std::vector<ObjectId> ids,
+                            ReadIdFile(folder, m, r.file, r.made_at, r.count,
+                                       "the ids removed at revision " + std::to_string(r.made_at)));
+    gone.insert(gone.end(), ids.begin(), ids.end());
+  }
+  std::sort(gone.begin(), gone.end());
+  uint64_t live = 0;
+  for (size_t p = parts.size(); p-- > 0;) {
+    parts[p].hidden_count = MarkHidden(&parts[p], gone);
+    live += parts[p].db->object_count() - parts[p].hidden_count;
+    std::vector<ObjectId> merged;
+    merged.reserve(gone.size() + parts[p].ids.size());
+    if (parts[p].ids.empty()) {
+      std::vector<ObjectId> all(parts[p].db->object_count());
+      for (size_t i = 0; i < all.size(); ++i) all[i] = static_cast<ObjectId>(i);
+      std::set_union(gone.begin(), gone.end(), all.begin(), all.end(), std::back_inserter(merged));
+    } else {
+      std::set_union(gone.begin(), gone.end(), parts[p].ids.begin(), parts[p].ids.end(),
+                     std::back_inserter(merged));
+    }
+    if (p > 0) gone = std::move(merged);
+  }
+  if (live != m.live)
+    return Status::Corruption(ChangesFile(folder, RevisionFileName(m.revision)) + ": " +
+                              std::to_string(live) + " live objects in its stores, the revision says " +
+                              std::to_string(m.live));
+  return parts;
+}
+
+Result<std::unique_ptr<Database>> OpenRevisionDatabase(const std::string& store_path,
+                                                       std::unique_ptr<RevisionHold> hold,
+                                                       const OpenOptions& options) {
+  MKTREE_ASSIGN_OR_RETURN(std::vector<RevisionPartDb> parts,
+                          OpenRevisionParts(store_path, hold->manifest(), options));
+  return std::unique_ptr<Database>(
+      std::make_unique<RevisionDatabase>(store_path, std::move(hold), std::move(parts)));
+}
+
+}  // namespace mktree

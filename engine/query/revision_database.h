@@ -1,0 +1,42 @@
+// The Database over one revision of a store that has taken changes (docs/changes.md): the revision's base
+// and delta stores, each a StoreDatabase whose local ids an id file maps to global ones, with the objects
+// each part no longer answers for (removed since, or superseded by a later part) hidden. Queries, batches
+// and clashes visit every part and skip hidden objects; Object and ObjectGeometry read the one part where
+// the id is live. Database::Open calls it for a store with a changes folder.
+// Thread safety: as Database: every const method may run on many threads at once.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "engine/query/store_database.h"
+#include "engine/revision/change_folder.h"
+#include "mktree/database.h"
+
+namespace mktree {
+
+// One store of a revision, opened and checked.
+struct RevisionPartDb {
+  std::unique_ptr<StoreDatabase> db;
+  std::vector<ObjectId> ids;  // local id -> global id, increasing; empty: identity
+  std::vector<bool> hidden;   // by local id: not live at this revision
+  uint64_t hidden_count = 0;
+  ObjectId global(ObjectId local) const { return ids.empty() ? local : ids[local]; }
+};
+
+// The parts of revision `m` in the changes folder of `store_path`, each file checked against the manifest
+// (size, fingerprint, id file of this store's history), with the hidden objects marked. Each part gets
+// cache_pages / parts pages (rounded up). Corruption naming the file when a check fails. Parts of `reuse`
+// (may be null) whose store file is one of m's are taken from it instead of opened again (a writer's
+// parts from one revision to the next).
+Result<std::vector<RevisionPartDb>> OpenRevisionParts(const std::string& store_path,
+                                                      const RevisionManifest& m, const OpenOptions& options,
+                                                      std::vector<RevisionPartDb>* reuse = nullptr);
+
+// Opens the revision `hold` holds, and keeps holding it for the Database's life.
+Result<std::unique_ptr<Database>> OpenRevisionDatabase(const std::string& store_path,
+                                                       std::unique_ptr<RevisionHold> hold,
+                                                       const OpenOptions& options);
+
+}  // namespace mktree

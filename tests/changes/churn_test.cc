@@ -1,0 +1,147 @@
+// Random batches against brute force: after every batch, and after compaction, every query kind, the
+// objects' records and the self-clash equal brute force over the live set, on both backends.
+#include <gtest/gtest.h>
+
+#include "change_fixtures.h"
+
+namespace mktree {
+namespace {
+
+using testing::LiveSet;
+
+class Churn : public ::testing::TestWithParam<Backend> {};
+
+// The self-clash of `db` equals that of a fresh store of the same live objects (same frame).
+void ExpectClashOfFreshBuild(const Database& db, const LiveSet& live, const IngestOptions& base_options,
+                             const Vec3d& origin, const std::string& dir) {
+  std::vector<SceneObject> objs;
+  std::vector<ObjectId> ids;
+  for (const auto& [id, o] : live) {
+    objs.push_back(o);
+    objs.back().id = static_cast<ObjectId>(ids.size());
+    ids.push_back(id);
+  }
+  IngestOptions o = base_options;
+  o.origin = origin;
+  const std::string fresh = dir + "/fresh.mkt";
+  std::filesystem::remove(fresh);
+  ASSERT_TRUE(testing::BuildFromObjects(objs, fresh, o).ok());
+  auto fdb = Database::Open(fresh);
+  ASSERT_TRUE(fdb.ok());
+  std::vector<ClashPair> want = testing::SelfClashPairs(**fdb);
+  for (ClashPair& p : want) {
+    p.a = ids[p.a];
+    p.b = ids[p.b];
+    if (p.a > p.b) std::swap(p.a, p.b);
+  }
+  EXPECT_EQ(testing::SortedPairs(testing::SelfClashPairs(db)), testing::SortedPairs(want));
+}
+
+TEST_P(Churn, EveryBatchAnswersAsBruteForceOverTheLiveSet) {
+  testing::TempDir dir("mktree_churn");
+  std::mt19937_64 rng(38);
+  std::vector<SceneObject> scene = testing::ClusteredScene(500, 7);
+  const std::string store = dir.file("s.mkt");
+  const IngestOptions opts = testing::SmallPages(GetParam());
+  ASSERT_TRUE(testing::BuildFromObjects(scene, store, opts).ok());
+  const Vec3d origin = ChooseStoreOrigin(scene[0].mesh.Bounds());
+  LiveSet live;
+  for (const SceneObject& o : scene) live[o.id] = o;
+
+  ChangeOptions co;
+  co.compact_threshold = 0;  // compaction on demand only, below
+  co.threads = 1;
+  auto w = ChangeWriter::Open(store, co);
+  ASSERT_TRUE(w.ok()) << w.status().ToString();
+  uint64_t counter = 0;
+  const size_t sizes[] = {1, 5, 40, 0, 3, 120, 2, 17};
+  for (int step = 0; step < 24; ++step) {
+    const ChangeBatch batch = testing::RandomBatch(live, sizes[step % 8], rng, &counter);
+    auto done = (*w)->Commit(batch);
+    ASSERT_TRUE(done.ok()) << done.status().ToString();
+    ASSERT_EQ(done->revision, static_cast<uint64_t>(step + 1));
+    testing::Apply(batch, *done, &live);
+    ASSERT_EQ(done->objects, live.size());
+    auto db = Database::Open(store, {.cache_pages = step % 3 == 0 ? 0u : 64u});
+    ASSERT_TRUE(db.ok()) << db.status().ToString();
+    ASSERT_EQ((*db)->revision(), done->revision);
+    testing::ExpectAnswers(**db, live, origin, testing::RandomQueries(30, rng),
+                           "step " + std::to_string(step));
+    if (step % 8 == 7) ExpectClashOfFreshBuild(**db, live, opts, origin, dir.path().string());
+  }
+  auto c = (*w)->Compact();
+  ASSERT_TRUE(c.ok()) << c.status().ToString();
+  EXPECT_GT(c->folded, 0u);
+  auto db = Database::Open(store);
+  ASSERT_TRUE(db.ok()) << db.status().ToString();
+  testing::ExpectAnswers(**db, live, origin, testing::RandomQueries(60, rng), "after compaction");
+  ExpectClashOfFreshBuild(**db, live, opts, origin, dir.path().string());
+  // The store file is the compacted base itself: one part.
+  EXPECT_EQ((*db)->stats_json().find("\"parts\": [{"), (*db)->stats_json().find("\"parts\": ["));
+}
+
+TEST_P(Churn, RemovingEverythingAndAddingAgainKeepsIdsForLife) {
+  testing::TempDir dir("mktree_churn");
+  std::mt19937_64 rng(5);
+  std::vector<SceneObject> scene = testing::ClusteredScene(60, 3);
+  const std::string store = dir.file("s.mkt");
+  ASSERT_TRUE(testing::BuildFromObjects(scene, store, testing::SmallPages(GetParam())).ok());
+  const Vec3d origin = ChooseStoreOrigin(scene[0].mesh.Bounds());
+  auto w = ChangeWriter::Open(store, {.compact_threshold = 0, .threads = 1});
+  ASSERT_TRUE(w.ok()) << w.status().ToString();
+  ChangeBatch all;
+  for (const SceneObject& o : scene) all.remove.push_back(o.id);
+  auto done = (*w)->Commit(all);
+  ASSERT_TRUE(done.ok()) << done.status().ToString();
+  EXPECT_EQ(done->objects, 0u);
+  LiveSet live;
+  {
+    auto db = Database::Open(store);
+    ASSERT_TRUE(db.ok());
+    testing::ExpectAnswers(**db, live, origin, testing::RandomQueries(10, rng), "empty");
+    EXPECT_FALSE((*db)->Object(0).ok());
+  }
+  ChangeBatch again;
+  again.add = testing::ClusteredScene(30, 9);
+  done = (*w)->Commit(again);
+  ASSERT_TRUE(done.ok()) << done.status().ToString();
+  ASSERT_EQ(done->added_ids.front(), 60u);  // never an id used before
+  testing::Apply(again, *done, &live);
+  auto db = Database::Open(store);
+  ASSERT_TRUE(db.ok());
+  testing::ExpectAnswers(**db, live, origin, testing::RandomQueries(30, rng), "re-added");
+  EXPECT_EQ((*db)->id_limit(), 90u);
+}
+
+TEST_P(Churn, AutomaticCompactionKeepsAnswers) {
+  testing::TempDir dir("mktree_churn");
+  std::mt19937_64 rng(11);
+  std::vector<SceneObject> scene = testing::ClusteredScene(200, 5);
+  const std::string store = dir.file("s.mkt");
+  ASSERT_TRUE(testing::BuildFromObjects(scene, store, testing::SmallPages(GetParam())).ok());
+  const Vec3d origin = ChooseStoreOrigin(scene[0].mesh.Bounds());
+  LiveSet live;
+  for (const SceneObject& o : scene) live[o.id] = o;
+  auto w = ChangeWriter::Open(store, {.compact_threshold = 0.2, .threads = 1});
+  ASSERT_TRUE(w.ok());
+  uint64_t counter = 0, compactions = 0;
+  for (int step = 0; step < 10; ++step) {
+    const ChangeBatch batch = testing::RandomBatch(live, 15, rng, &counter);
+    auto done = (*w)->Commit(batch);
+    ASSERT_TRUE(done.ok()) << done.status().ToString();
+    EXPECT_EQ(done->compaction_error, "");
+    compactions += done->compacted;
+    testing::Apply(batch, *done, &live);
+    auto db = Database::Open(store);
+    ASSERT_TRUE(db.ok()) << db.status().ToString();
+    testing::ExpectAnswers(**db, live, origin, testing::RandomQueries(20, rng),
+                           "step " + std::to_string(step));
+  }
+  EXPECT_GE(compactions, 2u);
+}
+
+INSTANTIATE_TEST_SUITE_P(Backends, Churn, ::testing::Values(Backend::kHdf5, Backend::kPagedFile),
+                         [](const auto& info) { return std::string(BackendName(info.param)); });
+
+}  // namespace
+}  // namespace mktree
