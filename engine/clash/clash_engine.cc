@@ -132,11 +132,19 @@ Status CheckCollideMesh(const Mesh& mesh, const std::optional<RigidTransform>& t
 
 Status RunCollide(const LeafSource& st, const Mesh& mesh, const std::optional<RigidTransform>& transform,
                   const ClashOptions& o, const ClashVisitor& visit, ClashStats* stats) {
+  return RunCollide(ClashPart{&st, nullptr, nullptr}, mesh, transform, o, visit, stats);
+}
+
+Status RunCollide(const ClashPart& part, const Mesh& mesh, const std::optional<RigidTransform>& transform,
+                  const ClashOptions& o, const ClashVisitor& visit, ClashStats* stats) {
   ClashStats local;
   ClashStats& s = stats ? *stats : local;
   s = ClashStats();
   MKTREE_RETURN_IF_ERROR(clash::CheckOptions(o));
   MKTREE_RETURN_IF_ERROR(CheckCollideMesh(mesh, transform));
+  const std::vector<ClashPart> parts{part};
+  MKTREE_ASSIGN_OR_RETURN(const clash::PartNumbering numbering, clash::PartNumbering::Make(parts));
+  const LeafSource& st = *part.leaves;
   const StageClock::time_point start = StageClock::now();
   const MKTree& tree = st.reader().tree();
   s.store_pages = clash::StorePages(tree);
@@ -151,7 +159,7 @@ Status RunCollide(const LeafSource& st, const Mesh& mesh, const std::optional<Ri
 
   // The reads and the narrow phase, a chunk of candidates at a time.
   clash::WorkPool pool(ThreadCount(o.threads));
-  clash::CollideChunks chunks(st, leaves, shape, qbox, o, &s);
+  clash::CollideChunks chunks(numbering, leaves, shape, qbox, o, &s);
   MKTREE_RETURN_IF_ERROR(chunks.Run(pool, clash::PairEmitter{o, visit, s}));
   s.total_seconds = SecondsSince(start);
   return Status::Ok();

@@ -17,11 +17,17 @@ namespace mktree {
 Status RunSelfClash(const LeafSource& leaves, const ClashOptions& options, const ClashVisitor& visit,
                     ClashStats* stats);
 
-// One store of a clash over several stores (the shards of a sharded store: one frame, disjoint objects):
-// its leaves, and the global id of each local id (increasing; null: the local ids are the global ones).
+// One store of a clash over several stores (the shards of a sharded store, or the base and delta stores
+// of a revision: one frame): its leaves, the global id of each local id (increasing; null: the local ids
+// are the global ones), and the objects that are not there (hidden[local id]: an object removed or
+// superseded since the store was written; null: none). A hidden object takes part in no pair: it is no
+// candidate, no excluded pair, and its mesh is not decoded; the visible objects of all parts have
+// distinct global ids (a hidden one may share its id with a visible one of another part).
+// REQUIRES: hidden, when set, has one flag per object of the store.
 struct ClashPart {
   const LeafSource* leaves = nullptr;
   const std::vector<ObjectId>* ids = nullptr;
+  const std::vector<bool>* hidden = nullptr;
 };
 
 // Which pairs of parts (i <= j; i == j: the pairs inside part i) a clash over several stores covers.
@@ -38,6 +44,11 @@ Status RunMultiClash(const std::vector<ClashPart>& parts, const ClashPartPairs& 
 // have b = kCollideObject. InvalidArgument for an empty mesh, a non-finite vertex, an index out of range
 // or a transform that is not a proper rotation.
 Status RunCollide(const LeafSource& leaves, const Mesh& mesh, const std::optional<RigidTransform>& transform,
+                  const ClashOptions& options, const ClashVisitor& visit, ClashStats* stats);
+// The same over one part: pairs and the exclusion predicate carry its global ids, and its hidden objects
+// are no candidates (not counted). Internal when the part's id map or hidden flags do not match its
+// objects.
+Status RunCollide(const ClashPart& part, const Mesh& mesh, const std::optional<RigidTransform>& transform,
                   const ClashOptions& options, const ClashVisitor& visit, ClashStats* stats);
 
 // Adds the counts and phase seconds of `b` to `a` (the window's bytes: the larger; total_seconds is left

@@ -44,8 +44,13 @@ Status ClashWindow::Read(const std::vector<uint32_t>& leaves, WorkPool& pool, Cl
     const auto& entries = pinned_[i].view.entries();
     l->objects.resize(entries.size());
     for (uint32_t pos = 0; pos < entries.size(); ++pos) {
-      l->objects[pos].id = parts_.global_id(k, entries[pos].id);
-      l->objects[pos].box = ToBox3d(entries[pos].box);
+      LoadedObject& obj = l->objects[pos];
+      obj.id = parts_.global_id(k, entries[pos].id);
+      if (parts_.hidden(k, entries[pos].id)) {
+        obj.box = Box3d();  // empty (min +inf, max -inf): GrownMeet never accepts it
+        continue;
+      }
+      obj.box = ToBox3d(entries[pos].box);
       if (needed_[k](parts_.tree(k), leaf, pos)) tasks_.push_back({i, pos});
     }
     loaded_.push_back(std::move(l));

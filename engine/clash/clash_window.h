@@ -20,8 +20,8 @@
 
 namespace mktree::clash {
 
-// One object of a decoded leaf: its float32 box, and its mesh and shape when some candidate pair may
-// need them (NeededObjects).
+// One object of a decoded leaf: its float32 box (empty for a hidden object, ClashPart::hidden, so that it
+// meets nothing), and its mesh and shape when some candidate pair may need them (NeededObjects).
 struct LoadedObject {
   ObjectId id = 0;  // global
   Box3d box;
