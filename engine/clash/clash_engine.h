@@ -33,10 +33,25 @@ struct ClashPart {
 // Which pairs of parts (i <= j; i == j: the pairs inside part i) a clash over several stores covers.
 using ClashPartPairs = std::function<bool(uint32_t i, uint32_t j)>;
 
-// The self-clash of the union of `parts`, limited to the part pairs `want` accepts (null: all): each
-// object pair is found once, by the one part pair holding its two objects, in one sweep over the leaves
-// of all parts (each leaf read about once). Pairs carry global ids; exclusions see global ids and names.
-// The statistics sum the parts' (store_pages: of all parts). RunSelfClash is this with one part.
+// What a clash over several stores covers: the part pairs `want` accepts (null: all), and of their object
+// pairs only those with at least one object in `focus` (global ids in any order, repeats and ids no part
+// holds ignored; null: every pair). A focused clash costs in proportion to the focus: each focused object's
+// record is read (straight from its store, not counted in ClashStats, as the names of exclusions are) for
+// its leaf and box, the traversal descends only into subtrees that hold a focused object, and a leaf pair
+// whose leaf filter admits no pair with a focused object is neither read nor tested. candidate_pairs and
+// excluded_pairs count only pairs with a focused object.
+struct MultiClashScope {
+  ClashPartPairs want;
+  const std::vector<ObjectId>* focus = nullptr;
+};
+
+// The self-clash of the union of `parts` within `scope`: each object pair is found once, by the one part
+// pair holding its two objects, in one sweep over the leaves of all parts (each leaf read about once).
+// Pairs carry global ids; exclusions see global ids and names. The statistics sum the parts' (store_pages:
+// of all parts). RunSelfClash is this with one part.
+Status RunMultiClash(const std::vector<ClashPart>& parts, const MultiClashScope& scope,
+                     const ClashOptions& options, const ClashVisitor& visit, ClashStats* stats);
+// The same limited to the part pairs `want` accepts (null: all), without a focus.
 Status RunMultiClash(const std::vector<ClashPart>& parts, const ClashPartPairs& want,
                      const ClashOptions& options, const ClashVisitor& visit, ClashStats* stats);
 

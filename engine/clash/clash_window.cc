@@ -29,8 +29,9 @@ uint64_t WindowBudget(const ClashOptions& o, const PartNumbering& parts) {
                                              kDecodedBytesPerPayloadByte * parts.cache_bytes());
 }
 
-ClashWindow::ClashWindow(const PartNumbering& parts, const std::vector<NeededObjects>& needed)
-    : parts_(parts), needed_(needed), window_(parts.leaf_count()) {}
+ClashWindow::ClashWindow(const PartNumbering& parts, const std::vector<NeededObjects>& needed,
+                         const ClashFocus* focus)
+    : parts_(parts), needed_(needed), focus_(focus), window_(parts.leaf_count()) {}
 
 Status ClashWindow::Read(const std::vector<uint32_t>& leaves, WorkPool& pool, ClashStats* s) {
   if (pinned_.size() < leaves.size()) pinned_.resize(leaves.size());
@@ -51,6 +52,7 @@ Status ClashWindow::Read(const std::vector<uint32_t>& leaves, WorkPool& pool, Cl
         continue;
       }
       obj.box = ToBox3d(entries[pos].box);
+      obj.in_focus = !focus_ || focus_->Holds(obj.id);
       if (needed_[k](parts_.tree(k), leaf, pos)) tasks_.push_back({i, pos});
     }
     loaded_.push_back(std::move(l));
