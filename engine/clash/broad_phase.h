@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "engine/clash/clash_engine.h"
+#include "engine/clash/clash_focus.h"
 #include "engine/clash/leaf_pairs.h"
 #include "engine/clash/part_numbering.h"
 #include "engine/clash/sweep_schedule.h"
@@ -24,10 +25,11 @@ struct ClashLeafPairs {
 };
 
 // The leaf pairs through each tree and between the trees of parts whose roots grown by c meet, those of
-// the part pairs `want` accepts (null: all), kept where the leaf filter admits a pair. Sets
-// s->leaf_pairs_tree (before the filter) and s->leaf_pairs_visited (after).
-ClashLeafPairs FindLeafPairs(const PartNumbering& parts, const ClashPartPairs& want, double c, WorkPool& pool,
-                             ClashStats* s);
+// the part pairs `want` accepts (null: all), kept where the leaf filter admits a pair; with `focus`
+// (null: none) only those with a leaf that may hold a focused object, kept where the leaf filter admits a
+// pair with one. Sets s->leaf_pairs_tree (before the filter) and s->leaf_pairs_visited (after).
+ClashLeafPairs FindLeafPairs(const PartNumbering& parts, const ClashPartPairs& want, const ClashFocus* focus,
+                             double c, WorkPool& pool, ClashStats* s);
 
 // The sweep plan of `pairs` for a window of `window_bytes`, each leaf counted as DecodedLeafEstimate.
 SweepPlan PlanClashSweep(const PartNumbering& parts, std::vector<LeafPair> pairs, uint64_t window_bytes);

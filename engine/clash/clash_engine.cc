@@ -49,10 +49,15 @@ Status MoveIntoStoreFrame(const Mesh& mesh, const std::optional<RigidTransform>&
 
 Status RunSelfClash(const LeafSource& st, const ClashOptions& o, const ClashVisitor& visit,
                     ClashStats* stats) {
-  return RunMultiClash({ClashPart{&st, nullptr}}, nullptr, o, visit, stats);
+  return RunMultiClash({ClashPart{&st, nullptr}}, MultiClashScope{}, o, visit, stats);
 }
 
 Status RunMultiClash(const std::vector<ClashPart>& parts, const ClashPartPairs& want, const ClashOptions& o,
+                     const ClashVisitor& visit, ClashStats* stats) {
+  return RunMultiClash(parts, MultiClashScope{want, nullptr}, o, visit, stats);
+}
+
+Status RunMultiClash(const std::vector<ClashPart>& parts, const MultiClashScope& scope, const ClashOptions& o,
                      const ClashVisitor& visit, ClashStats* stats) {
   ClashStats local;
   ClashStats& s = stats ? *stats : local;
@@ -62,12 +67,17 @@ Status RunMultiClash(const std::vector<ClashPart>& parts, const ClashPartPairs& 
   if (parts.empty()) return Status::Ok();
   MKTREE_ASSIGN_OR_RETURN(const clash::PartNumbering numbering, clash::PartNumbering::Make(parts));
   s.store_pages = numbering.store_pages();
+  std::optional<clash::ClashFocus> focus;
+  if (scope.focus) {
+    MKTREE_ASSIGN_OR_RETURN(focus, clash::ClashFocus::Make(numbering, *scope.focus));
+  }
   clash::WorkPool pool(ThreadCount(o.threads));
   std::optional<clash::Exclusions> ex;
   MKTREE_RETURN_IF_ERROR(clash::MakePartExclusions(numbering, o, &ex));
 
   // Broad phase: the leaf pairs, then the plan of the sweep through the window.
-  clash::ClashLeafPairs broad = clash::FindLeafPairs(numbering, want, o.clearance, pool, &s);
+  const clash::ClashFocus* f = focus ? &*focus : nullptr;
+  clash::ClashLeafPairs broad = clash::FindLeafPairs(numbering, scope.want, f, o.clearance, pool, &s);
   s.window_budget_bytes = clash::WindowBudget(o, numbering);
   const clash::SweepPlan plan =
       clash::PlanClashSweep(numbering, std::move(broad.pairs), s.window_budget_bytes);
@@ -76,7 +86,7 @@ Status RunMultiClash(const std::vector<ClashPart>& parts, const ClashPartPairs& 
   s.broad_seconds = SecondsSince(start);
 
   // Per batch: the window reads, then the narrow batches on the leaves the window holds.
-  clash::ClashWindow window(numbering, broad.needed);
+  clash::ClashWindow window(numbering, broad.needed, f);
   clash::NarrowBatches narrow(numbering, o, *ex, numbering.tree(0).origin, clash::PairEmitter{o, visit, s});
   for (size_t bi = 0; bi < plan.batches.size(); ++bi) {
     const clash::SweepBatch& b = plan.batches[bi];
@@ -132,11 +142,19 @@ Status CheckCollideMesh(const Mesh& mesh, const std::optional<RigidTransform>& t
 
 Status RunCollide(const LeafSource& st, const Mesh& mesh, const std::optional<RigidTransform>& transform,
                   const ClashOptions& o, const ClashVisitor& visit, ClashStats* stats) {
+  return RunCollide(ClashPart{&st, nullptr, nullptr}, mesh, transform, o, visit, stats);
+}
+
+Status RunCollide(const ClashPart& part, const Mesh& mesh, const std::optional<RigidTransform>& transform,
+                  const ClashOptions& o, const ClashVisitor& visit, ClashStats* stats) {
   ClashStats local;
   ClashStats& s = stats ? *stats : local;
   s = ClashStats();
   MKTREE_RETURN_IF_ERROR(clash::CheckOptions(o));
   MKTREE_RETURN_IF_ERROR(CheckCollideMesh(mesh, transform));
+  const std::vector<ClashPart> parts{part};
+  MKTREE_ASSIGN_OR_RETURN(const clash::PartNumbering numbering, clash::PartNumbering::Make(parts));
+  const LeafSource& st = *part.leaves;
   const StageClock::time_point start = StageClock::now();
   const MKTree& tree = st.reader().tree();
   s.store_pages = clash::StorePages(tree);
@@ -151,7 +169,7 @@ Status RunCollide(const LeafSource& st, const Mesh& mesh, const std::optional<Ri
 
   // The reads and the narrow phase, a chunk of candidates at a time.
   clash::WorkPool pool(ThreadCount(o.threads));
-  clash::CollideChunks chunks(st, leaves, shape, qbox, o, &s);
+  clash::CollideChunks chunks(numbering, leaves, shape, qbox, o, &s);
   MKTREE_RETURN_IF_ERROR(chunks.Run(pool, clash::PairEmitter{o, visit, s}));
   s.total_seconds = SecondsSince(start);
   return Status::Ok();

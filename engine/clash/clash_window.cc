@@ -29,8 +29,9 @@ uint64_t WindowBudget(const ClashOptions& o, const PartNumbering& parts) {
                                              kDecodedBytesPerPayloadByte * parts.cache_bytes());
 }
 
-ClashWindow::ClashWindow(const PartNumbering& parts, const std::vector<NeededObjects>& needed)
-    : parts_(parts), needed_(needed), window_(parts.leaf_count()) {}
+ClashWindow::ClashWindow(const PartNumbering& parts, const std::vector<NeededObjects>& needed,
+                         const ClashFocus* focus)
+    : parts_(parts), needed_(needed), focus_(focus), window_(parts.leaf_count()) {}
 
 Status ClashWindow::Read(const std::vector<uint32_t>& leaves, WorkPool& pool, ClashStats* s) {
   if (pinned_.size() < leaves.size()) pinned_.resize(leaves.size());
@@ -44,8 +45,14 @@ Status ClashWindow::Read(const std::vector<uint32_t>& leaves, WorkPool& pool, Cl
     const auto& entries = pinned_[i].view.entries();
     l->objects.resize(entries.size());
     for (uint32_t pos = 0; pos < entries.size(); ++pos) {
-      l->objects[pos].id = parts_.global_id(k, entries[pos].id);
-      l->objects[pos].box = ToBox3d(entries[pos].box);
+      LoadedObject& obj = l->objects[pos];
+      obj.id = parts_.global_id(k, entries[pos].id);
+      if (parts_.hidden(k, entries[pos].id)) {
+        obj.box = Box3d();  // empty (min +inf, max -inf): GrownMeet never accepts it
+        continue;
+      }
+      obj.box = ToBox3d(entries[pos].box);
+      obj.in_focus = !focus_ || focus_->Holds(obj.id);
       if (needed_[k](parts_.tree(k), leaf, pos)) tasks_.push_back({i, pos});
     }
     loaded_.push_back(std::move(l));

@@ -11,6 +11,7 @@
 #include <span>
 #include <vector>
 
+#include "engine/clash/clash_focus.h"
 #include "engine/clash/clash_reads.h"
 #include "engine/clash/leaf_pairs.h"
 #include "engine/clash/part_numbering.h"
@@ -20,11 +21,13 @@
 
 namespace mktree::clash {
 
-// One object of a decoded leaf: its float32 box, and its mesh and shape when some candidate pair may
-// need them (NeededObjects).
+// One object of a decoded leaf: its float32 box (empty for a hidden object, ClashPart::hidden, so that it
+// meets nothing), whether it is in the clash's focus (true without one), and its mesh and shape when some
+// candidate pair may need them (NeededObjects).
 struct LoadedObject {
   ObjectId id = 0;  // global
   Box3d box;
+  bool in_focus = true;
   double resolution = 0;  // CoordinateResolution of its entry (with the shape: only candidates need it)
   std::unique_ptr<Mesh> mesh;
   std::unique_ptr<ClashShape> shape;
@@ -50,8 +53,9 @@ uint64_t WindowBudget(const ClashOptions& o, const PartNumbering& parts);
 
 class ClashWindow {
  public:
-  // Leaves numbered as `parts` numbers them; needed[k]: part k's objects that need a shape.
-  ClashWindow(const PartNumbering& parts, const std::vector<NeededObjects>& needed);
+  // Leaves numbered as `parts` numbers them; needed[k]: part k's objects that need a shape; `focus`: the
+  // clash's focus (null: none). All must outlive the window.
+  ClashWindow(const PartNumbering& parts, const std::vector<NeededObjects>& needed, const ClashFocus* focus);
 
   // Reads and decodes `leaves` (in this order) into the window: their pages on this thread, then the
   // needed objects' meshes and shapes on all threads. Adds the shapes to s->shapes_prepared and keeps
@@ -73,6 +77,7 @@ class ClashWindow {
 
   const PartNumbering& parts_;
   const std::vector<NeededObjects>& needed_;
+  const ClashFocus* focus_;
   std::vector<std::unique_ptr<LoadedLeaf>> window_;
   uint64_t bytes_ = 0;
   IoCount io_;

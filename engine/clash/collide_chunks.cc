@@ -24,17 +24,18 @@ struct CollideChunks::Chunk {
   std::vector<Candidate> candidates;
 };
 
-CollideChunks::CollideChunks(const LeafSource& st, const std::vector<uint32_t>& leaves,
+CollideChunks::CollideChunks(const PartNumbering& part, const std::vector<uint32_t>& leaves,
                              const ClashShape& object, const Box3d& object_box, const ClashOptions& o,
                              ClashStats* s)
-    : st_(st),
+    : part_(part),
+      st_(part.store(0)),
       leaves_(leaves),
       object_(object),
       object_box_(object_box),
-      origin_(st.reader().tree().origin),
+      origin_(st_.reader().tree().origin),
       o_(o),
       s_(s),
-      reported_((st.reader().object_count() + 63) / 64) {}
+      reported_((st_.reader().object_count() + 63) / 64) {}
 
 Status CollideChunks::Run(WorkPool& pool, PairEmitter emit) {
   Chunk chunks[2];
@@ -96,9 +97,9 @@ Status CollideChunks::Fill(Chunk& c) {
     const auto& entries = pin.view.entries();
     for (uint32_t pos = 0; pos < entries.size(); ++pos) {
       const ObjectEntryView& e = entries[pos];
-      if (!GrownMeet(ToBox3d(e.box), object_box_, o_.clearance)) continue;
+      if (part_.hidden(0, e.id) || !GrownMeet(ToBox3d(e.box), object_box_, o_.clearance)) continue;
       ++candidates_;
-      if (o_.exclude && o_.exclude(e.id, kCollideObject)) {
+      if (o_.exclude && o_.exclude(part_.global_id(0, e.id), kCollideObject)) {
         ++excluded_;
         continue;
       }
@@ -126,15 +127,17 @@ Status CollideChunks::Test(const ObjectEntryView& e, PairWork* w) const {
   return Status::Ok();
 }
 
-// An id reported twice is in two leaves, which only id digests made to collide let through.
-Status CollideChunks::CheckReportedOnce(const std::vector<PairWork>& w, size_t count) {
+// An id reported twice is in two leaves, which only id digests made to collide let through. The pairs
+// found carry local ids until here, then their global ones.
+Status CollideChunks::CheckReportedOnce(std::vector<PairWork>& w, size_t count) {
   for (size_t k = 0; k < count; ++k)
-    for (const ClashPair& p : w[k].found) {
+    for (ClashPair& p : w[k].found) {
       const uint64_t bit = uint64_t{1} << (p.a & 63);
       if (reported_[p.a >> 6] & bit)
         return Status::Corruption(st_.reader().path() + ": object " + std::to_string(p.a) +
                                   " is in two leaves (their id digests were made to collide)");
       reported_[p.a >> 6] |= bit;
+      p.a = part_.global_id(0, p.a);
     }
   return Status::Ok();
 }

@@ -13,6 +13,7 @@
 #include "engine/clash/clash_engine.h"
 #include "engine/clash/clash_reads.h"
 #include "engine/clash/pair_emitter.h"
+#include "engine/clash/part_numbering.h"
 #include "engine/clash/work_pool.h"
 #include "engine/geometry/mesh_separation.h"
 #include "mktree/clash.h"
@@ -21,9 +22,11 @@ namespace mktree::clash {
 
 class CollideChunks {
  public:
-  // `object`: the query object's shape in the store's frame, `object_box` its bounds. All must outlive
-  // this; `s` gets the read seconds and, once Run succeeds, the candidate counts and the I/O counts.
-  CollideChunks(const LeafSource& st, const std::vector<uint32_t>& leaves, const ClashShape& object,
+  // `part`: the one part (ClashPart) collided with, whose hidden objects are no candidates and whose
+  // pairs and exclusions carry global ids; `leaves`: its leaves to read; `object`: the query object's
+  // shape in the store's frame, `object_box` its bounds. All must outlive this; `s` gets the read seconds
+  // and, once Run succeeds, the candidate counts and the I/O counts.
+  CollideChunks(const PartNumbering& part, const std::vector<uint32_t>& leaves, const ClashShape& object,
                 const Box3d& object_box, const ClashOptions& o, ClashStats* s);
 
   // Tests every candidate, handing its pairs to `emit` in leaf order, then candidate order. The first
@@ -39,8 +42,9 @@ class CollideChunks {
 
   Status Fill(Chunk& c);
   Status Test(const ObjectEntryView& e, PairWork* w) const;
-  Status CheckReportedOnce(const std::vector<PairWork>& w, size_t count);
+  Status CheckReportedOnce(std::vector<PairWork>& w, size_t count);
 
+  const PartNumbering& part_;
   const LeafSource& st_;
   const std::vector<uint32_t>& leaves_;
   const ClashShape& object_;

@@ -18,10 +18,21 @@ struct LeafPair {
   bool operator==(const LeafPair&) const = default;
 };
 
+// Where the objects of a focused clash (MultiClashScope::focus) may be in one tree, from their records
+// (engine/clash/clash_focus.h): the nodes whose subtrees hold one, and the objects, indexed as the leaf
+// filter is (NeededObjects), whose quantised boxes may be theirs (a superset: every position of a leaf
+// whose box alone cannot tell).
+struct FocusMarks {
+  std::vector<uint8_t> nodes;   // per node of the tree
+  std::vector<uint64_t> slots;  // increasing
+  bool node(uint32_t n) const { return nodes[n] != 0; }
+};
+
 // Every unordered pair of leaves (a leaf with itself included) whose node boxes grown by c meet, by a
 // dual traversal from the root: a node with itself descends to its children's three pairs, two nodes
-// descend the larger. Each unordered pair once, in traversal order.
-std::vector<LeafPair> TreeLeafPairs(const MKTree& tree, double c);
+// descend the larger. Each unordered pair once, in traversal order. With `focus`: only the pairs with a
+// leaf under a focus-marked node (the traversal does not descend elsewhere).
+std::vector<LeafPair> TreeLeafPairs(const MKTree& tree, double c, const FocusMarks* focus = nullptr);
 
 // Objects of the store indexed as the leaf filter is: leaf_filter_begin[leaf] (bytes) / 8 + position.
 struct NeededObjects {
@@ -34,15 +45,18 @@ struct NeededObjects {
 };
 
 // Keeps the pairs in which the leaf filter's quantised boxes (which contain the objects' float32 boxes)
-// admit a pair of distinct objects whose boxes grown by c meet, and marks those objects in *needed. A
-// pair dropped here cannot hold a candidate pair, so its leaves need not be read for it. Without a leaf
-// filter every pair is kept and every object needed.
+// admit a pair of distinct objects whose boxes grown by c meet (with `focus`: one of them focus-marked),
+// and marks those objects in *needed. A pair dropped here cannot hold a candidate pair, so its leaves
+// need not be read for it. Without a leaf filter every pair is kept and every object needed.
 void FilterLeafPairs(const MKTree& tree, double c, WorkPool& pool, std::vector<LeafPair>* pairs,
-                     NeededObjects* needed);
+                     NeededObjects* needed, const FocusMarks* focus = nullptr);
 
 // Two stores in one frame (shards of one sharded store): every pair (p leaf of a, q leaf of b) whose
-// node boxes grown by c meet, by the same dual traversal from both roots.
-std::vector<LeafPair> CrossLeafPairs(const MKTree& a, const MKTree& b, double c);
+// node boxes grown by c meet, by the same dual traversal from both roots. With focus marks (both or
+// neither): only the pairs with a leaf under a focus-marked node.
+std::vector<LeafPair> CrossLeafPairs(const MKTree& a, const MKTree& b, double c,
+                                     const FocusMarks* focus_a = nullptr,
+                                     const FocusMarks* focus_b = nullptr);
 
 // Readies *needed for FilterLeafPairs' marks (all zero); false when the tree has no leaf filter (then
 // every object is needed).
@@ -50,7 +64,9 @@ bool InitNeeded(const MKTree& tree, NeededObjects* needed);
 
 // FilterLeafPairs for CrossLeafPairs' pairs, marking in *needed_a and *needed_b (both readied by
 // InitNeeded, both trees with a leaf filter).
+// With focus marks (both or neither): only pairs with a focus-marked object.
 void FilterCrossLeafPairs(const MKTree& a, const MKTree& b, double c, WorkPool& pool,
-                          std::vector<LeafPair>* pairs, NeededObjects* needed_a, NeededObjects* needed_b);
+                          std::vector<LeafPair>* pairs, NeededObjects* needed_a, NeededObjects* needed_b,
+                          const FocusMarks* focus_a = nullptr, const FocusMarks* focus_b = nullptr);
 
 }  // namespace mktree::clash

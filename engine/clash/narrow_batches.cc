@@ -11,7 +11,8 @@ namespace {
 // Leaf pairs tested between two hand-overs of found pairs to the visitor.
 constexpr size_t kNarrowChunk = 128;
 
-// Tests the candidate pairs of leaves p and q (the same leaf: its pairs i < j).
+// Tests the candidate pairs of leaves p and q (the same leaf: its pairs i < j): those whose boxes grown by
+// C meet, with an object in the focus.
 Status TestLeafPair(const std::string& store, const LoadedLeaf& lp, const LoadedLeaf& lq, bool same,
                     const ClashOptions& o, const Exclusions& ex, const Vec3d& origin, PairWork* w) {
   const double c = o.clearance;
@@ -19,7 +20,7 @@ Status TestLeafPair(const std::string& store, const LoadedLeaf& lp, const Loaded
   const auto& B = lq.objects;
   for (size_t i = 0; i < A.size(); ++i) {
     for (size_t j = same ? i + 1 : 0; j < B.size(); ++j) {
-      if (!GrownMeet(A[i].box, B[j].box, c)) continue;
+      if ((!A[i].in_focus && !B[j].in_focus) || !GrownMeet(A[i].box, B[j].box, c)) continue;
       ++w->candidates;
       const LoadedObject* a = &A[i];
       const LoadedObject* b = &B[j];

@@ -12,9 +12,9 @@
 
 namespace mktree::clash {
 
-// The names are read in global id order (each record page once) straight from the stores, not through
-// their page caches, so that the clash's own page counts stay its leaves'; a damaged record page fails
-// the run.
+// The names of the visible objects (hidden ones are skipped: ClashPart::hidden) are read in global id
+// order (each record page once) straight from the stores, not through their page caches, so that the
+// clash's own page counts stay its leaves'; a damaged record page fails the run.
 Status MakePartExclusions(const PartNumbering& parts, const ClashOptions& o, std::optional<Exclusions>* out);
 
 }  // namespace mktree::clash

@@ -25,6 +25,8 @@ Result<PartNumbering> PartNumbering::Make(const std::vector<ClashPart>& parts) {
     const std::vector<ObjectId>* ids = parts[k].ids;
     if (ids && ids->size() != r.object_count())
       return Status::Internal(r.path() + ": the part's id map does not match its objects");
+    if (parts[k].hidden && parts[k].hidden->size() != r.object_count())
+      return Status::Internal(r.path() + ": the part's hidden flags do not match its objects");
     n.global_count_ = std::max<uint64_t>(
         n.global_count_, ids ? (ids->empty() ? 0 : ids->back() + uint64_t{1}) : r.object_count());
     n.cache_bytes_ += parts[k].leaves->cache().capacity() * t.params.mem_page();

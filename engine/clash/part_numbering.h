@@ -15,7 +15,8 @@ namespace mktree::clash {
 
 class PartNumbering {
  public:
-  // Internal when a part's id map does not match its objects. `parts` must outlive the numbering.
+  // Internal when a part's id map or hidden flags do not match its objects. `parts` must outlive the
+  // numbering.
   static Result<PartNumbering> Make(const std::vector<ClashPart>& parts);
 
   size_t part_count() const { return parts_->size(); }
@@ -32,7 +33,13 @@ class PartNumbering {
     return trees_[part_of_[leaf]]->leaves[leaf - leaf_base_[part_of_[leaf]]];
   }
 
+  const std::vector<ObjectId>* ids(size_t k) const { return (*parts_)[k].ids; }  // null: local = global
   ObjectId global_id(size_t k, ObjectId id) const { return (*parts_)[k].ids ? (*(*parts_)[k].ids)[id] : id; }
+  // Is part k's object `id` (local) hidden (ClashPart::hidden)?
+  bool hidden(size_t k, ObjectId id) const {
+    const std::vector<bool>* h = (*parts_)[k].hidden;
+    return h && (*h)[id];
+  }
   uint64_t object_count(size_t k) const { return object_counts_[k]; }
   uint64_t global_count() const { return global_count_; }  // above every global id
 
