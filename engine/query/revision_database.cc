@@ -78,7 +78,8 @@ class RevisionDatabase final : public Database {
       : path_(std::move(path)), hold_(std::move(hold)), parts_(std::move(parts)) {
     const RevisionManifest& m = hold_->manifest();
     stats_json_ = "{\"revision\": " + std::to_string(m.revision) +
-                  ", \"live_objects\": " + std::to_string(m.live) + ", \"parts\": [";
+                  ", \"live_objects\": " + std::to_string(m.live) +
+                  ", \"deltas\": " + std::to_string(m.deltas.size()) + ", \"parts\": [";
     double pages = 0;
     for (size_t p = 0; p < parts_.size(); ++p) {
       const StoreDatabase& db = *parts_[p].db;
