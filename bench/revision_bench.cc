@@ -14,7 +14,7 @@
 //             writer committing batches of --clash-batch on the other thread: reader queries/s
 //
 // Usage: revision_bench [--objects N] [--seed S] [--queries Q] [--batch B] [--clash-batch K]
-//                       [--seconds T] [--dir DIR] [--only pages|clash|reader]
+//                       [--seconds T] [--dir DIR] [--only pages|clash|reader] [--fractions 0.01,0.1,0.3]
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -53,6 +53,7 @@ struct Args {
   double seconds = 5;
   std::string dir = ".";
   std::string only;
+  std::vector<double> fractions{0.01, 0.10, 0.30};
 };
 
 [[noreturn]] void Die(const std::string& what, const Status& st) {
@@ -202,7 +203,7 @@ void RunPages(const Args& a, const std::string& store, double build_seconds, dou
   Changes changes(a.objects, a.seed + 1);
   uint64_t changed = 0, commits = 0;
   std::vector<double> latencies;
-  for (double f : {0.01, 0.10, 0.30}) {
+  for (double f : a.fractions) {
     const uint64_t target = static_cast<uint64_t>(f * static_cast<double>(a.objects));
     while (changed < target) {
       auto db = Must(Database::Open(store), "open");

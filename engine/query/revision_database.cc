@@ -356,17 +356,13 @@ Result<std::vector<RevisionPartDb>> OpenRevisionParts(const std::string& store_p
   for (size_t p = parts.size(); p-- > 0;) {
     parts[p].hidden_count = MarkHidden(&parts[p], gone);
     live += parts[p].db->object_count() - parts[p].hidden_count;
+    if (p == 0) break;  // the base: no part before it to hide anything in
+    // Only the base has identity ids (no id file): a delta always has its id file.
     std::vector<ObjectId> merged;
     merged.reserve(gone.size() + parts[p].ids.size());
-    if (parts[p].ids.empty()) {
-      std::vector<ObjectId> all(parts[p].db->object_count());
-      for (size_t i = 0; i < all.size(); ++i) all[i] = static_cast<ObjectId>(i);
-      std::set_union(gone.begin(), gone.end(), all.begin(), all.end(), std::back_inserter(merged));
-    } else {
-      std::set_union(gone.begin(), gone.end(), parts[p].ids.begin(), parts[p].ids.end(),
-                     std::back_inserter(merged));
-    }
-    if (p > 0) gone = std::move(merged);
+    std::set_union(gone.begin(), gone.end(), parts[p].ids.begin(), parts[p].ids.end(),
+                   std::back_inserter(merged));
+    gone = std::move(merged);
   }
   if (live != m.live)
     return Status::Corruption(ChangesFile(folder, RevisionFileName(m.revision)) + ": " +
