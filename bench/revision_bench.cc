@@ -400,7 +400,15 @@ int main(int argc, char** argv) {
       a.dir = next();
     else if (k == "--only")
       a.only = next();
-    else {
+    else if (k == "--fractions") {
+      a.fractions.clear();
+      const std::string list = next();
+      for (size_t at = 0; at < list.size();) {
+        const size_t comma = std::min(list.find(',', at), list.size());
+        a.fractions.push_back(std::stod(list.substr(at, comma - at)));
+        at = comma + 1;
+      }
+    } else {
       std::fprintf(stderr, "unknown argument %s\n", k.c_str());
       return 2;
     }
