@@ -71,7 +71,8 @@ struct ChangeWorkload {
   std::vector<GeometryOrigin> origins;
 
   uint64_t live_count() const;
-  std::string TankerSpec() const { return "tanker:" + std::to_string(objects) + ":" + std::to_string(seed); }
+  // The build input naming the tanker: "tanker:N:SEED".
+  std::string TankerInput() const { return "tanker:" + std::to_string(objects) + ":" + std::to_string(seed); }
 };
 
 // Generates the tanker once (its boxes) and the script: `batches[i]` batches of `sizes[i]` changes.
@@ -88,7 +89,7 @@ Result<SourceObjects> LoadSourceObjects(const ChangeWorkload& workload);
 SceneObject MovedCopy(const SceneObject& source, const Vec3d& offset, ObjectId id);
 
 // The live set after the whole script, in id order, as a build's ObjectSource (what a full rebuild of the
-// changed store has to read). `sources` must outlive the returned function.
+// changed store has to read). `workload` and `sources` must outlive the returned function.
 ObjectSource LiveSetSource(const ChangeWorkload& workload, const SourceObjects& sources);
 
 // The store every mktree build of changes_bench uses: paged file, 12 KiB pages (4096 x 3), zstd.

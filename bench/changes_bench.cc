@@ -242,13 +242,13 @@ Result<double> RunRebuild(const ChangeWorkload& w, const Args& a) {
       static_cast<unsigned long long>(built->objects), seconds, built->read_seconds, built->build_seconds,
       built->write_seconds, static_cast<unsigned long long>(built->pages));
   t0 = Clock::now();
-  auto tanker = BuildFromFiles({w.TankerSpec()}, path, ChangesBenchBuildOptions());
+  auto tanker = BuildFromFiles({w.TankerInput()}, path, ChangesBenchBuildOptions());
   const double tanker_seconds = Since(t0);
   std::filesystem::remove(path);
   if (!tanker.ok()) return tanker.status();
   std::printf(
       "   for scale, BuildFromFiles(\"%s\") before any change: %.2f s (read %.2f, tree %.2f, write %.2f)\n",
-      w.TankerSpec().c_str(), tanker_seconds, tanker->read_seconds, tanker->build_seconds,
+      w.TankerInput().c_str(), tanker_seconds, tanker->read_seconds, tanker->build_seconds,
       tanker->write_seconds);
   return seconds;
 }
@@ -276,7 +276,7 @@ void PrintHeader(const Args& a, const ChangeWorkload& w, double seconds,
   std::printf(
       "# workload: %s (%llu objects, scene box (%.1f, %.1f, %.1f)-(%.1f, %.1f, %.1f)), change seed %llu,"
       " generated in %.1f s\n",
-      w.TankerSpec().c_str(), static_cast<unsigned long long>(w.objects), w.scene_bounds.min[0],
+      w.TankerInput().c_str(), static_cast<unsigned long long>(w.objects), w.scene_bounds.min[0],
       w.scene_bounds.min[1], w.scene_bounds.min[2], w.scene_bounds.max[0], w.scene_bounds.max[1],
       w.scene_bounds.max[2], static_cast<unsigned long long>(w.change_seed), seconds);
   std::printf("# batches, in this order on one evolving set:");

@@ -39,7 +39,7 @@ class MktreeChangeEngine : public ChangeEngine {
   Status Load(const ChangeWorkload& w) override {
     RemoveStore();
     MKTREE_ASSIGN_OR_RETURN(const BuildStats built,
-                            BuildFromFiles({w.TankerSpec()}, path_, ChangesBenchBuildOptions()));
+                            BuildFromFiles({w.TankerInput()}, path_, ChangesBenchBuildOptions()));
     if (built.objects != w.objects)
       return Status::Internal("mktree: built " + std::to_string(built.objects) + " objects, expected " +
                               std::to_string(w.objects));
