@@ -1,5 +1,5 @@
 // The interface every engine of changes_bench implements (SQLite R*Tree, libspatialindex, Boost.Geometry's
-// rtree and, when built with MKTREE_BENCH_CHANGES_ENGINE, mktree's ChangeWriter), so that the driver
+// rtree and mktree's ChangeWriter), so that the driver
 // loads, changes and checks them all the same way.
 //
 // Protocol, per engine: Load() builds the engine's index of the tanker's N objects (timed, reported, not
@@ -40,8 +40,7 @@ enum class SqliteSync { kFull, kNormal };
 std::unique_ptr<ChangeEngine> MakeSqliteChangeEngine(const std::string& dir, SqliteSync sync);
 std::unique_ptr<ChangeEngine> MakeSpatialIndexChangeEngine(const std::string& dir);
 std::unique_ptr<ChangeEngine> MakeBoostChangeEngine();
-// bench/changes_bench_mktree.cc, compiled only with the CMake option MKTREE_BENCH_CHANGES_ENGINE (it needs
-// mktree::ChangeWriter). `compact_threshold` is ChangeOptions::compact_threshold (0: no automatic
+// bench/changes_bench_mktree.cc. `compact_threshold` is ChangeOptions::compact_threshold (0: no automatic
 // compaction during the script).
 std::unique_ptr<ChangeEngine> MakeMktreeChangeEngine(const std::string& dir, double compact_threshold);
 

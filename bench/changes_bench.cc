@@ -11,8 +11,7 @@
 //   sqlite-normal   the same with synchronous=NORMAL
 //   spatialindex    libspatialindex R*-tree, disk storage manager, flush + fdatasync per batch
 //   bgi             Boost.Geometry rtree in RAM
-//   mktree          mktree::ChangeWriter on a paged-file store, 12 KiB pages (only when built with the
-//                   CMake option MKTREE_BENCH_CHANGES_ENGINE=ON)
+//   mktree          mktree::ChangeWriter on a paged-file store, 12 KiB pages
 //   rebuild         mktree: a full BuildFromObjects of the live set after the whole script (the "at least
 //                   30x faster than rebuilding" reference)
 // The peers store boxes only; mktree writes each object's geometry too. Timed: the engine's Commit() of
@@ -40,20 +39,10 @@
 
 namespace mktree::bench {
 
-#ifndef MKTREE_BENCH_CHANGES_ENGINE
-std::unique_ptr<ChangeEngine> MakeMktreeChangeEngine(const std::string&, double) { return nullptr; }
-#endif
-
 namespace {
 
 using Clock = std::chrono::steady_clock;
 double Since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
-
-#ifdef MKTREE_BENCH_CHANGES_ENGINE
-constexpr bool kHaveMktreeEngine = true;
-#else
-constexpr bool kHaveMktreeEngine = false;
-#endif
 
 struct Args {
   uint64_t objects = 1000000;
@@ -61,8 +50,7 @@ struct Args {
   uint64_t change_seed = 1;
   std::vector<uint64_t> sizes = {1, 100, 10000, 100000};
   std::vector<uint64_t> batches = {20, 20, 5, 2};
-  std::string engines =
-      kHaveMktreeEngine ? "sqlite,spatialindex,bgi,mktree,rebuild" : "sqlite,spatialindex,bgi,rebuild";
+  std::string engines = "sqlite,spatialindex,bgi,mktree,rebuild";
   std::string dir = "/work/tmp-bench";
   double compact_threshold = 0;
   size_t checks = 20;
@@ -313,10 +301,6 @@ int Main(int argc, char** argv) {
     if (name == "rebuild") {
       rebuild = true;
       continue;
-    }
-    if (name == "mktree" && !kHaveMktreeEngine) {
-      std::fprintf(stderr, "error: engine mktree needs a build with -DMKTREE_BENCH_CHANGES_ENGINE=ON\n");
-      return 2;
     }
     auto e = MakeEngine(name, a);
     if (!e) {

@@ -2,8 +2,7 @@
 // with 12 KiB pages (ChangesBenchBuildOptions), changed through mktree::ChangeWriter: one batch is one
 // Commit, a new durable revision holding the added and replaced objects' meshes, names and boxes. The
 // moved copies are made by Stage (untimed); Commit() times ChangeWriter::Commit and checks that the added
-// objects got the ids the script expects (N, N+1, ... in order). Compiled only with the CMake option
-// MKTREE_BENCH_CHANGES_ENGINE (it needs the change API's implementation).
+// objects got the ids the script expects (N, N+1, ... in order).
 #include <cstdio>
 #include <filesystem>
 
