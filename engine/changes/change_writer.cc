@@ -460,13 +460,15 @@ Result<CompactReport> Writer::CompactUnguarded() {
 }
 
 // The store file becomes (a hard link of) the newest base, so that the store's name holds the newest
-// objects' pages and an old base's pages are freed once no kept revision names it.
+// objects' pages and an old base's pages are freed once no kept revision names it. The temporary link has
+// one name, removed first, so that the link a writer killed before its rename left is removed too (the
+// writer lock keeps every other writer out).
 Status Writer::RelinkStore() {
+  const std::string temp = store_ + ".relink";
+  ::unlink(temp.c_str());
   MKTREE_ASSIGN_OR_RETURN(const RevisionFile now, FingerprintFile(store_));
   if (now.bytes == head_.base.store.bytes && now.fingerprint == head_.base.store.fingerprint)
     return Status::Ok();
-  const std::string temp = store_ + ".relink." + std::to_string(::getpid());
-  ::unlink(temp.c_str());
   if (::link(ChangesFile(folder_, head_.base.store.name).c_str(), temp.c_str()) != 0)
     return Status::IOError(temp + ": cannot link the compacted base: " + storage_internal::ErrnoText(errno));
   bool renamed = false;
