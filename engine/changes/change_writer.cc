@@ -47,12 +47,17 @@ Status FsyncFolder(const std::string& path, FileOps& ops) {
   return Status::Ok();
 }
 
+// The commit point. On an error the file is removed even when its rename was done (a failed fsync of the
+// folder after it), so that an error means that nothing was committed: the writer's head stays, and its
+// next commit writes this revision anew.
 Status WriteRevisionFile(const std::string& folder, const RevisionManifest& m, FileOps& ops) {
   const std::string text = EncodeRevisionManifest(m);
-  MKTREE_ASSIGN_OR_RETURN(auto file,
-                          AtomicFile::Create(ChangesFile(folder, RevisionFileName(m.revision)), ops));
-  MKTREE_RETURN_IF_ERROR(file->Write(text.data(), text.size()));
-  return file->Commit();
+  const std::string path = ChangesFile(folder, RevisionFileName(m.revision));
+  MKTREE_ASSIGN_OR_RETURN(auto file, AtomicFile::Create(path, ops));
+  Status st = file->Write(text.data(), text.size());
+  if (st.ok()) st = file->Commit();
+  if (!st.ok()) ::unlink(path.c_str());
+  return st;
 }
 
 // Every file name a revision refers to.
