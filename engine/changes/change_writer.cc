@@ -9,6 +9,7 @@
 #include <chrono>
 #include <ctime>
 #include <filesystem>
+#include <limits>
 #include <map>
 #include <set>
 #include <unordered_map>
@@ -423,6 +424,7 @@ Result<CompactReport> Writer::CompactUnguarded() {
   CompactReport report;
   const bool keep_changed = keep_ && *keep_ != head_.keep;
   if (head_.deltas.empty() && head_.removals.empty() && !keep_changed) {
+    MKTREE_RETURN_IF_ERROR(RelinkStore());  // one that failed after the last compaction's commit
     report.revision = head_.revision;
     report.objects = head_.live;
     report.seconds = SecondsSince(start);
@@ -477,18 +479,23 @@ Status Writer::RelinkStore() {
   if (::link(ChangesFile(folder_, head_.base.store.name).c_str(), temp.c_str()) != 0)
     return Status::IOError(temp + ": cannot link the compacted base: " + storage_internal::ErrnoText(errno));
   bool renamed = false;
-  Status st = RenameOverTarget(temp, store_, ops_, "the compacted store", &renamed);
+  Status st = RenameOverTarget(temp, store_, ops_, "the compacted store " + store_, &renamed);
   if (!renamed) ::unlink(temp.c_str());
   return st;
 }
 
 // Retires the revisions older than the newest `keep` that no reader holds, then removes every file of the
 // folder that no kept revision names (the leftovers of killed writers included). Returns the revisions
-// retired and the bytes of the files removed.
+// retired and the bytes of the files removed. While the store file is not the head's base (its relink
+// failed after a compaction's commit point) nothing is retired: a store file that is the base of no kept
+// revision opens as a store without changes, and the next writer would start its changes anew.
 Result<std::pair<uint64_t, uint64_t>> Writer::RetireAndCollect() {
   MKTREE_ASSIGN_OR_RETURN(std::vector<uint64_t> revisions, ListRevisionNumbers(folder_));
   uint64_t retired = 0, freed = 0;
-  const uint64_t keep = head_.keep;
+  MKTREE_ASSIGN_OR_RETURN(const RevisionFile store_file, FingerprintFile(store_));
+  const bool relinked =
+      store_file.bytes == head_.base.store.bytes && store_file.fingerprint == head_.base.store.fingerprint;
+  const uint64_t keep = relinked ? head_.keep : std::numeric_limits<uint64_t>::max();
   std::set<std::string> names;
   for (uint64_t r : revisions) {
     if (r > head_.revision) {
