@@ -267,7 +267,7 @@ Status Writer::ResolveBatch(const ChangeBatch& batch, std::vector<ObjectId>* rem
     }
   }
   auto write = [&](const SceneObject& o, ObjectId id, const std::string& what) -> Status {
-    MKTREE_RETURN_IF_ERROR(CheckCallerObject(o, what));
+    MKTREE_RETURN_IF_ERROR(CheckCallerObject(o, store_ + ": " + what));
     written->push_back(o);
     written->back().id = id;
     return Status::Ok();
