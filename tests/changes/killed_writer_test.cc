@@ -1,12 +1,14 @@
-// A change writer killed (kill -9: _exit in a forked child) at every write step of a commit and of a
-// compaction, on both backends: the store opens at the revision before or the one after, exactly (every
-// query as brute force, every live object's record and geometry intact), never anything else, and never
-// before again once after; the next writer removes what the dead one left (the folders hold only what kept
-// revisions name), commits, and answers right.
+// A change writer killed (kill -9: _exit in a forked child) at every write step of a commit, of a
+// compaction and of a commit followed by the threshold's compaction, on both backends: the store opens at
+// the revision before or one the operation writes, exactly (every query as brute force, every live
+// object's record and geometry intact), never anything else, and never at an older one than an earlier
+// kill left; the next writer removes what the dead one left (the folders hold only what kept revisions
+// name), commits, and answers right.
 #include <gtest/gtest.h>
 
 #include <chrono>
 #include <iostream>
+#include <map>
 
 #include "change_faults.h"
 #include "engine/changes/change_writer.h"
@@ -17,7 +19,14 @@ namespace {
 using testing::LiveSet;
 using testing::StepFileOps;
 
-enum class Operation { kCommit, kCompact };
+// A commit; a compaction; a commit whose changes pass the threshold, so that a compaction follows it.
+enum class Operation { kCommit, kCompact, kCommitThenCompaction };
+
+const char* OperationName(Operation op) {
+  return op == Operation::kCommit    ? "commit"
+         : op == Operation::kCompact ? "compaction"
+                                     : "commit then compaction";
+}
 
 class KilledWriter : public ::testing::TestWithParam<Backend> {
  protected:
@@ -33,19 +42,23 @@ class KilledWriter : public ::testing::TestWithParam<Backend> {
 
   // Runs `op` on a writer of `store` whose writes go through `ops`; the commit's report in *report.
   Status Run(const std::string& store, FileOps& ops, Operation op, CommitReport* report) const {
-    auto w = OpenChangeWriter(store, options_, ops);
+    ChangeOptions options = options_;
+    if (op == Operation::kCommitThenCompaction) options.compact_threshold = 0.01;
+    auto w = OpenChangeWriter(store, options, ops);
     if (!w.ok()) return w.status();
     if (op == Operation::kCompact) return (*w)->Compact().status();
     auto done = (*w)->Commit(batch_);
     if (!done.ok()) return done.status();
+    if (op == Operation::kCommitThenCompaction && !done->compacted)
+      return Status::Internal("not compacted: " + done->compaction_error);
     if (report) *report = *done;
     return Status::Ok();
   }
 
-  // The store after a killed writer: at the revision before (*after_seen false) or after, whole; then a
-  // new writer cleans up, commits, and the store answers that commit.
-  void ExpectWholeAndWritable(const std::string& store, const LiveSet& after, uint64_t k, bool* after_seen,
-                              uint64_t* at_before, uint64_t* at_after) {
+  // The store after a killed writer: at the revision before or one the operation writes (never below the
+  // highest an earlier kill left), whole; then a new writer cleans up, commits, and the store answers it.
+  void ExpectWholeAndWritable(const std::string& store, const LiveSet& after, uint64_t last, uint64_t k,
+                              std::map<uint64_t, uint64_t>* outcomes) {
     const std::string where = "killed at step " + std::to_string(k);
     SCOPED_TRACE(where);
     uint64_t rev = 0;
@@ -54,16 +67,11 @@ class KilledWriter : public ::testing::TestWithParam<Backend> {
       auto db = Database::Open(store);
       ASSERT_TRUE(db.ok()) << db.status().ToString();
       rev = (*db)->revision();
-      ASSERT_TRUE(rev == pristine_.revision || rev == pristine_.revision + 1) << "revision " << rev;
-      if (rev == pristine_.revision) {
-        ASSERT_FALSE(*after_seen) << "back at the revision before after an earlier kill ended after";
-        ++*at_before;
-        live = pristine_.live;
-      } else {
-        *after_seen = true;
-        ++*at_after;
-        live = after;
-      }
+      ASSERT_TRUE(rev >= pristine_.revision && rev <= last) << "revision " << rev;
+      ASSERT_TRUE(outcomes->empty() || rev >= outcomes->rbegin()->first)
+          << "revision " << rev << " after an earlier kill left " << outcomes->rbegin()->first;
+      ++(*outcomes)[rev];
+      live = rev == pristine_.revision ? pristine_.live : after;
       ASSERT_NO_FATAL_FAILURE(testing::ExpectIntact(**db, live, pristine_.origin, queries_, where));
     }
     auto w = ChangeWriter::Open(store, options_);
@@ -85,8 +93,8 @@ class KilledWriter : public ::testing::TestWithParam<Backend> {
     ASSERT_NO_FATAL_FAILURE(testing::ExpectIntact(**db, live, pristine_.origin, queries_, where + ", next"));
   }
 
-  // Kills the writer at step k = 1, 1 + stride, ... of `op` until a run ends without reaching k.
-  void KillAtEveryStep(Operation op, uint64_t stride) {
+  // Kills the writer at step k = 1, 2, ... of `op` until a run ends without reaching k.
+  void KillAtEveryStep(Operation op) {
     const auto start = std::chrono::steady_clock::now();
     const std::string store = dir_.file("run/s.mkt");
     testing::CopyStore(pristine_.path, store);
@@ -96,10 +104,12 @@ class KilledWriter : public ::testing::TestWithParam<Backend> {
     ASSERT_TRUE(reference.ok()) << reference.ToString();
     const uint64_t steps = count.steps();
     LiveSet after = pristine_.live;
-    if (op == Operation::kCommit) testing::Apply(batch_, report, &after);
-    bool completed = false, after_seen = false;
-    uint64_t runs = 0, at_before = 0, at_after = 0;
-    for (uint64_t k = 1; !completed; k += stride) {
+    if (op != Operation::kCompact) testing::Apply(batch_, report, &after);
+    const uint64_t last = pristine_.revision + (op == Operation::kCommitThenCompaction ? 2 : 1);
+    std::map<uint64_t, uint64_t> outcomes;  // revision the store opened at -> runs
+    bool completed = false;
+    uint64_t runs = 0;
+    for (uint64_t k = 1; !completed; ++k) {
       ASSERT_LT(k, 4 * steps + 100) << "the writer's steps do not end";
       testing::CopyStore(pristine_.path, store);
       const int status = testing::RunInChild([&] {
@@ -111,15 +121,15 @@ class KilledWriter : public ::testing::TestWithParam<Backend> {
       ASSERT_TRUE(WIFEXITED(status) && (WEXITSTATUS(status) == 9 || WEXITSTATUS(status) == 0))
           << "step " << k << ": the writer ended with " << testing::DescribeWaitStatus(status);
       completed = WEXITSTATUS(status) == 0;
-      ASSERT_NO_FATAL_FAILURE(ExpectWholeAndWritable(store, after, k, &after_seen, &at_before, &at_after));
+      ASSERT_NO_FATAL_FAILURE(ExpectWholeAndWritable(store, after, last, k, &outcomes));
     }
-    EXPECT_GT(at_before, 0u);
-    EXPECT_GT(at_after, 0u);
+    for (uint64_t rev = pristine_.revision; rev <= last; ++rev)
+      EXPECT_GT(outcomes[rev], 0u) << "no kill left the store at revision " << rev;
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    std::cout << "  " << (op == Operation::kCommit ? "commit" : "compaction") << ": " << steps
-              << " write steps, killed at every " << (stride == 1 ? "" : std::to_string(stride) + "rd ")
-              << "step: " << runs << " runs, " << at_before << " at the revision before, " << at_after
-              << " after, " << seconds << " s\n";
+    std::cout << "  " << OperationName(op) << ": " << steps << " write steps, killed at each: " << runs
+              << " runs, the store opened at";
+    for (const auto& [rev, n] : outcomes) std::cout << " revision " << rev << " " << n << "x";
+    std::cout << "; " << seconds << " s\n";
   }
 
   testing::TempDir dir_{"mktree_killed_writer"};
@@ -131,18 +141,25 @@ class KilledWriter : public ::testing::TestWithParam<Backend> {
 
 TEST_P(KilledWriter, CommitOpensBeforeOrAfterAndTheNextWriterCleansUp) {
   ASSERT_NO_FATAL_FAILURE(Prepare(3));
-  KillAtEveryStep(Operation::kCommit, 1);
+  KillAtEveryStep(Operation::kCommit);
 }
 
 // The first change of a built store also makes its changes folder and revision 0.
 TEST_P(KilledWriter, FirstCommitOfABuiltStoreOpensBeforeOrAfter) {
   ASSERT_NO_FATAL_FAILURE(Prepare(0));
-  KillAtEveryStep(Operation::kCommit, 1);
+  KillAtEveryStep(Operation::kCommit);
 }
 
 TEST_P(KilledWriter, CompactionOpensBeforeOrAfterAndTheNextWriterCleansUp) {
   ASSERT_NO_FATAL_FAILURE(Prepare(3));
-  KillAtEveryStep(Operation::kCompact, 1);
+  KillAtEveryStep(Operation::kCompact);
+}
+
+// The threshold's compaction after a commit: the store opens at the revision before, the commit's, or the
+// compaction's.
+TEST_P(KilledWriter, CommitThenItsCompactionOpensAtOneOfTheirRevisions) {
+  ASSERT_NO_FATAL_FAILURE(Prepare(3));
+  KillAtEveryStep(Operation::kCommitThenCompaction);
 }
 
 INSTANTIATE_TEST_SUITE_P(Backends, KilledWriter, ::testing::Values(Backend::kHdf5, Backend::kPagedFile),
