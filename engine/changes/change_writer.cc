@@ -187,7 +187,8 @@ Status Writer::Initialize() {
         storage_internal::ErrnoText(errno) + " (the folder must be on the store's file system)");
   MKTREE_ASSIGN_OR_RETURN(m.base.store, FingerprintFile(ChangesFile(folder_, base_name)));
   MKTREE_RETURN_IF_ERROR(FsyncFolder(folder_, ops_));
-  MKTREE_RETURN_IF_ERROR(FsyncFolder(fs::path(fs::absolute(store_)).parent_path().string(), ops_));
+  if (Status st = FsyncFolder(fs::path(fs::absolute(store_)).parent_path().string(), ops_); !st.ok())
+    return Status::IOError(store_ + ": making its changes folder durable: " + st.message());
   MKTREE_RETURN_IF_ERROR(WriteRevisionFile(folder_, m, ops_));
   head_ = m;
   return OpenHead();
