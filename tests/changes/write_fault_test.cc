@@ -18,25 +18,49 @@ namespace {
 using testing::LiveSet;
 using testing::StepFileOps;
 
-enum class Operation { kCommit, kCompact };
+// A commit; a compaction; a commit whose changes pass the threshold, so that a compaction follows it; the
+// first commit of a built store, whose writer's Open makes the changes folder (failed there too).
+enum class Operation { kCommit, kCompact, kCommitThenCompaction, kFirstCommit };
+
+const char* OperationName(Operation op) {
+  switch (op) {
+    case Operation::kCommit:
+      return "commit";
+    case Operation::kCompact:
+      return "compaction";
+    case Operation::kCommitThenCompaction:
+      return "commit then compaction";
+    case Operation::kFirstCommit:
+      return "first commit";
+  }
+  return "";
+}
 
 class WriteFault : public ::testing::TestWithParam<Backend> {
  protected:
-  void SetUp() override {
+  // The store before: built, then `commits` batches committed.
+  void Prepare(int commits) {
     std::filesystem::create_directories(dir_ / "pristine");
     ASSERT_NO_FATAL_FAILURE(
-        testing::MakePristineStore(dir_.file("pristine/s.mkt"), GetParam(), 200, 3, &pristine_));
+        testing::MakePristineStore(dir_.file("pristine/s.mkt"), GetParam(), 200, commits, &pristine_));
     std::mt19937_64 rng(17);
     batch_ = testing::MixedBatch(pristine_.live, 4, rng, &pristine_.counter);
     queries_ = testing::RandomQueries(40, rng);
   }
 
-  // Runs `op` on `w`; the live set after it in *after.
-  Status Run(ChangeWriter& w, Operation op, LiveSet* after) const {
+  ChangeOptions Options(Operation op) const {
+    ChangeOptions o = options_;
+    if (op == Operation::kCommitThenCompaction) o.compact_threshold = 0.01;
+    return o;
+  }
+
+  // Runs `op` on `w`: the commit's report in *report, the live set after it in *after.
+  Status Run(ChangeWriter& w, Operation op, CommitReport* report, LiveSet* after) const {
     *after = pristine_.live;
     if (op == Operation::kCompact) return w.Compact().status();
     auto done = w.Commit(batch_);
     if (!done.ok()) return done.status();
+    *report = *done;
     testing::Apply(batch_, *done, after);
     return Status::Ok();
   }
@@ -45,6 +69,7 @@ class WriteFault : public ::testing::TestWithParam<Backend> {
   void FailAtEveryStep(Operation op, int error) {
     const auto start = std::chrono::steady_clock::now();
     const std::string store = dir_.file("run/s.mkt");
+    const uint64_t last = pristine_.revision + (op == Operation::kCommitThenCompaction ? 2 : 1);
     uint64_t failed = 0, relinks = 0;
     for (uint64_t k = 1;; ++k) {
       const std::string where = std::string(std::strerror(error)) + " at step " + std::to_string(k);
@@ -52,51 +77,87 @@ class WriteFault : public ::testing::TestWithParam<Backend> {
       ASSERT_LT(k, 1000u) << "the writer's steps do not end";
       testing::CopyStore(pristine_.path, store);
       StepFileOps ops;
-      auto w = OpenChangeWriter(store, options_, ops);
-      ASSERT_TRUE(w.ok()) << w.status().ToString();
-      ops.Arm(k, StepFileOps::Action::kFail, error);
+      if (op == Operation::kFirstCommit) ops.Arm(k, StepFileOps::Action::kFail, error);
+      std::unique_ptr<ChangeWriter> w;
+      Status st;
+      CommitReport report;
       LiveSet after;
-      const Status st = Run(**w, op, &after);
+      auto opened = OpenChangeWriter(store, Options(op), ops);
+      if (opened.ok()) {
+        w = std::move(*opened);
+        if (op != Operation::kFirstCommit) ops.Arm(k, StepFileOps::Action::kFail, error);
+        st = Run(*w, op, &report, &after);
+      } else {
+        st = opened.status();
+      }
       const bool fired = ops.fired() != nullptr;
+      const std::string step = fired ? ops.fired() : "";
       ops.Disarm();
       if (fired) {
         ++failed;
-        ASSERT_FALSE(st.ok()) << "a failed " << ops.fired() << " was not reported";
-        EXPECT_NE(st.message().find(store), std::string::npos) << st.ToString();
-        EXPECT_NE(st.message().find(std::strerror(error)), std::string::npos) << st.ToString();
-        // A compaction's relink of the store file comes after its commit point: the compaction stands
-        // (the same objects), and the relink is done again by the next compaction or writer.
-        const bool relink =
-            op == Operation::kCompact && (st.message().find(".relink") != std::string::npos ||
-                                          st.message().find("compacted") != std::string::npos);
-        relinks += relink;
+        // Where the store must be: at the revision before, but when the commit stood and its threshold's
+        // compaction failed, and past a compaction's relink of the store file, which follows its commit
+        // point (the compaction stands, the same objects; the next compaction or writer relinks).
+        uint64_t at = pristine_.revision;
+        LiveSet live = pristine_.live;
+        std::string message = st.ToString();
+        if (st.ok()) {
+          ASSERT_EQ(op, Operation::kCommitThenCompaction) << "a failed " << step << " was not reported";
+          EXPECT_FALSE(report.compacted);
+          message = report.compaction_error;
+          ASSERT_NE(message, "") << "a failed " << step << " was not reported";
+          at = pristine_.revision + 1;
+          live = after;
+        }
+        EXPECT_NE(message.find(store), std::string::npos) << message;
+        EXPECT_NE(message.find(std::strerror(error)), std::string::npos) << message;
+        if (message.find(".relink") != std::string::npos ||
+            message.find("compacted store") != std::string::npos) {
+          ++relinks;
+          ++at;
+        }
         {
           auto db = Database::Open(store);
           ASSERT_TRUE(db.ok()) << db.status().ToString();
-          ASSERT_EQ((*db)->revision(), pristine_.revision + relink) << "after " << st.ToString();
-          ASSERT_NO_FATAL_FAILURE(
-              testing::ExpectIntact(**db, pristine_.live, pristine_.origin, queries_, where));
+          ASSERT_EQ((*db)->revision(), at) << "after " << message;
+          ASSERT_NO_FATAL_FAILURE(testing::ExpectIntact(**db, live, pristine_.origin, queries_, where));
         }
-        const Status again = Run(**w, op, &after);
-        ASSERT_TRUE(again.ok()) << again.ToString();
+        // The next try: the same writer (a new one when its Open failed) and the same call, or the
+        // compaction alone when the commit stood.
+        if (!w) {
+          auto again = OpenChangeWriter(store, Options(op), ops);
+          ASSERT_TRUE(again.ok()) << again.status().ToString();
+          w = std::move(*again);
+        }
+        if (st.ok()) {
+          auto c = w->Compact();
+          ASSERT_TRUE(c.ok()) << c.status().ToString();
+        } else {
+          const Status again = Run(*w, op, &report, &after);
+          ASSERT_TRUE(again.ok()) << again.ToString();
+        }
       } else {
         ASSERT_TRUE(st.ok()) << st.ToString();
       }
-      ASSERT_EQ((*w)->revision(), pristine_.revision + 1);
-      w->reset();
+      if (op == Operation::kCommitThenCompaction && !st.ok()) {
+        EXPECT_TRUE(report.compacted);
+      }
+      ASSERT_EQ(w->revision(), last);
+      w.reset();
       EXPECT_EQ(testing::FolderProblems(store, false), std::vector<std::string>{});
       auto db = Database::Open(store);
       ASSERT_TRUE(db.ok()) << db.status().ToString();
-      ASSERT_EQ((*db)->revision(), pristine_.revision + 1);
+      ASSERT_EQ((*db)->revision(), last);
       ASSERT_NO_FATAL_FAILURE(
           testing::ExpectIntact(**db, after, pristine_.origin, queries_, where + ", after"));
       if (!fired) break;
     }
     EXPECT_GT(failed, 0u);
-    EXPECT_EQ(relinks, op == Operation::kCompact ? 2u : 0u);  // the relink's rename and folder fsync
+    // The relink's rename and its folder fsync.
+    EXPECT_EQ(relinks, op == Operation::kCompact || op == Operation::kCommitThenCompaction ? 2u : 0u);
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    std::cout << "  " << (op == Operation::kCommit ? "commit" : "compaction") << ", " << std::strerror(error)
-              << " at each of " << failed << " steps: " << seconds << " s\n";
+    std::cout << "  " << OperationName(op) << ", " << std::strerror(error) << " at each of " << failed
+              << " steps: " << seconds << " s\n";
   }
 
   testing::TempDir dir_{"mktree_write_fault"};
@@ -106,10 +167,30 @@ class WriteFault : public ::testing::TestWithParam<Backend> {
   ChangeOptions options_{.compact_threshold = 0, .threads = 1};
 };
 
-TEST_P(WriteFault, FullDiskDuringACommit) { FailAtEveryStep(Operation::kCommit, ENOSPC); }
-TEST_P(WriteFault, IoErrorDuringACommit) { FailAtEveryStep(Operation::kCommit, EIO); }
-TEST_P(WriteFault, FullDiskDuringACompaction) { FailAtEveryStep(Operation::kCompact, ENOSPC); }
-TEST_P(WriteFault, IoErrorDuringACompaction) { FailAtEveryStep(Operation::kCompact, EIO); }
+TEST_P(WriteFault, FullDiskDuringACommit) {
+  ASSERT_NO_FATAL_FAILURE(Prepare(3));
+  FailAtEveryStep(Operation::kCommit, ENOSPC);
+}
+TEST_P(WriteFault, IoErrorDuringACommit) {
+  ASSERT_NO_FATAL_FAILURE(Prepare(3));
+  FailAtEveryStep(Operation::kCommit, EIO);
+}
+TEST_P(WriteFault, FullDiskDuringACompaction) {
+  ASSERT_NO_FATAL_FAILURE(Prepare(3));
+  FailAtEveryStep(Operation::kCompact, ENOSPC);
+}
+TEST_P(WriteFault, IoErrorDuringACompaction) {
+  ASSERT_NO_FATAL_FAILURE(Prepare(3));
+  FailAtEveryStep(Operation::kCompact, EIO);
+}
+TEST_P(WriteFault, FullDiskDuringACommitThenItsCompaction) {
+  ASSERT_NO_FATAL_FAILURE(Prepare(3));
+  FailAtEveryStep(Operation::kCommitThenCompaction, ENOSPC);
+}
+TEST_P(WriteFault, FullDiskDuringTheFirstCommitOfABuiltStore) {
+  ASSERT_NO_FATAL_FAILURE(Prepare(0));
+  FailAtEveryStep(Operation::kFirstCommit, ENOSPC);
+}
 
 // Fails every rename onto the store file while armed: the relink of the store to a compacted base.
 class FailingRelink : public FileOps {
@@ -135,6 +216,7 @@ class FailingRelink : public FileOps {
 // store keeps: the store file is still the old base, so the revisions of that base must stay until a
 // relink succeeds, or the store would open as its old base alone and the next writer start it anew.
 TEST_P(WriteFault, AFailedRelinkAfterACompactionLosesNothing) {
+  ASSERT_NO_FATAL_FAILURE(Prepare(3));
   const std::string store = dir_.file("run/s.mkt");
   testing::CopyStore(pristine_.path, store);
   FailingRelink ops(store);
