@@ -400,7 +400,7 @@ Status Writer::MergeDeltas(RevisionManifest* m) {
     o.cache_pages = kWriterCachePages;
     MKTREE_ASSIGN_OR_RETURN(std::vector<RevisionPartDb> parts, OpenRevisionParts(store_, *m, o, &parts_));
     const size_t n = parts.size();
-    LiveObjectStream live({&parts[n - 2], &parts[n - 1]});
+    LiveObjectStream live({&parts[n - 2], &parts[n - 1]}, 0, folder_, ops_);
     IdOrderedObjects next = [&](SceneObject* out) { return live.Next(out); };
     const uint64_t live_count = parts[n - 2].db->object_count() - parts[n - 2].hidden_count +
                                 parts[n - 1].db->object_count() - parts[n - 1].hidden_count;
@@ -446,7 +446,7 @@ Result<CompactReport> Writer::CompactUnguarded() {
   if (!head_.deltas.empty() || !head_.removals.empty()) {
     std::vector<const RevisionPartDb*> all;
     for (const RevisionPartDb& p : parts_) all.push_back(&p);
-    LiveObjectStream live(all);
+    LiveObjectStream live(all, 1, folder_, ops_);
     IdOrderedObjects next = [&](SceneObject* out) { return live.Next(out); };
     PartBuild b = Part(NewPartName("base", rev), rev);
     b.identity_ids = true;
