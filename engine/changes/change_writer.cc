@@ -110,7 +110,6 @@ class Writer final : public ChangeWriter {
   Result<CompactReport> CompactUnguarded();
   Status ResolveBatch(const ChangeBatch& batch, std::vector<ObjectId>* removed,
                       std::vector<SceneObject>* written, uint64_t* replaced) const;
-  std::optional<std::pair<size_t, ObjectId>> LiveAt(ObjectId id) const;
   Result<std::unordered_map<std::string, std::vector<ObjectId>>> LiveNames(
       const std::set<std::string>& wanted) const;
   Result<RevisionIdList> WriteIdList(const std::string& name, uint64_t made_at, std::vector<ObjectId> ids);
@@ -208,22 +207,6 @@ Status Writer::OpenHead() {
   return Status::Ok();
 }
 
-std::optional<std::pair<size_t, ObjectId>> Writer::LiveAt(ObjectId id) const {
-  for (size_t p = parts_.size(); p-- > 0;) {
-    const RevisionPartDb& part = parts_[p];
-    std::optional<ObjectId> local;
-    if (part.ids.empty()) {
-      if (id < part.db->object_count()) local = id;
-    } else {
-      local = LocalIdOf(part.ids, id);
-    }
-    if (!local) continue;
-    if (part.hidden[*local]) return std::nullopt;
-    return std::pair{p, *local};
-  }
-  return std::nullopt;
-}
-
 // The live ids of each wanted name: one pass over the live objects' records.
 Result<std::unordered_map<std::string, std::vector<ObjectId>>> Writer::LiveNames(
     const std::set<std::string>& wanted) const {
@@ -248,7 +231,7 @@ Status Writer::ResolveBatch(const ChangeBatch& batch, std::vector<ObjectId>* rem
   MKTREE_ASSIGN_OR_RETURN(const auto by_name, LiveNames(names));
   std::set<ObjectId> used;
   auto claim = [&](ObjectId id, const std::string& what) -> Status {
-    if (!LiveAt(id))
+    if (!FindLive(parts_, id))
       return Status::InvalidArgument(store_ + ": " + what + ": no object " + std::to_string(id) +
                                      " at revision " + std::to_string(head_.revision) +
                                      " (removed, or never added)");

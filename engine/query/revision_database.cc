@@ -12,6 +12,7 @@
 #include "engine/clash/pair_rules.h"
 #include "engine/core/guarded.h"
 #include "engine/query/ordered_batch.h"
+#include "engine/query/part_queries.h"
 #include "engine/store_format/store_file.h"
 
 namespace mktree {
@@ -46,15 +47,6 @@ Result<std::vector<ObjectId>> ReadIdFile(const std::string& folder, const Revisi
   return ids;
 }
 
-bool FiniteQuery(const Query& q) {
-  if (q.kind == Query::Kind::kPoint)
-    return std::isfinite(q.point.x) && std::isfinite(q.point.y) && std::isfinite(q.point.z);
-  for (int i = 0; i < 3; ++i)
-    if (!std::isfinite(q.box.min[i]) || !std::isfinite(q.box.max[i]) || q.box.min[i] > q.box.max[i])
-      return false;
-  return true;
-}
-
 // Marks hidden[i] for the part's ids found in `gone` (sorted): a merge walk, as both are increasing.
 uint64_t MarkHidden(RevisionPartDb* part, const std::vector<ObjectId>& gone) {
   const uint64_t n = part->db->object_count();
@@ -86,7 +78,7 @@ class RevisionDatabase final : public Database {
       stats_json_ += (p ? ", " : "") + db.stats_json();
       const double opp = db.objects_per_page();
       if (opp > 0) pages += static_cast<double>(db.object_count()) / opp;
-      if (db.object_count() > 0) bounds_ = p == 0 ? db.bounds() : Union(bounds_, db.bounds());
+      if (db.object_count() > 0) bounds_ = p == 0 ? db.bounds() : UnionBox(bounds_, db.bounds());
       clash_parts_.push_back(ClashPart{&db.leaves(), parts_[p].ids.empty() ? nullptr : &parts_[p].ids,
                                        parts_[p].hidden_count ? &parts_[p].hidden : nullptr});
     }
@@ -174,28 +166,9 @@ class RevisionDatabase final : public Database {
   const std::string& stats_json() const override { return stats_json_; }
 
  private:
-  static Box3d Union(Box3d a, const Box3d& b) {
-    for (int i = 0; i < 3; ++i) {
-      a.min[i] = std::min(a.min[i], b.min[i]);
-      a.max[i] = std::max(a.max[i], b.max[i]);
-    }
-    return a;
-  }
-
   // The part where `id` is live, and its local id there.
   Result<std::pair<size_t, ObjectId>> Locate(ObjectId id) const {
-    for (size_t p = parts_.size(); p-- > 0;) {
-      const RevisionPartDb& part = parts_[p];
-      std::optional<ObjectId> local;
-      if (part.ids.empty()) {
-        if (id < part.db->object_count()) local = id;
-      } else {
-        local = LocalIdOf(part.ids, id);
-      }
-      if (!local) continue;
-      if (part.hidden[*local]) break;  // removed, or superseded by a later part (found first)
-      return std::pair{p, *local};
-    }
+    if (auto at = FindLive(parts_, id)) return *at;
     return Status::InvalidArgument(path_ + ": no object " + std::to_string(id) + " at revision " +
                                    std::to_string(revision()) + " (removed, or never added)");
   }
@@ -221,21 +194,15 @@ Status RevisionDatabase::Collide(const Mesh& mesh, const std::optional<RigidTran
     for (const ClashPart& part : clash_parts_) {
       ClashOptions so = o;
       so.max_pairs = std::numeric_limits<uint64_t>::max();
-      uint64_t reported = 0, capped = 0;
       ClashStats st;
+      PartPairCap cap(total, o.max_pairs);
       MKTREE_RETURN_IF_ERROR(RunCollide(
           part, mesh, transform, so,
           [&](const ClashPair& p) {
-            if (total.reported_pairs + reported >= o.max_pairs) {
-              ++capped;
-              return;
-            }
-            ++reported;
-            if (visit) visit(p);
+            if (cap.Take() && visit) visit(p);
           },
           &st));
-      st.reported_pairs = reported;
-      st.capped_pairs = capped;
+      cap.Fill(&st);
       AddClashStats(&total, st);
     }
     total.total_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -255,9 +222,7 @@ Status RevisionDatabase::RunBatchStreamed(const QuerySource& source, const Batch
       r->stats.Reset();
       r->truncated = false;
       if (!FiniteQuery(q)) return Status::InvalidArgument("query with a non-finite coordinate or min > max");
-      BatchOptions one;
-      one.threads = 1;
-      one.cold = options.cold;
+      BatchOptions one = options;
       one.ids = true;  // hidden ids must be seen to be dropped
       uint64_t emitted = 0;
       for (const RevisionPartDb& part : parts_) {
@@ -265,29 +230,19 @@ Status RevisionDatabase::RunBatchStreamed(const QuerySource& source, const Batch
         // A part with hidden objects may answer more ids than it counts: it runs without the limit.
         pq.limit =
             part.hidden_count ? Query::kNoLimit : (q.limit == Query::kNoLimit ? q.limit : q.limit - emitted);
-        bool given = false;
-        MKTREE_RETURN_IF_ERROR(part.db->RunBatchStreamed(
-            [&](Query* next) -> Result<bool> {
-              if (given) return false;
-              given = true;
-              *next = pq;
-              return true;
-            },
-            one,
-            [&](uint64_t, const QueryResult& pr) {
-              r->stats += pr.stats;
-              for (ObjectId local : pr.hits) {
-                if (part.hidden[local]) continue;
-                if (emitted == q.limit) {
-                  r->truncated = true;
-                  break;
-                }
-                ++emitted;
-                if (options.ids) r->hits.push_back(part.global(local));
-              }
-              if (pr.truncated) r->truncated = true;
-              return Status::Ok();
-            }));
+        MKTREE_RETURN_IF_ERROR(RunOneOnStore(*part.db, pq, one, [&](const QueryResult& pr) {
+          r->stats += pr.stats;
+          for (ObjectId local : pr.hits) {
+            if (part.hidden[local]) continue;
+            if (emitted == q.limit) {
+              r->truncated = true;
+              break;
+            }
+            ++emitted;
+            if (options.ids) r->hits.push_back(part.global(local));
+          }
+          if (pr.truncated) r->truncated = true;
+        }));
         if (r->truncated) break;
       }
       r->stats.hits = emitted;
@@ -369,6 +324,22 @@ Result<std::vector<RevisionPartDb>> OpenRevisionParts(const std::string& store_p
                               std::to_string(live) + " live objects in its stores, the revision says " +
                               std::to_string(m.live));
   return parts;
+}
+
+std::optional<std::pair<size_t, ObjectId>> FindLive(const std::vector<RevisionPartDb>& parts, ObjectId id) {
+  for (size_t p = parts.size(); p-- > 0;) {  // the newest part holding the id has its live version
+    const RevisionPartDb& part = parts[p];
+    std::optional<ObjectId> local;
+    if (part.ids.empty()) {
+      if (id < part.db->object_count()) local = id;
+    } else {
+      local = LocalIdOf(part.ids, id);
+    }
+    if (!local) continue;
+    if (part.hidden[*local]) return std::nullopt;  // removed (a superseded copy is found after the live one)
+    return std::pair{p, *local};
+  }
+  return std::nullopt;
 }
 
 const RevisionManifest* RevisionManifestOf(const Database& db) {

@@ -7,7 +7,9 @@
 #pragma once
 
 #include <memory>
+#include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "engine/query/store_database.h"
@@ -24,6 +26,9 @@ struct RevisionPartDb {
   uint64_t hidden_count = 0;
   ObjectId global(ObjectId local) const { return ids.empty() ? local : ids[local]; }
 };
+
+// The part of `parts` where `id` is live and its local id there; none when it is removed or never given.
+std::optional<std::pair<size_t, ObjectId>> FindLive(const std::vector<RevisionPartDb>& parts, ObjectId id);
 
 // The parts of revision `m` in the changes folder of `store_path`, each file checked against the manifest
 // (size, fingerprint, id file of this store's history), with the hidden objects marked. Each part gets

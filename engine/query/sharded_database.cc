@@ -16,6 +16,7 @@
 #include "engine/clash/pair_rules.h"
 #include "engine/core/guarded.h"
 #include "engine/query/ordered_batch.h"
+#include "engine/query/part_queries.h"
 #include "engine/query/shard_open.h"
 #include "engine/query/store_database.h"
 #include "engine/shard/manifest.h"
@@ -24,15 +25,6 @@
 namespace mktree {
 
 namespace {
-
-bool FiniteQuery(const Query& q) {
-  if (q.kind == Query::Kind::kPoint)
-    return std::isfinite(q.point.x) && std::isfinite(q.point.y) && std::isfinite(q.point.z);
-  for (int i = 0; i < 3; ++i)
-    if (!std::isfinite(q.box.min[i]) || !std::isfinite(q.box.max[i]) || q.box.min[i] > q.box.max[i])
-      return false;
-  return true;
-}
 
 class ShardedDatabase final : public Database {
  public:
@@ -56,7 +48,7 @@ class ShardedDatabase final : public Database {
       stats_json_ += (s ? ", " : "") + shards_[s]->stats_json();
       const double opp = shards_[s]->objects_per_page();
       if (opp > 0) pages += static_cast<double>(shards_[s]->object_count()) / opp;
-      bounds_ = Union(bounds_, shards_[s]->bounds());
+      bounds_ = UnionBox(bounds_, shards_[s]->bounds());
     }
     stats_json_ += "]}";
     objects_per_page_ = pages > 0 ? static_cast<double>(m_.objects) / pages : 0;
@@ -138,14 +130,6 @@ class ShardedDatabase final : public Database {
   const std::string& stats_json() const override { return stats_json_; }
 
  private:
-  static Box3d Union(Box3d a, const Box3d& b) {
-    for (int i = 0; i < 3; ++i) {
-      a.min[i] = std::min(a.min[i], b.min[i]);
-      a.max[i] = std::max(a.max[i], b.max[i]);
-    }
-    return a;
-  }
-
   // The shards whose root boxes the query meets, in shard order, in the store frame (the same
   // subtraction as the shards' own routing, so a point on a face stays on it).
   std::vector<uint32_t> Route(const Query& q, QueryStats* stats) const {
@@ -255,22 +239,17 @@ Status ShardedDatabase::Collide(const Mesh& mesh, const std::optional<RigidTrans
       ClashOptions so = o;
       so.max_pairs = std::numeric_limits<uint64_t>::max();
       if (o.exclude) so.exclude = [&](ObjectId a, ObjectId b) { return o.exclude(ids[a], b); };
-      uint64_t reported = 0, capped = 0;
+      PartPairCap cap(total, o.max_pairs);
       MKTREE_RETURN_IF_ERROR(shards_[s]->Collide(
           mesh, transform, so,
           [&](const ClashPair& p) {
-            if (total.reported_pairs + reported >= o.max_pairs) {
-              ++capped;
-              return;
-            }
-            ++reported;
+            if (!cap.Take()) return;
             ClashPair g = p;
             g.a = ids[p.a];
             if (visit) visit(g);
           },
           &st));
-      st.reported_pairs = reported;
-      st.capped_pairs = capped;
+      cap.Fill(&st);
       AddClashStats(&total, st);
     }
     total.total_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -290,31 +269,17 @@ Status ShardedDatabase::RunBatchStreamed(const QuerySource& source, const BatchO
       r->stats.Reset();
       r->truncated = false;
       if (!FiniteQuery(q)) return Status::InvalidArgument("query with a non-finite coordinate or min > max");
-      BatchOptions one;
-      one.threads = 1;
-      one.cold = options.cold;
-      one.ids = options.ids;
       uint64_t remaining = q.limit;
       for (uint32_t s : Route(q, &r->stats)) {
         Query sq = q;
         sq.limit = remaining;
-        bool given = false;
         uint64_t got = 0;
-        MKTREE_RETURN_IF_ERROR(shards_[s]->RunBatchStreamed(
-            [&](Query* next) -> Result<bool> {
-              if (given) return false;
-              given = true;
-              *next = sq;
-              return true;
-            },
-            one,
-            [&](uint64_t, const QueryResult& sr) {
-              for (ObjectId local : sr.hits) r->hits.push_back(ids_[s][local]);
-              r->stats += sr.stats;
-              got = sr.stats.hits;
-              r->truncated = sr.truncated;
-              return Status::Ok();
-            }));
+        MKTREE_RETURN_IF_ERROR(RunOneOnStore(*shards_[s], sq, options, [&](const QueryResult& sr) {
+          for (ObjectId local : sr.hits) r->hits.push_back(ids_[s][local]);
+          r->stats += sr.stats;
+          got = sr.stats.hits;
+          r->truncated = sr.truncated;
+        }));
         if (r->truncated) break;
         if (remaining != Query::kNoLimit) remaining -= got;
       }

@@ -1,0 +1,46 @@
+#include "engine/query/part_queries.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace mktree {
+
+bool FiniteQuery(const Query& q) {
+  if (q.kind == Query::Kind::kPoint)
+    return std::isfinite(q.point.x) && std::isfinite(q.point.y) && std::isfinite(q.point.z);
+  for (int i = 0; i < 3; ++i)
+    if (!std::isfinite(q.box.min[i]) || !std::isfinite(q.box.max[i]) || q.box.min[i] > q.box.max[i])
+      return false;
+  return true;
+}
+
+Box3d UnionBox(Box3d a, const Box3d& b) {
+  for (int i = 0; i < 3; ++i) {
+    a.min[i] = std::min(a.min[i], b.min[i]);
+    a.max[i] = std::max(a.max[i], b.max[i]);
+  }
+  return a;
+}
+
+Status RunOneOnStore(const StoreDatabase& db, const Query& q, const BatchOptions& options,
+                     const std::function<void(const QueryResult&)>& got) {
+  BatchOptions one;
+  one.threads = 1;
+  one.cold = options.cold;
+  one.ids = options.ids;
+  bool given = false;
+  return db.RunBatchStreamed(
+      [&](Query* next) -> Result<bool> {
+        if (given) return false;
+        given = true;
+        *next = q;
+        return true;
+      },
+      one,
+      [&](uint64_t, const QueryResult& r) {
+        got(r);
+        return Status::Ok();
+      });
+}
+
+}  // namespace mktree
