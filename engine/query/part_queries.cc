@@ -2,6 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
+#include <thread>
+
+#include "engine/query/ordered_batch.h"
 
 namespace mktree {
 
@@ -41,6 +45,22 @@ Status RunOneOnStore(const StoreDatabase& db, const Query& q, const BatchOptions
         got(r);
         return Status::Ok();
       });
+}
+
+Status RunQueriesOneByOne(const std::string& path, const QuerySource& source, const BatchOptions& options,
+                          const ResultVisitor& deliver, const OneQuery& one) {
+  const unsigned threads =
+      options.threads ? options.threads : std::max(1u, std::thread::hardware_concurrency());
+  const uint64_t window = options.window ? options.window : 4 * uint64_t{threads};
+  auto run = [&](const Query& q, const void*, QueryResult* r) -> Status {
+    r->hits.clear();
+    r->stats.Reset();
+    r->truncated = false;
+    if (!FiniteQuery(q)) return Status::InvalidArgument("query with a non-finite coordinate or min > max");
+    return one(q, r);
+  };
+  auto no_worker = [] { return std::unique_ptr<NoWorker>(); };
+  return RunOrderedBatch<NoWorker>(source, threads, window, path, no_worker, run, deliver);
 }
 
 }  // namespace mktree

@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <string>
 
 #include "engine/query/store_database.h"
 #include "mktree/clash.h"
@@ -21,6 +22,13 @@ Box3d UnionBox(Box3d a, const Box3d& b);
 // options.ids), its result handed to `got`.
 Status RunOneOnStore(const StoreDatabase& db, const Query& q, const BatchOptions& options,
                      const std::function<void(const QueryResult&)>& got);
+
+// A batch over several stores (Database::RunBatchStreamed): options.threads workers (0: one per core), a
+// window of options.window results (0: 4 a thread), results delivered in query order. `one` answers a
+// finite query into a result already reset; a non-finite one is InvalidArgument without calling it.
+using OneQuery = std::function<Status(const Query& q, QueryResult* r)>;
+Status RunQueriesOneByOne(const std::string& path, const QuerySource& source, const BatchOptions& options,
+                          const ResultVisitor& deliver, const OneQuery& one);
 
 // The caller's ClashOptions::max_pairs across the parts of one collide: a part's pairs are counted against
 // what the parts before it reported (`total`).

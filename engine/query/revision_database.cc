@@ -213,15 +213,8 @@ Status RevisionDatabase::Collide(const Mesh& mesh, const std::optional<RigidTran
 Status RevisionDatabase::RunBatchStreamed(const QuerySource& source, const BatchOptions& options,
                                           const ResultVisitor& deliver) const {
   return Guarded(path_, [&]() -> Status {
-    const unsigned threads =
-        options.threads ? options.threads : std::max(1u, std::thread::hardware_concurrency());
-    const uint64_t window = options.window ? options.window : 4 * uint64_t{threads};
     // One query: each part runs it as a batch of one (cold: on its own empty cache); hidden ids dropped.
-    auto run = [&](const Query& q, const void*, QueryResult* r) -> Status {
-      r->hits.clear();
-      r->stats.Reset();
-      r->truncated = false;
-      if (!FiniteQuery(q)) return Status::InvalidArgument("query with a non-finite coordinate or min > max");
+    return RunQueriesOneByOne(path_, source, options, deliver, [&](const Query& q, QueryResult* r) -> Status {
       BatchOptions one = options;
       one.ids = true;  // hidden ids must be seen to be dropped
       uint64_t emitted = 0;
@@ -248,9 +241,7 @@ Status RevisionDatabase::RunBatchStreamed(const QuerySource& source, const Batch
       r->stats.hits = emitted;
       std::sort(r->hits.begin(), r->hits.end());
       return Status::Ok();
-    };
-    auto no_worker = [] { return std::unique_ptr<NoWorker>(); };
-    return RunOrderedBatch<NoWorker>(source, threads, window, path_, no_worker, run, deliver);
+    });
   });
 }
 

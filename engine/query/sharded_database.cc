@@ -260,15 +260,8 @@ Status ShardedDatabase::Collide(const Mesh& mesh, const std::optional<RigidTrans
 Status ShardedDatabase::RunBatchStreamed(const QuerySource& source, const BatchOptions& options,
                                          const ResultVisitor& deliver) const {
   return Guarded(path_, [&]() -> Status {
-    const unsigned threads =
-        options.threads ? options.threads : std::max(1u, std::thread::hardware_concurrency());
-    const uint64_t window = options.window ? options.window : 4 * uint64_t{threads};
     // One query: each routed shard runs it as a batch of one (cold: on its own empty cache), ids mapped.
-    auto run = [&](const Query& q, const void*, QueryResult* r) -> Status {
-      r->hits.clear();
-      r->stats.Reset();
-      r->truncated = false;
-      if (!FiniteQuery(q)) return Status::InvalidArgument("query with a non-finite coordinate or min > max");
+    return RunQueriesOneByOne(path_, source, options, deliver, [&](const Query& q, QueryResult* r) -> Status {
       uint64_t remaining = q.limit;
       for (uint32_t s : Route(q, &r->stats)) {
         Query sq = q;
@@ -285,9 +278,7 @@ Status ShardedDatabase::RunBatchStreamed(const QuerySource& source, const BatchO
       }
       std::sort(r->hits.begin(), r->hits.end());
       return Status::Ok();
-    };
-    auto no_worker = [] { return std::unique_ptr<NoWorker>(); };
-    return RunOrderedBatch<NoWorker>(source, threads, window, path_, no_worker, run, deliver);
+    });
   });
 }
 
