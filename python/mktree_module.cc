@@ -478,6 +478,70 @@ std::unique_ptr<PyWriter> OpenWriter(const py::object& path, double compact_thre
   }()));
 }
 
+// mktree.open and mktree.build.
+void DefineOpenAndBuild(py::module_& m) {
+  m.def(
+      "open",
+      [](const py::object& path, uint64_t cache_pages, bool verify_checksums, bool direct_io,
+         std::optional<uint64_t> revision) {
+        OpenOptions o;
+        o.cache_pages = cache_pages;
+        o.verify_checksums = verify_checksums;
+        o.direct_io = direct_io;
+        o.revision = revision;
+        const std::string p = PathText(path);
+        return Take([&] {
+          py::gil_scoped_release nogil;
+          return Database::Open(p, o);
+        }());
+      },
+      py::arg("path"), py::arg("cache_pages") = 4096, py::arg("verify_checksums") = true,
+      py::arg("direct_io") = false, py::arg("revision") = py::none(),
+      "Opens a store (HDF5 or paged file) for queries, at `revision` (None: the newest) while the store "
+      "keeps it");
+
+  m.def("build", &Build, py::arg("path"), py::arg("objects") = py::none(), py::arg("files") = py::none(),
+        py::kw_only(), py::arg("backend") = "hdf5", py::arg("codec") = "zstd", py::arg("zstd_level") = 3,
+        py::arg("block_size") = 4096, py::arg("blocks_per_page") = 3, py::arg("balance_r") = 0.3,
+        py::arg("split_budget") = 64, py::arg("split_policy") = "compact", py::arg("threads") = 0,
+        py::arg("spill_dir") = py::none(), py::arg("progress") = py::none(),
+        "Builds the store at `path` from `objects` (an iterable of dicts or objects with vertices (n, 3), "
+        "faces (m, 3), optional name and attributes) or `files` (a path or a list: any format mktree "
+        "build reads, or 'tanker:N:SEED'). Returns the build statistics as a dict.");
+}
+
+// The change API (mktree/changes.h): the Writer class, open_writer and log.
+void DefineChanges(py::module_& m) {
+  py::class_<PyWriter>(m, "Writer", "The one writer of a store (mktree.open_writer); one thread at a time")
+      .def("commit", &PyWriter::Commit, py::kw_only(), py::arg("add") = py::none(),
+           py::arg("remove") = py::none(), py::arg("remove_names") = py::none(),
+           py::arg("replace") = py::none(), py::arg("message") = "",
+           "Commits one batch, all or nothing, as one new revision: `add` objects (as build takes them) get "
+           "new ids; `remove` ids and every live object of each of `remove_names` go; each object of "
+           "`replace` replaces the object of its 'id', or without one the one live object of its name. "
+           "Returns a dict: revision, added, removed, replaced, added_ids, objects, compacted, "
+           "compaction_error, seconds")
+      .def("compact", &PyWriter::Compact, py::kw_only(), py::arg("keep") = py::none(),
+           "Folds every change into a new base now (after set_keep(keep) if given). Returns a dict: "
+           "revision, objects, folded, retired, bytes_freed, seconds")
+      .def("set_keep", &PyWriter::SetKeep, py::arg("keep"),
+           "How many of the newest revisions the store keeps from the next commit or compaction on")
+      .def_property_readonly("revision", &PyWriter::revision, "The newest committed revision")
+      .def_property_readonly("closed", &PyWriter::closed)
+      .def("close", &PyWriter::Close, "Releases the store's writer lock")
+      .def(
+          "__enter__", [](PyWriter& w) -> PyWriter& { return w; }, py::return_value_policy::reference)
+      .def("__exit__", [](PyWriter& w, py::args) { w.Close(); });
+
+  m.def(
+      "open_writer", &OpenWriter, py::arg("path"), py::kw_only(), py::arg("compact_threshold") = 0.25,
+      py::arg("threads") = 0,
+      "Opens the one writer of a store (a second, in this process or another, raises mktree.Error at once)");
+  m.def("log", &Log, py::arg("path"),
+        "The revisions the store keeps, oldest first: dicts with revision, time (seconds since the epoch), "
+        "added, removed, replaced, objects, compaction, message");
+}
+
 }  // namespace
 }  // namespace mktree
 
@@ -624,61 +688,6 @@ PYBIND11_MODULE(mktree, m) {
                std::to_string(db.object_count()) + " objects>";
       });
 
-  m.def(
-      "open",
-      [](const py::object& path, uint64_t cache_pages, bool verify_checksums, bool direct_io,
-         std::optional<uint64_t> revision) {
-        OpenOptions o;
-        o.cache_pages = cache_pages;
-        o.verify_checksums = verify_checksums;
-        o.direct_io = direct_io;
-        o.revision = revision;
-        const std::string p = PathText(path);
-        return Take([&] {
-          py::gil_scoped_release nogil;
-          return Database::Open(p, o);
-        }());
-      },
-      py::arg("path"), py::arg("cache_pages") = 4096, py::arg("verify_checksums") = true,
-      py::arg("direct_io") = false, py::arg("revision") = py::none(),
-      "Opens a store (HDF5 or paged file) for queries, at `revision` (None: the newest) while the store "
-      "keeps it");
-
-  py::class_<PyWriter>(m, "Writer", "The one writer of a store (mktree.open_writer); one thread at a time")
-      .def("commit", &PyWriter::Commit, py::kw_only(), py::arg("add") = py::none(),
-           py::arg("remove") = py::none(), py::arg("remove_names") = py::none(),
-           py::arg("replace") = py::none(), py::arg("message") = "",
-           "Commits one batch, all or nothing, as one new revision: `add` objects (as build takes them) get "
-           "new ids; `remove` ids and every live object of each of `remove_names` go; each object of "
-           "`replace` replaces the object of its 'id', or without one the one live object of its name. "
-           "Returns a dict: revision, added, removed, replaced, added_ids, objects, compacted, "
-           "compaction_error, seconds")
-      .def("compact", &PyWriter::Compact, py::kw_only(), py::arg("keep") = py::none(),
-           "Folds every change into a new base now (after set_keep(keep) if given). Returns a dict: "
-           "revision, objects, folded, retired, bytes_freed, seconds")
-      .def("set_keep", &PyWriter::SetKeep, py::arg("keep"),
-           "How many of the newest revisions the store keeps from the next commit or compaction on")
-      .def_property_readonly("revision", &PyWriter::revision, "The newest committed revision")
-      .def_property_readonly("closed", &PyWriter::closed)
-      .def("close", &PyWriter::Close, "Releases the store's writer lock")
-      .def(
-          "__enter__", [](PyWriter& w) -> PyWriter& { return w; }, py::return_value_policy::reference)
-      .def("__exit__", [](PyWriter& w, py::args) { w.Close(); });
-
-  m.def(
-      "open_writer", &OpenWriter, py::arg("path"), py::kw_only(), py::arg("compact_threshold") = 0.25,
-      py::arg("threads") = 0,
-      "Opens the one writer of a store (a second, in this process or another, raises mktree.Error at once)");
-  m.def("log", &Log, py::arg("path"),
-        "The revisions the store keeps, oldest first: dicts with revision, time (seconds since the epoch), "
-        "added, removed, replaced, objects, compaction, message");
-
-  m.def("build", &Build, py::arg("path"), py::arg("objects") = py::none(), py::arg("files") = py::none(),
-        py::kw_only(), py::arg("backend") = "hdf5", py::arg("codec") = "zstd", py::arg("zstd_level") = 3,
-        py::arg("block_size") = 4096, py::arg("blocks_per_page") = 3, py::arg("balance_r") = 0.3,
-        py::arg("split_budget") = 64, py::arg("split_policy") = "compact", py::arg("threads") = 0,
-        py::arg("spill_dir") = py::none(), py::arg("progress") = py::none(),
-        "Builds the store at `path` from `objects` (an iterable of dicts or objects with vertices (n, 3), "
-        "faces (m, 3), optional name and attributes) or `files` (a path or a list: any format mktree "
-        "build reads, or 'tanker:N:SEED'). Returns the build statistics as a dict.");
+  DefineOpenAndBuild(m);
+  DefineChanges(m);
 }
