@@ -9,7 +9,7 @@
 #                    only units that add coverage and replay clean are added (--time 0 --merge: merge only)
 #   --timeout S      an input running longer is a finding (timeout-*; default 10)
 #   --rss-limit-mb M a process using more, or a single allocation larger, is a finding (oom-*; default 2048)
-#   target           obj obj_chunks mks queries store_open store_hdf5 leaf (default: all)
+#   target           obj obj_chunks mks queries store_open store_hdf5 leaf revision (default: all)
 #
 # Installs clang-14 and libclang-rt-14-dev (libFuzzer) when missing, then configures and builds build-fuzz
 # (MKTREE_BUILD_FUZZERS: ASan + UBSan + coverage) if needed.
@@ -36,7 +36,7 @@ merge=0
 timeout=10
 rss=2048
 targets=()
-all_targets=(obj obj_chunks mks queries store_open store_hdf5 leaf)
+all_targets=(obj obj_chunks mks queries store_open store_hdf5 leaf revision)
 while (($#)); do
   case $1 in
     --time) time_per_target=$2; shift 2 ;;

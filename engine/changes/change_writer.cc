@@ -37,6 +37,10 @@ double SecondsSince(Clock::time_point t) { return std::chrono::duration<double>(
 // sizes grow geometrically: a query visits O(log changes) of them, an object is rewritten O(log) times.
 constexpr uint64_t kMergeRatio = 2;
 
+// The writer's page cache over a revision's parts: it reads records and leaves in order (names, merges,
+// compaction), so a few pages do; a reader's default would add its 48 MiB to a compaction's peak.
+constexpr uint64_t kWriterCachePages = 256;
+
 Status FsyncFolder(const std::string& path, FileOps& ops) {
   const int fd = ::open(path.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
   if (fd < 0) return Status::IOError(path + ": open folder: " + storage_internal::ErrnoText(errno));
@@ -189,7 +193,7 @@ Status Writer::Initialize() {
 
 Status Writer::OpenHead() {
   OpenOptions o;
-  o.cache_pages = 4096;
+  o.cache_pages = kWriterCachePages;
   std::vector<RevisionPartDb> reuse = std::move(parts_);
   parts_.clear();
   MKTREE_ASSIGN_OR_RETURN(parts_, OpenRevisionParts(store_, head_, o, &reuse));
@@ -386,7 +390,7 @@ Status Writer::MergeDeltas(RevisionManifest* m) {
   while (m->deltas.size() >= 2 &&
          m->deltas[m->deltas.size() - 2].objects <= kMergeRatio * m->deltas.back().objects) {
     OpenOptions o;
-    o.cache_pages = 4096;
+    o.cache_pages = kWriterCachePages;
     MKTREE_ASSIGN_OR_RETURN(std::vector<RevisionPartDb> parts, OpenRevisionParts(store_, *m, o, &parts_));
     const size_t n = parts.size();
     LiveObjectStream live({&parts[n - 2], &parts[n - 1]});

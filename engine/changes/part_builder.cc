@@ -2,9 +2,14 @@
 
 #include <filesystem>
 #include <limits>
+#include <list>
+#include <unordered_map>
 
 #include "engine/revision/change_folder.h"
 #include "engine/shard/manifest.h"
+#include "engine/store_format/leaf_reader.h"
+#include "engine/store_format/record_codec.h"
+#include "storage/page_cache.h"
 
 namespace mktree {
 
@@ -70,33 +75,87 @@ Result<RevisionPart> BuildRevisionPart(const PartBuild& b, const IdOrderedObject
   return part;
 }
 
-LiveObjectStream::LiveObjectStream(const std::vector<const RevisionPartDb*>& parts)
-    : parts_(parts), cursor_(parts.size(), 0) {}
+// One part's place in the stream, its record cache and its recently parsed leaves.
+struct LiveObjectStream::Cursor {
+  static constexpr size_t kLeaves = 16;
+  static constexpr size_t kRecordPages = 64;
+  struct Leaf {
+    uint32_t leaf = 0;
+    PinnedLeaf pinned;
+    std::unordered_map<ObjectId, uint32_t> position;  // local id -> entry
+  };
+  explicit Cursor(const RevisionPartDb& p)
+      : part(p),
+        record_pages(&p.db->reader().pages(), kRecordPages),
+        records(p.db->reader().record_layout(), &record_pages, true) {}
+
+  // The leaf `leaf`, parsed; most recently used first.
+  Result<const Leaf*> LeafOf(uint32_t leaf) {
+    for (auto it = leaves.begin(); it != leaves.end(); ++it) {
+      if (it->leaf != leaf) continue;
+      leaves.splice(leaves.begin(), leaves, it);
+      return &leaves.front();
+    }
+    MKTREE_ASSIGN_OR_RETURN(PinnedLeaf pinned, part.db->leaves().Read(leaf, nullptr));
+    Leaf l;
+    l.leaf = leaf;
+    l.pinned = std::move(pinned);
+    const auto& entries = l.pinned.view.entries();
+    for (uint32_t i = 0; i < entries.size(); ++i) l.position[entries[i].id] = i;
+    leaves.push_front(std::move(l));
+    if (leaves.size() > kLeaves) leaves.pop_back();
+    return &leaves.front();
+  }
+
+  Status Read(ObjectId local, SceneObject* out) {
+    const StoreReader& reader = part.db->reader();
+    MKTREE_ASSIGN_OR_RETURN(const StoredRecord* r, records.Get(local, nullptr));  // a group decoded once
+    MKTREE_ASSIGN_OR_RETURN(out->source, reader.SourceName(*r));
+    out->name = r->name;
+    out->attributes = r->attributes;
+    const uint32_t leaf = r->leaf;
+    MKTREE_ASSIGN_OR_RETURN(const Leaf* l, LeafOf(leaf));
+    auto at = l->position.find(local);
+    if (at == l->position.end())
+      return Status::Corruption(reader.path() + ": object " + std::to_string(local) +
+                                ": its record puts it in leaf " + std::to_string(leaf) +
+                                ", which does not hold it");
+    out->mesh = Mesh();
+    MKTREE_RETURN_IF_ERROR(part.db->leaves().DecodeMesh(l->pinned.view.entry(at->second), &out->mesh));
+    const Vec3d& o = reader.tree().origin;
+    for (size_t v = 0; v < out->mesh.vertices.size(); ++v) out->mesh.vertices[v] += o[v % 3];
+    return Status::Ok();
+  }
+
+  const RevisionPartDb& part;
+  uint64_t next = 0;  // the next local id to look at
+  PageCache record_pages;
+  RecordReader records;
+  std::list<Leaf> leaves;
+};
+
+LiveObjectStream::LiveObjectStream(const std::vector<const RevisionPartDb*>& parts) {
+  for (const RevisionPartDb* p : parts) cursors_.push_back(std::make_unique<Cursor>(*p));
+}
+
+LiveObjectStream::~LiveObjectStream() = default;
 
 Result<bool> LiveObjectStream::Next(SceneObject* out) {
-  size_t best = parts_.size();
+  Cursor* best = nullptr;
   ObjectId best_id = std::numeric_limits<ObjectId>::max();
-  for (size_t p = 0; p < parts_.size(); ++p) {
-    const RevisionPartDb& part = *parts_[p];
-    uint64_t& c = cursor_[p];
-    while (c < part.hidden.size() && part.hidden[c]) ++c;
-    if (c >= part.hidden.size()) continue;
-    const ObjectId id = part.global(static_cast<ObjectId>(c));
-    if (best == parts_.size() || id < best_id) {
-      best = p;
+  for (auto& c : cursors_) {
+    const RevisionPartDb& part = c->part;
+    while (c->next < part.hidden.size() && part.hidden[c->next]) ++c->next;
+    if (c->next >= part.hidden.size()) continue;
+    const ObjectId id = part.global(static_cast<ObjectId>(c->next));
+    if (!best || id < best_id) {
+      best = c.get();
       best_id = id;
     }
   }
-  if (best == parts_.size()) return false;
-  const RevisionPartDb& part = *parts_[best];
-  const ObjectId local = static_cast<ObjectId>(cursor_[best]++);
-  MKTREE_ASSIGN_OR_RETURN(ObjectRecord record, part.db->Object(local));
-  MKTREE_ASSIGN_OR_RETURN(Mesh mesh, part.db->ObjectGeometry(local));
+  if (!best) return false;
+  MKTREE_RETURN_IF_ERROR(best->Read(static_cast<ObjectId>(best->next++), out));
   out->id = best_id;
-  out->name = std::move(record.name);
-  out->source = std::move(record.source);
-  out->attributes = std::move(record.attributes);
-  out->mesh = std::move(mesh);
   return true;
 }
 

@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -35,15 +36,18 @@ struct PartBuild {
 Result<RevisionPart> BuildRevisionPart(const PartBuild& build, const IdOrderedObjects& objects);
 
 // The live objects of `parts` (those not hidden) in increasing global id, read from their stores: world
-// coordinates, name, source and attributes as stored.
+// coordinates, name, source and attributes as stored. Each object's record is read through a record cache
+// of the stream's own; its leaf is parsed once while its objects are taken (a few recent leaves stay
+// pinned), so that objects whose ids follow space, as most scenes' do, cost one leaf read per leaf.
 class LiveObjectStream {
  public:
   explicit LiveObjectStream(const std::vector<const RevisionPartDb*>& parts);
+  ~LiveObjectStream();
   Result<bool> Next(SceneObject* out);
 
  private:
-  std::vector<const RevisionPartDb*> parts_;
-  std::vector<uint64_t> cursor_;  // per part: next local id to look at
+  struct Cursor;
+  std::vector<std::unique_ptr<Cursor>> cursors_;
 };
 
 // The ingest options that build a part like the store `base`: its backend, codec (a dictionary of its

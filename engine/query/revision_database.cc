@@ -3,7 +3,6 @@
 #include "engine/query/revision_database.h"
 
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -79,7 +78,8 @@ class RevisionDatabase final : public Database {
       : path_(std::move(path)), hold_(std::move(hold)), parts_(std::move(parts)) {
     const RevisionManifest& m = hold_->manifest();
     stats_json_ = "{\"revision\": " + std::to_string(m.revision) +
-                  ", \"live_objects\": " + std::to_string(m.live) + ", \"parts\": [";
+                  ", \"live_objects\": " + std::to_string(m.live) +
+                  ", \"deltas\": " + std::to_string(m.deltas.size()) + ", \"parts\": [";
     double pages = 0;
     for (size_t p = 0; p < parts_.size(); ++p) {
       const StoreDatabase& db = *parts_[p].db;
@@ -95,6 +95,13 @@ class RevisionDatabase final : public Database {
   }
 
   uint64_t revision() const override { return hold_->manifest().revision; }
+  const RevisionManifest& manifest() const { return hold_->manifest(); }
+  Status FocusedClash(const std::vector<ObjectId>& focus, const ClashOptions& o, const ClashVisitor& visit,
+                      ClashStats* stats) const {
+    return Guarded(path_, [&] {
+      return RunMultiClash(clash_parts_, MultiClashScope{nullptr, &focus}, o, visit, stats);
+    });
+  }
   uint64_t id_limit() const override { return hold_->manifest().next_id; }
 
   Result<bool> VisitUntil(const Query& q, const StoppableVisitor& visit, QueryStats* stats) const override {
@@ -211,36 +218,24 @@ Status RevisionDatabase::Collide(const Mesh& mesh, const std::optional<RigidTran
     total = ClashStats();
     MKTREE_RETURN_IF_ERROR(clash::CheckOptions(o));
     MKTREE_RETURN_IF_ERROR(CheckCollideMesh(mesh, transform));
-    for (const RevisionPartDb& part : parts_) {
+    for (const ClashPart& part : clash_parts_) {
       ClashOptions so = o;
       so.max_pairs = std::numeric_limits<uint64_t>::max();
-      std::atomic<uint64_t> hidden_pairs{0};
-      so.exclude = [&](ObjectId a, ObjectId b) {
-        if (part.hidden[a]) {
-          hidden_pairs.fetch_add(1, std::memory_order_relaxed);
-          return true;
-        }
-        return o.exclude && o.exclude(part.global(a), b);
-      };
       uint64_t reported = 0, capped = 0;
       ClashStats st;
-      MKTREE_RETURN_IF_ERROR(part.db->Collide(
-          mesh, transform, so,
+      MKTREE_RETURN_IF_ERROR(RunCollide(
+          part, mesh, transform, so,
           [&](const ClashPair& p) {
             if (total.reported_pairs + reported >= o.max_pairs) {
               ++capped;
               return;
             }
             ++reported;
-            ClashPair g = p;
-            g.a = part.global(p.a);
-            if (visit) visit(g);
+            if (visit) visit(p);
           },
           &st));
       st.reported_pairs = reported;
       st.capped_pairs = capped;
-      st.excluded_pairs -= std::min(st.excluded_pairs, hidden_pairs.load());
-      st.candidate_pairs -= std::min(st.candidate_pairs, hidden_pairs.load());
       AddClashStats(&total, st);
     }
     total.total_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -361,23 +356,53 @@ Result<std::vector<RevisionPartDb>> OpenRevisionParts(const std::string& store_p
   for (size_t p = parts.size(); p-- > 0;) {
     parts[p].hidden_count = MarkHidden(&parts[p], gone);
     live += parts[p].db->object_count() - parts[p].hidden_count;
+    if (p == 0) break;  // the base: no part before it to hide anything in
+    // Only the base has identity ids (no id file): a delta always has its id file.
     std::vector<ObjectId> merged;
     merged.reserve(gone.size() + parts[p].ids.size());
-    if (parts[p].ids.empty()) {
-      std::vector<ObjectId> all(parts[p].db->object_count());
-      for (size_t i = 0; i < all.size(); ++i) all[i] = static_cast<ObjectId>(i);
-      std::set_union(gone.begin(), gone.end(), all.begin(), all.end(), std::back_inserter(merged));
-    } else {
-      std::set_union(gone.begin(), gone.end(), parts[p].ids.begin(), parts[p].ids.end(),
-                     std::back_inserter(merged));
-    }
-    if (p > 0) gone = std::move(merged);
+    std::set_union(gone.begin(), gone.end(), parts[p].ids.begin(), parts[p].ids.end(),
+                   std::back_inserter(merged));
+    gone = std::move(merged);
   }
   if (live != m.live)
     return Status::Corruption(ChangesFile(folder, RevisionFileName(m.revision)) + ": " +
                               std::to_string(live) + " live objects in its stores, the revision says " +
                               std::to_string(m.live));
   return parts;
+}
+
+const RevisionManifest* RevisionManifestOf(const Database& db) {
+  const auto* r = dynamic_cast<const RevisionDatabase*>(&db);
+  return r ? &r->manifest() : nullptr;
+}
+
+Result<std::vector<ObjectId>> TouchedSince(const Database& db, uint64_t since) {
+  const RevisionManifest* m = RevisionManifestOf(db);
+  if (!m) return Status::InvalidArgument(db.path() + ": the store has taken no change");
+  const std::string folder = ChangesFolder(db.path());
+  std::vector<ObjectId> out;
+  for (const RevisionIdList& t : m->touched) {
+    if (t.made_at <= since || t.made_at > m->revision) continue;
+    MKTREE_ASSIGN_OR_RETURN(std::vector<ObjectId> ids,
+                            ReadIdFile(folder, *m, t.file, t.made_at, t.count,
+                                       "the ids touched at revision " + std::to_string(t.made_at)));
+    out.insert(out.end(), ids.begin(), ids.end());
+  }
+  std::sort(out.begin(), out.end());
+  out.erase(std::unique(out.begin(), out.end()), out.end());
+  return out;
+}
+
+Status FocusedSelfClash(const Database& db, const std::vector<ObjectId>& focus, const ClashOptions& options,
+                        const ClashVisitor& visit, ClashStats* stats) {
+  if (const auto* r = dynamic_cast<const RevisionDatabase*>(&db))
+    return r->FocusedClash(focus, options, visit, stats);
+  if (const auto* s = dynamic_cast<const StoreDatabase*>(&db))
+    return Guarded(db.path(), [&] {
+      return RunMultiClash({ClashPart{&s->leaves()}}, MultiClashScope{nullptr, &focus}, options, visit,
+                           stats);
+    });
+  return Status::Unsupported(db.path() + ": a focused clash needs a store or a revision of one");
 }
 
 Result<std::unique_ptr<Database>> OpenRevisionDatabase(const std::string& store_path,

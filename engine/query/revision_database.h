@@ -34,6 +34,18 @@ Result<std::vector<RevisionPartDb>> OpenRevisionParts(const std::string& store_p
                                                       const RevisionManifest& m, const OpenOptions& options,
                                                       std::vector<RevisionPartDb>* reuse = nullptr);
 
+// The manifest of the revision `db` answers, when db is a revision of a store with changes; else null.
+const RevisionManifest* RevisionManifestOf(const Database& db);
+
+// The ids the batches after revision `since` up to db's revision touched (added, replaced, removed), from
+// db's manifest, sorted. InvalidArgument when db is not a revision of a store with changes.
+Result<std::vector<ObjectId>> TouchedSince(const Database& db, uint64_t since);
+
+// db's self-clash limited to the pairs with an object in `focus` (global ids): RunMultiClash's focus over
+// the revision's parts. A Database of a store without changes runs it over its one store.
+Status FocusedSelfClash(const Database& db, const std::vector<ObjectId>& focus, const ClashOptions& options,
+                        const ClashVisitor& visit, ClashStats* stats);
+
 // Opens the revision `hold` holds, and keeps holding it for the Database's life.
 Result<std::unique_ptr<Database>> OpenRevisionDatabase(const std::string& store_path,
                                                        std::unique_ptr<RevisionHold> hold,

@@ -152,7 +152,7 @@ Result<RevisionManifest> DecodeRevisionManifest(const std::string& text, const s
                      std::to_string(kRevisionFormat));
       continue;
     }
-    if (key == "message") {
+    if (line.rfind("message", 0) == 0 && (line.size() == 7 || line[7] == ' ')) {
       const std::string raw = line.size() > 8 ? line.substr(8) : "";
       for (size_t i = 0; i < raw.size(); ++i) {
         if (raw[i] != '\\') {

@@ -293,6 +293,16 @@ Status StoreWriter::Commit(MKTree tree, const std::string& stats_json) {
   st = RenameOverTarget(temp_path_, final_path_, ops, "the new store", &renamed);
   if (!renamed) return fail(st);
   done_ = true;
+  // A new store at final_path has none of the old one's changes (docs/changes.md): its changes folder goes,
+  // set aside first so that no reader opens it half removed. Readers also ignore a folder whose revisions
+  // do not match the store, which covers a crash before this.
+  const std::string changes = final_path_ + ".changes";
+  std::error_code ec;
+  if (std::filesystem::exists(changes, ec)) {
+    const std::string aside = changes + ".stale." + std::to_string(::getpid());
+    std::filesystem::rename(changes, aside, ec);
+    if (!ec) std::filesystem::remove_all(aside, ec);
+  }
   return st;
 }
 

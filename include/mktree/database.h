@@ -75,7 +75,7 @@ struct OpenOptions {
   bool direct_io = false;
   // The revision to answer (mktree/changes.h): unset, the newest; an older one while the store keeps it
   // (NotFound naming the store and the revision when it is not kept).
-  std::optional<uint64_t> revision;
+  std::optional<uint64_t> revision = std::nullopt;
 };
 
 // A query: the objects containing `point`, or meeting `box` (intervals closed), tested as `mode` says.

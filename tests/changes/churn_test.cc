@@ -145,3 +145,32 @@ INSTANTIATE_TEST_SUITE_P(Backends, Churn, ::testing::Values(Backend::kHdf5, Back
 
 }  // namespace
 }  // namespace mktree
+
+namespace mktree {
+namespace {
+
+// `mktree build` over a store with changes makes a new store: its changes are gone with the old one.
+TEST(ChangesAndBuild, ABuildOverAStoreDropsItsChanges) {
+  testing::TempDir dir("mktree_churn");
+  std::vector<SceneObject> scene = testing::ClusteredScene(80, 4);
+  const std::string store = dir.file("s.mkt");
+  const IngestOptions opts = testing::SmallPages(Backend::kPagedFile);
+  ASSERT_TRUE(testing::BuildFromObjects(scene, store, opts).ok());
+  {
+    auto w = ChangeWriter::Open(store);
+    ASSERT_TRUE(w.ok());
+    ChangeBatch b;
+    b.remove = {1, 2, 3};
+    ASSERT_TRUE((*w)->Commit(b).ok());
+  }
+  ASSERT_EQ((*Database::Open(store))->object_count(), 77u);
+  ASSERT_TRUE(testing::BuildFromObjects(scene, store, opts).ok());  // the same bytes as the first build
+  EXPECT_FALSE(std::filesystem::exists(store + ".changes"));
+  auto db = Database::Open(store);
+  ASSERT_TRUE(db.ok());
+  EXPECT_EQ((*db)->object_count(), 80u);
+  EXPECT_EQ((*db)->revision(), 0u);
+}
+
+}  // namespace
+}  // namespace mktree
