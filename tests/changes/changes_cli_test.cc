@@ -331,5 +331,20 @@ TEST_F(ChangesCli, TankerStoreRefusesBadChangesAndKeepsItsLog) {
             "2000");
 }
 
+// A sharded store takes no change yet: its log is revision 0, an update is refused, --revision 0 answers.
+TEST_F(ChangesCli, ShardedStoreHasRevisionZeroOnly) {
+  const std::string store = P("sh.mkt");
+  Ok("build tanker:500 -o " + store + " --shards 2 --quiet");
+  const std::vector<std::string> log = Lines(Ok("log " + store + " --json"));
+  ASSERT_EQ(log.size(), 1u);
+  EXPECT_EQ(Field(log[0], "revision"), "0");
+  EXPECT_EQ(Field(log[0], "objects"), "500");
+  EXPECT_EQ(Field(log[0], "message"), "built");
+  ExpectRefused("update " + store + " --remove-ids 1", "sharded", store);
+  const std::string box = " --box -1000,-1000,-1000,1000,1000,1000 --count";
+  EXPECT_EQ(Field(Ok("query " + store + box + " --revision 0"), "hit_count"), "500");
+  ExpectRefused("query " + store + box + " --revision 1", "revision 1", store);
+}
+
 }  // namespace
 }  // namespace mktree
