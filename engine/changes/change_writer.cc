@@ -9,6 +9,7 @@
 #include <chrono>
 #include <ctime>
 #include <filesystem>
+#include <limits>
 #include <map>
 #include <set>
 #include <unordered_map>
@@ -51,12 +52,17 @@ Status FsyncFolder(const std::string& path, FileOps& ops) {
   return Status::Ok();
 }
 
+// The commit point. On an error the file is removed even when its rename was done (a failed fsync of the
+// folder after it), so that an error means that nothing was committed: the writer's head stays, and its
+// next commit writes this revision anew.
 Status WriteRevisionFile(const std::string& folder, const RevisionManifest& m, FileOps& ops) {
   const std::string text = EncodeRevisionManifest(m);
-  MKTREE_ASSIGN_OR_RETURN(auto file,
-                          AtomicFile::Create(ChangesFile(folder, RevisionFileName(m.revision)), ops));
-  MKTREE_RETURN_IF_ERROR(file->Write(text.data(), text.size()));
-  return file->Commit();
+  const std::string path = ChangesFile(folder, RevisionFileName(m.revision));
+  MKTREE_ASSIGN_OR_RETURN(auto file, AtomicFile::Create(path, ops));
+  Status st = file->Write(text.data(), text.size());
+  if (st.ok()) st = file->Commit();
+  if (!st.ok()) ::unlink(path.c_str());
+  return st;
 }
 
 // Every file name a revision refers to.
@@ -185,7 +191,8 @@ Status Writer::Initialize() {
         storage_internal::ErrnoText(errno) + " (the folder must be on the store's file system)");
   MKTREE_ASSIGN_OR_RETURN(m.base.store, FingerprintFile(ChangesFile(folder_, base_name)));
   MKTREE_RETURN_IF_ERROR(FsyncFolder(folder_, ops_));
-  MKTREE_RETURN_IF_ERROR(FsyncFolder(fs::path(fs::absolute(store_)).parent_path().string(), ops_));
+  if (Status st = FsyncFolder(fs::path(fs::absolute(store_)).parent_path().string(), ops_); !st.ok())
+    return Status::IOError(store_ + ": making its changes folder durable: " + st.message());
   MKTREE_RETURN_IF_ERROR(WriteRevisionFile(folder_, m, ops_));
   head_ = m;
   return OpenHead();
@@ -265,7 +272,7 @@ Status Writer::ResolveBatch(const ChangeBatch& batch, std::vector<ObjectId>* rem
     }
   }
   auto write = [&](const SceneObject& o, ObjectId id, const std::string& what) -> Status {
-    MKTREE_RETURN_IF_ERROR(CheckCallerObject(o, what));
+    MKTREE_RETURN_IF_ERROR(CheckCallerObject(o, store_ + ": " + what));
     written->push_back(o);
     written->back().id = id;
     return Status::Ok();
@@ -393,7 +400,7 @@ Status Writer::MergeDeltas(RevisionManifest* m) {
     o.cache_pages = kWriterCachePages;
     MKTREE_ASSIGN_OR_RETURN(std::vector<RevisionPartDb> parts, OpenRevisionParts(store_, *m, o, &parts_));
     const size_t n = parts.size();
-    LiveObjectStream live({&parts[n - 2], &parts[n - 1]});
+    LiveObjectStream live({&parts[n - 2], &parts[n - 1]}, 0, folder_, ops_);
     IdOrderedObjects next = [&](SceneObject* out) { return live.Next(out); };
     const uint64_t live_count = parts[n - 2].db->object_count() - parts[n - 2].hidden_count +
                                 parts[n - 1].db->object_count() - parts[n - 1].hidden_count;
@@ -422,6 +429,7 @@ Result<CompactReport> Writer::CompactUnguarded() {
   CompactReport report;
   const bool keep_changed = keep_ && *keep_ != head_.keep;
   if (head_.deltas.empty() && head_.removals.empty() && !keep_changed) {
+    MKTREE_RETURN_IF_ERROR(RelinkStore());  // one that failed after the last compaction's commit
     report.revision = head_.revision;
     report.objects = head_.live;
     report.seconds = SecondsSince(start);
@@ -438,7 +446,7 @@ Result<CompactReport> Writer::CompactUnguarded() {
   if (!head_.deltas.empty() || !head_.removals.empty()) {
     std::vector<const RevisionPartDb*> all;
     for (const RevisionPartDb& p : parts_) all.push_back(&p);
-    LiveObjectStream live(all);
+    LiveObjectStream live(all, 1, folder_, ops_);
     IdOrderedObjects next = [&](SceneObject* out) { return live.Next(out); };
     PartBuild b = Part(NewPartName("base", rev), rev);
     b.identity_ids = true;
@@ -464,28 +472,35 @@ Result<CompactReport> Writer::CompactUnguarded() {
 }
 
 // The store file becomes (a hard link of) the newest base, so that the store's name holds the newest
-// objects' pages and an old base's pages are freed once no kept revision names it.
+// objects' pages and an old base's pages are freed once no kept revision names it. The temporary link has
+// one name, removed first, so that the link a writer killed before its rename left is removed too (the
+// writer lock keeps every other writer out).
 Status Writer::RelinkStore() {
+  const std::string temp = store_ + ".relink";
+  ::unlink(temp.c_str());
   MKTREE_ASSIGN_OR_RETURN(const RevisionFile now, FingerprintFile(store_));
   if (now.bytes == head_.base.store.bytes && now.fingerprint == head_.base.store.fingerprint)
     return Status::Ok();
-  const std::string temp = store_ + ".relink." + std::to_string(::getpid());
-  ::unlink(temp.c_str());
   if (::link(ChangesFile(folder_, head_.base.store.name).c_str(), temp.c_str()) != 0)
     return Status::IOError(temp + ": cannot link the compacted base: " + storage_internal::ErrnoText(errno));
   bool renamed = false;
-  Status st = RenameOverTarget(temp, store_, ops_, "the compacted store", &renamed);
+  Status st = RenameOverTarget(temp, store_, ops_, "the compacted store " + store_, &renamed);
   if (!renamed) ::unlink(temp.c_str());
   return st;
 }
 
 // Retires the revisions older than the newest `keep` that no reader holds, then removes every file of the
 // folder that no kept revision names (the leftovers of killed writers included). Returns the revisions
-// retired and the bytes of the files removed.
+// retired and the bytes of the files removed. While the store file is not the head's base (its relink
+// failed after a compaction's commit point) nothing is retired: a store file that is the base of no kept
+// revision opens as a store without changes, and the next writer would start its changes anew.
 Result<std::pair<uint64_t, uint64_t>> Writer::RetireAndCollect() {
   MKTREE_ASSIGN_OR_RETURN(std::vector<uint64_t> revisions, ListRevisionNumbers(folder_));
   uint64_t retired = 0, freed = 0;
-  const uint64_t keep = head_.keep;
+  MKTREE_ASSIGN_OR_RETURN(const RevisionFile store_file, FingerprintFile(store_));
+  const bool relinked =
+      store_file.bytes == head_.base.store.bytes && store_file.fingerprint == head_.base.store.fingerprint;
+  const uint64_t keep = relinked ? head_.keep : std::numeric_limits<uint64_t>::max();
   std::set<std::string> names;
   for (uint64_t r : revisions) {
     if (r > head_.revision) {

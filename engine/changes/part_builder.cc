@@ -1,5 +1,8 @@
 #include "engine/changes/part_builder.h"
 
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <filesystem>
 #include <limits>
 #include <list>
@@ -9,6 +12,7 @@
 #include "engine/shard/manifest.h"
 #include "engine/store_format/leaf_reader.h"
 #include "engine/store_format/record_codec.h"
+#include "storage/file_util.h"
 #include "storage/page_cache.h"
 
 namespace mktree {
@@ -107,12 +111,70 @@ struct LiveObjectStream::Cursor {
     return &leaves.front();
   }
 
+  ~Cursor() {
+    if (scratch_fd >= 0) ::close(scratch_fd);
+  }
+
+  // Every live object's mesh, leaf by leaf, into an unnamed file of `dir`; `where` says where each went.
+  Status Spill(const std::string& dir, FileOps& ops) {
+    scratch_fd = ::open(dir.c_str(), O_TMPFILE | O_RDWR | O_CLOEXEC, 0600);
+    if (scratch_fd < 0) return Status::IOError(dir + ": scratch file: " + storage_internal::ErrnoText(errno));
+    const StoreReader& reader = part.db->reader();
+    where.assign(part.hidden.size(), kNowhere);
+    std::vector<uint8_t> buf;
+    uint64_t at = 0;
+    auto flush = [&]() -> Status {
+      MKTREE_RETURN_IF_ERROR(storage_internal::PwriteFull(scratch_fd, buf.data(), buf.size(), at, dir, ops));
+      at += buf.size();
+      buf.clear();
+      return Status::Ok();
+    };
+    const Vec3d& o = reader.tree().origin;
+    for (uint32_t leaf = 0; leaf < reader.tree().leaves.size(); ++leaf) {
+      MKTREE_ASSIGN_OR_RETURN(PinnedLeaf pinned, part.db->leaves().Read(leaf, nullptr));
+      for (const ObjectEntryView& e : pinned.view.entries()) {
+        if (part.hidden[e.id]) continue;
+        Mesh mesh;
+        MKTREE_RETURN_IF_ERROR(part.db->leaves().DecodeMesh(e, &mesh));
+        for (size_t v = 0; v < mesh.vertices.size(); ++v) mesh.vertices[v] += o[v % 3];
+        where[e.id] = at + buf.size();
+        const uint64_t counts[2] = {mesh.vertices.size(), mesh.triangles.size()};
+        auto put = [&](const void* p, size_t n) {
+          buf.insert(buf.end(), static_cast<const uint8_t*>(p), static_cast<const uint8_t*>(p) + n);
+        };
+        put(counts, sizeof counts);
+        put(mesh.vertices.data(), 8 * mesh.vertices.size());
+        put(mesh.triangles.data(), 4 * mesh.triangles.size());
+        if (buf.size() >= (1u << 20)) MKTREE_RETURN_IF_ERROR(flush());
+      }
+    }
+    return flush();
+  }
+
+  Status ReadSpilled(ObjectId local, Mesh* mesh) {
+    const uint64_t at = where[local];
+    if (at == kNowhere)
+      return Status::Corruption(part.db->reader().path() + ": object " + std::to_string(local) +
+                                " is in no leaf");
+    uint64_t counts[2];
+    const std::string& path = part.db->reader().path();
+    MKTREE_RETURN_IF_ERROR(storage_internal::PreadFull(scratch_fd, counts, sizeof counts, at, path));
+    mesh->vertices.resize(counts[0]);
+    mesh->triangles.resize(counts[1]);
+    MKTREE_RETURN_IF_ERROR(storage_internal::PreadFull(scratch_fd, mesh->vertices.data(), 8 * counts[0],
+                                                       at + sizeof counts, path));
+    return storage_internal::PreadFull(scratch_fd, mesh->triangles.data(), 4 * counts[1],
+                                       at + sizeof counts + 8 * counts[0], path);
+  }
+
   Status Read(ObjectId local, SceneObject* out) {
     const StoreReader& reader = part.db->reader();
     MKTREE_ASSIGN_OR_RETURN(const StoredRecord* r, records.Get(local, nullptr));  // a group decoded once
     MKTREE_ASSIGN_OR_RETURN(out->source, reader.SourceName(*r));
     out->name = r->name;
     out->attributes = r->attributes;
+    out->mesh = Mesh();
+    if (scratch_fd >= 0) return ReadSpilled(local, &out->mesh);
     const uint32_t leaf = r->leaf;
     MKTREE_ASSIGN_OR_RETURN(const Leaf* l, LeafOf(leaf));
     auto at = l->position.find(local);
@@ -120,27 +182,36 @@ struct LiveObjectStream::Cursor {
       return Status::Corruption(reader.path() + ": object " + std::to_string(local) +
                                 ": its record puts it in leaf " + std::to_string(leaf) +
                                 ", which does not hold it");
-    out->mesh = Mesh();
     MKTREE_RETURN_IF_ERROR(part.db->leaves().DecodeMesh(l->pinned.view.entry(at->second), &out->mesh));
     const Vec3d& o = reader.tree().origin;
     for (size_t v = 0; v < out->mesh.vertices.size(); ++v) out->mesh.vertices[v] += o[v % 3];
     return Status::Ok();
   }
 
+  static constexpr uint64_t kNowhere = ~uint64_t{0};
   const RevisionPartDb& part;
-  uint64_t next = 0;  // the next local id to look at
+  uint64_t next = 0;    // the next local id to look at
+  int scratch_fd = -1;  // spilled: the meshes, and where each local id's is
+  std::vector<uint64_t> where;
   PageCache record_pages;
   RecordReader records;
   std::list<Leaf> leaves;
 };
 
-LiveObjectStream::LiveObjectStream(const std::vector<const RevisionPartDb*>& parts) {
+LiveObjectStream::LiveObjectStream(const std::vector<const RevisionPartDb*>& parts, size_t spill_from,
+                                   std::string scratch_dir, FileOps& ops)
+    : spill_from_(spill_from), scratch_dir_(std::move(scratch_dir)), ops_(ops) {
   for (const RevisionPartDb* p : parts) cursors_.push_back(std::make_unique<Cursor>(*p));
 }
 
 LiveObjectStream::~LiveObjectStream() = default;
 
 Result<bool> LiveObjectStream::Next(SceneObject* out) {
+  if (!spilled_) {
+    spilled_ = true;
+    for (size_t p = spill_from_; p < cursors_.size(); ++p)
+      MKTREE_RETURN_IF_ERROR(cursors_[p]->Spill(scratch_dir_, ops_));
+  }
   Cursor* best = nullptr;
   ObjectId best_id = std::numeric_limits<ObjectId>::max();
   for (auto& c : cursors_) {

@@ -16,6 +16,7 @@
 #include "engine/revision/revision_manifest.h"
 #include "mktree/scene.h"
 #include "mktree/status.h"
+#include "storage/file_ops.h"
 
 namespace mktree {
 
@@ -36,18 +37,26 @@ struct PartBuild {
 Result<RevisionPart> BuildRevisionPart(const PartBuild& build, const IdOrderedObjects& objects);
 
 // The live objects of `parts` (those not hidden) in increasing global id, read from their stores: world
-// coordinates, name, source and attributes as stored. Each object's record is read through a record cache
-// of the stream's own; its leaf is parsed once while its objects are taken (a few recent leaves stay
-// pinned), so that objects whose ids follow space, as most scenes' do, cost one leaf read per leaf.
+// coordinates, name, source and attributes as stored. Records are read in id order (a group decoded once).
+// Geometry: parts from `spill_from` on (deltas, whose ids are scattered over space) are first read leaf by
+// leaf into an unnamed scratch file in `scratch_dir` (8 bytes an object in RAM for where each one went),
+// so that each leaf is read once whatever the id order; the parts before it (a base, whose ids follow
+// space as most scenes' do) are read in id order with the 16 leaves last parsed kept pinned.
 class LiveObjectStream {
  public:
-  explicit LiveObjectStream(const std::vector<const RevisionPartDb*>& parts);
+  // The scratch file's writes and reads go through `ops` (it must outlive the stream).
+  LiveObjectStream(const std::vector<const RevisionPartDb*>& parts, size_t spill_from,
+                   std::string scratch_dir, FileOps& ops = DefaultFileOps());
   ~LiveObjectStream();
   Result<bool> Next(SceneObject* out);
 
  private:
   struct Cursor;
   std::vector<std::unique_ptr<Cursor>> cursors_;
+  size_t spill_from_;
+  std::string scratch_dir_;
+  FileOps& ops_;
+  bool spilled_ = false;
 };
 
 // The ingest options that build a part like the store `base`: its backend, codec (a dictionary of its

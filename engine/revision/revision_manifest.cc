@@ -233,7 +233,9 @@ Result<RevisionManifest> DecodeRevisionManifest(const std::string& text, const s
     }
   }
   if (line_no == 0) return Status::Corruption(what + ": empty revision file");
-  if (!have_checksum) return Status::Corruption(what + ": truncated (no checksum line)");
+  if (!have_checksum)
+    return Status::Corruption(what + " line " + std::to_string(line_no) +
+                              ": truncated (no checksum line after it)");
   if (!have_base) return Status::Corruption(what + ": no base store");
   return m;
 }
