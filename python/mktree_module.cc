@@ -1,9 +1,10 @@
-// The Python module `mktree` (docs/python.md): the public API of include/mktree/ (database.h, build.h)
-// with numpy arrays in and out. Queries and builds run with the GIL released; the callbacks into Python
-// (the objects of a build, its progress) take it back. A non-ok Status raises mktree.Error with
-// Status::ToString() as its message; a Python exception raised in a callback ends the build and is
-// raised again as it was.
+// The Python module `mktree` (docs/python.md): the public API of include/mktree/ (database.h, build.h,
+// changes.h) with numpy arrays in and out. Queries, builds, commits and compactions run with the GIL
+// released; the callbacks into Python (the objects of a build, its progress) take it back. A non-ok Status
+// raises mktree.Error with Status::ToString() as its message; a Python exception raised in a callback ends
+// the build and is raised again as it was.
 #include <mktree/build.h>
+#include <mktree/changes.h>
 #include <mktree/database.h>
 #include <mktree/version.h>
 #include <pybind11/numpy.h>
@@ -11,6 +12,7 @@
 #include <pybind11/stl.h>
 
 #include <cstring>
+#include <memory>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -338,6 +340,208 @@ py::dict Build(const py::object& path, const py::object& objects, const py::obje
   return BuildStatsDict(Take(std::move(stats)));
 }
 
+// --- changes ---
+
+// A list of objects as ToSceneObject reads them, errors naming `what` ("add[3]: ..."); *has_id (may be
+// null) says which carried an "id".
+std::vector<SceneObject> SceneObjects(const py::object& objects, const std::string& what,
+                                      std::vector<bool>* has_id = nullptr) {
+  std::vector<SceneObject> out;
+  if (objects.is_none()) return out;
+  uint64_t index = 0;
+  for (py::handle item : objects) {
+    SceneObject o;
+    const Status st = ToSceneObject(item, index, &o);
+    if (!st.ok()) Raise(Status::InvalidArgument(what + st.message().substr(std::strlen("objects"))));
+    py::object id = Field(item, "id");
+    if (!id.is_none()) o.id = id.cast<uint32_t>();
+    if (has_id) has_id->push_back(!id.is_none());
+    out.push_back(std::move(o));
+    ++index;
+  }
+  return out;
+}
+
+py::dict CommitDict(const CommitReport& r) {
+  py::dict d;
+  d["revision"] = r.revision;
+  d["added"] = r.added;
+  d["removed"] = r.removed;
+  d["replaced"] = r.replaced;
+  d["added_ids"] = IdArray(r.added_ids.data(), r.added_ids.size());
+  d["objects"] = r.objects;
+  d["compacted"] = r.compacted;
+  d["compaction_error"] =
+      r.compaction_error.empty() ? py::object(py::none()) : py::object(Text(r.compaction_error));
+  d["seconds"] = r.seconds;
+  return d;
+}
+
+py::dict CompactDict(const CompactReport& r) {
+  py::dict d;
+  d["revision"] = r.revision;
+  d["objects"] = r.objects;
+  d["folded"] = r.folded;
+  d["retired"] = r.retired;
+  d["bytes_freed"] = r.bytes_freed;
+  d["seconds"] = r.seconds;
+  return d;
+}
+
+// The one writer of a store (mktree.open_writer); close() or leaving a `with` block releases the store's
+// writer lock.
+class PyWriter {
+ public:
+  explicit PyWriter(std::unique_ptr<ChangeWriter> w) : w_(std::move(w)) {}
+
+  // replace: objects with an "id" replace that object; objects without one replace the one live object of
+  // their name.
+  py::dict Commit(const py::object& add, const py::object& remove, const py::object& remove_names,
+                  const py::object& replace, const std::string& message) {
+    ChangeWriter& w = Open();
+    ChangeBatch batch;
+    batch.add = SceneObjects(add, "add");
+    std::vector<bool> by_id;
+    std::vector<SceneObject> replacing = SceneObjects(replace, "replace", &by_id);
+    for (size_t i = 0; i < replacing.size(); ++i)
+      (by_id[i] ? batch.replace : batch.replace_by_name).push_back(std::move(replacing[i]));
+    if (!remove.is_none())
+      for (py::handle id : remove) batch.remove.push_back(id.cast<uint32_t>());
+    if (!remove_names.is_none())
+      for (py::handle name : remove_names) batch.remove_names.push_back(Bytes(name));
+    batch.message = message;
+    Result<CommitReport> r = Status::Internal("not run");
+    {
+      py::gil_scoped_release nogil;
+      r = w.Commit(batch);
+    }
+    return CommitDict(Take(std::move(r)));
+  }
+  py::dict Compact(std::optional<uint32_t> keep) {
+    ChangeWriter& w = Open();
+    if (keep) {
+      if (Status st = w.SetKeep(*keep); !st.ok()) Raise(st);
+    }
+    Result<CompactReport> r = Status::Internal("not run");
+    {
+      py::gil_scoped_release nogil;
+      r = w.Compact();
+    }
+    return CompactDict(Take(std::move(r)));
+  }
+  void SetKeep(uint32_t keep) {
+    if (Status st = Open().SetKeep(keep); !st.ok()) Raise(st);
+  }
+  uint64_t revision() { return Open().revision(); }
+  void Close() { w_.reset(); }
+  bool closed() const { return !w_; }
+
+ private:
+  ChangeWriter& Open() {
+    if (!w_) Raise(Status::InvalidArgument("the writer is closed"));
+    return *w_;
+  }
+  std::unique_ptr<ChangeWriter> w_;
+};
+
+py::list Log(const py::object& path) {
+  const std::string p = PathText(path);
+  Result<std::vector<RevisionInfo>> r = Status::Internal("not run");
+  {
+    py::gil_scoped_release nogil;
+    r = ListRevisions(p);
+  }
+  py::list out;
+  for (const RevisionInfo& i : Take(std::move(r))) {
+    py::dict d;
+    d["revision"] = i.revision;
+    d["time"] = i.time;
+    d["added"] = i.added;
+    d["removed"] = i.removed;
+    d["replaced"] = i.replaced;
+    d["objects"] = i.objects;
+    d["compaction"] = i.compaction;
+    d["message"] = Text(i.message);
+    out.append(d);
+  }
+  return out;
+}
+
+std::unique_ptr<PyWriter> OpenWriter(const py::object& path, double compact_threshold, unsigned threads) {
+  ChangeOptions o;
+  o.compact_threshold = compact_threshold;
+  o.threads = threads;
+  const std::string p = PathText(path);
+  return std::make_unique<PyWriter>(Take([&] {
+    py::gil_scoped_release nogil;
+    return ChangeWriter::Open(p, o);
+  }()));
+}
+
+// mktree.open and mktree.build.
+void DefineOpenAndBuild(py::module_& m) {
+  m.def(
+      "open",
+      [](const py::object& path, uint64_t cache_pages, bool verify_checksums, bool direct_io,
+         std::optional<uint64_t> revision) {
+        OpenOptions o;
+        o.cache_pages = cache_pages;
+        o.verify_checksums = verify_checksums;
+        o.direct_io = direct_io;
+        o.revision = revision;
+        const std::string p = PathText(path);
+        return Take([&] {
+          py::gil_scoped_release nogil;
+          return Database::Open(p, o);
+        }());
+      },
+      py::arg("path"), py::arg("cache_pages") = 4096, py::arg("verify_checksums") = true,
+      py::arg("direct_io") = false, py::arg("revision") = py::none(),
+      "Opens a store (HDF5 or paged file) for queries, at `revision` (None: the newest) while the store "
+      "keeps it");
+
+  m.def("build", &Build, py::arg("path"), py::arg("objects") = py::none(), py::arg("files") = py::none(),
+        py::kw_only(), py::arg("backend") = "hdf5", py::arg("codec") = "zstd", py::arg("zstd_level") = 3,
+        py::arg("block_size") = 4096, py::arg("blocks_per_page") = 3, py::arg("balance_r") = 0.3,
+        py::arg("split_budget") = 64, py::arg("split_policy") = "compact", py::arg("threads") = 0,
+        py::arg("spill_dir") = py::none(), py::arg("progress") = py::none(),
+        "Builds the store at `path` from `objects` (an iterable of dicts or objects with vertices (n, 3), "
+        "faces (m, 3), optional name and attributes) or `files` (a path or a list: any format mktree "
+        "build reads, or 'tanker:N:SEED'). Returns the build statistics as a dict.");
+}
+
+// The change API (mktree/changes.h): the Writer class, open_writer and log.
+void DefineChanges(py::module_& m) {
+  py::class_<PyWriter>(m, "Writer", "The one writer of a store (mktree.open_writer); one thread at a time")
+      .def("commit", &PyWriter::Commit, py::kw_only(), py::arg("add") = py::none(),
+           py::arg("remove") = py::none(), py::arg("remove_names") = py::none(),
+           py::arg("replace") = py::none(), py::arg("message") = "",
+           "Commits one batch, all or nothing, as one new revision: `add` objects (as build takes them) get "
+           "new ids; `remove` ids and every live object of each of `remove_names` go; each object of "
+           "`replace` replaces the object of its 'id', or without one the one live object of its name. "
+           "Returns a dict: revision, added, removed, replaced, added_ids, objects, compacted, "
+           "compaction_error, seconds")
+      .def("compact", &PyWriter::Compact, py::kw_only(), py::arg("keep") = py::none(),
+           "Folds every change into a new base now (after set_keep(keep) if given). Returns a dict: "
+           "revision, objects, folded, retired, bytes_freed, seconds")
+      .def("set_keep", &PyWriter::SetKeep, py::arg("keep"),
+           "How many of the newest revisions the store keeps from the next commit or compaction on")
+      .def_property_readonly("revision", &PyWriter::revision, "The newest committed revision")
+      .def_property_readonly("closed", &PyWriter::closed)
+      .def("close", &PyWriter::Close, "Releases the store's writer lock")
+      .def(
+          "__enter__", [](PyWriter& w) -> PyWriter& { return w; }, py::return_value_policy::reference)
+      .def("__exit__", [](PyWriter& w, py::args) { w.Close(); });
+
+  m.def(
+      "open_writer", &OpenWriter, py::arg("path"), py::kw_only(), py::arg("compact_threshold") = 0.25,
+      py::arg("threads") = 0,
+      "Opens the one writer of a store (a second, in this process or another, raises mktree.Error at once)");
+  m.def("log", &Log, py::arg("path"),
+        "The revisions the store keeps, oldest first: dicts with revision, time (seconds since the epoch), "
+        "added, removed, replaced, objects, compaction, message");
+}
+
 }  // namespace
 }  // namespace mktree
 
@@ -350,7 +554,10 @@ PYBIND11_MODULE(mktree, m) {
 
   py::class_<Database>(m, "Database", "An open store; safe to query from many threads at once")
       .def_property_readonly("path", [](const Database& db) { return Text(db.path()); })
-      .def_property_readonly("object_count", &Database::object_count)
+      .def_property_readonly("object_count", &Database::object_count, "Live objects")
+      .def_property_readonly("revision", &Database::revision,
+                             "The revision this Database answers for as long as it is open (0: no change)")
+      .def_property_readonly("id_limit", &Database::id_limit, "Above every id of this revision")
       .def_property_readonly(
           "bounds", [](const Database& db) { return BoundsArray(db.bounds()); },
           "Scene bounds, [[min x, y, z], [max x, y, z]] (float64, rounded outward to float32)")
@@ -477,31 +684,10 @@ PYBIND11_MODULE(mktree, m) {
       .def(
           "clear_cache", [](Database& db) { db.ClearCache(); }, "Empties the page cache")
       .def("__repr__", [](const Database& db) {
-        return "<mktree.Database '" + db.path() + "', " + std::to_string(db.object_count()) + " objects>";
+        return "<mktree.Database '" + db.path() + "', revision " + std::to_string(db.revision()) + ", " +
+               std::to_string(db.object_count()) + " objects>";
       });
 
-  m.def(
-      "open",
-      [](const py::object& path, uint64_t cache_pages, bool verify_checksums, bool direct_io) {
-        OpenOptions o;
-        o.cache_pages = cache_pages;
-        o.verify_checksums = verify_checksums;
-        o.direct_io = direct_io;
-        const std::string p = PathText(path);
-        return Take([&] {
-          py::gil_scoped_release nogil;
-          return Database::Open(p, o);
-        }());
-      },
-      py::arg("path"), py::arg("cache_pages") = 4096, py::arg("verify_checksums") = true,
-      py::arg("direct_io") = false, "Opens a store (HDF5 or paged file) for queries");
-
-  m.def("build", &Build, py::arg("path"), py::arg("objects") = py::none(), py::arg("files") = py::none(),
-        py::kw_only(), py::arg("backend") = "hdf5", py::arg("codec") = "zstd", py::arg("zstd_level") = 3,
-        py::arg("block_size") = 4096, py::arg("blocks_per_page") = 3, py::arg("balance_r") = 0.3,
-        py::arg("split_budget") = 64, py::arg("split_policy") = "compact", py::arg("threads") = 0,
-        py::arg("spill_dir") = py::none(), py::arg("progress") = py::none(),
-        "Builds the store at `path` from `objects` (an iterable of dicts or objects with vertices (n, 3), "
-        "faces (m, 3), optional name and attributes) or `files` (a path or a list: any format mktree "
-        "build reads, or 'tanker:N:SEED'). Returns the build statistics as a dict.");
+  DefineOpenAndBuild(m);
+  DefineChanges(m);
 }

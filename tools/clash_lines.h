@@ -60,9 +60,10 @@ inline const char* MeetingName(ClashMeeting m) {
 }
 
 // The JSON line of one pair; in collide, b (the query object) is -1. With names (--names), name_a and
-// name_b follow b (name_b is null in collide).
+// name_b follow b (name_b is null in collide). With a status (clash --since: "new" or "resolved"), a last
+// key "status".
 inline std::string PairLine(const ClashPair& p, const std::string* name_a = nullptr,
-                            const std::string* name_b = nullptr) {
+                            const std::string* name_b = nullptr, const char* status = nullptr) {
   std::string s = "{\"a\": " + std::to_string(p.a) + ", \"b\": ";
   s += p.b == kCollideObject ? std::string("-1") : std::to_string(p.b);
   if (name_a) {
@@ -87,6 +88,11 @@ inline std::string PairLine(const ClashPair& p, const std::string* name_a = null
   s += MeetingName(p.meeting);
   s += "\", \"resolution\": ";
   AppendReal(&s, p.resolution);
+  if (status) {
+    s += ", \"status\": \"";
+    s += status;
+    s += '"';
+  }
   s += "}\n";
   return s;
 }

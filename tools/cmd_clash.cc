@@ -1,5 +1,6 @@
 // mktree clash STORE and mktree collide STORE --object MESH: one JSON line per clashing pair
-// (docs/cli.md, docs/clash.md §4), and with --summary a last line of counts and statistics.
+// (docs/cli.md, docs/clash.md §4), and with --summary a last line of counts and statistics. --revision R
+// answers a kept revision; clash --since R prints only the pairs that are new or resolved since R.
 #include <charconv>
 #include <cmath>
 #include <cstdio>
@@ -13,6 +14,7 @@
 #endif
 
 #include "engine/scene/scene_source.h"
+#include "mktree/changes.h"
 #include "mktree/clash.h"
 #include "mktree/database.h"
 #include "tools/clash_lines.h"
@@ -39,6 +41,10 @@ struct ClashArgs {
   bool summary = false;
   bool progress = false;
   bool names = false;
+  uint64_t revision = 0;  // with has_revision
+  bool has_revision = false;
+  uint64_t since = 0;  // clash --since R, with has_since
+  bool has_since = false;
   // collide
   std::string object, translate, rotate;
 };
@@ -74,6 +80,37 @@ Result<Mesh> ReadObjectFile(const std::string& path) {
   if (all.triangles.empty()) return Status::InvalidArgument(path + ": no triangles");
   return all;
 }
+
+// Writes pair lines to stdout; with names (--names), each pair's names read through a second handle on
+// the revision the pair belongs to. The first error reading a name stops the printing and is kept.
+struct PairPrinter {
+  std::unique_ptr<Database> names_db;
+  Status name_status;
+  bool write_failed = false;
+
+  Status OpenNames(const std::string& store, const OpenOptions& options) {
+    MKTREE_ASSIGN_OR_RETURN(names_db, OpenNamesHandle(store, options));
+    return Status::Ok();
+  }
+
+  void Print(const ClashPair& p, const char* status = nullptr) {
+    std::string line;
+    if (names_db) {
+      if (!name_status.ok()) return;
+      auto na = names_db->ObjectName(p.a);
+      Result<std::string> nb = std::string();
+      if (p.b != kCollideObject) nb = names_db->ObjectName(p.b);
+      if (!na.ok() || !nb.ok()) {
+        name_status = na.ok() ? nb.status() : na.status();
+        return;
+      }
+      line = PairLine(p, &*na, p.b == kCollideObject ? nullptr : &*nb, status);
+    } else {
+      line = PairLine(p, nullptr, nullptr, status);
+    }
+    if (std::fwrite(line.data(), 1, line.size(), stdout) != line.size()) write_failed = true;
+  }
+};
 
 int Run(const ClashArgs& a, bool collide) {
 #if defined(__GLIBC__)
@@ -114,46 +151,65 @@ int Run(const ClashArgs& a, bool collide) {
   }
   OpenOptions oo;
   oo.cache_pages = a.cache_pages;
+  if (a.has_revision) oo.revision = a.revision;
   auto db = Database::Open(a.store, oo);
   if (!db.ok()) return Fail(db.status().message());
+  OpenOptions then_options = oo;
+  std::unique_ptr<Database> then_db;
+  if (a.has_since) {
+    then_options.revision = a.since;
+    auto t = Database::Open(a.store, then_options);
+    if (!t.ok()) return Fail(t.status().message());
+    then_db = std::move(*t);
+    if (then_db->revision() > (*db)->revision())
+      return Fail(a.store + ": --since " + std::to_string(a.since) + " is newer than revision " +
+                  std::to_string((*db)->revision()));
+  }
   Progress progress(!a.progress);
   if (a.progress) o.progress = [&](uint64_t done, uint64_t total) { progress.Update("clash", done, total); };
-  std::unique_ptr<Database> names_db;
+  PairPrinter now_lines, then_lines;
   if (a.names) {
-    auto n = OpenNamesHandle(a.store, oo);
-    if (!n.ok()) return Fail(n.status().message());
-    names_db = std::move(*n);
-  }
-  bool write_failed = false;
-  Status name_status;
-  auto visit = [&](const ClashPair& p) {
-    std::string line;
-    if (names_db) {
-      if (!name_status.ok()) return;
-      auto na = names_db->ObjectName(p.a);
-      Result<std::string> nb = std::string();
-      if (p.b != kCollideObject) nb = names_db->ObjectName(p.b);
-      if (!na.ok() || !nb.ok()) {
-        name_status = na.ok() ? nb.status() : na.status();
-        return;
-      }
-      line = PairLine(p, &*na, p.b == kCollideObject ? nullptr : &*nb);
-    } else {
-      line = PairLine(p);
+    if (Status st = now_lines.OpenNames(a.store, oo); !st.ok()) return Fail(st.message());
+    if (then_db) {
+      if (Status st = then_lines.OpenNames(a.store, then_options); !st.ok()) return Fail(st.message());
     }
-    if (std::fwrite(line.data(), 1, line.size(), stdout) != line.size()) write_failed = true;
-  };
+  }
   ClashStats stats;
-  const Status st =
-      collide ? (*db)->Collide(object, transform, o, visit, &stats) : (*db)->SelfClash(o, visit, &stats);
+  uint64_t new_pairs = 0, resolved_pairs = 0;
+  Status st;
+  if (collide) {
+    st = (*db)->Collide(
+        object, transform, o, [&](const ClashPair& p) { now_lines.Print(p); }, &stats);
+  } else if (then_db && then_db->revision() == (*db)->revision()) {
+    st = Status::Ok();  // the same revision: no pair is new, none resolved
+  } else if (then_db) {
+    auto visit = [&](const ClashPair& p, ClashChange change) {
+      if (change == ClashChange::kNew) {
+        ++new_pairs;
+        now_lines.Print(p, "new");
+      } else {
+        ++resolved_pairs;
+        then_lines.Print(p, "resolved");  // names as they were: a removed object has none now
+      }
+    };
+    st = ClashSince(**db, *then_db, o, visit, &stats);
+  } else {
+    st = (*db)->SelfClash(
+        o, [&](const ClashPair& p) { now_lines.Print(p); }, &stats);
+  }
   progress.Done();
   if (!st.ok()) return Fail(st.message());
-  if (!name_status.ok()) return Fail(name_status.message());
+  for (const PairPrinter* lines : {&now_lines, &then_lines})
+    if (!lines->name_status.ok()) return Fail(lines->name_status.message());
   if (a.summary) {
-    const std::string line = SummaryLine(stats, PeakRssBytes());
+    std::string line = SummaryLine(stats, PeakRssBytes());
+    if (then_db)
+      line.insert(1, "\"new\": " + std::to_string(new_pairs) +
+                         ", \"resolved\": " + std::to_string(resolved_pairs) + ", ");
     std::fwrite(line.data(), 1, line.size(), stdout);
   }
-  if (write_failed || std::fflush(stdout) != 0) return Fail("cannot write to standard output");
+  if (now_lines.write_failed || then_lines.write_failed || std::fflush(stdout) != 0)
+    return Fail("cannot write to standard output");
   return 0;
 }
 
@@ -170,6 +226,7 @@ void AddCommon(CLI::App* cmd, ClashArgs* a) {
   cmd->add_flag("--progress", a->progress, "Progress on standard error");
   cmd->add_flag("--names", a->names,
                 "Each pair's object names as name_a, name_b (null for collide's object)");
+  AddNumberOption(cmd, "--revision", &a->revision, "Clash this kept revision (default: the newest)");
 }
 
 }  // namespace
@@ -182,7 +239,14 @@ void RegisterClash(CLI::App& app, CommandRun* run) {
                   "Skip pairs whose names agree up to this separator (e.g. /)");
   AddNumberOption(cmd, "--window-mib", &args->window_mib,
                   "Memory for decoded leaves kept between their pairs, in MiB (0: the default, 32)");
-  cmd->callback([run, args] { *run = [args] { return Run(*args, false); }; });
+  auto* since = AddNumberOption(cmd, "--since", &args->since,
+                                "Only the pairs that changed since this kept revision: new ones and resolved "
+                                "ones (\"status\")");
+  cmd->callback([run, args, cmd, since] {
+    args->has_revision = cmd->get_option("--revision")->count() > 0;
+    args->has_since = since->count() > 0;
+    *run = [args] { return Run(*args, false); };
+  });
 }
 
 void RegisterCollide(CLI::App& app, CommandRun* run) {
@@ -193,7 +257,10 @@ void RegisterCollide(CLI::App& app, CommandRun* run) {
   cmd->add_option("--object", args->object, "Scene file (any format the readers take)")->required();
   cmd->add_option("--translate", args->translate, "X,Y,Z: move the object by this");
   cmd->add_option("--rotate-deg", args->rotate, "AX,AY,AZ: rotate about x, then y, then z (degrees)");
-  cmd->callback([run, args] { *run = [args] { return Run(*args, true); }; });
+  cmd->callback([run, args, cmd] {
+    args->has_revision = cmd->get_option("--revision")->count() > 0;
+    *run = [args] { return Run(*args, true); };
+  });
 }
 
 }  // namespace mktree::tools

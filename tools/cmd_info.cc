@@ -1,10 +1,11 @@
-// mktree info STORE [--json] [--object ID]: what a store holds and how its tree is shaped, or one object's
-// record. The JSON keys are documented in docs/cli.md.
+// mktree info STORE [--json] [--object ID] [--revision R]: what a store holds at a revision and how its
+// base's tree is shaped, or one object's record. The JSON keys are documented in docs/cli.md.
 #include <sys/stat.h>
 
 #include <algorithm>
 #include <cstdio>
 
+#include "engine/revision/change_folder.h"
 #include "engine/shard/manifest.h"
 #include "engine/store_format/store_file.h"
 #include "mktree/database.h"
@@ -22,7 +23,38 @@ struct InfoArgs {
   bool json = false;
   bool has_object = false;
   uint64_t object = 0;
+  uint64_t revision = 0;
+  bool has_revision = false;
 };
+
+OpenOptions InfoOpenOptions(const InfoArgs& a, uint64_t cache_pages) {
+  OpenOptions o;
+  o.cache_pages = cache_pages;
+  if (a.has_revision) o.revision = a.revision;
+  return o;
+}
+
+// The revision info describes (mktree/changes.h): its number and live objects, the base store whose tree
+// the rest of info describes, and what lies beside that base.
+struct RevisionView {
+  std::unique_ptr<Database> db;  // holds the revision while info reads its base
+  std::string base_path;         // the store file itself for a store that has taken no change
+  uint64_t deltas = 0, delta_objects = 0, removed = 0;
+};
+
+Result<RevisionView> OpenRevisionView(const InfoArgs& a) {
+  RevisionView v;
+  MKTREE_ASSIGN_OR_RETURN(v.db, Database::Open(a.store, InfoOpenOptions(a, 0)));
+  MKTREE_ASSIGN_OR_RETURN(StoreRevision r, OpenStoreRevision(a.store, v.db->revision()));
+  v.base_path = a.store;
+  if (!r.hold) return v;
+  const RevisionManifest& m = r.hold->manifest();
+  v.base_path = ChangesFile(ChangesFolder(a.store), m.base.store.name);
+  v.deltas = m.deltas.size();
+  for (const RevisionPart& d : m.deltas) v.delta_objects += d.objects;
+  for (const RevisionIdList& l : m.removals) v.removed += l.count;
+  return v;
+}
 
 std::string Real(double v) {
   char buf[32];
@@ -46,11 +78,12 @@ std::string TextBox(const Box3d& b) {
 
 // One object's record (Database::Object): name, source, attributes, box in world coordinates.
 int RunObject(const InfoArgs& a) {
-  auto db = Database::Open(a.store, {.cache_pages = 16});
+  auto db = Database::Open(a.store, InfoOpenOptions(a, 16));
   if (!db.ok()) return Fail(db.status().message());
-  if (a.object >= (*db)->object_count())
+  if (a.object >= (*db)->id_limit())
     return Fail(a.store + ": --object " + std::to_string(a.object) + " out of range (" +
-                std::to_string((*db)->object_count()) + " objects)");
+                std::to_string((*db)->id_limit()) + " object ids at revision " +
+                std::to_string((*db)->revision()) + ")");
   auto r = (*db)->Object(static_cast<ObjectId>(a.object));
   if (!r.ok()) return Fail(r.status().message());
   std::string out;
@@ -81,7 +114,7 @@ int RunObject(const InfoArgs& a) {
 int RunManifestInfo(const InfoArgs& a) {
   auto m = ReadManifest(a.store);
   if (!m.ok()) return Fail(m.status().message());
-  auto db = Database::Open(a.store, {.cache_pages = 0});
+  auto db = Database::Open(a.store, InfoOpenOptions(a, 0));
   if (!db.ok()) return Fail(db.status().message());
   const char* keys[] = {"min", "max"};
   if (a.json) {
@@ -132,12 +165,17 @@ int RunManifestInfo(const InfoArgs& a) {
 int RunInfo(const InfoArgs& a) {
   if (a.has_object) return RunObject(a);
   if (IsManifestFile(a.store)) return RunManifestInfo(a);
-  auto reader = StoreReader::Open(a.store);  // refuses statistics other than the builder's (printed below)
+  auto view = OpenRevisionView(a);
+  if (!view.ok()) return Fail(view.status().message());
+  const RevisionView& v = *view;
+  const uint64_t live = v.db->object_count(), revision = v.db->revision();
+  // Refuses statistics other than the builder's (printed below).
+  auto reader = StoreReader::Open(v.base_path);
   if (!reader.ok()) return Fail(reader.status().message());
   const StoreReader& r = **reader;
   const MKTree& t = r.tree();
   struct stat st {};
-  const uint64_t file_bytes = ::stat(a.store.c_str(), &st) == 0 ? static_cast<uint64_t>(st.st_size) : 0;
+  const uint64_t file_bytes = ::stat(v.base_path.c_str(), &st) == 0 ? static_cast<uint64_t>(st.st_size) : 0;
   uint64_t pages = 0, payload = 0, internal = 0, split_cells = 0, both_cells = 0;
   unsigned height = 0;
   for (const LeafInfo& l : t.leaves) {
@@ -159,6 +197,8 @@ int RunInfo(const InfoArgs& a) {
   if (a.json) {
     std::printf(
         "{\"file\": \"%s\", \"file_bytes\": %llu, \"backend\": \"%s\", \"codec\": \"%s\", \"objects\": %llu, "
+        "\"revision\": %llu, \"base_objects\": %llu, \"delta_stores\": %llu, \"delta_objects\": %llu, "
+        "\"removed_ids\": %llu, "
         "\"nodes\": %zu, \"internal_nodes\": %llu, \"leaves\": %zu, \"pages\": %llu, \"height\": %u, "
         "\"block_size\": %u, \"blocks_per_page\": %u, \"page_bytes\": %llu, \"balance_r\": %g, "
         "\"split_nodes\": %zu, \"split_cells\": %llu, \"split_both_cells\": %llu, \"page_fill\": %.4f, "
@@ -166,11 +206,14 @@ int RunInfo(const InfoArgs& a) {
         "%s, "
         "\"record_pages\": %llu, \"tree\": %s}\n",
         JsonText(a.store).c_str(), static_cast<unsigned long long>(file_bytes), backend, codec,
-        static_cast<unsigned long long>(r.object_count()), t.nodes.size(),
-        static_cast<unsigned long long>(internal), t.leaves.size(), static_cast<unsigned long long>(pages),
-        height, t.params.block_size, t.params.blocks_per_page, static_cast<unsigned long long>(mem_page),
-        t.params.balance_r, t.split_nodes.size(), static_cast<unsigned long long>(split_cells),
-        static_cast<unsigned long long>(both_cells), fill, static_cast<unsigned long long>(t.MemoryBytes()),
+        static_cast<unsigned long long>(live), static_cast<unsigned long long>(revision),
+        static_cast<unsigned long long>(r.object_count()), static_cast<unsigned long long>(v.deltas),
+        static_cast<unsigned long long>(v.delta_objects), static_cast<unsigned long long>(v.removed),
+        t.nodes.size(), static_cast<unsigned long long>(internal), t.leaves.size(),
+        static_cast<unsigned long long>(pages), height, t.params.block_size, t.params.blocks_per_page,
+        static_cast<unsigned long long>(mem_page), t.params.balance_r, t.split_nodes.size(),
+        static_cast<unsigned long long>(split_cells), static_cast<unsigned long long>(both_cells), fill,
+        static_cast<unsigned long long>(t.MemoryBytes()),
         static_cast<unsigned long long>(t.FilterMemoryBytes()), t.origin.x, t.origin.y, t.origin.z,
         JsonBox(t.WorldBounds()).c_str(),
         static_cast<unsigned long long>(r.objects().record_directory.size()),
@@ -179,7 +222,13 @@ int RunInfo(const InfoArgs& a) {
   }
   std::printf("store        %s (%s, %s backend, codec %s)\n", a.store.c_str(), HumanBytes(file_bytes).c_str(),
               backend, codec);
-  std::printf("objects      %llu\n", static_cast<unsigned long long>(r.object_count()));
+  std::printf("revision     %llu\n", static_cast<unsigned long long>(revision));
+  std::printf("objects      %llu live\n", static_cast<unsigned long long>(live));
+  if (v.base_path != a.store)
+    std::printf("changes      base %s of %llu objects; %llu delta stores of %llu objects, %llu ids removed\n",
+                v.base_path.c_str(), static_cast<unsigned long long>(r.object_count()),
+                static_cast<unsigned long long>(v.deltas), static_cast<unsigned long long>(v.delta_objects),
+                static_cast<unsigned long long>(v.removed));
   std::printf("nodes        %zu (%llu internal, %zu leaves), height %u\n", t.nodes.size(),
               static_cast<unsigned long long>(internal), t.leaves.size(), height);
   std::printf("pages        %llu of %llu B (%u blocks of %u B), mean fill %.1f%%\n",
@@ -215,8 +264,11 @@ void RegisterInfo(CLI::App& app, CommandRun* run) {
   cmd->add_flag("--json", args->json, "One JSON object (keys documented in docs/cli.md)");
   auto* object = AddNumberOption(cmd, "--object", &args->object,
                                  "Print this object's record (name, source, attributes, box)");
-  cmd->callback([run, args, object] {
+  auto* revision = AddNumberOption(cmd, "--revision", &args->revision,
+                                   "Describe this kept revision (default: the newest)");
+  cmd->callback([run, args, object, revision] {
     args->has_object = object->count() > 0;
+    args->has_revision = revision->count() > 0;
     *run = [args] { return RunInfo(*args); };
   });
 }

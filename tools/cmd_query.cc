@@ -1,7 +1,7 @@
 // mktree query STORE (--point | --box | --queries FILE) [--exact] [--cache-pages N] [--cold] [--threads N]
-// [--limit N | --any] [--count | --summary] [--names]: one JSON object per query per line, with the sorted
-// hits (and with --names their names, in the same order) and every per-query statistic, written as each
-// answer is complete (Database::RunBatchStreamed).
+// [--limit N | --any] [--count | --summary] [--names] [--revision R]: one JSON object per query per line,
+// with the sorted hits (and with --names their names, in the same order) and every per-query statistic,
+// written as each answer is complete (Database::RunBatchStreamed).
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -38,6 +38,8 @@ struct QueryArgs {
   uint64_t limit = 0;
   uint64_t threads = 1;
   bool names = false;
+  uint64_t revision = 0;
+  bool has_revision = false;
 };
 
 // Per query kind ("point", "box 2" for boxes of largest side 2): disk accesses and answers. Pages read
@@ -149,6 +151,7 @@ int RunQuery(const QueryArgs& a) {
   oo.cache_pages = a.cache_pages;
   oo.verify_checksums = !a.no_verify;
   oo.direct_io = a.direct_io;
+  if (a.has_revision) oo.revision = a.revision;
   auto db = Database::Open(a.store, oo);
   if (!db.ok()) return Fail(db.status().message());
   std::unique_ptr<Database> names_db;
@@ -238,7 +241,9 @@ void RegisterQuery(CLI::App& app, CommandRun* run) {
   AddNumberOption(cmd, "--threads", &args->threads, "Threads running the queries (answers stay in order)");
   auto* names =
       cmd->add_flag("--names", args->names, "Print each hit's name (\"names\", in the order of \"hits\")");
-  cmd->callback([run, args, p, b, f, count, any, limit, names] {
+  auto* revision =
+      AddNumberOption(cmd, "--revision", &args->revision, "Answer this kept revision (default: the newest)");
+  cmd->callback([run, args, p, b, f, count, any, limit, names, revision] {
     if (p->count() + b->count() + f->count() == 0)
       throw CLI::RequiredError("one of --point, --box or --queries");
     if (any->count() && (limit->count() || count->count() || args->summary))
@@ -249,6 +254,7 @@ void RegisterQuery(CLI::App& app, CommandRun* run) {
     if (args->threads == 0 || args->threads > 1024)
       throw CLI::ValidationError("--threads", "must be from 1 to 1024");
     args->has_limit = limit->count() > 0;
+    args->has_revision = revision->count() > 0;
     args->has_point = p->count() > 0;
     args->has_box = b->count() > 0;
     args->has_file = f->count() > 0;

@@ -21,6 +21,9 @@ void RegisterExport(CLI::App& app, CommandRun* run);
 void RegisterRender(CLI::App& app, CommandRun* run);
 void RegisterClash(CLI::App& app, CommandRun* run);
 void RegisterCollide(CLI::App& app, CommandRun* run);
+void RegisterUpdate(CLI::App& app, CommandRun* run);
+void RegisterLog(CLI::App& app, CommandRun* run);
+void RegisterCompact(CLI::App& app, CommandRun* run);
 
 // Prints "error: <message>" to stderr and returns 1.
 int Fail(const std::string& message);

@@ -26,6 +26,7 @@ int main(int argc, char** argv) {
   RegisterQuery(app, &run);
   RegisterExport(app, &run), RegisterRender(app, &run);
   RegisterClash(app, &run), RegisterCollide(app, &run);
+  RegisterUpdate(app, &run), RegisterLog(app, &run), RegisterCompact(app, &run);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
