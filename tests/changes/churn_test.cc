@@ -174,3 +174,60 @@ TEST(ChangesAndBuild, ABuildOverAStoreDropsItsChanges) {
 
 }  // namespace
 }  // namespace mktree
+
+namespace mktree {
+namespace {
+
+// A closed prism of many sides: its entry is larger than a 2 KiB page.
+SceneObject LargeObject(std::mt19937_64& rng, const std::string& name) {
+  std::uniform_real_distribution<double> x(0, 100), y(0, 40), z(0, 20);
+  SceneObject o;
+  o.name = name;
+  o.mesh = testing::PrismMesh(static_cast<int>(rng() % 3), y(rng), z(rng), 0.5, x(rng), x(rng) + 12, 400);
+  return o;
+}
+
+// Hundreds of small batches (1 to 6 changes, large objects among them, a replace by name now and then, a
+// compaction every so often), each checked against brute force: the many-commit path, merges of every size.
+TEST_P(Churn, HundredsOfSmallBatchesWithLargeObjects) {
+  testing::TempDir dir("mktree_churn");
+  std::mt19937_64 rng(383);
+  std::vector<SceneObject> scene = testing::ClusteredScene(150, 17);
+  const std::string store = dir.file("s.mkt");
+  ASSERT_TRUE(testing::BuildFromObjects(scene, store, testing::SmallPages(GetParam())).ok());
+  const Vec3d origin = ChooseStoreOrigin(scene[0].mesh.Bounds());
+  testing::LiveSet live;
+  for (const SceneObject& o : scene) live[o.id] = o;
+  auto w = ChangeWriter::Open(store, {.compact_threshold = 0.5, .threads = 1});
+  ASSERT_TRUE(w.ok()) << w.status().ToString();
+  uint64_t counter = 0;
+  for (int step = 0; step < 300; ++step) {
+    ChangeBatch batch = testing::RandomBatch(live, 1 + rng() % 6, rng, &counter);
+    if (step % 7 == 0) batch.add.push_back(LargeObject(rng, "large_" + std::to_string(step)));
+    if (step % 11 == 5 && !batch.replace.empty()) {  // the same change, by the object's unique name
+      SceneObject o = batch.replace.back();
+      batch.replace.pop_back();
+      o.name = live.at(o.id).name;
+      const ObjectId id = o.id;
+      batch.replace_by_name.push_back(o);
+      auto done = (*w)->Commit(batch);
+      ASSERT_TRUE(done.ok()) << done.status().ToString();
+      testing::Apply(batch, *done, &live);
+      live[id] = o;
+      live[id].id = id;
+    } else {
+      auto done = (*w)->Commit(batch);
+      ASSERT_TRUE(done.ok()) << done.status().ToString();
+      ASSERT_EQ(done->compaction_error, "");
+      testing::Apply(batch, *done, &live);
+    }
+    if (step % 25 == 24) ASSERT_TRUE((*w)->Compact().ok());
+    auto db = Database::Open(store, {.cache_pages = 16});
+    ASSERT_TRUE(db.ok()) << db.status().ToString();
+    testing::ExpectAnswers(**db, live, origin, testing::RandomQueries(6, rng),
+                           "step " + std::to_string(step));
+  }
+}
+
+}  // namespace
+}  // namespace mktree
