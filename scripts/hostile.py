@@ -33,7 +33,7 @@ import threading
 import time
 from pathlib import Path
 
-CATEGORIES = ["corrupt", "crafted", "scenes", "args", "disk", "kills", "concurrency", "shards"]
+CATEGORIES = ["corrupt", "crafted", "scenes", "args", "disk", "kills", "concurrency", "shards", "changes"]
 ROWS = [
     ("corrupt", "corrupt stores"),
     ("crafted", "crafted stores"),
@@ -44,6 +44,13 @@ ROWS = [
     ("kills", "kills"),
     ("concurrency", "concurrency"),
     ("shards", "sharded stores"),
+    ("changes-rev", "changes: revision files"),
+    ("changes-delta", "changes: delta and base stores"),
+    ("changes-ids", "changes: id files"),
+    ("changes-store", "changes: store file and folder replaced"),
+    ("changes-kills", "changes: kills of update and compact"),
+    ("changes-concurrency", "changes: readers during updates"),
+    ("changes-args", "changes: bad arguments"),
 ]
 OUTCOMES = ["ok", "clean", "unclean", "wrong", "hang", "crash"]  # by severity
 COLUMN_TITLES = [("crash", "crashes"), ("hang", "hangs"), ("wrong", "silent wrong"),
@@ -3068,10 +3075,894 @@ def cat_shards(h):
             h.finish_case(c, require_error=must_fail and bool(changed))
 
 # ---------------------------------------------------------------------------------------------------------
+# 9. A store that took changes (docs/changes.md): the changes folder's revision files, delta and base
+# stores, id files; kills of `update` and `compact`; readers of a revision while a writer commits; bad
+# arguments of the change commands.
+
+# Objects the fixture's batches add (two of one name, for a replace that must be refused), replace and add.
+CHANGE_ADD = [("add_%d" % i, (20.0 + 25 * i, -10.0 + 4 * (i % 5), 5.0 + 2 * (i % 3)), 1.0 + 0.5 * (i % 3))
+              for i in range(10)] + [("dup", (100.0, 0.0, 10.0), 2.0), ("dup", (150.0, 0.0, 10.0), 2.0)]
+CHANGE_REPLACE = [("add_%d" % i, (22.0 + 25 * i, 5.0, 12.0), 3.0) for i in (1, 4, 7)]
+CHANGE_CHECK_ADD = [("late_%d" % i, (40.0 + 30 * i, -5.0, 8.0), 1.5) for i in range(4)]
+# The fixture: revision 0 the build, then (with keep 5 set by the compaction) revisions 2..6 kept.
+CHANGE_BATCHES = [
+    ("update", "s.mkt", "--add", "a.obj", "--message", "add", "--compact-threshold", "0"),
+    ("update", "s.mkt", "--remove-ids", "7,100,2000", "--remove-names", "names.txt", "--message", "remove",
+     "--compact-threshold", "0"),
+    ("update", "s.mkt", "--replace", "r.obj", "--message", "replace", "--compact-threshold", "0"),
+    ("compact", "s.mkt", "--keep", "5"),
+    ("update", "s.mkt", "--add", "tanker:50:9", "--message", "add tanker", "--compact-threshold", "0"),
+    ("update", "s.mkt", "--remove-ids", "3003,10", "--replace", "r.obj", "--message", "remove and replace",
+     "--compact-threshold", "0"),
+]
+CHANGE_KEPT = [2, 3, 4, 5, 6]
+CHECK_UPDATE = ("update", "s.mkt", "--add", "b.obj", "--compact-threshold", "0")
+LEFTOVER_RE = re.compile(r"\.tmp\.|\.relink$|\.stale\.")
+
+
+def copy_changed_store(src, dst, name="s.mkt"):
+    """Copies STORE and STORE.changes (hard links between them kept, as the engine made them)."""
+    dst.mkdir(parents=True, exist_ok=True)
+    subprocess.run(["cp", "-a", str(src / "s.mkt"), str(src / "s.mkt.changes"), str(dst)], check=True)
+    if name != "s.mkt":
+        os.rename(dst / "s.mkt", dst / name)
+        os.rename(dst / "s.mkt.changes", dst / (name + ".changes"))
+
+
+def revision_files_named(folder):
+    """{revision file: [files it names]} for every parsable revision file of a changes folder."""
+    out = {}
+    for n in sorted(os.listdir(folder)):
+        if not re.match(r"^rev-\d{12}\.rev$", n):
+            continue
+        names = []
+        for line in (Path(folder) / n).read_text(errors="replace").splitlines():
+            w = line.split()
+            if w and w[0] in ("base", "delta") and len(w) == 9:
+                names += [w[2], w[5]]
+            elif w and w[0] in ("removal", "touched") and len(w) == 6:
+                names.append(w[2])
+        out[n] = [x for x in names if x != "-"]
+    return out
+
+
+def changes_leftovers(d, store="s.mkt"):
+    """What is wrong with a store's folder after a successful writer: temporaries, unnamed or missing files."""
+    probs = []
+    top = sorted(n for n in os.listdir(d) if n.startswith(store) and n not in (store, store + ".changes"))
+    if top:
+        probs.append("beside the store: " + ", ".join(top[:4]))
+    folder = Path(d) / (store + ".changes")
+    if not folder.is_dir():
+        return probs + ["no changes folder"]
+    named = revision_files_named(folder)
+    want = set(named) | {x for v in named.values() for x in v}
+    have = set(os.listdir(folder))
+    tmp = sorted(n for n in have if LEFTOVER_RE.search(n))
+    if tmp:
+        probs.append("temporaries in the folder: " + ", ".join(tmp[:4]))
+    extra = sorted(have - want - set(tmp))
+    if extra:
+        probs.append("files no kept revision names: " + ", ".join(extra[:4]))
+    missing = sorted(want - have)
+    if missing:
+        probs.append("named but missing: " + ", ".join(missing[:4]))
+    return probs
+
+
+class ChangeFixture:
+    """A tanker:3000 store of one backend after CHANGE_BATCHES, with each kept revision's pristine answers."""
+
+    def __init__(self, h, backend, scene="tanker:3000", tag="main"):
+        self.h, self.backend, self.scene = h, backend, scene
+        self.dir = h.fix / ("changes_%s_%s" % (tag, backend))
+        self.qfile = changes_queries(h)
+        if self.dir.exists():
+            shutil.rmtree(self.dir)
+        self.dir.mkdir(parents=True)
+        write_change_inputs(self.dir)
+        h.must("build", scene, "-o", "s.mkt", "--backend", backend, "-q", cwd=self.dir)
+        self.built = self.query(self.dir)
+        for b in CHANGE_BATCHES:
+            h.must(*b, cwd=self.dir)
+        self.answers = {r: self.query(self.dir, r) for r in CHANGE_KEPT}
+        self.one_q = changes_one_query(h, self.qfile)
+        self.one = self.query(self.dir, qfile=self.one_q)
+        self.newest = CHANGE_KEPT[-1]
+        self.log = h.must("log", "s.mkt", cwd=self.dir).out
+        self.log_json = h.must("log", "s.mkt", "--json", cwd=self.dir).out
+        self.info = json.loads(h.must("info", "s.mkt", "--json", cwd=self.dir).out)
+        self.since = self.clash_since(self.dir)
+        self.next = self.after([CHECK_UPDATE], "next")  # the answers after the check update
+        self.next_since = self.after([CHECK_UPDATE], "next", since=True)
+
+    def clash_since(self, d):
+        return sorted(self.h.must("clash", "s.mkt", "--since", CHANGE_KEPT[1], cwd=d).out.splitlines())
+
+    def query(self, d, revision=None, qfile=None):
+        args = ["query", "s.mkt", "--queries", qfile or self.qfile] + (
+            ["--revision", revision] if revision is not None else [])
+        return parse_answers(self.h.must(*args, cwd=d).out)
+
+    def after(self, commands, name, qfile=None, since=False):
+        """The newest answers (or clash --since lines) after running commands on a copy of the fixture."""
+        d = self.h.fix / ("changes_%s_%s" % (name, self.backend))
+        if d.exists():
+            shutil.rmtree(d)
+        copy_changed_store(self.dir, d)
+        write_change_inputs(d)
+        for cmd in commands:
+            self.h.must(*cmd, cwd=d)
+        a = self.clash_since(d) if since else self.query(d, qfile=qfile)
+        shutil.rmtree(d)
+        return a
+
+    def folder_files(self):
+        return sorted(os.listdir(self.dir / "s.mkt.changes"))
+
+
+def write_change_inputs(d):
+    d = Path(d)
+    d.joinpath("a.obj").write_text(cube_obj(CHANGE_ADD))
+    d.joinpath("r.obj").write_text(cube_obj(CHANGE_REPLACE))
+    d.joinpath("b.obj").write_text(cube_obj(CHANGE_CHECK_ADD))
+    d.joinpath("names.txt").write_text("add_2\nplate_000005\n")
+
+
+def changes_queries(h):
+    """tanker3000.q plus points and boxes on the objects the batches add and replace."""
+    path = h.fix / "changes.q"
+    if path.exists():
+        return path
+    base = h.queries_for(h.store("pagefile"), "tanker3000.q")
+    qs = []
+    for _, c, s in CHANGE_ADD + CHANGE_REPLACE + CHANGE_CHECK_ADD:
+        qs.append(list(c))
+        qs.append([c[i] - s for i in range(3)] + [c[i] + s for i in range(3)])
+    write_queries(path, qs)
+    path.write_text(base.read_text() + "".join(l + "\n" for l in path.read_text().splitlines()[1:]))
+    return path
+
+
+def changes_one_query(h, qfile):
+    """Two queries: the first of qfile (a tanker object's centre) and the centre of an added object."""
+    path = h.fix / "changes_one.q"
+    first = [l for l in qfile.read_text().splitlines() if l and not l.startswith("#")][0]
+    c = CHANGE_ADD[9][1]
+    path.write_text("%s\npoint %.9g %.9g %.9g\n" % (first, c[0], c[1], c[2]))
+    return path
+
+
+def _answer_check(*wants):
+    """exit 0 must print one of the given answer sets (the first is named in the difference)."""
+    def f(p):
+        try:
+            got = parse_answers(p.out)
+        except (ValueError, KeyError) as e:
+            return "unparsable query output (%s)" % e
+        if any(diff_answers(got, w) is None for w in wants):
+            return None
+        return diff_answers(got, wants[0])
+    return f
+
+
+def _info_check(want):
+    def f(p):
+        why = check_info_json(p.out, extra_allowed=("revision", "base_objects", "delta_stores", "delta_objects",
+                                                     "removed_ids"))
+        if why:
+            return why
+        j = json.loads(p.out)
+        a = {k: v for k, v in j.items() if k not in ("file", "file_bytes")}
+        b = {k: v for k, v in want.items() if k not in ("file", "file_bytes")}
+        diff = sorted(k for k in set(a) | set(b) if a.get(k) != b.get(k))
+        return None if not diff else "info --json differs from the pristine revision's in %s" % diff[:5]
+    return f
+
+
+def _since_check(want):
+    return lambda p: None if sorted(p.out.splitlines()) == want else "clash --since: %d lines, expected %d" % (
+        len(p.out.splitlines()), len(want))
+
+
+def _text_check(want, what):
+    return lambda p: None if p.out == want else "%s differs from the pristine store's" % what
+
+
+def _flip(path, pos, x):
+    b = bytearray(path.read_bytes())
+    b[pos] ^= x
+    _rewrite(path, b)
+
+
+def _rewrite(path, data):
+    """Writes over the file's own inode (a hard link of it, the store file, sees the damage too)."""
+    with open(path, "r+b") as f:
+        f.seek(0)
+        f.write(data)
+        f.truncate(len(data))
+
+
+def change_corruptions(fx, other):
+    """[(title, damaged names, how (shell), mutate(case dir), kind)]: damage to one file kind of the folder."""
+    F = "s.mkt.changes/"
+    rev = lambda r: "rev-%012d.rev" % r
+    files = fx.folder_files()
+    delta_new = next(n for n in files if n.startswith("delta-5-") and n.endswith(".mkt"))
+    delta_old = next(n for n in files if n.startswith("delta-3-") and n.endswith(".mkt"))
+    delta_6 = next(n for n in files if n.startswith("delta-6-") and n.endswith(".mkt"))
+    base4 = next(n for n in files if n.startswith("base-4-") and n.endswith(".mkt"))
+    ids_new = delta_new[:-4] + ".ids"
+    ids_base = base4[:-4] + ".ids"
+    removed = next(n for n in files if n.startswith("removed-6-"))
+    touched = next(n for n in files if n.startswith("touched-6-"))
+    out = []
+
+    def flip(name, pos, x):
+        def f(d):
+            p = d / F / name
+            _flip(p, pos if pos >= 0 else p.stat().st_size + pos, x)
+        return ("%s: byte %d xor 0x%02x" % (name, pos, x), [name],
+                "python3 -c \"import sys; p='%s%s'; b=bytearray(open(p,'rb').read()); b[%d]^=%d; "
+                "open(p,'r+b').write(b)\"" % (F, name, pos, x), f)
+
+    def truncate(name, frac):
+        def f(d):
+            p = d / F / name
+            os.truncate(p, int(p.stat().st_size * frac))
+        return ("%s: truncated to %d%%" % (name, frac * 100), [name], "truncate (%.2f of its size) %s%s" %
+                (frac, F, name), f)
+
+    def zero(name, pos, n):
+        if pos >= 0 and not name.startswith("rev-"):  # a block that holds data (zeros over zeros change nothing)
+            data = (fx.dir / F / name).read_bytes()
+            while pos + n < len(data) and not any(data[pos:pos + n]):
+                pos += n
+
+        def f(d):
+            p = d / F / name
+            b = bytearray(p.read_bytes())
+            at = pos if pos >= 0 else max(0, len(b) + pos)
+            b[at:at + n] = bytes(len(b[at:at + n]))
+            _rewrite(p, b)
+        return ("%s: %d zero bytes at %d" % (name, n, pos), [name], "dd if=/dev/zero of=%s%s bs=1 seek=%d count=%d "
+                "conv=notrunc" % (F, name, pos, n), f)
+
+    def delete(name):
+        return ("%s: deleted" % name, [name], "rm %s%s" % (F, name), lambda d: os.unlink(d / F / name))
+
+    def swap(a, b):
+        def f(d):
+            os.rename(d / F / a, d / F / "swap.tmp")
+            os.rename(d / F / b, d / F / a)
+            os.rename(d / F / "swap.tmp", d / F / b)
+        return ("%s and %s swapped" % (a, b), [a, b], "swap %s%s %s%s" % (F, a, F, b), f)
+
+    def foreign(src, name):
+        def f(d):
+            shutil.copyfile(other.dir / F / src, d / F / name)
+        return ("%s of another store (tanker:3000:2, same batches) copied in as %s" % (src, name), [name],
+                "cp other/%s%s %s%s" % (F, src, F, name), f)
+
+    # revision files: the newest and two older ones (a batch's and the compaction's)
+    for r in (6, 4, 3):
+        n = rev(r)
+        out.append(flip(n, 40, 0x01) + ("rev",))          # in the history/revision lines
+        out.append(flip(n, -30, 0x10) + ("rev",))         # in the checksum line
+        out.append(flip(n, -60, 0x20) + ("rev",))         # in the last file line
+        out.append(truncate(n, 0.5) + ("rev",))
+        out.append(truncate(n, 0.0) + ("rev",))
+        out.append(zero(n, 100, 64) + ("rev",))
+        out.append(delete(n) + ("rev",))
+    out.append(swap(rev(5), rev(6)) + ("rev",))
+    out.append(swap(rev(3), rev(4)) + ("rev",))
+    out.append(foreign(rev(6), rev(6)) + ("rev",))
+    out.append(foreign(rev(6), rev(7)) + ("rev",))
+    out.append(foreign(rev(4), rev(4)) + ("rev",))
+    # delta and base stores: the newest revision's, an older revision's, the compaction's base (the store file's
+    # hard link: the store file is damaged with it)
+    for name in (delta_new, delta_6, delta_old):
+        size = (fx.dir / F / name).stat().st_size
+        out.append(flip(name, 100, 0x04) + ("delta",))
+        out.append(flip(name, size // 2, 0x40) + ("delta",))
+        out.append(flip(name, size - 100, 0x08) + ("delta",))
+        out.append(truncate(name, 0.6) + ("delta",))
+        out.append(zero(name, 8192, 4096) + ("delta",))
+        out.append(delete(name) + ("delta",))
+    bsize = (fx.dir / F / base4).stat().st_size
+    # the compaction's base is the store file (a hard link): the first and last 64 KiB are in its fingerprint
+    for pos in (20000, 50000, bsize - 50000, bsize - 20000):
+        out.append(flip(base4, pos, 0x01) + ("delta",))
+    out.append(flip(base4, bsize // 2, 0x01) + ("delta",))
+    out.append(flip(base4, bsize - 200, 0x80) + ("delta",))
+    out.append(truncate(base4, 0.9) + ("delta",))
+    out.append(foreign(delta_new, delta_new) + ("delta",))
+    # id files
+    for name in (ids_new, ids_base, removed, touched):
+        size = (fx.dir / F / name).stat().st_size
+        out.append(flip(name, size - 3, 0x02) + ("ids",))
+        out.append(truncate(name, 0.5) + ("ids",))
+        out.append(delete(name) + ("ids",))
+    out.append(flip(ids_new, 2, 0x02) + ("ids",))
+    out.append(foreign(ids_new, ids_new) + ("ids",))
+    out.append(foreign(removed, removed) + ("ids",))
+    return out
+
+
+def cat_changes(h):
+    counter = [0]
+
+    def next_case(title, row):
+        counter[0] += 1
+        if not h.wanted("changes", counter[0]):
+            return None
+        return h.new_case("changes", counter[0], title, row=row)
+
+    for backend in ("pagefile", "hdf5"):
+        fx = ChangeFixture(h, backend)
+        other = ChangeFixture(h, backend, scene="tanker:3000:2", tag="other")
+        changes_corrupt(h, fx, other, next_case)
+        changes_store_swaps(h, fx, other, next_case)
+        changes_kills(h, fx, next_case)
+        changes_concurrency(h, fx, next_case)
+        changes_args(h, fx, next_case)
+
+
+def _revision_checks(c, fx, names, protect, revs=None, newest=None, log=True, update=True, next_want=None,
+                     retired=None):
+    """info, query, log, older revisions and an update on a (damaged) store: the pristine answers or clean
+    errors; an update that succeeds must leave a store answering the pristine store's next revision."""
+    kw = dict(names=names, protect=protect)
+    newest = fx.newest if newest is None else newest
+    c.mk("info", "s.mkt", "--json", check=_info_check(fx.info), label="info --json", **kw)
+    if not c.stopped():
+        c.mk("query", "s.mkt", "--queries", "q.txt", check=_answer_check(fx.answers[newest]), label="query", **kw)
+    if not c.stopped() and newest == fx.newest:
+        # two queries only: a damaged page that the full query file reaches (and errors on) is not read
+        shutil.copyfile(fx.one_q, c.path("one.q"))
+        c.mk("query", "s.mkt", "--queries", "one.q", check=_answer_check(fx.one), label="query (2 points)", **kw)
+    if log and not c.stopped():
+        want_log = fx.log if retired is None else "".join(
+            l for l in fx.log.splitlines(True) if not l.startswith("revision %d " % retired))
+        c.mk("log", "s.mkt", check=_text_check(want_log, "log"), label="log", **kw)
+    since_ok = False
+    if newest == fx.newest and not c.stopped():
+        since_ok = c.mk("clash", "s.mkt", "--since", CHANGE_KEPT[1], check=_since_check(fx.since),
+                        label="clash --since %d" % CHANGE_KEPT[1], **dict(kw, names=kw["names"] + (
+                            ["revision %d" % CHANGE_KEPT[1]] if retired == CHANGE_KEPT[1] else []))) == "ok"
+    for r in (revs if revs is not None else CHANGE_KEPT[:-1]):
+        if c.stopped():
+            break
+        c.mk("query", "s.mkt", "--queries", "q.txt", "--revision", r, check=_answer_check(fx.answers[r]),
+             label="query --revision %d" % r, **dict(kw, names=kw["names"] + (["revision %d" % r] if r == retired
+                                                                              else [])))
+    if update and not c.stopped():
+        before = snapshot(c.dir / "s.mkt.changes") if (c.dir / "s.mkt.changes").is_dir() else None
+        st = c.mk(*CHECK_UPDATE, names=names, label="update --add b.obj", allow_new=["s.mkt.changes/*"],
+                  outputs=["s.mkt"])
+        p = c.steps[-1][1]
+        if st == "clean" and before is not None and snapshot(c.dir / "s.mkt.changes") != before:
+            c.record("update refused", p, "unclean", "the refused update changed the changes folder")
+        if st == "ok":
+            want = next_want if next_want is not None else fx.next
+            c.mk("query", "s.mkt", "--queries", "q.txt", expect="succeed", names=names,
+                 check=_answer_check(want), label="query after the update")
+            if c.steps[-1][2] not in ("ok",):
+                c.note("the update exited 0 over a damaged store and the revision it committed does not answer "
+                       "as the pristine store's next revision")
+            if retired != CHANGE_KEPT[1]:
+                # must work after the update when it worked before it (revision 3's own damage stays)
+                c.mk("clash", "s.mkt", "--since", CHANGE_KEPT[1], expect="succeed" if since_ok else "either",
+                     names=names,
+                     check=_since_check(fx.next_since), label="clash --since %d after the update" % CHANGE_KEPT[1])
+            left = changes_leftovers(c.dir)
+            if left:
+                c.note("after the update: " + "; ".join(left))
+            c.mk("log", "s.mkt", "--json", names=names, label="log --json after the update")
+            try:
+                revs = [json.loads(x)["revision"] for x in c.steps[-1][1].out.splitlines() if x.strip()]
+            except (ValueError, KeyError):
+                revs = None
+            if c.steps[-1][2] == "ok" and revs is not None and (max(revs) != fx.newest + 1 or not set(
+                    CHANGE_KEPT[1:]) - {retired} <= set(revs)):
+                c.record("history", c.steps[-1][1], "wrong", "after the update the log has revisions %s, expected "
+                         "%s and %d (history lost, or a revision number given twice)" % (revs, CHANGE_KEPT[1:],
+                                                                                        fx.newest + 1))
+
+
+def changes_corrupt(h, fx, other, next_case):
+    for title, damaged, how, mutate, kind in change_corruptions(fx, other):
+        c = next_case("%s: %s" % (fx.backend, title), "changes-" + kind)
+        if c is None:
+            continue
+        copy_changed_store(fx.dir, c.dir)
+        write_change_inputs(c.dir)
+        shutil.copyfile(fx.qfile, c.path("q.txt"))
+        mutate(c.dir)
+        c.note("pristine: the fixture (changes_main_%s: %s; then %s); then %s" % (
+            fx.backend, fx.scene, " / ".join(" ".join(b) for b in CHANGE_BATCHES), how))
+        c.say("# " + how)
+        names = list(damaged) + ["s.mkt.changes/" + d for d in damaged]
+        if any(d.startswith("base-") for d in damaged):
+            names.append("s.mkt")  # the store file is a hard link of the newest base
+        retired = None
+        m = re.match(r"^rev-0*(\d+)\.rev: deleted$", title)
+        if m and int(m.group(1)) != fx.newest:
+            retired = int(m.group(1))  # an older revision file deleted: that revision is retired, no more
+        _revision_checks(c, fx, names, protect=["s.mkt.changes/" + d for d in damaged if "rev-" in d],
+                         retired=retired)
+        h.finish_case(c)
+
+
+def fresh_answers(h, fx, scene):
+    """The answers of a fresh build of scene (no changes folder), and after the check update on it."""
+    d = h.fix / ("changes_fresh_%s" % fx.backend)
+    if d.exists():
+        shutil.rmtree(d)
+    d.mkdir()
+    h.must("build", scene, "-o", "s.mkt", "--backend", fx.backend, "-q", cwd=d)
+    first = fx.query(d)
+    write_change_inputs(d)
+    h.must(*CHECK_UPDATE, cwd=d)
+    second = fx.query(d)
+    shutil.rmtree(d)
+    return first, second
+
+
+def changes_store_swaps(h, fx, other, next_case):
+    """The store file replaced (the folder then belongs to no store, or to an older base of its own), the
+    folder replaced by a file, the store rebuilt over its changes."""
+    plain = h.store(fx.backend, "tanker:3000:2")
+    plain_answers, plain_next = fresh_answers(h, fx, "tanker:3000:2")
+    built_next = fresh_answers(h, fx, fx.scene)[1]
+
+    def new_store_checks(c, want, want_next, names):
+        c.mk("info", "s.mkt", "--json", names=names, label="info --json",
+             check=lambda p: check_info_json(p.out, extra_allowed=("revision", "base_objects", "delta_stores",
+                                                                    "delta_objects", "removed_ids")))
+        c.mk("query", "s.mkt", "--queries", "q.txt", names=names, check=_answer_check(want), label="query")
+        c.mk("log", "s.mkt", names=names, label="log",
+             check=lambda p: None if len(p.out.splitlines()) == 1 and p.out.startswith("revision 0 ")
+             else "log of a store whose folder belongs to no store: %r" % p.out[:200])
+        for r in (3, 6):
+            c.mk("query", "s.mkt", "--queries", "q.txt", "--revision", r, expect="fail",
+                 names=["revision %d" % r], label="query --revision %d (the old folder's)" % r)
+        c.mk(*CHECK_UPDATE, names=names, label="update --add b.obj",
+             allow_new=["s.mkt.changes", "s.mkt.changes/*"], outputs=["s.mkt"])
+        if c.steps[-1][2] == "ok":
+            c.mk("query", "s.mkt", "--queries", "q.txt", expect="succeed", names=names,
+                 check=_answer_check(want_next), label="query after the update")
+            left = changes_leftovers(c.dir)
+            if left:
+                c.record("leftovers", c.steps[-1][1], "unclean", "; ".join(left))
+
+    def setup(title):
+        c = next_case("%s: %s" % (fx.backend, title), "changes-store")
+        if c is None:
+            return None
+        copy_changed_store(fx.dir, c.dir)
+        write_change_inputs(c.dir)
+        shutil.copyfile(fx.qfile, c.path("q.txt"))
+        return c
+
+    c = setup("store file replaced by another store (tanker:3000:2, no changes)")
+    if c:
+        os.unlink(c.path("s.mkt"))
+        shutil.copyfile(plain, c.path("s.mkt"))
+        c.say("# cp <tanker:3000:2 store> s.mkt (a new inode; the folder stays)")
+        new_store_checks(c, plain_answers, plain_next, ["s.mkt"])
+        h.finish_case(c)
+    c = setup("store file overwritten in place by another store (the folder's base is damaged with it)")
+    if c:
+        _rewrite(c.path("s.mkt"), plain.read_bytes())
+        c.say("# dd <tanker:3000:2 store> over s.mkt in place (the hard link in the folder too)")
+        c.mk("info", "s.mkt", "--json", names=["s.mkt"], label="info --json",
+             check=lambda p: check_info_json(p.out, extra_allowed=("revision", "base_objects", "delta_stores",
+                                                                    "delta_objects", "removed_ids")))
+        c.mk("query", "s.mkt", "--queries", "q.txt", names=["s.mkt"], check=_answer_check(plain_answers),
+             label="query")
+        for r in (3, 6):
+            c.mk("query", "s.mkt", "--queries", "q.txt", "--revision", r, names=["s.mkt", "base-"],
+                 check=_answer_check(fx.answers[r]), label="query --revision %d" % r)
+        c.mk(*CHECK_UPDATE, names=["s.mkt"], label="update --add b.obj", allow_new=["s.mkt.changes/*"],
+             outputs=["s.mkt"])
+        if c.steps[-1][2] == "ok":
+            c.mk("query", "s.mkt", "--queries", "q.txt", expect="succeed", names=["s.mkt"],
+                 check=_answer_check(plain_next), label="query after the update")
+        h.finish_case(c)
+    c = setup("store file replaced by the folder's older base (revision 2's base-0.mkt)")
+    if c:
+        os.unlink(c.path("s.mkt"))
+        shutil.copyfile(c.path("s.mkt.changes/base-0.mkt"), c.path("s.mkt"))
+        c.say("cp s.mkt.changes/base-0.mkt s.mkt")
+        _revision_checks(c, fx, ["s.mkt", "base-0.mkt"], protect=[])
+        h.finish_case(c)
+    c = setup("the store rebuilt over its changes (mktree build tanker:3000 -o s.mkt)")
+    if c:
+        c.mk("build", "tanker:3000", "-o", "s.mkt", "--backend", fx.backend, "-q", expect="succeed",
+             names=["s.mkt"], outputs=["s.mkt"], allow_new=["s.mkt.changes", "s.mkt.changes/*"],
+             label="build over the store")
+        new_store_checks(c, fx.built, built_next, ["s.mkt"])
+        h.finish_case(c)
+    c = setup("the store rebuilt from another scene over its changes (mktree build tanker:3000:2 -o s.mkt)")
+    if c:
+        c.mk("build", "tanker:3000:2", "-o", "s.mkt", "--backend", fx.backend, "-q", expect="succeed",
+             names=["s.mkt"], outputs=["s.mkt"], allow_new=["s.mkt.changes", "s.mkt.changes/*"],
+             label="build over the store")
+        new_store_checks(c, plain_answers, plain_next, ["s.mkt"])
+        h.finish_case(c)
+    for what in ("a file", "an empty folder", "a symbolic link to a missing folder"):
+        c = setup("the changes folder replaced by %s" % what)
+        if c is None:
+            continue
+        shutil.rmtree(c.path("s.mkt.changes"))
+        if what == "a file":
+            c.path("s.mkt.changes").write_text("not a folder\n")
+        elif what == "an empty folder":
+            c.path("s.mkt.changes").mkdir()
+        else:
+            os.symlink("missing-folder", c.path("s.mkt.changes"))
+        c.say("rm -r s.mkt.changes; # then make it " + what)
+        names = ["s.mkt.changes", "s.mkt"]
+        # the store file is the compaction's base: alone it is a store, but not the revisions' (ids differ)
+        for args, label in ((("info", "s.mkt", "--json"), "info --json"),
+                            (("query", "s.mkt", "--queries", "q.txt"), "query"), (("log", "s.mkt"), "log"),
+                            (("query", "s.mkt", "--queries", "q.txt", "--revision", 6), "query --revision 6"),
+                            (CHECK_UPDATE, "update --add b.obj")):
+            c.mk(*args, names=names, label=label, allow_new=["s.mkt.changes/*"], outputs=["s.mkt"])
+            if c.steps[-1][2] == "ok" and label.startswith("query"):
+                c.note("%s answered (exit 0) with the changes folder gone" % label)
+        h.finish_case(c)
+
+
+def changes_kills(h, fx, next_case):
+    """update (with and without its threshold compaction) and compact killed by SIGKILL at random times."""
+    big = "tanker:3000:5"
+    add_cmd = ("update", "s.mkt", "--add", big, "--compact-threshold", "0")
+    add_auto = ("update", "s.mkt", "--add", big)
+    a1 = fx.after([add_cmd], "kill1")
+    a1b = fx.after([add_cmd, CHECK_UPDATE], "kill1b")
+    plans = [("update --add %s" % big, add_cmd, [fx.answers[fx.newest], a1], [fx.next, a1b]),
+             ("update --add %s with its threshold compaction" % big, add_auto, [fx.answers[fx.newest], a1],
+              [fx.next, a1b]),
+             ("compact", ("compact", "s.mkt"), [fx.answers[fx.newest]], [fx.next])]
+    for title, cmd, wants, wants_next in plans:
+        d = h.work / "kill-timing"
+        if d.exists():
+            shutil.rmtree(d)
+        copy_changed_store(fx.dir, d)
+        t0 = time.monotonic()
+        p = run([str(h.mktree)] + list(cmd), d, 120)
+        dur = time.monotonic() - t0
+        shutil.rmtree(d)
+        if p.rc != 0:
+            raise SetupError("kill timing: %s: %s" % (" ".join(cmd), p.err.strip()[-200:]))
+        for k in range(12):
+            r = h.rng("changes-kill", fx.backend, title, k)
+            at = r.uniform(0.002, dur * 1.05) if k % 2 == 0 else r.uniform(0.8 * dur, 1.02 * dur)
+            c = next_case("%s: kill -9 at %.3f s of a %.3f s %s" % (fx.backend, at, dur, title), "changes-kills")
+            if c is None:
+                continue
+            copy_changed_store(fx.dir, c.dir)
+            write_change_inputs(c.dir)
+            shutil.copyfile(fx.qfile, c.path("q.txt"))
+            c.save_inputs()
+            argv = [str(h.mktree)] + list(cmd)
+            c.say("$MKTREE %s & sleep %.3f; kill -9 $!" % (shlex.join(argv[1:]), at))
+            p = spawn(argv, c.dir)
+            time.sleep(at)
+            try:
+                os.killpg(p.popen.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+            finish(p, h.timeout)
+            c.note("the writer %s" % ("was killed" if p.sig == signal.SIGKILL else "had ended: " + p.status()))
+            if p.exited and p.rc != 0:
+                c.record("writer (killed)", p, "unclean", "failed before the kill: " + p.err.strip()[-200:])
+            elif p.sig not in (None, signal.SIGKILL):
+                c.record("writer (killed)", p, "crash", "killed by " + signal.Signals(p.sig).name)
+            left = sorted(os.listdir(c.path("s.mkt.changes")))
+            extra = sorted(set(left) - set(fx.folder_files()))
+            if extra:
+                c.note("left in the folder by the kill: " + ", ".join(extra[:8]))
+            c.mk("query", "s.mkt", "--queries", "q.txt", expect="succeed", names=["s.mkt"],
+                 check=_answer_check(*wants), label="query after the kill")
+            committed = c.steps[-1][2] == "ok" and len(wants) > 1 and \
+                diff_answers(parse_answers(c.steps[-1][1].out), wants[1]) is None
+            c.mk("query", "s.mkt", "--queries", "q.txt", "--revision", fx.newest, expect="succeed", names=["s.mkt"],
+                 check=_answer_check(fx.answers[fx.newest]), label="query --revision %d" % fx.newest)
+            c.mk("log", "s.mkt", "--json", expect="succeed", names=["s.mkt"], label="log --json")
+            try:
+                revs = [json.loads(x)["revision"] for x in c.steps[-1][1].out.splitlines() if x.strip()]
+                newest = max(revs)
+                if not fx.newest <= newest <= fx.newest + 2:
+                    c.record("log", c.steps[-1][1], "wrong", "newest revision %d after the kill" % newest)
+                c.note("newest revision after the kill: %d%s" % (newest, ", the batch committed" if committed else ""))
+            except (ValueError, KeyError):
+                c.record("log", c.steps[-1][1], "wrong", "log --json unparsable")
+            c.mk(*CHECK_UPDATE, expect="succeed", names=["s.mkt"], label="the next update",
+                 allow_new=["s.mkt.changes/*"], outputs=["s.mkt"])
+            if c.steps[-1][2] == "ok":
+                c.mk("query", "s.mkt", "--queries", "q.txt", expect="succeed", names=["s.mkt"],
+                     check=_answer_check(wants_next[1] if committed else wants_next[0]),
+                     label="query after the next update")
+                left = changes_leftovers(c.dir)
+                if left:
+                    c.record("leftovers", c.steps[-1][1], "unclean", "after the next update: " + "; ".join(left))
+            h.finish_case(c)
+
+
+def changes_concurrency(h, fx, next_case):
+    """Readers of revisions in loops while a writer commits batches and compacts."""
+    seq = [("update", "s.mkt", "--add", "tanker:500:3", "--compact-threshold", "0"),
+           ("compact", "s.mkt"),
+           ("update", "s.mkt", "--remove-ids", "3005,20,21", "--replace", "r.obj", "--compact-threshold", "0"),
+           ("update", "s.mkt", "--add", "tanker:300:4", "--compact-threshold", "0.05")]
+    # the newest answers after each writer step (a compaction answers as the revision before it)
+    steps = [fx.answers[fx.newest]] + [fx.after(seq[:i + 1], "conc%d" % i) for i in range(len(seq))]
+    keep = 5
+    for k in range(4):
+        c = next_case("%s: readers of revisions %d and %d and of the newest while 4 writer steps (update, compact, "
+                      "update, update with its threshold compaction) run (%d)"
+                      % (fx.backend, fx.newest, fx.newest - 2, k), "changes-concurrency")
+        if c is None:
+            continue
+        copy_changed_store(fx.dir, c.dir)
+        write_change_inputs(c.dir)
+        shutil.copyfile(fx.qfile, c.path("q.txt"))
+        c.save_inputs()
+        c.say("(for a in %s; do $MKTREE $a; done) &  # the writer steps, as listed" %
+              " ".join(shlex.quote(" ".join(s)) for s in seq))
+        c.say("while kill -0 $! 2>/dev/null; do $MKTREE query s.mkt --queries q.txt --revision R; done  # R = %d, "
+              "%d, newest" % (fx.newest, fx.newest - 2))
+        stop, results, errors = [], [], []
+        delay = 0.05 * k
+
+        def writer():
+            time.sleep(delay)
+            for s in seq:
+                p = run([str(h.mktree)] + list(s), c.dir, 60)
+                results.append((s, p))
+                if p.rc != 0:
+                    break
+            stop.append(1)
+
+        def reader(rev):
+            runs, retired = 0, False
+            while True:
+                done = bool(stop)
+                argv = [str(h.mktree), "query", "s.mkt", "--queries", "q.txt"] + (
+                    ["--revision", str(rev)] if rev is not None else [])
+                p = run(argv, c.dir, h.timeout)
+                runs += 1
+                if not p.exited:
+                    errors.append(("hang" if p.timed_out else "crash", "reader of %s: %s" % (rev, p.status()), p))
+                    break
+                if p.rc != 0:
+                    # a revision past the keep window may be retired (no reader held it between two runs)
+                    if rev is not None and "is not kept" in p.err and \
+                            error_line_problem(p.err, ["revision %d" % rev]) is None:
+                        retired = True
+                    else:
+                        errors.append(("unclean", "reader of %s: %s: %s" % (rev, p.status(), p.err.strip()[-200:]),
+                                       p))
+                        break
+                else:
+                    if retired:
+                        errors.append(("wrong", "reader of %s answered after being told it is not kept" % rev, p))
+                        break
+                    got = parse_answers(p.out)
+                    wants = [fx.answers[rev]] if rev is not None else steps
+                    if not any(diff_answers(got, w) is None for w in wants):
+                        errors.append(("wrong", "reader of %s: %s" % (rev, diff_answers(got, wants[0])), p))
+                        break
+                if done:
+                    break
+            readers_runs.append((rev, runs, retired))
+
+        readers_runs = []
+        threads = [threading.Thread(target=writer)] + [threading.Thread(target=reader, args=(r,))
+                                                        for r in (fx.newest, fx.newest - 2, None)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+        c.note("reader runs: " + ", ".join("revision %s: %d%s" % (r if r is not None else "newest", n,
+                                                                   " (then retired)" if ret else "")
+                                           for r, n, ret in readers_runs))
+        for s, p in results:
+            if p.rc != 0 or not p.exited:
+                c.record("writer " + " ".join(s[:2]), p, "crash" if p.sig else "hang" if p.timed_out else "unclean",
+                         "a writer step failed: %s: %s" % (p.status(), p.err.strip()[-200:]))
+        for v, why, p in errors:
+            c.record("readers", p, v, why)
+        if not c.steps:
+            c.record("readers", results[-1][1], "ok", "")
+        c.mk("query", "s.mkt", "--queries", "q.txt", expect="succeed", names=["s.mkt"],
+             check=_answer_check(steps[-1]), label="query the end")
+        left = changes_leftovers(c.dir)
+        if left:
+            c.record("leftovers", c.steps[-1][1], "unclean", "; ".join(left))
+        h.finish_case(c)
+    # one long reader of the oldest kept revision holds it while the writer retires past it
+    c = next_case("%s: a long reader of revision %d (the oldest kept) while 4 writer steps retire it" % (
+        fx.backend, CHANGE_KEPT[0]), "changes-concurrency")
+    if c is not None:
+        copy_changed_store(fx.dir, c.dir)
+        write_change_inputs(c.dir)
+        q = fx.qfile.read_text().splitlines()[1:]
+        c.path("long.q").write_text("".join(l + "\n" for l in q * 40))
+        c.save_inputs()
+        old = CHANGE_KEPT[0]
+        want_long = fx.answers[old]
+        argv = [str(h.mktree), "query", "s.mkt", "--queries", "long.q", "--revision", str(old), "--cold",
+                "--cache-pages", "0"]
+        c.say("$MKTREE %s &  # while the writer steps run" % shlex.join(argv[1:]))
+        rp = spawn(argv, c.dir)
+        time.sleep(0.3)
+        wr = []
+        for s in seq:
+            wr.append((s, run([str(h.mktree)] + list(s), c.dir, 60)))
+        reader_was_running = rp.popen.poll() is None
+        finish(rp, 4 * h.timeout)
+        c.note("the reader %s still running when the writer ended" % ("was" if reader_was_running else "was not"))
+        for s, p in wr:
+            if p.rc != 0:
+                c.record("writer " + " ".join(s[:2]), p, "unclean", "%s: %s" % (p.status(), p.err.strip()[-200:]))
+        if rp.rc != 0 or not rp.exited:
+            c.record("long reader", rp, "crash" if rp.sig else "hang" if rp.timed_out else "unclean",
+                     "%s: %s" % (rp.status(), rp.err.strip()[-200:]))
+        else:
+            got = parse_answers(rp.out)
+            n = len(want_long)
+            bad = [i for i in range(len(got)) if got[i][2] != want_long[i % n][2]]
+            c.record("long reader", rp, "wrong" if bad or len(got) != 40 * n else "ok",
+                     "%d of %d answers differ from revision %d's" % (len(bad), len(got), old) if bad or
+                     len(got) != 40 * n else "")
+        def long_check(p):
+            got = parse_answers(p.out)
+            n = len(want_long)
+            bad = [i for i in range(len(got)) if got[i][2] != want_long[i % n][2]]
+            return "%d answers differ from revision %d's" % (len(bad), old) if bad or len(got) != 40 * n else None
+        c.mk("query", "s.mkt", "--queries", "long.q", "--revision", old, names=["revision %d" % old],
+             check=long_check, label="revision %d after the reader let it go (kept until the next commit)" % old)
+        c.mk(*CHECK_UPDATE, expect="succeed", names=["s.mkt"], label="the next update",
+             allow_new=["s.mkt.changes/*"], outputs=["s.mkt"])
+        c.mk("query", "s.mkt", "--queries", "long.q", "--revision", old, expect="fail", names=["revision %d" % old],
+             label="revision %d after the next commit" % old)
+        left = changes_leftovers(c.dir)
+        if left:
+            c.record("leftovers", c.steps[-1][1], "unclean", "; ".join(left))
+        h.finish_case(c)
+
+
+def changes_args(h, fx, next_case):
+    """Bad arguments of update, log, compact and --revision: one error line naming the thing, exit non-zero,
+    the store unchanged (every file, and `mktree log`)."""
+    cases = [
+        ("update: unknown id", ("update", "s.mkt", "--remove-ids", "99999"), ["99999"], {}),
+        ("update: an id removed before", ("update", "s.mkt", "--remove-ids", "7"), ["7"], {}),
+        ("update: an id above every id given", ("update", "s.mkt", "--remove-ids", "4294967295"), ["4294967295"], {}),
+        ("update: an id that is not a number", ("update", "s.mkt", "--remove-ids", "12,x3"), ["x3"], {}),
+        ("update: an empty id", ("update", "s.mkt", "--remove-ids", "12,,13"), ["--remove-ids"], {}),
+        ("update: an id removed twice", ("update", "s.mkt", "--remove-ids", "11,11"), ["11"], {}),
+        ("update: an id removed and replaced", ("update", "s.mkt", "--remove-ids", "3001", "--replace", "r.obj"),
+         ["3001", "add_1"], {}),
+        ("update: missing names file", ("update", "s.mkt", "--remove-names", "missing.txt"), ["missing.txt"], {}),
+        ("update: names file with an empty line", ("update", "s.mkt", "--remove-names", "n.txt"), ["n.txt:2"],
+         {"n.txt": "add_3\n\nadd_5\n"}),
+        ("update: names file, a name of no live object", ("update", "s.mkt", "--remove-names", "n.txt"),
+         ["no_such_object"], {"n.txt": "add_5\nno_such_object\n"}),
+        ("update: names file is a folder", ("update", "s.mkt", "--remove-names", "dir"), ["dir"], {"dir/": ""}),
+        ("update: replace by a name no object has", ("update", "s.mkt", "--replace", "x.obj"), ["nope"],
+         {"x.obj": cube_obj([("nope", (10.0, 0.0, 5.0), 1.0)])}),
+        ("update: replace by a name two objects have", ("update", "s.mkt", "--replace", "x.obj"), ["dup"],
+         {"x.obj": cube_obj([("dup", (10.0, 0.0, 5.0), 1.0)])}),
+        ("update: replace by a removed object's name", ("update", "s.mkt", "--replace", "x.obj"), ["add_2"],
+         {"x.obj": cube_obj([("add_2", (10.0, 0.0, 5.0), 1.0)])}),
+        ("update: NaN in an --add OBJ", ("update", "s.mkt", "--add", "nan.obj"), ["nan.obj"],
+         {"nan.obj": cube_obj([("n", (10.0, 0.0, 5.0), 1.0)]).replace("v 9.500000", "v nan", 1)}),
+        ("update: inf in a --replace OBJ", ("update", "s.mkt", "--replace", "inf.obj"), ["inf.obj"],
+         {"inf.obj": cube_obj([("add_1", (10.0, 0.0, 5.0), 1.0)]).replace("v 9.500000", "v inf", 1)}),
+        ("update: a good add with a bad remove (nothing committed)",
+         ("update", "s.mkt", "--add", "b.obj", "--remove-ids", "99999"), ["99999"], {}),
+        ("update: missing --add scene", ("update", "s.mkt", "--add", "missing.obj"), ["missing.obj"], {}),
+        ("update: --add tanker:0", ("update", "s.mkt", "--add", "tanker:0"), ["tanker:0"], {}),
+        ("update: negative --compact-threshold", ("update", "s.mkt", "--add", "b.obj", "--compact-threshold", "-1"),
+         ["--compact-threshold"], {}),
+        ("update: missing store", ("update", "missing.mkt", "--add", "b.obj"), ["missing.mkt"], {}),
+        ("query --revision of a retired revision", ("query", "s.mkt", "--queries", "q.txt", "--revision", "1"),
+         ["revision 1"], {}),
+        ("query --revision 0 (retired)", ("query", "s.mkt", "--queries", "q.txt", "--revision", "0"),
+         ["revision 0"], {}),
+        ("query --revision of a future revision", ("query", "s.mkt", "--queries", "q.txt", "--revision", "7"),
+         ["revision 7"], {}),
+        ("query --revision -1", ("query", "s.mkt", "--queries", "q.txt", "--revision", "-1"), ["--revision"], {}),
+        ("query --revision 2^64", ("query", "s.mkt", "--queries", "q.txt", "--revision", "18446744073709551616"),
+         ["--revision"], {}),
+        ("info --revision of a future revision", ("info", "s.mkt", "--json", "--revision", "99"), ["revision 99"], {}),
+        ("info --revision of a retired revision", ("info", "s.mkt", "--revision", "1"), ["revision 1"], {}),
+        ("info --object of an id removed at that revision", ("info", "s.mkt", "--object", "7", "--revision", "4"),
+         ["7"], {}),
+        ("info --object of an id not yet given at that revision",
+         ("info", "s.mkt", "--object", "3020", "--revision", "4"), ["3020"], {}),
+        ("clash --revision of a retired revision", ("clash", "s.mkt", "--revision", "1"), ["revision 1"], {}),
+        ("clash --since of a retired revision", ("clash", "s.mkt", "--since", "1"), ["revision 1"], {}),
+        ("clash --since of a future revision", ("clash", "s.mkt", "--since", "9"), ["revision 9"], {}),
+        ("collide --revision of a future revision", ("collide", "s.mkt", "--object", "b.obj", "--revision", "8"),
+         ["revision 8"], {}),
+        ("compact --keep 0", ("compact", "s.mkt", "--keep", "0"), ["--keep"], {}),
+        ("compact --keep 1000001", ("compact", "s.mkt", "--keep", "1000001"), ["--keep"], {}),
+        ("compact of a missing store", ("compact", "missing.mkt"), ["missing.mkt"], {}),
+        ("log of a missing store", ("log", "missing.mkt"), ["missing.mkt"], {}),
+        ("log of a folder", ("log", "dir"), ["dir"], {"dir/": ""}),
+    ]
+    for title, argv, names, files in cases:
+        c = next_case("%s: %s" % (fx.backend, title), "changes-args")
+        if c is None:
+            continue
+        copy_changed_store(fx.dir, c.dir)
+        write_change_inputs(c.dir)
+        shutil.copyfile(fx.qfile, c.path("q.txt"))
+        for name, text in files.items():
+            if name.endswith("/"):
+                c.path(name).mkdir()
+            else:
+                c.path(name).write_text(text)
+        protect = sorted(snapshot(c.dir))
+        c.mk(*argv, expect="fail", names=names, protect=protect, label=" ".join(argv)[:70])
+        c.mk("log", "s.mkt", expect="succeed", names=["s.mkt"], check=_text_check(fx.log, "log"), label="log after")
+        h.finish_case(c)
+    # a second update while one runs: refused at once, the first commits, the log has exactly the first
+    for k in range(3):
+        c = next_case("%s: a second update %d ms into a first (tanker:3000:5)" % (fx.backend, 30 + 40 * k),
+                      "changes-args")
+        if c is None:
+            continue
+        copy_changed_store(fx.dir, c.dir)
+        write_change_inputs(c.dir)
+        shutil.copyfile(fx.qfile, c.path("q.txt"))
+        c.save_inputs()
+        a = [str(h.mktree), "update", "s.mkt", "--add", "tanker:3000:5", "--compact-threshold", "0"]
+        b = [str(h.mktree)] + list(CHECK_UPDATE)
+        c.say("$MKTREE %s & sleep %.2f; $MKTREE %s; wait" % (shlex.join(a[1:]), (30 + 40 * k) / 1000,
+                                                            shlex.join(b[1:])))
+        pa = spawn(a, c.dir)
+        time.sleep((30 + 40 * k) / 1000)
+        pa_done = pa.popen.poll() is not None
+        pb = finish(spawn(b, c.dir), h.timeout)
+        finish(pa, h.timeout)
+        c.note("first: %s; second: %s%s" % (pa.status(), pb.status(),
+                                             "; the first had ended before the second started" if pa_done else ""))
+        for label, p in (("first update", pa), ("second update", pb)):
+            if not p.exited:
+                c.record(label, p, "crash" if p.sig else "hang", p.status())
+            elif p.rc != 0:
+                e = error_line_problem(p.err, ["another writer"])
+                c.record(label, p, "unclean" if e or p.rc != 1 else "clean", e or "")
+        if pa.rc != 0 and pb.rc != 0:
+            c.record("both updates", pb, "unclean", "neither update committed")
+        if pa.rc == 0 and pb.rc == 0:
+            c.note("both committed: the second took the lock before or after the first held it")
+        c.mk("log", "s.mkt", "--json", expect="succeed", names=["s.mkt"], label="log after")
+        try:
+            revs = [json.loads(x) for x in c.steps[-1][1].out.splitlines() if x.strip()]
+            added = [r["added"] for r in revs if r["revision"] > fx.newest]
+            expect_added = ([3000] if pa.rc == 0 else []) + ([len(CHANGE_CHECK_ADD)] if pb.rc == 0 else [])
+            if sorted(added) != sorted(expect_added):
+                c.record("log", c.steps[-1][1], "wrong", "revisions after %d added %s, expected %s" % (
+                    fx.newest, added, expect_added))
+        except (ValueError, KeyError) as e:
+            c.record("log", c.steps[-1][1], "wrong", "log --json unparsable: %s" % e)
+        h.finish_case(c)
+
+
+# ---------------------------------------------------------------------------------------------------------
 
 
 RUNNERS = {"corrupt": cat_corrupt, "crafted": cat_crafted, "scenes": cat_scenes, "args": cat_args, "disk": cat_disk,
-           "kills": cat_kills, "concurrency": cat_concurrency, "shards": cat_shards}
+           "kills": cat_kills, "concurrency": cat_concurrency, "shards": cat_shards,
+           "changes": cat_changes}
 
 
 def main():
