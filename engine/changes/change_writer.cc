@@ -164,6 +164,8 @@ Status Writer::Start() {
 // revision 0's file. A folder of a store rebuilt since, or one a killed writer left without any revision,
 // is replaced whole.
 Status Writer::Initialize() {
+  // The store first: a store that does not open keeps the folder it has (nothing is set aside for it).
+  MKTREE_ASSIGN_OR_RETURN(auto reader, StoreReader::Open(store_));
   std::error_code ec;
   if (fs::exists(folder_, ec)) {
     const std::string stale = folder_ + ".stale." + std::to_string(::getpid());
@@ -174,7 +176,6 @@ Status Writer::Initialize() {
   }
   if (!fs::create_directory(folder_, ec) && ec)
     return Status::IOError(folder_ + ": cannot create the changes folder: " + ec.message());
-  MKTREE_ASSIGN_OR_RETURN(auto reader, StoreReader::Open(store_));
   RevisionManifest m;
   m.history = NewBuildId();
   m.revision = 0;

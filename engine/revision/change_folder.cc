@@ -122,6 +122,7 @@ Result<bool> TryRetireRevision(const std::string& folder, uint64_t revision) {
 Result<bool> StoreFileIsAKeptBase(const std::string& store_path, const std::string& folder,
                                   const std::vector<uint64_t>& revisions) {
   MKTREE_ASSIGN_OR_RETURN(const RevisionFile store, FingerprintFile(store_path));
+  std::vector<std::pair<uint64_t, std::string>> bases;  // of the revisions read
   for (auto it = revisions.rbegin(); it != revisions.rend(); ++it) {
     auto m = ReadRevisionFile(folder, *it);
     if (!m.ok()) {
@@ -129,6 +130,21 @@ Result<bool> StoreFileIsAKeptBase(const std::string& store_path, const std::stri
       return m.status();
     }
     if (m->base.store.bytes == store.bytes && m->base.store.fingerprint == store.fingerprint) return true;
+    bases.push_back({*it, m->base.store.name});
+  }
+  // No match: a store built anew (another file), or this store's own base damaged (the same file: the
+  // store file is a hard link of a base). Taking damage for a rebuild would answer the base alone and let a
+  // writer replace the folder: refuse.
+  struct stat st_store;
+  if (::stat(store_path.c_str(), &st_store) != 0) return false;
+  for (const auto& [revision, name] : bases) {
+    struct stat st_base;
+    const std::string base = ChangesFile(folder, name);
+    if (::stat(base.c_str(), &st_base) == 0 && st_base.st_dev == st_store.st_dev &&
+        st_base.st_ino == st_store.st_ino)
+      return Status::Corruption(store_path + ": damaged: it is the base of revision " +
+                                std::to_string(revision) + " (" + base +
+                                ") but no longer has the size and fingerprint it was committed with");
   }
   return false;
 }

@@ -56,7 +56,9 @@ struct StoreRevision {
 // kept; Corruption naming the file for a damaged revision file.
 Result<StoreRevision> OpenStoreRevision(const std::string& store_path, std::optional<uint64_t> revision);
 
-// Whether the store file is the base (same size and fingerprint) of one of the folder's revisions.
+// Whether the store file is the base (same size and fingerprint) of one of the folder's revisions. Not
+// being one means the store was built anew, unless the store file is the same file as a kept base (a hard
+// link): then it is damaged, and this is Corruption naming it.
 Result<bool> StoreFileIsAKeptBase(const std::string& store_path, const std::string& folder,
                                   const std::vector<uint64_t>& revisions);
 

@@ -231,3 +231,42 @@ TEST_P(Churn, HundredsOfSmallBatchesWithLargeObjects) {
 
 }  // namespace
 }  // namespace mktree
+
+namespace mktree {
+namespace {
+
+// The store file is a hard link of the newest base: damage to it is damage, never taken for a rebuild (which
+// would answer the base alone and let a writer replace the changes folder).
+TEST(ChangesAndBuild, ADamagedStoreFileIsCorruptionNotANewStore) {
+  testing::TempDir dir("mktree_churn");
+  std::vector<SceneObject> scene = testing::ClusteredScene(80, 6);
+  const std::string store = dir.file("s.mkt");
+  ASSERT_TRUE(testing::BuildFromObjects(scene, store, testing::SmallPages(Backend::kPagedFile)).ok());
+  {
+    auto w = ChangeWriter::Open(store);
+    ASSERT_TRUE(w.ok());
+    ChangeBatch b;
+    b.remove = {4};
+    ASSERT_TRUE((*w)->Commit(b).ok());
+  }
+  std::filesystem::resize_file(store, std::filesystem::file_size(store) - 1);
+  const auto folder_files = [&] {
+    std::vector<std::string> names;
+    for (const auto& e : std::filesystem::directory_iterator(store + ".changes"))
+      names.push_back(e.path().filename().string());
+    std::sort(names.begin(), names.end());
+    return names;
+  };
+  const std::vector<std::string> before = folder_files();
+  auto db = Database::Open(store);
+  ASSERT_FALSE(db.ok());
+  EXPECT_EQ(db.status().code(), Status::Code::kCorruption) << db.status().ToString();
+  EXPECT_NE(db.status().message().find("damaged"), std::string::npos) << db.status().ToString();
+  auto w = ChangeWriter::Open(store);
+  ASSERT_FALSE(w.ok());
+  EXPECT_EQ(w.status().code(), Status::Code::kCorruption) << w.status().ToString();
+  EXPECT_EQ(folder_files(), before);  // nothing set aside or removed
+}
+
+}  // namespace
+}  // namespace mktree
