@@ -155,6 +155,7 @@ Status Writer::Start() {
   }
   if (!kept) return Initialize();
   MKTREE_ASSIGN_OR_RETURN(head_, ReadRevisionFile(folder_, revisions.back()));
+  MKTREE_RETURN_IF_ERROR(CheckOneHistory(folder_, revisions, head_.revision, head_.history));
   MKTREE_RETURN_IF_ERROR(OpenHead());
   MKTREE_RETURN_IF_ERROR(RelinkStore());  // a compaction killed between its commit and the relink
   return RetireAndCollect().status();
@@ -567,12 +568,18 @@ Result<std::vector<RevisionInfo>> ListRevisions(const std::string& store_path) {
       out.push_back(info);
       return out;
     }
+    uint64_t history = 0;
     for (uint64_t r : revisions) {
       auto m = ReadRevisionFile(folder, r);
       if (!m.ok()) {
         if (m.status().code() == Status::Code::kNotFound) continue;  // retired meanwhile
         return m.status();
       }
+      if (out.empty()) history = m->history;
+      if (m->history != history)
+        return Status::Corruption(ChangesFile(folder, RevisionFileName(out.front().revision)) + " and " +
+                                  ChangesFile(folder, RevisionFileName(r)) +
+                                  ": revision files of different stores (one was copied in from another)");
       RevisionInfo info;
       info.revision = m->revision;
       info.time = m->time;

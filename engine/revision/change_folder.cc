@@ -119,6 +119,23 @@ Result<bool> TryRetireRevision(const std::string& folder, uint64_t revision) {
   return true;
 }
 
+Status CheckOneHistory(const std::string& folder, const std::vector<uint64_t>& revisions,
+                       uint64_t held_revision, uint64_t held_history) {
+  for (uint64_t r : revisions) {
+    if (r == held_revision) continue;
+    auto m = ReadRevisionFile(folder, r);
+    if (!m.ok()) {
+      if (m.status().code() == Status::Code::kNotFound) continue;
+      return m.status();
+    }
+    if (m->history != held_history)
+      return Status::Corruption(ChangesFile(folder, RevisionFileName(held_revision)) + " and " +
+                                ChangesFile(folder, RevisionFileName(r)) +
+                                ": revision files of different stores (one was copied in from another)");
+  }
+  return Status::Ok();
+}
+
 Result<bool> StoreFileIsAKeptBase(const std::string& store_path, const std::string& folder,
                                   const std::vector<uint64_t>& revisions) {
   MKTREE_ASSIGN_OR_RETURN(const RevisionFile store, FingerprintFile(store_path));
@@ -168,6 +185,7 @@ Result<StoreRevision> OpenStoreRevision(const std::string& store_path, std::opti
     const uint64_t want = revision ? *revision : revisions.back();
     auto hold = RevisionHold::Open(folder, want);
     if (hold.ok()) {
+      MKTREE_RETURN_IF_ERROR(CheckOneHistory(folder, revisions, want, (*hold)->manifest().history));
       out.hold = std::move(*hold);
       return out;
     }

@@ -56,6 +56,11 @@ struct StoreRevision {
 // kept; Corruption naming the file for a damaged revision file.
 Result<StoreRevision> OpenStoreRevision(const std::string& store_path, std::optional<uint64_t> revision);
 
+// Corruption naming both files when a revision file of `revisions` is of another history (another store's,
+// copied in) than `held`, revision `held_revision`'s. Files gone meanwhile (retired) are skipped.
+Status CheckOneHistory(const std::string& folder, const std::vector<uint64_t>& revisions,
+                       uint64_t held_revision, uint64_t held_history);
+
 // Whether the store file is the base (same size and fingerprint) of one of the folder's revisions. Not
 // being one means the store was built anew, unless the store file is the same file as a kept base (a hard
 // link): then it is damaged, and this is Corruption naming it.
