@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <charconv>
 #include <chrono>
 #include <ctime>
 #include <filesystem>
@@ -116,6 +117,7 @@ class Writer final : public ChangeWriter {
   Status MergeDeltas(RevisionManifest* m);
   Status CommitRevision(RevisionManifest m);
   Result<std::pair<uint64_t, uint64_t>> RetireAndCollect();
+  void SkipPastUnnamedFiles();
   Status RelinkStore();
   PartBuild Part(const std::string& name, uint64_t made_at) const {
     PartBuild b;
@@ -141,7 +143,8 @@ class Writer final : public ChangeWriter {
   std::vector<RevisionPartDb> parts_;  // of head_
   std::optional<uint32_t> keep_;
   uint64_t part_seq_ = 0;
-  IngestOptions base_ingest_;  // how parts are built: like the head's base
+  IngestOptions base_ingest_;      // how parts are built: like the head's base
+  uint64_t skip_to_revision_ = 0;  // the next revision is above it (SkipPastUnnamedFiles)
 };
 
 Status Writer::Start() {
@@ -158,7 +161,32 @@ Status Writer::Start() {
   MKTREE_RETURN_IF_ERROR(CheckOneHistory(folder_, revisions, head_.revision, head_.history));
   MKTREE_RETURN_IF_ERROR(OpenHead());
   MKTREE_RETURN_IF_ERROR(RelinkStore());  // a compaction killed between its commit and the relink
+  SkipPastUnnamedFiles();
   return RetireAndCollect().status();
+}
+
+// Files of the folder that no kept revision names are a killed writer's, or a revision's whose file was lost
+// (deleted by hand): either way their revision numbers and the ids their stores gave are not given again,
+// so that a revision number only grows and an id is never reused. Read before they are removed.
+void Writer::SkipPastUnnamedFiles() {
+  std::error_code ec;
+  for (fs::directory_iterator it(folder_, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    // "<kind>-<revision>-<n>.<ext>", the names NewPartName gives.
+    const size_t a = name.find('-'), b = a == std::string::npos ? a : name.find('-', a + 1);
+    if (b == std::string::npos) continue;
+    uint64_t rev = 0;
+    const auto r = std::from_chars(name.data() + a + 1, name.data() + b, rev);
+    if (r.ec != std::errc() || r.ptr != name.data() + b || rev <= head_.revision) continue;
+    skip_to_revision_ = std::max(skip_to_revision_, rev);
+    const std::string kind = name.substr(0, a);
+    if ((kind == "delta" || kind == "merged" || kind == "base") && name.ends_with(".ids")) {
+      auto ids =
+          ReadShardIds(it->path().string(), head_.history, static_cast<uint32_t>(rev), uint64_t{1} << 32);
+      if (ids.ok() && !ids->empty())
+        head_.next_id = std::max<uint64_t>(head_.next_id, uint64_t{ids->back()} + 1);
+    }
+  }
 }
 
 // The first change of a store: the folder, the store file linked in as the base of revision 0, and
@@ -312,7 +340,7 @@ Result<CommitReport> Writer::CommitUnguarded(const ChangeBatch& batch) {
   std::vector<SceneObject> written;
   uint64_t replaced = 0;
   MKTREE_RETURN_IF_ERROR(ResolveBatch(batch, &removed, &written, &replaced));
-  const uint64_t rev = head_.revision + 1;
+  const uint64_t rev = std::max(head_.revision, skip_to_revision_) + 1;
   RevisionManifest m = head_;
   m.revision = rev;
   m.time = std::time(nullptr);
@@ -420,7 +448,7 @@ Result<CompactReport> Writer::CompactUnguarded() {
     report.seconds = SecondsSince(start);
     return report;
   }
-  const uint64_t rev = head_.revision + 1;
+  const uint64_t rev = std::max(head_.revision, skip_to_revision_) + 1;
   RevisionManifest m = head_;
   m.revision = rev;
   m.time = std::time(nullptr);

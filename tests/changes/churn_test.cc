@@ -270,3 +270,41 @@ TEST(ChangesAndBuild, ADamagedStoreFileIsCorruptionNotANewStore) {
 
 }  // namespace
 }  // namespace mktree
+
+namespace mktree {
+namespace {
+
+// The newest revision file lost (deleted by hand): the store is back at the revision before it, and the next
+// writer gives neither its revision number nor the ids its batch added again.
+TEST(ChangesAndBuild, ALostRevisionFileIsNotReusedByTheNextWriter) {
+  testing::TempDir dir("mktree_churn");
+  std::vector<SceneObject> scene = testing::ClusteredScene(40, 8);
+  const std::string store = dir.file("s.mkt");
+  ASSERT_TRUE(testing::BuildFromObjects(scene, store, testing::SmallPages(Backend::kPagedFile)).ok());
+  ChangeBatch add;
+  add.add = testing::ClusteredScene(5, 9);
+  std::vector<ObjectId> lost_ids;
+  {
+    auto w = ChangeWriter::Open(store, {.compact_threshold = 0});
+    ASSERT_TRUE(w.ok());
+    ASSERT_TRUE((*w)->Commit(add).ok());
+    auto second = (*w)->Commit(add);
+    ASSERT_TRUE(second.ok());
+    ASSERT_EQ(second->revision, 2u);
+    lost_ids = second->added_ids;
+  }
+  std::filesystem::remove(store + ".changes/rev-000000000002.rev");
+  ASSERT_EQ((*Database::Open(store))->revision(), 1u);
+  auto w = ChangeWriter::Open(store, {.compact_threshold = 0});
+  ASSERT_TRUE(w.ok()) << w.status().ToString();
+  auto third = (*w)->Commit(add);
+  ASSERT_TRUE(third.ok()) << third.status().ToString();
+  EXPECT_GT(third->revision, 2u);
+  EXPECT_GT(third->added_ids.front(), lost_ids.back());
+  auto db = Database::Open(store);
+  ASSERT_TRUE(db.ok());
+  EXPECT_EQ((*db)->object_count(), 50u);
+}
+
+}  // namespace
+}  // namespace mktree

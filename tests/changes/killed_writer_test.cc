@@ -83,13 +83,15 @@ class KilledWriter : public ::testing::TestWithParam<Backend> {
     const ChangeBatch next = testing::MixedBatch(live, 3, rng, &counter);
     auto done = (*w)->Commit(next);
     ASSERT_TRUE(done.ok()) << done.status().ToString();
-    ASSERT_EQ(done->revision, rev + 1);
+    // Above the last committed one: a killed writer's files may have named a revision (and ids) that the next
+    // writer then skips, never reuses.
+    ASSERT_GE(done->revision, rev + 1);
     testing::Apply(next, *done, &live);
     w->reset();
     EXPECT_EQ(testing::FolderProblems(store, false), std::vector<std::string>{});
     auto db = Database::Open(store);
     ASSERT_TRUE(db.ok()) << db.status().ToString();
-    ASSERT_EQ((*db)->revision(), rev + 1);
+    ASSERT_EQ((*db)->revision(), done->revision);
     ASSERT_NO_FATAL_FAILURE(testing::ExpectIntact(**db, live, pristine_.origin, queries_, where + ", next"));
   }
 
