@@ -1,7 +1,6 @@
 // ChangeWriter: commits, delta merges, compaction, retirement (see change_writer.h and docs/changes.md).
 #include "engine/changes/change_writer.h"
 
-#include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -22,9 +21,11 @@
 #include "engine/query/revision_database.h"
 #include "engine/revision/change_folder.h"
 #include "engine/shard/manifest.h"
+#include "engine/store_format/record_codec.h"
 #include "engine/store_format/store_file.h"
 #include "storage/atomic_file.h"
 #include "storage/file_util.h"
+#include "storage/page_cache.h"
 
 namespace mktree {
 
@@ -42,16 +43,6 @@ constexpr uint64_t kMergeRatio = 2;
 // The writer's page cache over a revision's parts: it reads records and leaves in order (names, merges,
 // compaction), so a few pages do; a reader's default would add its 48 MiB to a compaction's peak.
 constexpr uint64_t kWriterCachePages = 256;
-
-Status FsyncFolder(const std::string& path, FileOps& ops) {
-  const int fd = ::open(path.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (fd < 0) return Status::IOError(path + ": open folder: " + storage_internal::ErrnoText(errno));
-  const int rc = ops.Fsync(fd);
-  const int err = errno;
-  ::close(fd);
-  if (rc != 0) return Status::IOError(path + ": fsync folder: " + storage_internal::ErrnoText(err));
-  return Status::Ok();
-}
 
 // The commit point. On an error the file is removed even when its rename was done (a failed fsync of the
 // folder after it), so that an error means that nothing was committed: the writer's head stays, and its
@@ -109,8 +100,13 @@ class Writer final : public ChangeWriter {
   Status OpenHead();
   Result<CommitReport> CommitUnguarded(const ChangeBatch& batch);
   Result<CompactReport> CompactUnguarded();
-  Status ResolveBatch(const ChangeBatch& batch, std::vector<ObjectId>* removed,
-                      std::vector<SceneObject>* written, uint64_t* replaced) const;
+  // An added or replacing object of the batch, and the id it is written under.
+  struct Written {
+    ObjectId id;
+    const SceneObject* object;
+  };
+  Status ResolveBatch(const ChangeBatch& batch, std::vector<ObjectId>* removed, std::vector<Written>* written,
+                      uint64_t* replaced) const;
   Result<std::unordered_map<std::string, std::vector<ObjectId>>> LiveNames(
       const std::set<std::string>& wanted) const;
   Result<RevisionIdList> WriteIdList(const std::string& name, uint64_t made_at, std::vector<ObjectId> ids);
@@ -219,8 +215,8 @@ Status Writer::Initialize() {
         ChangesFile(folder_, base_name) + ": cannot link the store into its changes folder: " +
         storage_internal::ErrnoText(errno) + " (the folder must be on the store's file system)");
   MKTREE_ASSIGN_OR_RETURN(m.base.store, FingerprintFile(ChangesFile(folder_, base_name)));
-  MKTREE_RETURN_IF_ERROR(FsyncFolder(folder_, ops_));
-  if (Status st = FsyncFolder(fs::path(fs::absolute(store_)).parent_path().string(), ops_); !st.ok())
+  MKTREE_RETURN_IF_ERROR(storage_internal::SyncParentDir(ChangesFile(folder_, base_name), ops_));
+  if (Status st = storage_internal::SyncParentDir(folder_, ops_); !st.ok())
     return Status::IOError(store_ + ": making its changes folder durable: " + st.message());
   MKTREE_RETURN_IF_ERROR(WriteRevisionFile(folder_, m, ops_));
   head_ = m;
@@ -243,10 +239,14 @@ Result<std::unordered_map<std::string, std::vector<ObjectId>>> Writer::LiveNames
   std::unordered_map<std::string, std::vector<ObjectId>> out;
   if (wanted.empty()) return out;
   for (const RevisionPartDb& part : parts_) {
+    // In id order through a RecordReader: each record group decoded once (ObjectName decodes one per id).
+    const StoreReader& reader = part.db->reader();
+    PageCache pages(&reader.pages(), kWriterCachePages);
+    RecordReader records(reader.record_layout(), &pages, true);
     for (uint64_t i = 0; i < part.hidden.size(); ++i) {
       if (part.hidden[i]) continue;
-      MKTREE_ASSIGN_OR_RETURN(std::string name, part.db->ObjectName(static_cast<ObjectId>(i)));
-      if (wanted.count(name)) out[name].push_back(part.global(static_cast<ObjectId>(i)));
+      MKTREE_ASSIGN_OR_RETURN(const StoredRecord* r, records.Get(static_cast<ObjectId>(i), nullptr));
+      if (wanted.count(r->name)) out[r->name].push_back(part.global(static_cast<ObjectId>(i)));
     }
   }
   return out;
@@ -255,7 +255,7 @@ Result<std::unordered_map<std::string, std::vector<ObjectId>>> Writer::LiveNames
 // The batch against the head: ids removed, objects written (added with new ids, replacing with theirs),
 // in increasing id. Nothing is written here.
 Status Writer::ResolveBatch(const ChangeBatch& batch, std::vector<ObjectId>* removed,
-                            std::vector<SceneObject>* written, uint64_t* replaced) const {
+                            std::vector<Written>* written, uint64_t* replaced) const {
   std::set<std::string> names(batch.remove_names.begin(), batch.remove_names.end());
   for (const SceneObject& o : batch.replace_by_name) names.insert(o.name);
   MKTREE_ASSIGN_OR_RETURN(const auto by_name, LiveNames(names));
@@ -286,8 +286,7 @@ Status Writer::ResolveBatch(const ChangeBatch& batch, std::vector<ObjectId>* rem
   }
   auto write = [&](const SceneObject& o, ObjectId id, const std::string& what) -> Status {
     MKTREE_RETURN_IF_ERROR(CheckCallerObject(o, store_ + ": " + what));
-    written->push_back(o);
-    written->back().id = id;
+    written->push_back({id, &o});
     return Status::Ok();
   };
   for (const SceneObject& o : batch.replace) {
@@ -315,8 +314,7 @@ Status Writer::ResolveBatch(const ChangeBatch& batch, std::vector<ObjectId>* rem
     MKTREE_RETURN_IF_ERROR(write(o, static_cast<ObjectId>(head_.next_id + i),
                                  "add object " + std::to_string(i) + " '" + o.name + "'"));
   }
-  std::sort(written->begin(), written->end(),
-            [](const SceneObject& a, const SceneObject& b) { return a.id < b.id; });
+  std::sort(written->begin(), written->end(), [](const Written& a, const Written& b) { return a.id < b.id; });
   std::sort(removed->begin(), removed->end());
   return Status::Ok();
 }
@@ -337,7 +335,7 @@ Result<RevisionIdList> Writer::WriteIdList(const std::string& name, uint64_t mad
 Result<CommitReport> Writer::CommitUnguarded(const ChangeBatch& batch) {
   const auto start = Clock::now();
   std::vector<ObjectId> removed;
-  std::vector<SceneObject> written;
+  std::vector<Written> written;
   uint64_t replaced = 0;
   MKTREE_RETURN_IF_ERROR(ResolveBatch(batch, &removed, &written, &replaced));
   const uint64_t rev = std::max(head_.revision, skip_to_revision_) + 1;
@@ -359,7 +357,8 @@ Result<CommitReport> Writer::CommitUnguarded(const ChangeBatch& batch) {
     size_t at = 0;
     IdOrderedObjects next = [&](SceneObject* out) -> Result<bool> {
       if (at == written.size()) return false;
-      *out = written[at++];
+      *out = *written[at].object;  // the one copy the build takes
+      out->id = written[at++].id;
       return true;
     };
     MKTREE_ASSIGN_OR_RETURN(RevisionPart delta,
@@ -367,7 +366,7 @@ Result<CommitReport> Writer::CommitUnguarded(const ChangeBatch& batch) {
     m.deltas.push_back(delta);
   }
   std::vector<ObjectId> touched = removed;
-  for (const SceneObject& o : written) touched.push_back(o.id);
+  for (const Written& w : written) touched.push_back(w.id);
   if (!removed.empty()) {
     MKTREE_ASSIGN_OR_RETURN(RevisionIdList l,
                             WriteIdList(NewPartName("removed", rev) + ".ids", rev, removed));

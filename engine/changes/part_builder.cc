@@ -1,6 +1,5 @@
 #include "engine/changes/part_builder.h"
 
-#include <fcntl.h>
 #include <unistd.h>
 
 #include <filesystem>
@@ -117,8 +116,9 @@ struct LiveObjectStream::Cursor {
 
   // Every live object's mesh, leaf by leaf, into an unnamed file of `dir`; `where` says where each went.
   Status Spill(const std::string& dir, FileOps& ops) {
-    scratch_fd = ::open(dir.c_str(), O_TMPFILE | O_RDWR | O_CLOEXEC, 0600);
-    if (scratch_fd < 0) return Status::IOError(dir + ": scratch file: " + storage_internal::ErrnoText(errno));
+    MKTREE_ASSIGN_OR_RETURN(const storage_internal::UnnamedFile scratch,
+                            storage_internal::OpenUnnamedFile(dir, "merge", "a merge's scratch file"));
+    scratch_fd = scratch.fd;
     const StoreReader& reader = part.db->reader();
     where.assign(part.hidden.size(), kNowhere);
     std::vector<uint8_t> buf;
