@@ -7,7 +7,7 @@ include(GNUInstallDirs)
 
 set(MKTREE_PACKAGE_LAYERS mktree_storage mktree_core mktree_geometry mktree_scene mktree_generator
   mktree_tree mktree_store_format mktree_shard mktree_revision mktree_ingest mktree_clash mktree_query
-  mktree_changes)
+  mktree_changes mktree_coordination)
 set(MKTREE_PACKAGE_DEPENDENCIES hdf5::hdf5 PkgConfig::ZSTD PkgConfig::XXHASH assimp::assimp Threads::Threads)
 if(NOT TARGET hdf5::hdf5)
   message(FATAL_ERROR "FindHDF5 made no hdf5::hdf5 target (CMake ${CMAKE_VERSION})")

@@ -19,6 +19,13 @@ PACKAGES=(
   libspatialindex-dev libsqlite3-dev  # bench/ peers
   libcgal-dev        # bench/ clash peer, tests/ exact oracle
   libfcl-dev         # bench/ clash peer
+  nlohmann-json3-dev # clash-test files and other JSON (engine/coordination)
+  libzip-dev         # BCF archives (engine/report)
+  # STEP input through OpenCASCADE (engine/scene/step_reader.cc)
+  libocct-data-exchange-dev libocct-modeling-algorithms-dev libocct-modeling-data-dev libocct-foundation-dev
+  libocct-ocaf-dev
+  libembree-dev      # bench/ ray and nearest peer
+  chromium           # tests: the HTML clash report loads in headless Chromium
   time               # /usr/bin/time: peak RSS of the engines scripts/bench_clash.py runs
   # The Python module (python/, docs/python.md), for Debian's /usr/bin/python3: pybind11's headers and
   # CMake package, Python's headers, numpy (its arrays in and out), pytest (python/run_tests.sh).

@@ -30,6 +30,14 @@ set(below_engine_query "mktree/" "storage/" "engine/core/" "engine/geometry/" "e
 set(below_engine_changes "mktree/" "storage/" "engine/core/" "engine/geometry/" "engine/scene/" "engine/tree/"
     "engine/store_format/" "engine/shard/" "engine/ingest/" "engine/clash/" "engine/query/" "engine/revision/")
 set(below_engine_viz "mktree/" "storage/" "engine/core/" "engine/tree/" "engine/store_format/")
+# The clash workflow: tests of one selection against another, rules, keys, groups, comparison with a
+# previous run (over the query layer's Database and its clash).
+set(below_engine_coordination "mktree/" "storage/" "engine/core/" "engine/geometry/" "engine/tree/"
+    "engine/store_format/" "engine/clash/" "engine/shard/" "engine/revision/" "engine/query/")
+# What the workflow hands to people and their tools: BCF archives, the HTML report, snapshots (viz).
+set(below_engine_report "mktree/" "storage/" "engine/core/" "engine/geometry/" "engine/tree/"
+    "engine/store_format/" "engine/clash/" "engine/shard/" "engine/revision/" "engine/query/"
+    "engine/coordination/" "engine/viz/")
 set(below_tools "mktree/" "storage/" "engine/")
 # The MPI front end (mktree-mpi) is a sibling of the command line above the engine: it may share the
 # command line's helpers, never the reverse.
@@ -39,7 +47,8 @@ set(below_python "mktree/")
 # Benchmarks measure the engine's layers directly; nothing includes them.
 set(below_bench "mktree/" "storage/" "engine/")
 set(folders include/mktree storage engine/core engine/geometry engine/scene engine/generator engine/tree
-    engine/store_format engine/shard engine/revision engine/ingest engine/clash engine/query engine/changes engine/viz tools tools/mpi python bench)
+    engine/store_format engine/shard engine/revision engine/ingest engine/clash engine/query engine/changes engine/viz
+    engine/coordination engine/report tools tools/mpi python bench)
 
 # Every folder that holds sources (at any depth) must be placed in the layers above before it can hold code.
 set(roots include storage engine tools python bench)
