@@ -225,7 +225,8 @@ class IfcSceneSource final : public SceneSource {
     char header[16];
     if (!reader_->Read(header, sizeof(header), &read_error_)) return Died("before its stream header");
     if (std::memcmp(header, kMagic, sizeof(kMagic)) != 0)
-      return Status::Internal(path_ + ": " + program_ + " wrote no MKIFCS stream (is it mktree's IFC reader?)");
+      return Status::Internal(path_ + ": " + program_ +
+                              " wrote no MKIFCS stream (is it mktree's IFC reader?)");
     if (Load32(header + 8) != kVersion)
       return Status::Internal(path_ + ": " + program_ + " writes stream version " +
                               std::to_string(Load32(header + 8)) + ", this build reads " +
@@ -324,7 +325,8 @@ class IfcSceneSource final : public SceneSource {
     uint64_t count;
     std::memcpy(&count, b + 4, 8);
     count = FromLittle(count);
-    if (!reader_->AtEnd(&read_error_)) return Status::Internal(path_ + ": IFC reader stream: bytes after its end");
+    if (!reader_->AtEnd(&read_error_))
+      return Status::Internal(path_ + ": IFC reader stream: bytes after its end");
     const std::string how = process_.Finish();
     if (!how.empty()) return Status::IOError(path_ + ": the IFC reader (" + program_ + ") failed: " + how);
     if (count != objects_)

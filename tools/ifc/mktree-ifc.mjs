@@ -136,13 +136,6 @@ if (!FILE) {
   process.exit(64);
 }
 out.header();
-let W;
-try {
-  W = await import('web-ifc');
-} catch (e) {
-  fail(`web-ifc is not installed next to ${import.meta.url.replace('file://', '')}: ` +
-       'run scripts/setup.sh (npm ci --prefix tools/ifc)');
-}
 let data;
 try {
   data = fs.readFileSync(FILE);
@@ -150,6 +143,13 @@ try {
   fail(`cannot read: ${e.message}`);
 }
 const schema = CheckStepFile(data);
+let W;
+try {
+  W = await import('web-ifc');
+} catch (e) {
+  fail(`web-ifc is not installed next to ${import.meta.url.replace('file://', '')}: ` +
+       'run scripts/setup.sh (npm ci --prefix tools/ifc)');
+}
 
 // web-ifc logs through console.log: keep stdout for the stream.
 console.log = console.error;
