@@ -96,6 +96,10 @@ class IfcProcess {
     posix_spawn_file_actions_addopen(&actions, 0, "/dev/null", O_RDONLY, 0);
     posix_spawn_file_actions_adddup2(&actions, fds[1], 1);
     if (err_ >= 0) posix_spawn_file_actions_adddup2(&actions, err_, 2);
+#if defined(__GLIBC__) && __GLIBC_PREREQ(2, 34)
+    // Descriptors the build holds without O_CLOEXEC (its store, spill files, the writer lock) stay ours.
+    posix_spawn_file_actions_addclosefrom_np(&actions, 3);
+#endif
     std::vector<std::string> args = {node, program, path};
     std::vector<char*> argv;
     for (std::string& a : args) argv.push_back(a.data());

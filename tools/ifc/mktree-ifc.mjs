@@ -20,6 +20,7 @@
 // A stream without an end record was cut short (the program died): the reader treats it as an error, as it
 // does an error record. stderr carries only what Node itself prints when it fails.
 import fs from 'node:fs';
+import { createRequire } from 'node:module';
 
 const FILE = process.argv[2];
 const OUT_FD = 1;
@@ -29,44 +30,46 @@ const STREAM_VERSION = 1;
 class StreamWriter {
   constructor(fd) {
     this.fd = fd;
-    this.chunks = [];
-    this.bytes = 0;
+    this.buf = Buffer.allocUnsafe(1 << 20);
+    this.at = 0;
     this.objects = 0;
   }
+  room(n) {
+    if (this.at + n <= this.buf.length) return;
+    this.flush();
+    if (n > this.buf.length) this.buf = Buffer.allocUnsafe(n);
+  }
   u32(v) {
-    const b = Buffer.allocUnsafe(4);
-    b.writeUInt32LE(v >>> 0);
-    this.push(b);
+    this.room(4);
+    this.at = this.buf.writeUInt32LE(v >>> 0, this.at);
   }
   u64(v) {
-    const b = Buffer.allocUnsafe(8);
-    b.writeBigUInt64LE(BigInt(v));
-    this.push(b);
+    this.room(8);
+    this.at = this.buf.writeBigUInt64LE(BigInt(v), this.at);
   }
   tag(t) { this.push(Buffer.from(t, 'latin1')); }
   str(s) {
-    const b = Buffer.from(String(s), 'utf8');
-    this.u32(b.length);
-    this.push(b);
+    const text = String(s);
+    const n = Buffer.byteLength(text, 'utf8');
+    this.u32(n);
+    this.room(n);
+    this.at += this.buf.write(text, this.at, 'utf8');
   }
   push(b) {
-    this.chunks.push(b);
-    this.bytes += b.length;
-    if (this.bytes >= (1 << 20)) this.flush();
+    this.room(b.length);
+    b.copy(this.buf, this.at);
+    this.at += b.length;
   }
   flush() {
-    if (this.bytes === 0) return;
-    const all = Buffer.concat(this.chunks, this.bytes);
-    this.chunks = [];
-    this.bytes = 0;
-    for (let at = 0; at < all.length;) {
+    for (let at = 0; at < this.at;) {
       try {
-        at += fs.writeSync(this.fd, all, at, all.length - at);
+        at += fs.writeSync(this.fd, this.buf, at, this.at - at);
       } catch (e) {
         if (e.code !== 'EAGAIN') throw e;
         Atomics.wait(new Int32Array(new SharedArrayBuffer(4)), 0, 0, 1);  // a non-blocking pipe is full
       }
     }
+    this.at = 0;
   }
   header() {
     this.tag('MKIFCS\0\0');
@@ -122,13 +125,13 @@ function CheckStepFile(data) {
   const m = /FILE_SCHEMA\s*\(\s*\(\s*'([^']*)'/i.exec(head);
   if (!m) fail('not an IFC file: no FILE_SCHEMA in the header');
   const declared = m[1].toUpperCase();
-  const family = declared.startsWith('IFC4X3') ? 'IFC4X3' : SCHEMAS[declared];
+  const family = /^IFC4X3(_|$)/.test(declared) ? 'IFC4X3' : SCHEMAS[declared];
   if (!family)
     fail(`unsupported IFC schema '${m[1]}' (web-ifc reads IFC2X3, IFC4 and IFC4X3)`);
   const tail = data.subarray(Math.max(0, data.length - 4096)).toString('latin1');
   if (!/END-ISO-10303-21\s*;\s*$/.test(tail))
     fail('truncated: the file does not end with END-ISO-10303-21; (cut short or damaged)');
-  return family;
+  return [family, m[1]];
 }
 
 if (!FILE) {
@@ -136,16 +139,20 @@ if (!FILE) {
   process.exit(64);
 }
 out.header();
+// Anything that escapes (web-ifc throwing on an entity it cannot decode, ...) ends the stream with an
+// error record rather than a stack trace and a cut stream.
+process.on('uncaughtException', (e) => fail(`reading failed: ${e && e.message ? e.message : e}`));
 let data;
 try {
   data = fs.readFileSync(FILE);
 } catch (e) {
   fail(`cannot read: ${e.message}`);
 }
-const schema = CheckStepFile(data);
+const [schema, declaredSchema] = CheckStepFile(data);
 let W;
 try {
-  W = await import('web-ifc');
+  // require, not import: Node's ESM loader scans this large CommonJS module for its exports first.
+  W = createRequire(import.meta.url)('web-ifc');
 } catch (e) {
   fail(`web-ifc is not installed next to ${import.meta.url.replace('file://', '')}: ` +
        'run scripts/setup.sh (npm ci --prefix tools/ifc)');
@@ -156,9 +163,14 @@ console.log = console.error;
 const api = new W.IfcAPI();
 await api.Init();
 api.SetLogLevel(W.LogLevel.LOG_LEVEL_OFF);
-const model = api.OpenModel(data, { COORDINATE_TO_ORIGIN: false });
+let model = -1;
+try {
+  model = api.OpenModel(data, { COORDINATE_TO_ORIGIN: false });
+} catch (e) {
+  fail(`web-ifc cannot parse the file: ${e.message ?? e}`);
+}
 data = null;
-if (model < 0) fail('web-ifc cannot open the file');
+if (model < 0) fail(`unsupported IFC schema '${declaredSchema}': web-ifc ${api.GetVersion()} cannot open the file`);
 
 // ---- entity access ----------------------------------------------------------------------------------
 const lineCache = new Map();
@@ -433,20 +445,49 @@ function LengthUnitScale() {
 }
 const mapConversion = MapConversion();
 
-// One product's placed geometries as one mesh in the model's frame; coincident vertices welded.
+// One product's placed geometries as one mesh in the model's frame. Within a geometry, vertices with the
+// same position (web-ifc repeats them per face, with their normals) are welded, by the bits of their local
+// float32 coordinates, so that equal positions stay equal after the transform.
+let slots = new Int32Array(1 << 16);
 function ProductMesh(flat) {
   const positions = [];
   const triangles = [];
-  const index = new Map();
   const mc = mapConversion;
   for (let g = 0; g < flat.geometries.size(); ++g) {
     const placed = flat.geometries.get(g);
     const geometry = api.GetGeometry(model, placed.geometryExpressID);
     const v = api.GetVertexArray(geometry.GetVertexData(), geometry.GetVertexDataSize());
     const t = api.GetIndexArray(geometry.GetIndexData(), geometry.GetIndexDataSize());
+    const bits = new Uint32Array(v.buffer, v.byteOffset, v.length);
     const m = placed.flatTransformation;  // column-major 4x4, to web-ifc's Y-up frame
-    const local = new Uint32Array(v.length / 6);
-    for (let i = 0, k = 0; i < v.length; i += 6, ++k) {
+    const n = v.length / 6;
+    let size = 1;
+    while (size < 2 * n) size *= 2;
+    if (slots.length < size) slots = new Int32Array(size);
+    slots.fill(-1, 0, size);
+    const first = new Int32Array(n);  // the vertex each vertex is welded to
+    const local = new Uint32Array(n);
+    for (let k = 0; k < n; ++k) {
+      const i = 6 * k;
+      let h = (Math.imul(bits[i], 73856093) ^ Math.imul(bits[i + 1], 19349663) ^ Math.imul(bits[i + 2], 83492791)) &
+              (size - 1);
+      for (;;) {
+        const j = slots[h];
+        if (j < 0) {
+          slots[h] = k;
+          first[k] = k;
+          break;
+        }
+        if (bits[6 * j] === bits[i] && bits[6 * j + 1] === bits[i + 1] && bits[6 * j + 2] === bits[i + 2]) {
+          first[k] = j;
+          break;
+        }
+        h = (h + 1) & (size - 1);
+      }
+      if (first[k] !== k) {
+        local[k] = local[first[k]];
+        continue;
+      }
       const x = v[i], y = v[i + 1], z = v[i + 2];
       const X = m[0] * x + m[4] * y + m[8] * z + m[12];
       const Y = m[1] * x + m[5] * y + m[9] * z + m[13];
@@ -459,18 +500,12 @@ function ProductMesh(flat) {
         py = qy;
         pz = mc.s * pz + mc.H;
       }
-      const key = `${px},${py},${pz}`;
-      let at = index.get(key);
-      if (at === undefined) {
-        at = positions.length / 3;
-        index.set(key, at);
-        positions.push(px, py, pz);
-      }
-      local[k] = at;
+      local[k] = positions.length / 3;
+      positions.push(px, py, pz);
     }
     for (let i = 0; i + 2 < t.length; i += 3) {
+      if (t[i] >= n || t[i + 1] >= n || t[i + 2] >= n) continue;
       const a = local[t[i]], b = local[t[i + 1]], c = local[t[i + 2]];
-      if (a === undefined || b === undefined || c === undefined) continue;
       if (a === b || b === c || a === c) continue;  // degenerate after welding
       triangles.push(a, b, c);
     }
