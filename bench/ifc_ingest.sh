@@ -22,10 +22,11 @@ timed() {
   /usr/bin/time -v "$@" 2>"$tmp/time" >"$tmp/out" || { cat "$tmp/time" >&2; return 1; }
   wall=$(awk -F': ' '/Elapsed \(wall clock\)/{n=split($2,t,":"); s=0; for(i=1;i<=n;i++) s=s*60+t[i]; print s}' "$tmp/time")
   rss=$(awk -F': ' '/Maximum resident set size/{print $2}' "$tmp/time")
+  cpu=$(awk -F': ' '/User time|System time/{s+=$2} END{print s}' "$tmp/time")
 }
 
 echo "load: $(cut -d' ' -f1-3 /proc/loadavg), $(nproc) cores, node $(node --version), web-ifc $(node -p "require('./tools/ifc/node_modules/web-ifc/package.json').version")"
-printf '%-28s %-22s %8s %8s %10s %8s %12s %12s\n' file path seconds objects objects/s MB/s "mktree MiB" "tree MiB"
+printf '%-24s %-21s %8s %8s %8s %10s %8s %11s %9s\n' file path seconds "cpu s" objects objects/s MB/s "mktree MiB" "tree MiB"
 for f in "${files[@]}"; do
   name=$(basename "$f")
   mb=$(awk -v b="$(stat -c %s "$f")" 'BEGIN{printf "%.3f", b/1e6}')
@@ -36,7 +37,7 @@ d = open(sys.argv[1], 'rb').read()
 print(struct.unpack_from('<Q', d, len(d) - 8)[0])
 EOF
 )
-  printf '%-28s %-22s %8.2f %8d %10.0f %8.2f %12s %12.1f\n' "$name" "web-ifc alone" "$wall" "$objects" \
+  printf '%-24s %-21s %8.2f %8.2f %8d %10.0f %8.2f %11s %9.1f\n' "$name" "web-ifc alone" "$wall" "$cpu" "$objects" \
     "$(echo "$objects / $wall" | bc -l)" "$(echo "$mb / $wall" | bc -l)" - "$(echo "$rss / 1024" | bc -l)"
   for path in web-ifc assimp; do
     env=()
@@ -44,7 +45,7 @@ EOF
     timed env "${env[@]}" "$tool" build "$f" -o "$tmp/$path.mkt"
     objects=$(awk '/^built/{print $3}' "$tmp/out")
     own=$(awk '/peak RSS/{print $(NF-1)}' "$tmp/out")
-    printf '%-28s %-22s %8.2f %8d %10.0f %8.2f %12s %12.1f\n' "$name" "mktree build $path" "$wall" "$objects" \
+    printf '%-24s %-21s %8.2f %8.2f %8d %10.0f %8.2f %11s %9.1f\n' "$name" "mktree build $path" "$wall" "$cpu" "$objects" \
       "$(echo "$objects / $wall" | bc -l)" "$(echo "$mb / $wall" | bc -l)" "$own" "$(echo "$rss / 1024" | bc -l)"
   done
   node "$reader" "$f" >"$tmp/stream"
