@@ -323,6 +323,59 @@ TEST(IfcReader, SourceDestroyedEarly) {
   EXPECT_EQ(::waitpid(-1, nullptr, WNOHANG), -1) << "no child left";
 }
 
+// A stand-in for mktree-ifc.mjs in its own folder (with the web-ifc marker the reader looks for) whose
+// body is `script` (JavaScript with `out(buffer)` writing to stdout and `record(name, attrs, v, t)`).
+std::string FakeReader(const testing::TempDir& dir, const std::string& script) {
+  fs::create_directories(dir / "node_modules" / "web-ifc");
+  std::ofstream(dir / "node_modules" / "web-ifc" / "package.json") << "{}";
+  std::ofstream(dir / "mktree-ifc.mjs")
+      << "import fs from 'node:fs';\n"
+         "const out = (b) => fs.writeSync(1, b);\n"
+         "const u32 = (v) => { const b = Buffer.alloc(4); b.writeUInt32LE(v); return b; };\n"
+         "const str = (s) => Buffer.concat([u32(Buffer.byteLength(s)), Buffer.from(s)]);\n"
+         "const header = () => out(Buffer.concat([Buffer.from('MKIFCS\\0\\0', 'latin1'), u32(1), u32(0)]));\n"
+         "const record = (name, attrs, v, t) => out(Buffer.concat([Buffer.from('MKOB'), str(name),\n"
+         "  u32(attrs.length), ...attrs.flatMap(([k, x]) => [str(k), str(x)]), u32(v.length / 3),\n"
+         "  u32(t.length / 3), Buffer.from(Float64Array.from(v).buffer), "
+         "Buffer.from(Uint32Array.from(t).buffer)]));\n"
+         "const end = (n) => { const b = Buffer.alloc(16); b.write('MKEN'); b.writeBigUInt64LE(BigInt(n), "
+         "8);\n"
+         "  out(b); };\n"
+      << script << "\n";
+  return dir.path().string();
+}
+
+// What the reader checks of the stream, whatever the program: finite coordinates and indices in range
+// (naming the product by GlobalId), a program that dies (its exit status and stderr), an end that is not.
+TEST(IfcReaderStream, BadObjectsAndDeadProgramsAreErrorsNamingTheFile) {
+  const std::string input = TestFile("slab-standard-case.ifc");
+  struct Case {
+    const char* script;
+    const char* says;
+  } cases[] = {
+      {"header(); record('w', [['ifc_global_id', '2O2Fr$t4X7Zf8NOew3FK4F'], ['ifc_type', 'IfcWall']], "
+       "[0, 0, 0, 1, 0, 0, 0, NaN, 0], [0, 1, 2]); end(1);",
+       "2O2Fr$t4X7Zf8NOew3FK4F IfcWall, 'w'): non-finite vertex coordinate"},
+      {"header(); record('w', [['ifc_global_id', 'g']], [0, 0, 0, 1, 0, 0, 0, 1, 0], [0, 1, 3]); end(1);",
+       "triangle index 3 out of range"},
+      {"header(); record('w', [], [0, 0, 0, 1, 0, 0, 0, 1, 0], [0, 1, 2]); "
+       "process.stderr.write('boom\\n'); process.exit(3);",
+       "stopped before the end of its stream (exit status 3: boom)"},
+      {"header(); end(2);", "end record says 2 objects, 0 were read"},
+      {"out(Buffer.from('hello world, not a stream'));", "wrote no MKIFCS stream"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.script);
+    testing::TempDir dir("mktree_ifc_fake");
+    ::setenv("MKTREE_IFC_READER", FakeReader(dir, c.script).c_str(), 1);
+    auto r = ReadAllFrom(OpenSceneFile(input));
+    ::unsetenv("MKTREE_IFC_READER");
+    ASSERT_FALSE(r.ok());
+    EXPECT_NE(r.status().message().find(input), std::string::npos) << r.status().ToString();
+    EXPECT_NE(r.status().message().find(c.says), std::string::npos) << r.status().ToString();
+  }
+}
+
 // ---- through the command line ----------------------------------------------------------------------
 
 class IfcCli : public ::testing::Test {
