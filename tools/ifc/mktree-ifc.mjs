@@ -347,7 +347,7 @@ const SPATIAL = new Set(['IFCSPACE', 'IFCOPENINGELEMENT', 'IFCOPENINGSTANDARDCAS
                          'IFCFACILITYPART', 'IFCBRIDGE', 'IFCBRIDGEPART', 'IFCROAD', 'IFCROADPART',
                          'IFCRAILWAY', 'IFCRAILWAYPART', 'IFCMARINEFACILITY', 'IFCMARINEPART',
                          'IFCEXTERNALSPATIALELEMENT', 'IFCSPATIALELEMENT', 'IFCSPATIALSTRUCTURE',
-                         'IFCSPATIALSTRUCTUREELEMENT', 'IFCANNOTATION', 'IFCGRID']);
+                         'IFCSPATIALSTRUCTUREELEMENT', 'IFCANNOTATION', 'IFCGRID', 'IFCVIRTUALELEMENT']);
 
 // The IFC type as the schema spells it ("IfcWallStandardCase").
 function IfcTypeName(id) { return api.GetNameFromTypeCode(api.GetLineType(model, id)); }
@@ -530,6 +530,7 @@ function HasBody(id) {
 }
 
 const emitted = new Set();
+const failedIds = new Set();  // reported once, whichever way web-ifc failed them
 let failed = 0;
 function Emit(flat) {
   const id = flat.expressID;
@@ -540,6 +541,7 @@ function Emit(flat) {
     mesh = ProductMesh(flat);
   } catch (e) {
     ++failed;
+    failedIds.add(id);
     out.warning(`#${id} ${type} ${GlobalId(id) ?? ''}: web-ifc geometry failed: ${e.message ?? e}`);
     return;
   }
@@ -553,7 +555,7 @@ function Emit(flat) {
 api.StreamAllMeshes(model, (flat) => Emit(flat));
 // web-ifc leaves spaces and openings out of StreamAllMeshes: they are kept here, marked ifc_spatial.
 const products = IdsOf(W.IFCPRODUCT);
-const rest = products.filter((id) => !emitted.has(id) && HasBody(id));
+const rest = products.filter((id) => !emitted.has(id) && !failedIds.has(id) && HasBody(id));
 for (const id of rest) {
   let flat = null;
   try {
@@ -564,7 +566,12 @@ for (const id of rest) {
     continue;
   }
   Emit(flat);
-  if (!emitted.has(id)) {
+  try {
+    flat.delete();
+  } catch (e) {
+    // a mesh web-ifc owns
+  }
+  if (!emitted.has(id) && !failedIds.has(id)) {
     ++failed;
     out.warning(`#${id} ${IfcTypeName(id)} ${GlobalId(id) ?? ''}: has a body representation but web-ifc ` +
                 'made no geometry for it; left out');
