@@ -223,19 +223,21 @@ class IfcSceneSource final : public SceneSource {
   IfcSceneSource(std::string path, std::string program, ObjectId first_id)
       : path_(std::move(path)), program_(std::move(program)), first_id_(first_id) {}
 
+  ~IfcSceneSource() override {
+    if (file_ >= 0) ::close(file_);
+  }
+
+  // Runs the program on the IFC file and reads its output.
   Status Start(const std::string& node, const std::string& scratch_dir) {
     MKTREE_RETURN_IF_ERROR(process_.Start(node, program_, path_, scratch_dir));
     reader_ = std::make_unique<PipeReader>(process_.out());
-    char header[16];
-    if (!reader_->Read(header, sizeof(header), &read_error_)) return Died("before its stream header");
-    if (std::memcmp(header, kMagic, sizeof(kMagic)) != 0)
-      return Status::Internal(path_ + ": " + program_ +
-                              " wrote no MKIFCS stream (is it mktree's IFC reader?)");
-    if (Load32(header + 8) != kVersion)
-      return Status::Internal(path_ + ": " + program_ + " writes stream version " +
-                              std::to_string(Load32(header + 8)) + ", this build reads " +
-                              std::to_string(kVersion));
-    return Status::Ok();
+    return ReadHeader();
+  }
+  // Reads a saved stream from `fd` (taken).
+  Status StartFile(int fd) {
+    file_ = fd;
+    reader_ = std::make_unique<PipeReader>(fd);
+    return ReadHeader();
   }
 
   Result<bool> Next(SceneObject* out) override {
@@ -262,8 +264,27 @@ class IfcSceneSource final : public SceneSource {
     return FromLittle(v);
   }
 
-  // The program ended its output early: why, from its exit status and stderr.
+  bool saved() const { return program_.empty(); }
+
+  Status ReadHeader() {
+    const std::string who = saved() ? "not an MKIFCS stream" : program_ + " wrote no MKIFCS stream";
+    char header[16];
+    if (!reader_->Read(header, sizeof(header), &read_error_)) return Died("before its stream header");
+    if (std::memcmp(header, kMagic, sizeof(kMagic)) != 0)
+      return saved() ? Status::Corruption(path_ + ": " + who + " (bad magic)")
+                     : Status::Internal(path_ + ": " + who + " (is it mktree's IFC reader?)");
+    if (Load32(header + 8) != kVersion)
+      return Status::Unsupported(path_ + ": MKIFCS stream version " + std::to_string(Load32(header + 8)) +
+                                 ", this build reads " + std::to_string(kVersion));
+    return Status::Ok();
+  }
+
+  // The stream ended early: for a saved stream, truncation; for the program, why, from its exit status and
+  // stderr.
   Status Died(const std::string& where) {
+    if (saved())
+      return Status::Corruption(path_ + ": truncated MKIFCS stream: it ends " + where +
+                                (read_error_.empty() ? "" : " (" + read_error_ + ")"));
     const std::string how = process_.Finish();
     return Status::IOError(path_ + ": the IFC reader (" + program_ + ") stopped " + where +
                            (how.empty() ? "" : " (" + how + ")") +
@@ -376,9 +397,10 @@ class IfcSceneSource final : public SceneSource {
   }
 
   const std::string path_;
-  const std::string program_;
+  const std::string program_;  // empty: a saved stream
   const ObjectId first_id_;
   IfcProcess process_;
+  int file_ = -1;  // a saved stream's descriptor
   std::unique_ptr<PipeReader> reader_;
   std::string read_error_;
   uint64_t objects_ = 0;
@@ -416,6 +438,13 @@ Result<std::unique_ptr<SceneSource>> OpenIfcFile(const std::string& path, Object
   if (node.empty()) node = "node";
   auto source = std::make_unique<IfcSceneSource>(path, program, first_id);
   MKTREE_RETURN_IF_ERROR(source->Start(node, scratch_dir));
+  return std::unique_ptr<SceneSource>(std::move(source));
+}
+
+Result<std::unique_ptr<SceneSource>> OpenIfcStreamFile(const std::string& path, ObjectId first_id) {
+  MKTREE_ASSIGN_OR_RETURN(const int fd, OpenSceneInput(path));
+  auto source = std::make_unique<IfcSceneSource>(path, "", first_id);
+  MKTREE_RETURN_IF_ERROR(source->StartFile(fd));
   return std::unique_ptr<SceneSource>(std::move(source));
 }
 

@@ -48,4 +48,9 @@ std::string IfcReaderProgram();
 Result<std::unique_ptr<SceneSource>> OpenIfcFile(const std::string& path, ObjectId first_id = 0,
                                                  const std::string& scratch_dir = "");
 
+// Reads a saved stream (`node tools/ifc/mktree-ifc.mjs model.ifc > model.mkifcs`), as OpenIfcFile reads
+// the program's output: IFC converted once, built many times without Node. Objects' source is `path`.
+// Errors name the file: Corruption when it is not an MKIFCS stream or is truncated.
+Result<std::unique_ptr<SceneSource>> OpenIfcStreamFile(const std::string& path, ObjectId first_id = 0);
+
 }  // namespace mktree

@@ -42,6 +42,7 @@ Result<std::unique_ptr<SceneSource>> OpenSceneFile(const std::string& path, Obje
   }
   if (ext == ".mks") return OpenMkSceneFile(path, first_id);
   if (ext == ".ifc" && !IfcThroughAssimp()) return OpenIfcFile(path, first_id, spill_dir);
+  if (ext == ".mkifcs") return OpenIfcStreamFile(path, first_id);
   return OpenAssimpFile(path, first_id);
 }
 

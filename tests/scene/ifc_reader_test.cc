@@ -376,6 +376,40 @@ TEST(IfcReaderStream, BadObjectsAndDeadProgramsAreErrorsNamingTheFile) {
   }
 }
 
+// A saved stream (.mkifcs) reads as the IFC it came from, without Node; cut short, it is refused.
+TEST(IfcReaderStream, SavedStreamReadsAsTheIfc) {
+  testing::TempDir dir("mktree_ifc_saved");
+  const std::string ifc = TestFile("slab-openings-ifc4x3.ifc"), saved = dir.file("slab.mkifcs");
+  const std::string cmd = "node " + IfcReaderProgram() + " " + ifc + " > " + saved;
+  ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+  auto direct = ReadAllFrom(OpenSceneFile(ifc, 5));
+  auto from_file = ReadAllFrom(OpenSceneFile(saved, 5));
+  ASSERT_TRUE(direct.ok()) << direct.status().ToString();
+  ASSERT_TRUE(from_file.ok()) << from_file.status().ToString();
+  ASSERT_EQ(from_file->size(), 3u);
+  ASSERT_EQ(direct->size(), from_file->size());
+  for (size_t i = 0; i < direct->size(); ++i) {
+    const SceneObject &a = (*direct)[i], &b = (*from_file)[i];
+    EXPECT_EQ(b.id, 5 + i);
+    EXPECT_EQ(b.source, saved);
+    EXPECT_EQ(a.name, b.name);
+    EXPECT_EQ(a.attributes, b.attributes);
+    EXPECT_EQ(a.mesh.vertices, b.mesh.vertices);
+    EXPECT_EQ(a.mesh.triangles, b.mesh.triangles);
+  }
+  const std::string bytes = testing::Slurp(saved), cut = dir.file("cut.mkifcs");
+  std::ofstream(cut, std::ios::binary) << bytes.substr(0, bytes.size() - 100);
+  auto r = ReadAllFrom(OpenSceneFile(cut));
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().code(), Status::Code::kCorruption);
+  EXPECT_NE(r.status().message().find(cut + ": truncated MKIFCS stream"), std::string::npos)
+      << r.status().ToString();
+  std::ofstream(cut, std::ios::binary) << "ISO-10303-21;";
+  r = ReadAllFrom(OpenSceneFile(cut));
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.status().message().find(cut + ": "), std::string::npos) << r.status().ToString();
+}
+
 // ---- through the command line ----------------------------------------------------------------------
 
 class IfcCli : public ::testing::Test {
