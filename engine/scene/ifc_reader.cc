@@ -266,6 +266,12 @@ class IfcSceneSource final : public SceneSource {
 
   bool saved() const { return program_.empty(); }
 
+  // A malformed stream: a damaged saved file, or a program that is not mktree's IFC reader.
+  Status StreamError(const std::string& what) const {
+    std::string message = path_ + ": MKIFCS stream: " + what;
+    return saved() ? Status::Corruption(std::move(message)) : Status::Internal(std::move(message));
+  }
+
   Status ReadHeader() {
     const std::string who = saved() ? "not an MKIFCS stream" : program_ + " wrote no MKIFCS stream";
     char header[16];
@@ -299,7 +305,7 @@ class IfcSceneSource final : public SceneSource {
 
   Status Text(std::string* s, const char* what) {
     MKTREE_ASSIGN_OR_RETURN(const uint32_t n, U32(what));
-    if (n > kMaxText) return Status::Internal(path_ + ": IFC reader stream: " + what + " too long");
+    if (n > kMaxText) return StreamError(std::string(what) + " too long");
     s->resize(n);
     if (!reader_->Read(s->data(), n, &read_error_)) return Died(std::string("in the middle of ") + what);
     return Status::Ok();
@@ -339,8 +345,7 @@ class IfcSceneSource final : public SceneSource {
         return ErrorRecordStatus(path_, text);
       }
       if (t == "MKEN") return ReadEnd();
-      return Status::Internal(path_ + ": IFC reader stream: bad record tag at offset " +
-                              std::to_string(reader_->offset() - 4));
+      return StreamError("bad record tag at offset " + std::to_string(reader_->offset() - 4));
     }
   }
 
@@ -350,13 +355,12 @@ class IfcSceneSource final : public SceneSource {
     uint64_t count;
     std::memcpy(&count, b + 4, 8);
     count = FromLittle(count);
-    if (!reader_->AtEnd(&read_error_))
-      return Status::Internal(path_ + ": IFC reader stream: bytes after its end");
+    if (!reader_->AtEnd(&read_error_)) return StreamError("bytes after its end");
     const std::string how = process_.Finish();
     if (!how.empty()) return Status::IOError(path_ + ": the IFC reader (" + program_ + ") failed: " + how);
     if (count != objects_)
-      return Status::Internal(path_ + ": IFC reader stream: end record says " + std::to_string(count) +
-                              " objects, " + std::to_string(objects_) + " were read");
+      return StreamError("end record says " + std::to_string(count) + " objects, " +
+                         std::to_string(objects_) + " were read");
     done_ = true;
     return false;
   }
@@ -364,7 +368,7 @@ class IfcSceneSource final : public SceneSource {
   Status ReadObject(SceneObject* out) {
     MKTREE_RETURN_IF_ERROR(Text(&out->name, "an object's name"));
     MKTREE_ASSIGN_OR_RETURN(const uint32_t na, U32("an object's attributes"));
-    if (na > kMaxAttributes) return Status::Internal(path_ + ": IFC reader stream: too many attributes");
+    if (na > kMaxAttributes) return StreamError("too many attributes");
     out->attributes.resize(na);
     for (ObjectAttribute& a : out->attributes) {
       MKTREE_RETURN_IF_ERROR(Text(&a.key, "an attribute"));
@@ -373,8 +377,8 @@ class IfcSceneSource final : public SceneSource {
     MKTREE_ASSIGN_OR_RETURN(const uint32_t nv, U32("an object's mesh"));
     MKTREE_ASSIGN_OR_RETURN(const uint32_t nt, U32("an object's mesh"));
     if (nv > kMaxElements || nt > kMaxElements)
-      return Status::Internal(path_ + ": IFC reader stream: an object of " + std::to_string(nv) +
-                              " vertices and " + std::to_string(nt) + " triangles");
+      return StreamError("an object of " + std::to_string(nv) + " vertices and " + std::to_string(nt) +
+                         " triangles");
     MKTREE_RETURN_IF_ERROR(Array(&out->mesh.vertices, 3 * size_t{nv}, "an object's vertices"));
     MKTREE_RETURN_IF_ERROR(Array(&out->mesh.triangles, 3 * size_t{nt}, "an object's triangles"));
     auto bad = [&](const std::string& what) {
