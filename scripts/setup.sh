@@ -27,6 +27,7 @@ PACKAGES=(
   libembree-dev      # bench/ ray and nearest peer
   chromium           # tests: the HTML clash report loads in headless Chromium
   time               # /usr/bin/time: peak RSS of the engines scripts/bench_clash.py runs
+  nodejs             # IFC input: tools/ifc/mktree-ifc.mjs runs web-ifc under Node (20; npm comes with it)
   # The Python module (python/, docs/python.md), for Debian's /usr/bin/python3: pybind11's headers and
   # CMake package, Python's headers, numpy (its arrays in and out), pytest (python/run_tests.sh).
   pybind11-dev python3-dev python3-numpy python3-pytest
@@ -43,6 +44,13 @@ if ((${#missing[@]})); then
   [ "$(id -u)" -eq 0 ] || SUDO="sudo"
   $SUDO apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi
+
+# IFC input: web-ifc, pinned by tools/ifc/package-lock.json, when missing or older than the lock file.
+if [ ! -f tools/ifc/node_modules/web-ifc/package.json ] ||
+  [ tools/ifc/package-lock.json -nt tools/ifc/node_modules/.package-lock.json ]; then
+  echo "setup: installing web-ifc into tools/ifc/node_modules"
+  npm ci --prefix tools/ifc --no-audit --no-fund --loglevel=error >/dev/null
 fi
 
 [ "${1:-}" = "--no-build" ] && exit 0

@@ -10,6 +10,7 @@
 #include <filesystem>
 
 #include "engine/scene/assimp_reader.h"
+#include "engine/scene/ifc_reader.h"
 #include "engine/scene/mkscene_format.h"
 #include "engine/scene/obj_reader.h"
 
@@ -40,6 +41,8 @@ Result<std::unique_ptr<SceneSource>> OpenSceneFile(const std::string& path, Obje
     return OpenObjFile(path, first_id, options);
   }
   if (ext == ".mks") return OpenMkSceneFile(path, first_id);
+  if (ext == ".ifc" && !IfcThroughAssimp()) return OpenIfcFile(path, first_id, spill_dir);
+  if (ext == ".mkifcs") return OpenIfcStreamFile(path, first_id);
   return OpenAssimpFile(path, first_id);
 }
 

@@ -28,7 +28,9 @@ class SceneSource {
 // blocking).
 Result<int> OpenSceneInput(const std::string& path);
 
-// Opens `path` by extension: .obj with the streaming OBJ reader; everything else through assimp.
+// Opens `path` by extension: .obj with the streaming OBJ reader, .mks with its reader, .ifc through web-ifc
+// (ifc_reader.h; through assimp when MKTREE_IFC_READER=assimp), .mkifcs as a saved IFC stream; everything
+// else through assimp.
 // `spill_dir` takes a reader's scratch file (the OBJ vertices past its RAM budget); empty: $TMPDIR or /tmp.
 Result<std::unique_ptr<SceneSource>> OpenSceneFile(const std::string& path, ObjectId first_id = 0,
                                                    const std::string& spill_dir = "");
