@@ -12,6 +12,7 @@
 #include "engine/scene/assimp_reader.h"
 #include "engine/scene/mkscene_format.h"
 #include "engine/scene/obj_reader.h"
+#include "engine/scene/step_reader.h"
 
 namespace mktree {
 
@@ -31,16 +32,24 @@ Result<int> OpenSceneInput(const std::string& path) {
 }
 
 Result<std::unique_ptr<SceneSource>> OpenSceneFile(const std::string& path, ObjectId first_id,
-                                                   const std::string& spill_dir) {
+                                                   const SceneReadOptions& options) {
   std::string ext = std::filesystem::path(path).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
   if (ext == ".obj") {  // streamed; assimp would load it whole
-    ObjReadOptions options;
-    options.spill_dir = spill_dir;
-    return OpenObjFile(path, first_id, options);
+    ObjReadOptions obj_options;
+    obj_options.spill_dir = options.spill_dir;
+    return OpenObjFile(path, first_id, obj_options);
   }
   if (ext == ".mks") return OpenMkSceneFile(path, first_id);
+  if (ext == ".step" || ext == ".stp") return OpenStepFile(path, first_id, options);
   return OpenAssimpFile(path, first_id);
+}
+
+Result<std::unique_ptr<SceneSource>> OpenSceneFile(const std::string& path, ObjectId first_id,
+                                                   const std::string& spill_dir) {
+  SceneReadOptions options;
+  options.spill_dir = spill_dir;
+  return OpenSceneFile(path, first_id, options);
 }
 
 }  // namespace mktree
