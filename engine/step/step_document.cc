@@ -28,7 +28,10 @@ class CollectingPrinter final : public Message_Printer {
   void send(const TCollection_AsciiString& text, const Message_Gravity gravity) const override {
     if (gravity < Message_Warning || lines.size() >= 64) return;
     std::string line = text.ToCString();
-    line.erase(std::remove(line.begin(), line.end(), '\n'), line.end());
+    std::replace(line.begin(), line.end(), '\n', ' ');
+    // OCCT frames its errors in asterisks ("**** ERR StepFile : ... ****").
+    const size_t begin = line.find_first_not_of("* "), end = line.find_last_not_of("* ");
+    line = begin == std::string::npos ? "" : line.substr(begin, end - begin + 1);
     if (!line.empty()) const_cast<CollectingPrinter*>(this)->lines.push_back(std::move(line));
   }
 };

@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -270,6 +271,92 @@ TEST(StepReader, BadInputIsRefusedNamingTheFile) {
   ExpectRefused(dir, "ifc_schema.step", ifc + "DATA;\nENDSEC;\nEND-ISO-10303-21;\n", "schema IFC2X3");
 }
 
+// Replaces every `from` in `text` by `to`; expects at least one.
+std::string ReplaceAll(std::string text, const std::string& from, const std::string& to) {
+  size_t n = 0;
+  for (size_t at = text.find(from); at != std::string::npos; at = text.find(from, at + to.size()), ++n)
+    text.replace(at, from.size(), to);
+  EXPECT_GT(n, 0u) << from;
+  return text;
+}
+
+TEST(StepReader, FileUnitsBecomeMetres) {
+  testing::TempDir dir("step_units");
+  const std::string metres = dir.file("metres.step");
+  Write(metres, ReplaceAll(Slurp(kAssembly), "SI_UNIT(.MILLI.,.METRE.)", "SI_UNIT($,.METRE.)"));
+  const std::vector<SceneObject> in_mm = ReadAll(kAssembly), in_m = ReadAll(metres);
+  ASSERT_EQ(in_m.size(), in_mm.size());
+  ASSERT_EQ(in_m[0].name, "engine/block");
+  const Box3d block = in_m[0].mesh.Bounds(), want = Metres(layout::kBlock, layout::kBlockAt);
+  for (int a = 0; a < 3; ++a) {
+    EXPECT_DOUBLE_EQ(block.min[a], 1000 * want.min[a]);
+    EXPECT_DOUBLE_EQ(block.max[a], 1000 * want.max[a]);
+  }
+}
+
+// A face whose corners are one point: the mesher gives it no triangle. The sheet is left out and
+// reported by path and product; the rest is read, and `mktree build` builds it.
+TEST(StepReader, ShapeWithoutTrianglesIsReportedAndTheRestRead) {
+  testing::TempDir dir("step_sliver");
+  const std::string path = dir.file("sliver.step");
+  std::string text = Slurp(kAssembly);
+  // The sheet's corners (entities of engine_assembly.step) moved onto its first corner, the origin.
+  for (const char* corner :
+       {"#1907 = CARTESIAN_POINT('',(0.,30.,0.));", "#1928 = CARTESIAN_POINT('',(60.,0.,0.));",
+        "#1944 = CARTESIAN_POINT('',(60.,30.,0.));"})
+    text = ReplaceAll(text, corner, std::string(corner, 8) + "CARTESIAN_POINT('',(0.,0.,0.));");
+  Write(path, text);
+  std::vector<std::string> warnings;
+  const std::vector<SceneObject> objects = ReadAll(path, {}, &warnings);
+  ASSERT_EQ(objects.size(), ExpectedObjects(0).size() - 1);
+  for (const SceneObject& o : objects) EXPECT_NE(o.name, "engine/sheet");
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find(path + ": 1 STEP shape(s) gave no triangle"), std::string::npos) << warnings[0];
+  EXPECT_NE(warnings[0].find("engine/sheet (product 'sheet')"), std::string::npos) << warnings[0];
+  auto run = testing::RunMktree("build " + path + " -o " + dir.file("s.mkt"), dir.path());
+  EXPECT_EQ(run.code, 0) << run.err;
+  EXPECT_NE(run.err.find("warning: " + path + ": 1 STEP shape(s) gave no triangle"), std::string::npos)
+      << run.err;
+  EXPECT_NE(run.out.find("built " + dir.file("s.mkt") + ": 10 objects"), std::string::npos) << run.out;
+}
+
+// OpenCASCADE's "as1" assembly as OCCT wrote it (AP214) and as Unigraphics wrote it (AP203): 18 leaf solids
+// each, every name unique, the same solids in the same places.
+TEST(StepReader, ReadsOpenCascadesAs1InAp214AndAp203) {
+  const std::string dir = std::string(MKTREE_TESTS_DIR) + "/data/step/";
+  const std::vector<SceneObject> ap214 = ReadAll(dir + "as1-oc-214-mat.stp");
+  const std::vector<SceneObject> ap203 = ReadAll(dir + "trj2_as1-ug-203.stp");
+  ASSERT_EQ(ap214.size(), 18u);
+  ASSERT_EQ(ap203.size(), 18u);
+  EXPECT_EQ(ap214[0].name, "as1/rod-assembly_1/nut_1");
+  EXPECT_EQ(Values(ap214[0], "step_product"), std::vector<std::string>{"nut"});
+  EXPECT_EQ(Values(ap214[0], "step_colour"), std::vector<std::string>{"#ff0000"});
+  EXPECT_EQ(Values(ap203[0], "step_schema"), std::vector<std::string>{"CONFIG_CONTROL_DESIGN"});
+  // The exports differ in detail (the AP203 nuts are turned 30 degrees, its curves are B-splines), not
+  // in the assembly's extent.
+  Box3d all[2];
+  for (int f = 0; f < 2; ++f) {
+    std::set<std::string> names;
+    for (const SceneObject& o : f == 0 ? ap214 : ap203) {
+      EXPECT_TRUE(names.insert(o.name).second) << o.name;
+      EXPECT_TRUE(IsClosedMesh(o.mesh)) << o.name;
+      const Box3d b = o.mesh.Bounds();
+      all[f].Extend(b.min[0], b.min[1], b.min[2]);
+      all[f].Extend(b.max[0], b.max[1], b.max[2]);
+    }
+  }
+  const double tolerance = SceneReadOptions{}.chord_tolerance;
+  for (int a = 0; a < 3; ++a) {
+    EXPECT_NEAR(all[0].min[a], all[1].min[a], tolerance);
+    EXPECT_NEAR(all[0].max[a], all[1].max[a], tolerance);
+  }
+  // The assembly's extent in metres (the files are in millimetres).
+  EXPECT_NEAR(all[0].min[0], -0.010, 1e-6);
+  EXPECT_NEAR(all[0].max[0], 0.190, 1e-6);
+  EXPECT_NEAR(all[0].max[1], 0.150, 1e-6);
+  EXPECT_NEAR(all[0].max[2], 0.080, 1e-6);
+}
+
 TEST(StepReader, RoundTripsThroughBuildAndInfo) {
   testing::TempDir dir("step_cli");
   const std::string store = dir.file("engine.mkt");
@@ -295,6 +382,20 @@ TEST(StepReader, RoundTripsThroughBuildAndInfo) {
                                 dir.path());
   EXPECT_NE(bad.code, 0);
   EXPECT_NE(bad.err.find("--chord-tolerance"), std::string::npos) << bad.err;
+}
+
+// Without the module (here: $MKTREE_STEP_MODULE names a file that is not there), STEP input is refused
+// naming the file and the module, and nothing is built.
+TEST(StepReader, MissingModuleIsAClearError) {
+  testing::TempDir dir("step_module");
+  const std::string store = dir.file("m.mkt");
+  auto run = testing::RunMktree("build " + kAssembly + " -o " + store + " -q", dir.path(),
+                                "MKTREE_STEP_MODULE=" + dir.file("none.so") + " ");
+  EXPECT_NE(run.code, 0);
+  EXPECT_NE(run.err.find(kAssembly + ": the STEP reader's module (libmktree_step.so"), std::string::npos)
+      << run.err;
+  EXPECT_NE(run.err.find(dir.file("none.so")), std::string::npos) << run.err;
+  EXPECT_FALSE(std::filesystem::exists(store));
 }
 
 }  // namespace
