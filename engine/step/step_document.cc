@@ -85,6 +85,21 @@ Status CheckHeader(const std::string& path, std::string* schema) {
   return Status::Ok();
 }
 
+std::mutex& OcctTranslatorMutex() {
+  static std::mutex mutex;
+  return mutex;
+}
+
+void CloseUnlocked(StepDocument* document) {
+  if (document->doc.IsNull()) return;
+  try {
+    XCAFApp_Application::GetApplication()->Close(document->doc);
+  } catch (const Standard_Failure&) {
+    // The document is let go below all the same.
+  }
+  document->doc.Nullify();
+}
+
 std::string FirstRemark(const std::vector<std::string>& remarks) {
   return remarks.empty() ? "" : ": " + remarks.front();
 }
@@ -115,8 +130,7 @@ Status ReadAndTransfer(const std::string& path, StepDocument* out, std::vector<s
 Result<StepDocument> ReadStepDocument(const std::string& path) {
   StepDocument out;
   MKTREE_RETURN_IF_ERROR(CheckHeader(path, &out.schema));
-  static std::mutex occt_translator;
-  std::lock_guard<std::mutex> lock(occt_translator);
+  std::lock_guard<std::mutex> lock(OcctTranslatorMutex());
   // OCCT's default printer writes to stdout: removed for good (tessellation may speak too).
   const Handle(Message_Messenger)& messenger = Message::DefaultMessenger();
   messenger->ChangePrinters().Clear();
@@ -131,12 +145,21 @@ Result<StepDocument> ReadStepDocument(const std::string& path) {
     status = Status::Corruption(path + ": OpenCASCADE failed reading it: " + e.what());
   }
   messenger->RemovePrinter(printer);
-  MKTREE_RETURN_IF_ERROR(status);
-  out.remarks = std::move(printer->lines);
-  TDF_LabelSequence roots;
-  XCAFDoc_DocumentTool::ShapeTool(out.doc->Main())->GetFreeShapes(roots);
-  if (roots.IsEmpty()) return Status::InvalidArgument(path + ": no shape in this STEP file");
+  if (status.ok()) {
+    TDF_LabelSequence roots;
+    XCAFDoc_DocumentTool::ShapeTool(out.doc->Main())->GetFreeShapes(roots);
+    if (roots.IsEmpty()) status = Status::InvalidArgument(path + ": no shape in this STEP file");
+  }
+  if (!status.ok()) {
+    CloseUnlocked(&out);
+    return status;
+  }
   return out;
+}
+
+void CloseStepDocument(StepDocument* document) {
+  std::lock_guard<std::mutex> lock(OcctTranslatorMutex());
+  CloseUnlocked(document);
 }
 
 }  // namespace mktree

@@ -23,4 +23,8 @@ struct StepDocument {
 // other than AP203, AP214, AP242 or AP209; InvalidArgument when it holds no shape. Messages name the file.
 Result<StepDocument> ReadStepDocument(const std::string& path);
 
+// Closes the document and lets it go: OCCT's application keeps every document it made until it is closed.
+// Thread-safe (serialised with ReadStepDocument); nothing happens for a document without one.
+void CloseStepDocument(StepDocument* document);
+
 }  // namespace mktree

@@ -28,6 +28,10 @@ class StepSource final : public SceneSource {
         leaves_(std::move(leaves)) {
     for (const StepLeaf& leaf : leaves_) ++instances_left_[leaf.shape.TShape().get()];
   }
+  ~StepSource() override {
+    leaves_.clear();
+    CloseStepDocument(&document_);
+  }
 
   Result<bool> Next(SceneObject* out) override {
     while (next_leaf_ < leaves_.size()) {
@@ -124,9 +128,13 @@ class StepSource final : public SceneSource {
 Result<std::unique_ptr<SceneSource>> OpenStepSource(const std::string& path, ObjectId first_id,
                                                     const SceneReadOptions& options) {
   MKTREE_ASSIGN_OR_RETURN(StepDocument document, ReadStepDocument(path));
-  MKTREE_ASSIGN_OR_RETURN(std::vector<StepLeaf> leaves, CollectStepLeaves(document.doc, path));
+  Result<std::vector<StepLeaf>> leaves = CollectStepLeaves(document.doc, path);
+  if (!leaves.ok()) {
+    CloseStepDocument(&document);
+    return leaves.status();
+  }
   return std::unique_ptr<SceneSource>(
-      std::make_unique<StepSource>(path, first_id, options, std::move(document), std::move(leaves)));
+      std::make_unique<StepSource>(path, first_id, options, std::move(document), std::move(*leaves)));
 }
 
 }  // namespace mktree
