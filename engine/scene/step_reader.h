@@ -25,7 +25,9 @@
 //     shared shape until the part's last instance is taken, so each part is meshed once.
 //   - A leaf whose faces give no triangle (geometry the mesher cannot tessellate) is skipped: no object,
 //     no id; the skipped leaves are counted and reported as one warning (SceneSource::TakeWarnings) naming
-//     the first few by path and product.
+//     the first few by path and product. Leaves some of whose faces gave no triangle are kept and named in
+//     another warning. Entities OCCT could not translate (a solid whose B-rep is broken: its shape is
+//     missing) are counted in a third, naming the first by its entity ("#57 StepShape_ManifoldSolidBrep").
 //
 // Memory: the file's entities and the XCAF document (the B-rep of every part, without the instances'
 // copies) are in RAM from the open until the source is destroyed; that is the limit on the size of a

@@ -1,15 +1,21 @@
 #include "engine/step/step_document.h"
 
 #include <IFSelect_ReturnStatus.hxx>
+#include <Interface_Check.hxx>
+#include <Interface_CheckIterator.hxx>
 #include <Message.hxx>
 #include <Message_Messenger.hxx>
 #include <Message_Printer.hxx>
 #include <STEPCAFControl_Reader.hxx>
 #include <Standard_Failure.hxx>
+#include <StepData_StepModel.hxx>
 #include <TDF_LabelSequence.hxx>
+#include <Transfer_TransientProcess.hxx>
 #include <XCAFApp_Application.hxx>
 #include <XCAFDoc_DocumentTool.hxx>
 #include <XCAFDoc_ShapeTool.hxx>
+#include <XSControl_TransferReader.hxx>
+#include <XSControl_WorkSession.hxx>
 #include <algorithm>
 #include <fstream>
 #include <mutex>
@@ -22,17 +28,25 @@ namespace {
 // goes). The default messenger's only printer while a file is read.
 class CollectingPrinter final : public Message_Printer {
  public:
-  std::vector<std::string> lines;
+  std::vector<std::string> lines;     // warnings and failures, the first 64
+  std::vector<std::string> failures;  // failures only, the first 64
+  size_t failure_count = 0;
 
  protected:
   void send(const TCollection_AsciiString& text, const Message_Gravity gravity) const override {
-    if (gravity < Message_Warning || lines.size() >= 64) return;
+    if (gravity < Message_Warning) return;
     std::string line = text.ToCString();
     std::replace(line.begin(), line.end(), '\n', ' ');
     // OCCT frames its errors in asterisks ("**** ERR StepFile : ... ****").
     const size_t begin = line.find_first_not_of("* "), end = line.find_last_not_of("* ");
     line = begin == std::string::npos ? "" : line.substr(begin, end - begin + 1);
-    if (!line.empty()) const_cast<CollectingPrinter*>(this)->lines.push_back(std::move(line));
+    if (line.empty()) return;
+    auto* self = const_cast<CollectingPrinter*>(this);
+    if (gravity >= Message_Fail) {
+      ++self->failure_count;
+      if (failures.size() < 64) self->failures.push_back(line);
+    }
+    if (lines.size() < 64) self->lines.push_back(std::move(line));
   }
 };
 
@@ -104,6 +118,29 @@ std::string FirstRemark(const std::vector<std::string>& remarks) {
   return remarks.empty() ? "" : ": " + remarks.front();
 }
 
+// Counts the failures of `checks` into `out`, keeping the first few named by their entity ("#57
+// StepShape_ManifoldSolidBrep: ...").
+void NoteFailures(const Interface_CheckIterator& checks, const Handle(Interface_InterfaceModel) & model,
+                  StepDocument* out) {
+  const Handle(StepData_StepModel) step = Handle(StepData_StepModel)::DownCast(model);
+  for (checks.Start(); checks.More(); checks.Next()) {
+    const Handle(Interface_Check)& check = checks.Value();
+    if (check.IsNull() || !check->HasFailed()) continue;
+    out->read_failure_count += static_cast<size_t>(check->NbFails());
+    if (out->read_failures.size() >= 8) continue;
+    Handle(Standard_Transient) entity = check->HasEntity() ? check->Entity() : Handle(Standard_Transient)();
+    if (entity.IsNull() && !model.IsNull() && checks.Number() > 0 && checks.Number() <= model->NbEntities())
+      entity = model->Value(checks.Number());
+    std::string where;
+    if (!entity.IsNull()) {
+      const int label = step.IsNull() ? 0 : step->IdentLabel(entity);
+      if (label > 0) where.append("#").append(std::to_string(label)).append(" ");
+      where.append(entity->DynamicType()->Name()).append(": ");
+    }
+    out->read_failures.push_back(where + check->CFail(1));
+  }
+}
+
 // Parses and transfers; OCCT exceptions become Corruption.
 Status ReadAndTransfer(const std::string& path, StepDocument* out, std::vector<std::string>* remarks) {
   STEPCAFControl_Reader reader;
@@ -117,11 +154,15 @@ Status ReadAndTransfer(const std::string& path, StepDocument* out, std::vector<s
   const IFSelect_ReturnStatus read = reader.ReadFile(path.c_str());
   if (read != IFSelect_RetDone)
     return Status::Corruption(path + ": OpenCASCADE cannot parse this STEP file" + FirstRemark(*remarks));
+  const Handle(XSControl_WorkSession) session = reader.ChangeReader().WS();
+  NoteFailures(session->ModelCheckList(/*complete=*/false), session->Model(), out);
   XCAFApp_Application::GetApplication()->NewDocument("MDTV-XCAF", out->doc);
   XCAFDoc_DocumentTool::SetLengthUnit(out->doc, 1.0);  // metres: the transfer converts to the document's unit
   if (!reader.Transfer(out->doc))
     return Status::Corruption(path + ": OpenCASCADE read no shape from this STEP file" +
                               FirstRemark(*remarks));
+  const Handle(Transfer_TransientProcess) process = session->TransferReader()->TransientProcess();
+  if (!process.IsNull()) NoteFailures(process->CheckList(/*erronly=*/true), session->Model(), out);
   return Status::Ok();
 }
 
@@ -154,6 +195,9 @@ Result<StepDocument> ReadStepDocument(const std::string& path) {
     CloseUnlocked(&out);
     return status;
   }
+  out.read_failure_count += printer->failure_count;
+  for (std::string& f : printer->failures)
+    if (out.read_failures.size() < 8) out.read_failures.push_back(std::move(f));
   return out;
 }
 

@@ -14,8 +14,11 @@ namespace mktree {
 
 struct StepDocument {
   Handle(TDocStd_Document) doc;
-  std::string schema;                // the FILE_SCHEMA name, e.g. "AUTOMOTIVE_DESIGN"
-  std::vector<std::string> remarks;  // what OCCT reported while reading (warnings, failed entities)
+  std::string schema;  // the FILE_SCHEMA name, e.g. "AUTOMOTIVE_DESIGN"
+  // Failures OCCT reported while reading a file it could still read (entities it could not translate,
+  // whose shapes are missing): how many, and the first few messages.
+  size_t read_failure_count = 0;
+  std::vector<std::string> read_failures;
 };
 
 // Reads `path`. Corruption when it does not start with the ISO-10303-21 header or OCCT cannot parse or

@@ -81,6 +81,12 @@ class StepSource final : public SceneSource {
                     " STEP shape(s) have faces that gave no triangle (their meshes have holes): " + names +
                     (holed_.size() > kLeavesNamedInWarning ? "; ..." : ""));
     }
+    if (document_.read_failure_count > 0) {
+      out.push_back(path_ + ": OpenCASCADE reported " + std::to_string(document_.read_failure_count) +
+                    " failure(s) while reading (what failed is missing), the first: " +
+                    document_.read_failures.front());
+      document_.read_failure_count = 0;
+    }
     skipped_.clear();
     holed_.clear();
     return out;

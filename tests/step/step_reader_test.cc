@@ -320,6 +320,22 @@ TEST(StepReader, ShapeWithoutTrianglesIsReportedAndTheRestRead) {
   EXPECT_NE(run.out.find("built " + dir.file("s.mkt") + ": 10 objects"), std::string::npos) << run.out;
 }
 
+// A solid whose B-rep reference is broken (#57, the block's MANIFOLD_SOLID_BREP, points at a face set):
+// OpenCASCADE leaves it out; the reader reads the rest and warns naming the entity.
+TEST(StepReader, EntitiesOpenCascadeCannotTranslateAreReported) {
+  testing::TempDir dir("step_entity");
+  const std::string path = dir.file("broken.step");
+  Write(path, ReplaceAll(Slurp(kAssembly), "#57 = MANIFOLD_SOLID_BREP('',#58);",
+                         "#57 = MANIFOLD_SOLID_BREP('',#5);"));
+  std::vector<std::string> warnings;
+  const std::vector<SceneObject> objects = ReadAll(path, {}, &warnings);
+  ASSERT_EQ(objects.size(), ExpectedObjects(0).size() - 1);
+  EXPECT_EQ(objects[0].name, "engine/piston[1]/head");
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find(path + ": OpenCASCADE reported "), std::string::npos) << warnings[0];
+  EXPECT_NE(warnings[0].find("#57 StepShape_ManifoldSolidBrep: "), std::string::npos) << warnings[0];
+}
+
 // OpenCASCADE's "as1" assembly as OCCT wrote it (AP214) and as Unigraphics wrote it (AP203): 18 leaf solids
 // each, every name unique, the same solids in the same places.
 TEST(StepReader, ReadsOpenCascadesAs1InAp214AndAp203) {
