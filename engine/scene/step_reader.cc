@@ -44,8 +44,10 @@ LoadedStepModule LoadStepModule() {
     tried += (tried.empty() ? "" : "; ") + path;
     void* handle = ::dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
     if (!handle) {
-      const char* why = ::dlerror();
-      tried += std::string(": ") + (why ? why : "not loaded");
+      const char* error = ::dlerror();
+      std::string why = error ? error : "not loaded";
+      if (why.rfind(path + ": ", 0) == 0) why.erase(0, path.size() + 2);  // dlerror names the path too
+      tried += ": " + why;
       continue;
     }
     auto abi = reinterpret_cast<StepModuleAbiFunction>(::dlsym(handle, kStepModuleAbiSymbol));
