@@ -16,8 +16,8 @@
 //     file: the solid's own colour, else its part's, else the innermost instance's that has one; when
 //     none of them has one, one step_colour per distinct colour of its faces, in order of first use),
 //     step_schema (the FILE_SCHEMA name, e.g. "AUTOMOTIVE_DESIGN"). SceneObject::source is the file.
-//   - Units: OCCT converts the file's length unit to its session unit; the session unit is set to metres,
-//     so coordinates are in metres whatever the file's unit.
+//   - Units: the XCAF document's length unit is set to metres, and OCCT's transfer converts the file's
+//     unit (millimetres, inches, ...) to it, so coordinates are in metres whatever the file's unit.
 //   - Tessellation: each object's faces are meshed when the object is taken (BRepMesh_IncrementalMesh,
 //     SceneReadOptions::chord_tolerance in metres and angular_deflection in radians), each face's
 //     triangulation placed by the face's location and flipped for reversed faces, so that solids give
@@ -29,20 +29,22 @@
 //     another warning. Entities OCCT could not translate (a solid whose B-rep is broken: its shape is
 //     missing) are counted in a third, naming the first by its entity ("#57 StepShape_ManifoldSolidBrep").
 //
-// Memory: the file's entities and the XCAF document (the B-rep of every part, without the instances'
-// copies) are in RAM from the open until the source is destroyed; that is the limit on the size of a
-// STEP file. Triangles are made one object at a time.
+// Memory: the file's parsed entities (until the transfer ends) and the XCAF document (the B-rep of every
+// part, once, not per instance; until the source is destroyed) are in RAM: that is the limit on the size
+// of a STEP file. Triangles are made one object at a time.
 //
-// Errors: a file that does not start with the ISO-10303-21 header, a schema other than the above
-// (Unsupported), a file OCCT cannot parse (a truncated one, naming the entity OCCT names where it does), and
-// a file with no shape are Corruption or InvalidArgument naming the file. OCCT's own messages are not
-// printed.
+// Errors, each naming the file: a file that does not start with the ISO-10303-21 header or that OCCT cannot
+// parse (a truncated one, with OCCT's line) is Corruption; a schema other than the above is Unsupported; a
+// file with no shape, or tessellation options that are not finite and positive, InvalidArgument. OCCT's
+// own messages are not printed.
 //
 // OpenCASCADE is loaded on the first STEP file only: the reader lives in a module of its own
 // (libmktree_step.so, built from engine/step/) that OpenStepFile loads with dlopen, so programs that read
 // no STEP file do not map OCCT's 60-odd shared libraries (about 30 MiB of RSS). The module is looked for at
-// $MKTREE_STEP_MODULE, then where the build put it, then where `cmake --install` put it; a module built
-// from other headers is refused (kStepModuleAbi). No module: Unsupported, naming the places tried.
+// $MKTREE_STEP_MODULE (alone, if set), else beside the library or program asking (<dir>/mktree/,
+// <dir>/../lib/mktree/: an installed tree may move), then where the build put it, then where
+// `cmake --install` of the build puts it; a module built from other headers is refused (its ABI tag
+// differs). No module: Unsupported, naming the places tried.
 //
 // Thread-safety: a source is used by one thread at a time. Opening (reading the file) is serialised
 // across threads: OCCT's translator keeps its parameters in process-wide state.
