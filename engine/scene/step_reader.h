@@ -36,7 +36,9 @@
 // Errors, each naming the file: a file that does not start with the ISO-10303-21 header or that OCCT cannot
 // parse (a truncated one, with OCCT's line) is Corruption; a schema other than the above is Unsupported; a
 // file with no shape, or tessellation options that are not finite and positive, InvalidArgument. OCCT's
-// own messages are not printed.
+// own messages are not printed. OCCT dereferences what damaged files leave missing: while it reads or
+// meshes, its signal handlers turn such faults into failed entities or leaves (engine/step/
+// occt_signal_guard.h), reported as above, instead of a crash.
 //
 // OpenCASCADE is loaded on the first STEP file only: the reader lives in a module of its own
 // (libmktree_step.so, built from engine/step/) that OpenStepFile loads with dlopen, so programs that read

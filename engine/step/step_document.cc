@@ -7,6 +7,7 @@
 #include <Message_Messenger.hxx>
 #include <Message_Printer.hxx>
 #include <STEPCAFControl_Reader.hxx>
+#include <Standard_ErrorHandler.hxx>
 #include <Standard_Failure.hxx>
 #include <StepData_StepModel.hxx>
 #include <TDF_LabelSequence.hxx>
@@ -19,6 +20,8 @@
 #include <algorithm>
 #include <fstream>
 #include <mutex>
+
+#include "engine/step/occt_signal_guard.h"
 
 namespace mktree {
 
@@ -178,7 +181,9 @@ Result<StepDocument> ReadStepDocument(const std::string& path) {
   Handle(CollectingPrinter) printer = new CollectingPrinter();
   messenger->AddPrinter(printer);
   Status status;
+  const OcctSignalGuard signals;
   try {
+    OCC_CATCH_SIGNALS
     status = ReadAndTransfer(path, &out, &printer->lines);
   } catch (const Standard_Failure& e) {
     status = Status::Corruption(path + ": OpenCASCADE failed reading it: " + e.GetMessageString());

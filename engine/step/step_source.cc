@@ -1,12 +1,14 @@
 #include "engine/step/step_source.h"
 
 #include <BRepTools.hxx>
+#include <Standard_ErrorHandler.hxx>
 #include <Standard_Failure.hxx>
 #include <TopoDS_TShape.hxx>
 #include <cmath>
 #include <unordered_map>
 #include <vector>
 
+#include "engine/step/occt_signal_guard.h"
 #include "engine/step/step_assembly.h"
 #include "engine/step/step_document.h"
 #include "engine/step/step_tessellation.h"
@@ -134,7 +136,17 @@ class StepSource final : public SceneSource {
 Result<std::unique_ptr<SceneSource>> OpenStepSource(const std::string& path, ObjectId first_id,
                                                     const SceneReadOptions& options) {
   MKTREE_ASSIGN_OR_RETURN(StepDocument document, ReadStepDocument(path));
-  Result<std::vector<StepLeaf>> leaves = CollectStepLeaves(document.doc, path);
+  Result<std::vector<StepLeaf>> leaves = Status::Internal(path + ": no leaves");
+  {
+    const OcctSignalGuard signals;
+    try {
+      OCC_CATCH_SIGNALS
+      leaves = CollectStepLeaves(document.doc, path);
+    } catch (const Standard_Failure& e) {
+      leaves =
+          Status::Corruption(path + ": OpenCASCADE failed walking the assembly: " + e.GetMessageString());
+    }
+  }
   if (!leaves.ok()) {
     CloseStepDocument(&document);
     return leaves.status();

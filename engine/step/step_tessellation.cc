@@ -3,6 +3,7 @@
 #include <BRepMesh_IncrementalMesh.hxx>
 #include <BRep_Tool.hxx>
 #include <Poly_Triangulation.hxx>
+#include <Standard_ErrorHandler.hxx>
 #include <Standard_Failure.hxx>
 #include <TopExp_Explorer.hxx>
 #include <TopoDS.hxx>
@@ -10,6 +11,8 @@
 #include <array>
 #include <cstring>
 #include <unordered_map>
+
+#include "engine/step/occt_signal_guard.h"
 
 namespace mktree {
 
@@ -62,7 +65,9 @@ bool AppendFace(const TopoDS_Face& face, Mesh* mesh,
 StepTessellation TessellateStepShape(const TopoDS_Shape& shape, double chord_tolerance,
                                      double angular_deflection) {
   StepTessellation out;
+  const OcctSignalGuard signals;
   try {
+    OCC_CATCH_SIGNALS
     BRepMesh_IncrementalMesh mesher(shape, chord_tolerance, /*isRelative=*/false, angular_deflection,
                                     /*isInParallel=*/false);
     std::unordered_map<std::array<double, 3>, uint32_t, PositionHash> index;

@@ -204,7 +204,7 @@ TEST(StepReader, ChordToleranceBoundsTheCylindersDeviation) {
     ASSERT_NE(head, objects.end());
     const double deviation = CylinderDeviation(head->mesh, at[0] * kMm, at[1] * kMm, r, z0, z1);
     EXPECT_LE(deviation, chord);
-    EXPECT_GT(deviation, chord / 4);  // the tolerance is used, not merely kept
+    EXPECT_GT(deviation, chord / 4);                             // the tolerance is used, not merely kept
     EXPECT_GT(head->mesh.triangle_count(), previous_triangles);  // finer with every step
     previous_triangles = head->mesh.triangle_count();
     EXPECT_TRUE(IsClosedMesh(head->mesh));
@@ -334,6 +334,25 @@ TEST(StepReader, EntitiesOpenCascadeCannotTranslateAreReported) {
   ASSERT_EQ(warnings.size(), 1u);
   EXPECT_NE(warnings[0].find(path + ": OpenCASCADE reported "), std::string::npos) << warnings[0];
   EXPECT_NE(warnings[0].find("#57 StepShape_ManifoldSolidBrep: "), std::string::npos) << warnings[0];
+}
+
+// A vertex whose point is a direction: OpenCASCADE dereferences the missing point (SIGSEGV inside
+// StepToGeom::MakeCartesianPoint). The fault becomes a failed entity (engine/step/occt_signal_guard.h): the
+// sheet is missing, the rest is read, the warning names the vertex, and the process lives on.
+TEST(StepReader, CrashInsideOpenCascadeBecomesAFailedEntity) {
+  testing::TempDir dir("step_fault");
+  const std::string path = dir.file("vertex.step");
+  Write(path,
+        ReplaceAll(Slurp(kAssembly), "#1904 = VERTEX_POINT('',#1905);", "#1904 = VERTEX_POINT('',#1912);"));
+  std::vector<std::string> warnings;
+  const std::vector<SceneObject> objects = ReadAll(path, {}, &warnings);
+  ASSERT_EQ(objects.size(), ExpectedObjects(0).size() - 1);
+  EXPECT_EQ(objects.back().name, "engine/cover");
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("#1904 StepShape_VertexPoint: "), std::string::npos) << warnings[0];
+  auto run = testing::RunMktree("build " + path + " -o " + dir.file("v.mkt") + " -q", dir.path());
+  EXPECT_EQ(run.code, 0) << run.err;
+  EXPECT_TRUE(std::filesystem::exists(dir.file("v.mkt")));
 }
 
 // OpenCASCADE's "as1" assembly as OCCT wrote it (AP214) and as Unigraphics wrote it (AP203): 18 leaf solids
