@@ -276,7 +276,7 @@ py::dict Build(const py::object& path, const py::object& objects, const py::obje
                const std::string& backend, const std::string& codec, int zstd_level, uint32_t block_size,
                uint32_t blocks_per_page, double balance_r, uint32_t split_budget,
                const std::string& split_policy, unsigned threads, const py::object& spill_dir,
-               const py::object& progress) {
+               double chord_tolerance, double angular_deflection, const py::object& progress) {
   if (objects.is_none() == files.is_none()) throw py::value_error("give either objects or files");
   BuildOptions opts;
   opts.backend = ParseBackend(backend);
@@ -289,6 +289,8 @@ py::dict Build(const py::object& path, const py::object& objects, const py::obje
   opts.split_policy = ParsePolicy(split_policy);
   opts.threads = threads;
   if (!spill_dir.is_none()) opts.spill_dir = PathText(spill_dir);
+  opts.chord_tolerance = chord_tolerance;
+  opts.angular_deflection = angular_deflection;
   const std::string store = PathText(path);
 
   std::optional<py::error_already_set> raised;  // a callback's exception, raised again after the build
@@ -504,7 +506,8 @@ void DefineOpenAndBuild(py::module_& m) {
         py::kw_only(), py::arg("backend") = "hdf5", py::arg("codec") = "zstd", py::arg("zstd_level") = 3,
         py::arg("block_size") = 4096, py::arg("blocks_per_page") = 3, py::arg("balance_r") = 0.3,
         py::arg("split_budget") = 64, py::arg("split_policy") = "compact", py::arg("threads") = 0,
-        py::arg("spill_dir") = py::none(), py::arg("progress") = py::none(),
+        py::arg("spill_dir") = py::none(), py::arg("chord_tolerance") = BuildOptions{}.chord_tolerance,
+        py::arg("angular_deflection") = BuildOptions{}.angular_deflection, py::arg("progress") = py::none(),
         "Builds the store at `path` from `objects` (an iterable of dicts or objects with vertices (n, 3), "
         "faces (m, 3), optional name and attributes) or `files` (a path or a list: any format mktree "
         "build reads, or 'tanker:N:SEED'). Returns the build statistics as a dict.");

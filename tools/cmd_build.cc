@@ -2,6 +2,7 @@
 #include <zstd.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <string>
@@ -30,6 +31,8 @@ struct BuildArgs {
   std::string split_policy = "compact";
   uint32_t shards = 0;
   std::string spill_dir;
+  double chord_tolerance = BuildOptions{}.chord_tolerance;
+  double angular_deflection = BuildOptions{}.angular_deflection;
   bool quiet = false;
 };
 
@@ -59,6 +62,12 @@ int RunBuild(const BuildArgs& a) {
   if (a.shards > 65536) return Fail("--shards must be from 1 to 65536");
   opts.shards = a.shards;
   if (!(a.r >= 0 && a.r < 0.5)) return Fail("--r must be in [0, 0.5)");
+  if (!(std::isfinite(a.chord_tolerance) && a.chord_tolerance > 0))
+    return Fail("--chord-tolerance must be a positive number of metres");
+  if (!(std::isfinite(a.angular_deflection) && a.angular_deflection > 0))
+    return Fail("--angular-deflection must be a positive number of radians");
+  opts.chord_tolerance = a.chord_tolerance;
+  opts.angular_deflection = a.angular_deflection;
   if (a.split_policy == "compact")
     opts.split_policy = BuildOptions::SplitPolicy::kCompact;
   else if (a.split_policy == "soa")
@@ -126,7 +135,8 @@ void RegisterBuild(CLI::App& app, CommandRun* run) {
   CLI::App* cmd = app.add_subcommand("build", "Ingest scenes and build an MKtree store");
   cmd->add_option(
          "scenes", args->inputs,
-         "Scene files (.obj streamed; .mks; glTF/GLB/PLY/STL/OFF/AC3D/... via assimp) or tanker:N[:SEED]")
+         "Scene files (.obj streamed; .mks; .step/.stp via OpenCASCADE; glTF/GLB/PLY/STL/OFF/AC3D/... via "
+         "assimp) or tanker:N[:SEED]")
       ->required();
   cmd->add_option("-o,--output", args->output, "Store file to write (replaced atomically)")->required();
   cmd->add_option("--backend", args->backend, "hdf5 or pagefile")->capture_default_str();
@@ -148,6 +158,10 @@ void RegisterBuild(CLI::App& app, CommandRun* run) {
       "--spill-dir", args->spill_dir,
       "Folder for the build's temporary files (the scene's geometry and records, the tree's lists, "
       "the OBJ reader's older vertices; unnamed, gone when the build ends); default: the store's folder");
+  AddNumberOption(cmd, "--chord-tolerance", &args->chord_tolerance,
+                  "STEP tessellation: largest distance in metres between a face and its triangles");
+  AddNumberOption(cmd, "--angular-deflection", &args->angular_deflection,
+                  "STEP tessellation: largest angle in radians between adjacent triangles' normals");
   cmd->add_flag("-q,--quiet", args->quiet, "No progress and no summary");
   cmd->callback([run, args] { *run = [args] { return RunBuild(*args); }; });
 }

@@ -59,6 +59,12 @@ Result<IngestOptions> ToIngestOptions(const BuildOptions& b) {
   o.threads = b.threads;
   o.tuning.threads = static_cast<int>(b.threads);
   o.spill_dir = b.spill_dir;
+  if (!(std::isfinite(b.chord_tolerance) && b.chord_tolerance > 0))
+    return Status::InvalidArgument("chord_tolerance must be a positive number of metres, not " +
+                                   std::to_string(b.chord_tolerance));
+  if (!(std::isfinite(b.angular_deflection) && b.angular_deflection > 0))
+    return Status::InvalidArgument("angular_deflection must be a positive number of radians, not " +
+                                   std::to_string(b.angular_deflection));
   if (b.progress) {
     o.progress = [progress = b.progress](IngestStage s, uint64_t done, uint64_t total) {
       progress(static_cast<BuildStage>(s), done, total);
@@ -119,8 +125,8 @@ Result<BuildStats> BuildSharded(const std::vector<SceneOpener>& openers, const s
 }
 
 // "tanker:N[:SEED]" builds straight from the generator, without a scene file. A scene reader's scratch
-// file goes to `spill_dir`, with the build's.
-Result<SceneOpener> OpenerFor(const std::string& input, const std::string& spill_dir) {
+// file goes to `read.spill_dir`, with the build's.
+Result<SceneOpener> OpenerFor(const std::string& input, const SceneReadOptions& read) {
   if (IsTankerSpec(input)) {
     const std::optional<TankerSpec> spec = ParseTankerSpec(input);
     if (!spec)
@@ -132,7 +138,7 @@ Result<SceneOpener> OpenerFor(const std::string& input, const std::string& spill
   }
   // Refused before anything is read (the scene reader would say the same, but only once it got there).
   MKTREE_RETURN_IF_ERROR(storage_internal::CheckInputFile(input));
-  return SceneOpener([input, spill_dir](ObjectId first) { return OpenSceneFile(input, first, spill_dir); });
+  return SceneOpener([input, read](ObjectId first) { return OpenSceneFile(input, first, read); });
 }
 
 // The caller's objects as a scene stream: numbered in order, checked as a reader checks a file.
@@ -166,9 +172,12 @@ Result<BuildStats> BuildFromFiles(const std::vector<std::string>& inputs, const 
   MKTREE_ASSIGN_OR_RETURN(IngestOptions opts, ToIngestOptions(options));
   if (inputs.empty()) return Status::InvalidArgument(store_path + ": not built: no input");
   std::vector<SceneOpener> openers;
-  const std::string spill_dir = IngestSpillDir(store_path, opts.spill_dir);
+  SceneReadOptions read;
+  read.spill_dir = IngestSpillDir(store_path, opts.spill_dir);
+  read.chord_tolerance = options.chord_tolerance;
+  read.angular_deflection = options.angular_deflection;
   for (const std::string& in : inputs) {
-    MKTREE_ASSIGN_OR_RETURN(SceneOpener opener, OpenerFor(in, spill_dir));
+    MKTREE_ASSIGN_OR_RETURN(SceneOpener opener, OpenerFor(in, read));
     openers.push_back(std::move(opener));
   }
   MKTREE_RETURN_IF_ERROR(storage_internal::CheckOutputFile(store_path, inputs));

@@ -13,6 +13,7 @@
 #include "engine/scene/ifc_reader.h"
 #include "engine/scene/mkscene_format.h"
 #include "engine/scene/obj_reader.h"
+#include "engine/scene/step_reader.h"
 
 namespace mktree {
 
@@ -32,18 +33,26 @@ Result<int> OpenSceneInput(const std::string& path) {
 }
 
 Result<std::unique_ptr<SceneSource>> OpenSceneFile(const std::string& path, ObjectId first_id,
-                                                   const std::string& spill_dir) {
+                                                   const SceneReadOptions& options) {
   std::string ext = std::filesystem::path(path).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
   if (ext == ".obj") {  // streamed; assimp would load it whole
-    ObjReadOptions options;
-    options.spill_dir = spill_dir;
-    return OpenObjFile(path, first_id, options);
+    ObjReadOptions obj_options;
+    obj_options.spill_dir = options.spill_dir;
+    return OpenObjFile(path, first_id, obj_options);
   }
   if (ext == ".mks") return OpenMkSceneFile(path, first_id);
-  if (ext == ".ifc" && !IfcThroughAssimp()) return OpenIfcFile(path, first_id, spill_dir);
+  if (ext == ".ifc" && !IfcThroughAssimp()) return OpenIfcFile(path, first_id, options.spill_dir);
   if (ext == ".mkifcs") return OpenIfcStreamFile(path, first_id);
+  if (ext == ".step" || ext == ".stp") return OpenStepFile(path, first_id, options);
   return OpenAssimpFile(path, first_id);
+}
+
+Result<std::unique_ptr<SceneSource>> OpenSceneFile(const std::string& path, ObjectId first_id,
+                                                   const std::string& spill_dir) {
+  SceneReadOptions options;
+  options.spill_dir = spill_dir;
+  return OpenSceneFile(path, first_id, options);
 }
 
 }  // namespace mktree

@@ -28,10 +28,23 @@ class SceneSource {
 // blocking).
 Result<int> OpenSceneInput(const std::string& path);
 
+// How scene files are read: what a build's options say to the readers.
+struct SceneReadOptions {
+  // Where a reader's scratch file goes (the OBJ vertices past its RAM budget); empty: $TMPDIR or /tmp.
+  std::string spill_dir;
+  // STEP tessellation (engine/scene/step_reader.h): the largest distance in metres between a face and its
+  // triangles (BRepMesh's linear deflection), and the largest angle in radians between the normals of
+  // adjacent triangles (its angular deflection). Both must be finite and positive.
+  double chord_tolerance = 0.0005;
+  double angular_deflection = 0.5;
+};
+
 // Opens `path` by extension: .obj with the streaming OBJ reader, .mks with its reader, .ifc through web-ifc
-// (ifc_reader.h; through assimp when MKTREE_IFC_READER=assimp), .mkifcs as a saved IFC stream; everything
-// else through assimp.
-// `spill_dir` takes a reader's scratch file (the OBJ vertices past its RAM budget); empty: $TMPDIR or /tmp.
+// (ifc_reader.h; through assimp when MKTREE_IFC_READER=assimp), .mkifcs as a saved IFC stream, .step/.stp
+// (any case) with the STEP reader (OpenCASCADE, engine/scene/step_reader.h); everything else through assimp.
+Result<std::unique_ptr<SceneSource>> OpenSceneFile(const std::string& path, ObjectId first_id,
+                                                   const SceneReadOptions& options);
+// The same with the default options but `spill_dir`.
 Result<std::unique_ptr<SceneSource>> OpenSceneFile(const std::string& path, ObjectId first_id = 0,
                                                    const std::string& spill_dir = "");
 

@@ -53,6 +53,11 @@ struct BuildOptions {
   unsigned threads = 0;
   // Where the temporary spill files go (empty: beside the store).
   std::string spill_dir;
+  // STEP inputs are tessellated (docs/formats.md, STEP): the largest distance in metres between a face and
+  // its triangles, and the largest angle in radians between adjacent triangles' normals. Both must be
+  // finite and positive; other formats ignore them.
+  double chord_tolerance = 0.0005;
+  double angular_deflection = 0.5;
   BuildProgress progress;  // optional
   // 0: one store at the path. K >= 1: a sharded store (docs/shards.md): the path is its manifest, and K
   // ordinary stores "<path>.shard-<i>.mkt" with their id files "<path>.shard-<i>.ids" lie beside it.
@@ -80,11 +85,11 @@ struct BuildStats {
 };
 
 // Builds the store at `store_path` from `inputs`, read in order (object ids continue across them): scene
-// files of any format `mktree build` reads (.obj, .mks, glTF/GLB, PLY, STL, OFF, AC3D, ... through assimp)
-// or "tanker:N" / "tanker:N:SEED" (the synthetic tanker, decimal N from 1 to 2^32, SEED default 1). Bad
-// input is an error naming the file and line; an input that is missing or not a regular file, and a
-// store path that names one of the inputs or something other than a regular file, are refused before
-// anything is read. No input, or no object with geometry in them, is InvalidArgument.
+// files of any format `mktree build` reads (.obj, .mks, STEP, glTF/GLB, PLY, STL, OFF, AC3D, ... through
+// assimp) or "tanker:N" / "tanker:N:SEED" (the synthetic tanker, decimal N from 1 to 2^32, SEED default 1).
+// Bad input is an error naming the file and line; an input that is missing or not a regular file, and a store
+// path that names one of the inputs or something other than a regular file, are refused before anything is
+// read. No input, or no object with geometry in them, is InvalidArgument.
 Result<BuildStats> BuildFromFiles(const std::vector<std::string>& inputs, const std::string& store_path,
                                   const BuildOptions& options = {});
 

@@ -246,6 +246,22 @@ def test_trimesh_style_objects(tmp_path):
     assert np.array_equal(db.box(q[:3], q[3:]), brute_force(boxes, q))
 
 
+def test_build_from_step(tmp_path):
+    """A STEP assembly (tests/data/step): one object per leaf solid, named by its assembly path, with its
+    product and colour; the chord tolerance reaches the tessellation."""
+    step = Path(__file__).resolve().parents[2] / "tests" / "data" / "step" / "engine_assembly.step"
+    fine = mktree.build(tmp_path / "f.mkt", files=step, chord_tolerance=0.0001)
+    coarse = mktree.build(tmp_path / "c.mkt", files=step, chord_tolerance=0.003, angular_deflection=3.0)
+    assert fine["objects"] == coarse["objects"] == 11
+    assert fine["triangles"] > coarse["triangles"]
+    rec = mktree.open(tmp_path / "f.mkt").object(0)
+    assert rec["name"] == "engine/block" and rec["source"] == str(step)
+    assert ("step_product", "block") in rec["attributes"] and ("step_colour", "#cc2020") in rec["attributes"]
+    assert np.allclose(rec["box"], [[0, 0, 0], [0.2, 0.1, 0.08]], atol=1e-6)
+    with pytest.raises(mktree.Error, match="chord_tolerance"):
+        mktree.build(tmp_path / "x.mkt", files=step, chord_tolerance=0.0)
+
+
 def test_object_records_and_geometry(tmp_path):
     """Names, sources and attributes (any text, a repeated key) come back by id with the stored box and mesh."""
     objects, boxes = random_boxes(40, 11)

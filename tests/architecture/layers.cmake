@@ -16,6 +16,8 @@ set(below_storage "mktree/")
 set(below_engine_core "mktree/")
 set(below_engine_geometry "mktree/" "engine/core/")
 set(below_engine_scene "mktree/" "storage/" "engine/core/")
+# The STEP reader's OpenCASCADE module (libmktree_step.so), loaded by engine/scene/step_reader.cc.
+set(below_engine_step "mktree/" "storage/" "engine/core/" "engine/scene/")
 set(below_engine_generator "mktree/" "storage/" "engine/core/" "engine/scene/")
 set(below_engine_tree "mktree/" "storage/" "engine/core/")
 set(below_engine_store_format "mktree/" "storage/" "engine/core/" "engine/tree/")
@@ -46,7 +48,7 @@ set(below_tools_mpi "mktree/" "storage/" "engine/" "tools/")
 set(below_python "mktree/")
 # Benchmarks measure the engine's layers directly; nothing includes them.
 set(below_bench "mktree/" "storage/" "engine/")
-set(folders include/mktree storage engine/core engine/geometry engine/scene engine/generator engine/tree
+set(folders include/mktree storage engine/core engine/geometry engine/scene engine/step engine/generator engine/tree
     engine/store_format engine/shard engine/revision engine/ingest engine/clash engine/query engine/changes engine/viz
     engine/coordination engine/report tools tools/mpi python bench)
 

@@ -49,9 +49,10 @@ case "$mode" in
     prefix=$tmp/prefix
     step "cmake --install $build --prefix $prefix"
     "$cmake" --install "$build" --prefix "$prefix" >/dev/null
-    # Only the public headers, the libraries, the package files, the tool and the licence.
+    # Only the public headers, the libraries, the STEP reader's module, the package files, the tool and the
+    # licence.
     unexpected=$(find "$prefix" \( -type f -o -type l \) | sed "s|^$prefix/||" | grep -vE \
-      '^include/mktree/[a-z_]+\.h$|^lib(64|/[a-z0-9_-]+)?/(libmktree\.(a|so(\.[0-9.]+)?)|cmake/mktree/mktree(Config|ConfigVersion|Targets(-[a-z]+)?)\.cmake|pkgconfig/mktree\.pc)$|^bin/mktree$|^share/doc/mktree/LICENSE$' || true)
+      '^include/mktree/[a-z_]+\.h$|^lib(64|/[a-z0-9_-]+)?/(libmktree\.(a|so(\.[0-9.]+)?)|mktree/libmktree_step\.so|cmake/mktree/mktree(Config|ConfigVersion|Targets(-[a-z]+)?)\.cmake|pkgconfig/mktree\.pc)$|^bin/mktree$|^share/doc/mktree/LICENSE$' || true)
     [[ -z $unexpected ]] || fail "installed beyond the package: $unexpected"
     for h in "$src"/include/mktree/*.h version.h; do
       [[ -f $prefix/include/mktree/$(basename "$h") ]] || fail "not installed: include/mktree/$(basename "$h")"
@@ -63,6 +64,10 @@ case "$mode" in
     [[ -n $pc ]] || fail "no mktree.pc"
     [[ $("$prefix/bin/mktree" --version) == "mktree $version" ]] || fail "mktree --version"
     "$prefix/bin/mktree" build "$tmp/grid.obj" -o "$tmp/grid.mkt" -q
+    # The installed tool finds the installed STEP module beside the libraries (engine/scene/step_reader.h).
+    [[ -n $(find "$prefix" -name libmktree_step.so) ]] || fail "libmktree_step.so is not installed"
+    "$prefix/bin/mktree" build "$src/tests/data/step/engine_assembly.step" -o "$tmp/engine.mkt" -q ||
+      fail "the installed mktree does not read STEP"
 
     step "find_package(mktree) against the install"
     "${configure[@]}" -S "$src/tests/package/consumer" -B "$tmp/fp" -DCMAKE_PREFIX_PATH="$prefix" >/dev/null
