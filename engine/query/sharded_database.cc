@@ -106,6 +106,11 @@ class ShardedDatabase final : public Database {
   }
   Status Collide(const Mesh& mesh, const std::optional<RigidTransform>& transform, const ClashOptions& o,
                  const ClashVisitor& visit, ClashStats* stats) const override;
+  // The same sweep within `scope` (its focus and partner sets: global ids).
+  Status ScopedClash(const MultiClashScope& scope, const ClashOptions& o, const ClashVisitor& visit,
+                     ClashStats* stats) const {
+    return Guarded(path_, [&] { return RunMultiClash(ClashParts(), scope, o, visit, stats); });
+  }
   void ClearCache() override {
     for (auto& s : shards_) s->ClearCache();
   }
@@ -283,6 +288,13 @@ Status ShardedDatabase::RunBatchStreamed(const QuerySource& source, const BatchO
 }
 
 }  // namespace
+
+Status ShardedScopedClash(const Database& db, const MultiClashScope& scope, const ClashOptions& options,
+                          const ClashVisitor& visit, ClashStats* stats) {
+  const auto* s = dynamic_cast<const ShardedDatabase*>(&db);
+  if (!s) return Status::Unsupported(db.path() + ": not a sharded store");
+  return s->ScopedClash(scope, options, visit, stats);
+}
 
 Result<std::unique_ptr<Database>> OpenShardedDatabase(const std::string& manifest_path,
                                                       const OpenOptions& options) {
