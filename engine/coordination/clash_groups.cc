@@ -16,8 +16,18 @@ namespace {
 
 int ClassRank(ClashClass c) { return c == ClashClass::kHard ? 0 : c == ClashClass::kTouch ? 1 : 2; }
 
-Vec3d Middle(const ClashPair& p) {
-  return {(p.point_a.x + p.point_b.x) / 2, (p.point_a.y + p.point_b.y) / 2, (p.point_a.z + p.point_b.z) / 2};
+// Where a clash is, for proximity: the middle of the overlap of the two objects' boxes (of the gap between
+// them for a clearance pair), which depends on the geometry only; the engine's contact point depends on
+// which object is a (the lower id). A resolved record without boxes: the middle of its points.
+Vec3d Where(const ClashRecord& r) {
+  if (r.a.box.empty() || r.b.box.empty()) {
+    const ClashPair& p = r.pair;
+    return {(p.point_a.x + p.point_b.x) / 2, (p.point_a.y + p.point_b.y) / 2, (p.point_a.z + p.point_b.z) / 2};
+  }
+  Vec3d at;
+  for (int i = 0; i < 3; ++i)
+    at[i] = (std::max(r.a.box.min[i], r.b.box.min[i]) + std::min(r.a.box.max[i], r.b.box.max[i])) / 2;
+  return at;
 }
 
 void Grow(Box3d* box, const Box3d& b) {
@@ -97,7 +107,7 @@ std::vector<ClashGroup> ByProximity(const std::string& test, std::vector<ClashRe
                 static_cast<int64_t>(std::floor(p.z / d))};
   };
   for (size_t i = 0; i < n; ++i) {
-    at[i] = Middle((*records)[i].pair);
+    at[i] = Where((*records)[i]);
     grid[cell(at[i])].push_back(i);
   }
   UnionFind uf(n);

@@ -13,8 +13,8 @@ namespace mktree::coordination {
 // By element: each object's degree (its clashes in the test, objects told apart by stable identity);
 // objects taken by decreasing degree, ties by identity; each takes the clashes not yet taken that it is
 // in, as one group anchored by it (key: the test and the anchor's identity). By proximity: the clashes
-// whose points (the middle of point_a and point_b) lie within `distance` of each other, chained (single
-// linkage over a grid of cells of that size; key: the test and its smallest member key).
+// whose places (the middle of the overlap of the two objects' boxes) lie within `distance` of each other,
+// chained (single linkage over a grid of cells of that size; key: the test and its smallest member key).
 // Each record's group is set; groups come back worst first (class, then distance), then by key, each
 // with its members in key order. Records with status kResolved and an empty box count by their points.
 std::vector<ClashGroup> GroupClashes(const std::string& test, std::vector<ClashRecord> records,
