@@ -118,34 +118,8 @@ TEST(ClashCompare, RevisionResolvesOneAndAddsOne) {
   const uint64_t n_before = testing::Records(before).size();
   ASSERT_GT(n_before, 100u);
   const auto [lone, partner] = LoneClash(before, "all");
-  // A point inside the partner of no other object's box: a small cube there clashes with it alone.
-  std::vector<ObjectId> other_partners;
   ObjectId host = 0;
-  Vec3d at;
-  bool placed = false;
-  for (ObjectId h = 0; h < scene.size() && !placed; ++h) {
-    if (h == lone || h == partner) continue;
-    const Box3d hb = scene[h].mesh.Bounds();
-    at = {(hb.min[0] + hb.max[0]) / 2, (hb.min[1] + hb.max[1]) / 2, (hb.min[2] + hb.max[2]) / 2};
-    if (hb.max[0] - hb.min[0] < 0.1 || hb.max[1] - hb.min[1] < 0.1 || hb.max[2] - hb.min[2] < 0.1) continue;
-    placed = true;
-    for (ObjectId o = 0; o < scene.size() && placed; ++o) {
-      if (o == h) continue;
-      const Box3d ob = scene[o].mesh.Bounds();
-      bool near = true;
-      for (int i = 0; i < 3; ++i) near = near && at[i] + 0.05 >= ob.min[i] && at[i] - 0.05 <= ob.max[i];
-      placed = !near;
-    }
-    host = h;
-  }
-  ASSERT_TRUE(placed);
-  SceneObject added;
-  added.name = "added_cube";
-  added.source = "models/mep.ifc";
-  added.attributes = {{"ifc_global_id", "GNEW"}, {"ifc_type", "IfcPipeSegment"}};
-  Box3d cube;
-  for (int i = 0; i < 3; ++i) cube.min[i] = at[i] - 0.01, cube.max[i] = at[i] + 0.01;
-  added.mesh = testing::BoxMesh(cube);
+  const SceneObject added = testing::CubeClashingWithOne(scene, lone, partner, "added_cube", "GNEW", &host);
   {
     auto w = ChangeWriter::Open(path);
     ASSERT_TRUE(w.ok()) << w.status().ToString();

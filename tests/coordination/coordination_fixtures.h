@@ -74,6 +74,43 @@ inline std::vector<SceneObject> AttributedScene(size_t n, uint64_t seed) {
   return objs;
 }
 
+// A small cube (named `name`, GlobalId `gid`) at the middle of the box of an object other than `avoid_a`
+// and `avoid_b` and not spatial (no rule removes its pairs), where no other object's box comes within
+// 0.05: it clashes with that object (*host) alone.
+inline SceneObject CubeClashingWithOne(const std::vector<SceneObject>& scene, ObjectId avoid_a,
+                                       ObjectId avoid_b, const std::string& name, const std::string& gid,
+                                       ObjectId* host) {
+  for (ObjectId h = 0; h < scene.size(); ++h) {
+    const std::string type = Attr(scene[h], "ifc_type");
+    if (h == avoid_a || h == avoid_b || Attr(scene[h], "ifc_spatial") == "true" || type == "IfcSpace" ||
+        type == "IfcOpeningElement")
+      continue;
+    const Box3d hb = scene[h].mesh.Bounds();
+    if (hb.max[0] - hb.min[0] < 0.1 || hb.max[1] - hb.min[1] < 0.1 || hb.max[2] - hb.min[2] < 0.1) continue;
+    const Vec3d at{(hb.min[0] + hb.max[0]) / 2, (hb.min[1] + hb.max[1]) / 2, (hb.min[2] + hb.max[2]) / 2};
+    bool alone = true;
+    for (ObjectId o = 0; o < scene.size() && alone; ++o) {
+      if (o == h) continue;
+      const Box3d ob = scene[o].mesh.Bounds();
+      bool near = true;
+      for (int i = 0; i < 3; ++i) near = near && at[i] + 0.05 >= ob.min[i] && at[i] - 0.05 <= ob.max[i];
+      alone = !near;
+    }
+    if (!alone) continue;
+    SceneObject cube;
+    cube.name = name;
+    cube.source = scene[h].source;
+    cube.attributes = {{"ifc_global_id", gid}, {"ifc_type", "IfcPipeSegment"}};
+    Box3d b;
+    for (int i = 0; i < 3; ++i) b.min[i] = at[i] - 0.01, b.max[i] = at[i] + 0.01;
+    cube.mesh = BoxMesh(b);
+    *host = h;
+    return cube;
+  }
+  ADD_FAILURE() << "no place for a cube clashing with one object";
+  return {};
+}
+
 inline void BuildScene(const std::vector<SceneObject>& objs, const std::string& path, uint32_t shards = 0) {
   BuildOptions o;
   o.backend = BuildOptions::Backend::kPagedFile;
