@@ -24,7 +24,7 @@ void AppendString(std::string* s, const char* key, const std::string& value) {
 }  // namespace
 
 std::string ClashRecordLine(const ClashRecord& r, bool names) {
-  // By hand like PairLine: nlohmann-json took a third more time over 100,000 lines (bench/README.md).
+  // By hand like PairLine: nlohmann-json's dump is several times slower per line (bench/README.md).
   const ClashPair& p = r.pair;
   std::string s = "{\"test\": \"" + JsonText(r.test) + "\"";
   AppendString(&s, "key", r.key);
@@ -65,7 +65,8 @@ std::string ClashRecordLine(const ClashRecord& r, bool names) {
   return s;
 }
 
-std::string ClashTestSummaryLine(const ClashTestSummary& t, bool compared, uint64_t peak_rss_bytes) {
+std::string ClashTestSummaryLine(const ClashTestSummary& t, bool compared, uint64_t peak_rss_bytes,
+                                 double scan_seconds) {
   using Json = nlohmann::ordered_json;
   Json rules = Json::object();
   uint64_t excluded = 0;
@@ -104,6 +105,8 @@ std::string ClashTestSummaryLine(const ClashTestSummary& t, bool compared, uint6
   j["candidate_pairs"] = s.candidate_pairs;
   j["unreported_touches"] = s.unreported_touches;
   j["seconds"] = s.total_seconds;
+  j["workflow_seconds"] = t.workflow_seconds;
+  j["scan_seconds"] = scan_seconds;
   j["peak_rss_bytes"] = peak_rss_bytes;
   return j.dump(-1, ' ', false, Json::error_handler_t::replace) + "\n";
 }
@@ -151,7 +154,7 @@ int RunClashTestsCommand(const ClashTestsArgs& a) {
       for (const ClashRecord& r : g.members)
         if (r.status == ClashStatus::kResolved) put(ClashRecordLine(r, a.names));
     }
-    put(ClashTestSummaryLine(t, !a.compare.empty(), rss));
+    put(ClashTestSummaryLine(t, !a.compare.empty(), rss, run.scan_seconds));
   }
   if (failed || std::fflush(stdout) != 0) return Fail("cannot write to standard output");
   return 0;

@@ -26,8 +26,9 @@ struct ClashTestsArgs {
 
 // The pair line of one record (a resolved record: its previous values).
 std::string ClashRecordLine(const ClashRecord& r, bool names);
-// The summary line of one test.
-std::string ClashTestSummaryLine(const ClashTestSummary& s, bool compared, uint64_t peak_rss_bytes);
+// The summary line of one test (scan_seconds: the run's selection scan, shared by its tests).
+std::string ClashTestSummaryLine(const ClashTestSummary& s, bool compared, uint64_t peak_rss_bytes,
+                                 double scan_seconds);
 
 // Runs the tests and prints their lines; nothing is printed unless the whole run succeeded. Returns the
 // exit code.

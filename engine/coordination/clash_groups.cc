@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <map>
 #include <numeric>
+#include <string_view>
 #include <tuple>
 #include <unordered_map>
 
@@ -22,7 +23,8 @@ int ClassRank(ClashClass c) { return c == ClashClass::kHard ? 0 : c == ClashClas
 Vec3d Where(const ClashRecord& r) {
   if (r.a.box.empty() || r.b.box.empty()) {
     const ClashPair& p = r.pair;
-    return {(p.point_a.x + p.point_b.x) / 2, (p.point_a.y + p.point_b.y) / 2, (p.point_a.z + p.point_b.z) / 2};
+    return {(p.point_a.x + p.point_b.x) / 2, (p.point_a.y + p.point_b.y) / 2,
+            (p.point_a.z + p.point_b.z) / 2};
   }
   Vec3d at;
   for (int i = 0; i < 3; ++i)
@@ -42,38 +44,58 @@ std::string Describe(const ObjectIdentity& o) {
   return s;
 }
 
-std::vector<ClashGroup> ByElement(const std::string& test, std::vector<ClashRecord>* records) {
-  // Nodes: distinct stable identities, numbered in identity order.
-  std::map<std::string, std::vector<size_t>> incident;
-  for (size_t i = 0; i < records->size(); ++i) {
-    incident[(*records)[i].a.stable].push_back(i);
-    if ((*records)[i].b.stable != (*records)[i].a.stable) incident[(*records)[i].b.stable].push_back(i);
+// Records are taken in `order` (their indices by key) and moved into the groups.
+std::vector<ClashGroup> ByElement(const std::string& test, std::vector<ClashRecord>* records,
+                                  const std::vector<uint32_t>& order) {
+  // Nodes: distinct stable identities; each node's clashes in key order.
+  std::unordered_map<std::string_view, uint32_t> node_of;
+  std::vector<std::string_view> identity;
+  std::vector<std::vector<uint32_t>> incident;
+  auto add = [&](std::string_view id, uint32_t record) {
+    auto [it, added] = node_of.try_emplace(id, static_cast<uint32_t>(identity.size()));
+    if (added) {
+      identity.push_back(id);
+      incident.emplace_back();
+    }
+    incident[it->second].push_back(record);
+  };
+  for (uint32_t i : order) {
+    const ClashRecord& r = (*records)[i];
+    add(r.a.stable, i);
+    if (r.b.stable != r.a.stable) add(r.b.stable, i);
   }
-  std::vector<const std::pair<const std::string, std::vector<size_t>>*> nodes;
-  for (const auto& n : incident) nodes.push_back(&n);
-  std::stable_sort(nodes.begin(), nodes.end(),
-                   [](auto* x, auto* y) { return x->second.size() > y->second.size(); });  // ties: identity
+  std::vector<uint32_t> nodes(identity.size());
+  std::iota(nodes.begin(), nodes.end(), 0);
+  std::sort(nodes.begin(), nodes.end(), [&](uint32_t x, uint32_t y) {
+    if (incident[x].size() != incident[y].size()) return incident[x].size() > incident[y].size();
+    return identity[x] < identity[y];
+  });
   std::vector<uint8_t> taken(records->size(), 0);
-  std::vector<ClashGroup> groups;
-  for (const auto* n : nodes) {
-    ClashGroup g;
-    for (size_t i : n->second) {
-      if (taken[i]) continue;
-      taken[i] = 1;
-      g.members.push_back(std::move((*records)[i]));
-    }
-    if (g.members.empty()) continue;
-    g.key = Hex64(StableHash("element\n" + test + "\n" + n->first));
-    const ClashRecord& first = g.members.front();
-    const ObjectIdentity& anchor = first.a.stable == n->first ? first.a : first.b;
-    g.title = Describe(anchor) + ": " + std::to_string(g.members.size()) +
-              (g.members.size() == 1 ? " clash" : " clashes");
-    if (g.members.size() == 1) {
-      const ObjectIdentity& other = first.a.stable == n->first ? first.b : first.a;
-      g.title = Describe(anchor) + " with " + Describe(other);
-    }
-    groups.push_back(std::move(g));
+  std::vector<std::vector<uint32_t>> members;
+  std::vector<uint32_t> anchors;
+  for (uint32_t n : nodes) {
+    std::vector<uint32_t> m;
+    for (uint32_t i : incident[n])
+      if (!taken[i]) m.push_back(i), taken[i] = 1;
+    if (m.empty()) continue;
+    members.push_back(std::move(m));
+    anchors.push_back(n);
   }
+  std::vector<ClashGroup> groups(members.size());
+  for (size_t k = 0; k < members.size(); ++k) {
+    ClashGroup& g = groups[k];
+    const std::string anchor_id(identity[anchors[k]]);
+    g.key = Hex64(StableHash("element\n" + test + "\n" + anchor_id));
+    const ClashRecord& first = (*records)[members[k].front()];
+    const ObjectIdentity& anchor = first.a.stable == anchor_id ? first.a : first.b;
+    const ObjectIdentity& other = first.a.stable == anchor_id ? first.b : first.a;
+    g.title = members[k].size() == 1
+                  ? Describe(anchor) + " with " + Describe(other)
+                  : Describe(anchor) + ": " + std::to_string(members[k].size()) + " clashes";
+  }
+  // The records move last: the identities above are views into them.
+  for (size_t k = 0; k < members.size(); ++k)
+    for (uint32_t i : members[k]) groups[k].members.push_back(std::move((*records)[i]));
   return groups;
 }
 
@@ -91,7 +113,12 @@ struct UnionFind {
   }
 };
 
-std::vector<ClashGroup> ByProximity(const std::string& test, std::vector<ClashRecord>* records, double d) {
+std::vector<ClashGroup> ByProximity(const std::string& test, std::vector<ClashRecord>* unordered,
+                                    const std::vector<uint32_t>& order, double d) {
+  std::vector<ClashRecord> sorted;
+  sorted.reserve(order.size());
+  for (uint32_t i : order) sorted.push_back(std::move((*unordered)[i]));
+  std::vector<ClashRecord>* records = &sorted;
   const size_t n = records->size();
   std::vector<Vec3d> at(n);
   using Cell = std::tuple<int64_t, int64_t, int64_t>;
@@ -140,8 +167,9 @@ std::vector<ClashGroup> ByProximity(const std::string& test, std::vector<ClashRe
 }  // namespace
 
 void FinishGroup(ClashGroup* g) {
-  std::sort(g->members.begin(), g->members.end(),
-            [](const ClashRecord& x, const ClashRecord& y) { return x.key < y.key; });
+  auto by_key = [](const ClashRecord& x, const ClashRecord& y) { return x.key < y.key; };
+  if (!std::is_sorted(g->members.begin(), g->members.end(), by_key))
+    std::sort(g->members.begin(), g->members.end(), by_key);
   int worst = 3;
   bool any_new = false, all_resolved = true, any_status = false;
   for (ClashRecord& r : g->members) {
@@ -186,11 +214,15 @@ bool WorseGroup(const ClashGroup& x, const ClashGroup& y) {
 
 std::vector<ClashGroup> GroupClashes(const std::string& test, std::vector<ClashRecord> records,
                                      ClashGrouping grouping, double distance) {
-  // Key order first, so that ties and unions do not depend on the order the records came in.
-  std::sort(records.begin(), records.end(),
-            [](const ClashRecord& x, const ClashRecord& y) { return x.key < y.key; });
-  std::vector<ClashGroup> groups =
-      grouping == ClashGrouping::kElement ? ByElement(test, &records) : ByProximity(test, &records, distance);
+  // Key order first, so that ties and unions do not depend on the order the records came in (indices
+  // sorted: a record is a dozen strings to move).
+  std::vector<uint32_t> order(records.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(),
+            [&](uint32_t x, uint32_t y) { return records[x].key < records[y].key; });
+  std::vector<ClashGroup> groups = grouping == ClashGrouping::kElement
+                                       ? ByElement(test, &records, order)
+                                       : ByProximity(test, &records, order, distance);
   for (ClashGroup& g : groups) {
     g.test = test;
     FinishGroup(&g);

@@ -1,6 +1,7 @@
 // RunClashTests (mktree/clash_tests.h): the selection scan shared by all tests, then per test a clash
 // scoped to its two sets, the rules, keys, comparison and groups.
 #include <algorithm>
+#include <chrono>
 #include <mutex>
 #include <unordered_map>
 #include <utility>
@@ -21,6 +22,10 @@ namespace mktree {
 namespace {
 
 using coordination::SelectionScan;
+
+double SecondsSince(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+}
 using coordination::TestSelections;
 
 ClashOptions OptionsFor(const ClashTest& t, const ClashTestOptions& run) {
@@ -79,10 +84,10 @@ Status ReadRecords(const Database& db, const std::vector<std::pair<ObjectId, Obj
   }
   std::sort(ids.begin(), ids.end());
   ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
-  for (ObjectId id : ids) {
-    MKTREE_ASSIGN_OR_RETURN(ObjectRecord r, db.Object(id));
-    out->emplace(id, std::move(r));
-  }
+  out->reserve(ids.size());
+  MKTREE_RETURN_IF_ERROR(
+      coordination::VisitRecords(db, &ids, [&](ObjectRecord& r) { out->emplace(r.id, std::move(r)); }));
+  if (out->size() != ids.size()) return Status::Internal(db.path() + ": a clashing object has no record");
   return Status::Ok();
 }
 
@@ -244,7 +249,9 @@ Status Run(const Database& db, const ClashTestFile& file, const ClashTestOptions
   run->store = db.path();
   run->revision = db.revision();
   SelectionScan scan;
+  const auto start = std::chrono::steady_clock::now();
   MKTREE_RETURN_IF_ERROR(coordination::ScanSelections(db, file, &scan));
+  run->scan_seconds = SecondsSince(start);
   run->tests.resize(file.tests.size());
   for (size_t i = 0; i < file.tests.size(); ++i) Summarise(file.tests[i], scan.tests[i], &run->tests[i]);
   if (options.previous) MKTREE_RETURN_IF_ERROR(coordination::CheckComparable(*options.previous, run->tests));
@@ -252,6 +259,7 @@ Status Run(const Database& db, const ClashTestFile& file, const ClashTestOptions
     const ClashTest& t = file.tests[i];
     ClashTestSummary& s = run->tests[i];
     std::vector<ClashRecord> records;
+    const auto test_start = std::chrono::steady_clock::now();
     MKTREE_RETURN_IF_ERROR(RunTest(db, t, scan, i, options, &s, &records));
     std::unordered_map<std::string, uint64_t> keys;
     for (const ClashRecord& r : records) ++keys[r.key];
@@ -270,6 +278,7 @@ Status Run(const Database& db, const ClashTestFile& file, const ClashTestOptions
     }
     std::vector<ClashGroup> groups = GroupWithResolved(t, std::move(records), std::move(resolved));
     s.groups = groups.size();
+    s.workflow_seconds = SecondsSince(test_start) - s.stats.total_seconds;
     for (ClashGroup& g : groups) run->groups.push_back(std::move(g));
   }
   std::stable_sort(run->groups.begin(), run->groups.end(), coordination::WorseGroup);

@@ -88,6 +88,7 @@ class RevisionDatabase final : public Database {
   }
 
   uint64_t revision() const override { return hold_->manifest().revision; }
+  const std::vector<ClashPart>& clash_parts() const { return clash_parts_; }
   const RevisionManifest& manifest() const { return hold_->manifest(); }
   Status FocusedClash(const MultiClashScope& scope, const ClashOptions& o, const ClashVisitor& visit,
                       ClashStats* stats) const {
@@ -365,6 +366,11 @@ Status FocusedSelfClash(const Database& db, const std::vector<ObjectId>& focus, 
   if (db.shard_count() > 0) return ShardedScopedClash(db, scope, options, visit, stats);
   return Status::Unsupported(db.path() +
                              ": a focused clash needs a store, a revision of one or a sharded store");
+}
+
+std::vector<ClashPart> RevisionClashParts(const Database& db) {
+  const auto* r = dynamic_cast<const RevisionDatabase*>(&db);
+  return r ? r->clash_parts() : std::vector<ClashPart>();
 }
 
 Result<std::unique_ptr<Database>> OpenRevisionDatabase(const std::string& store_path,

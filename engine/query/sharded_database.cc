@@ -106,6 +106,11 @@ class ShardedDatabase final : public Database {
   }
   Status Collide(const Mesh& mesh, const std::optional<RigidTransform>& transform, const ClashOptions& o,
                  const ClashVisitor& visit, ClashStats* stats) const override;
+  std::vector<ClashPart> ClashParts() const {
+    std::vector<ClashPart> parts;
+    for (size_t s = 0; s < shards_.size(); ++s) parts.push_back(ClashPart{&shards_[s]->leaves(), &ids_[s]});
+    return parts;
+  }
   // The same sweep within `scope` (its focus and partner sets: global ids).
   Status ScopedClash(const MultiClashScope& scope, const ClashOptions& o, const ClashVisitor& visit,
                      ClashStats* stats) const {
@@ -173,12 +178,6 @@ class ShardedDatabase final : public Database {
       stack[top++] = t.child[0];
     }
     return out;
-  }
-
-  std::vector<ClashPart> ClashParts() const {
-    std::vector<ClashPart> parts;
-    for (size_t s = 0; s < shards_.size(); ++s) parts.push_back(ClashPart{&shards_[s]->leaves(), &ids_[s]});
-    return parts;
   }
 
   // The shards whose root boxes meet `b` (store frame) grown by c, in shard order.
@@ -288,6 +287,11 @@ Status ShardedDatabase::RunBatchStreamed(const QuerySource& source, const BatchO
 }
 
 }  // namespace
+
+std::vector<ClashPart> ShardedClashParts(const Database& db) {
+  const auto* s = dynamic_cast<const ShardedDatabase*>(&db);
+  return s ? s->ClashParts() : std::vector<ClashPart>();
+}
 
 Status ShardedScopedClash(const Database& db, const MultiClashScope& scope, const ClashOptions& options,
                           const ClashVisitor& visit, ClashStats* stats) {

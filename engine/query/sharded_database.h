@@ -18,6 +18,9 @@ namespace mktree {
 Result<std::unique_ptr<Database>> OpenShardedDatabase(const std::string& manifest_path,
                                                       const OpenOptions& options);
 
+// The shards of a sharded store as clash parts (leaves and global ids); empty when `db` is not one.
+std::vector<ClashPart> ShardedClashParts(const Database& db);
+
 // A sharded store's self-clash within `scope` (MultiClashScope: focus and partner sets of global ids; the
 // part pairs filter is ignored). Unsupported when `db` is not a sharded store.
 Status ShardedScopedClash(const Database& db, const MultiClashScope& scope, const ClashOptions& options,

@@ -74,6 +74,9 @@ struct ClashTestSummary {
   std::vector<std::string> sources;  // the source models of the selected objects, sorted
   uint64_t groups = 0;
   ClashStats stats;  // the clash engine's statistics for this test
+  // Wall seconds of the test outside the clash engine: its objects' records, rules, keys, comparison and
+  // groups.
+  double workflow_seconds = 0;
 };
 
 struct ClashRun {
@@ -81,6 +84,7 @@ struct ClashRun {
   uint64_t revision = 0;
   std::vector<ClashTestSummary> tests;
   std::vector<ClashGroup> groups;  // worst first (class, then distance), then by key
+  double scan_seconds = 0;         // the selection scan shared by the tests (wall)
 };
 
 // The names the JSON lines, BCF and report use: "hard", "touch", "clearance"; "new", "active",
