@@ -94,8 +94,10 @@ std::vector<ClashGroup> ByElement(const std::string& test, std::vector<ClashReco
                   : Describe(anchor) + ": " + std::to_string(members[k].size()) + " clashes";
   }
   // The records move last: the identities above are views into them.
-  for (size_t k = 0; k < members.size(); ++k)
+  for (size_t k = 0; k < members.size(); ++k) {
+    groups[k].members.reserve(members[k].size());
     for (uint32_t i : members[k]) groups[k].members.push_back(std::move((*records)[i]));
+  }
   return groups;
 }
 

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <mutex>
+#include <string_view>
 #include <unordered_map>
 #include <utility>
 
@@ -115,25 +116,29 @@ std::vector<ClashRecord> ApplyRules(const ClashTest& t, const std::vector<ClashP
                                     ClashTestSummary* summary) {
   const coordination::ClashRuleSet rules(t);
   std::vector<uint64_t> removed(rules.names().size(), 0);
+  // Each object's identity once, not once per pair.
+  std::unordered_map<ObjectId, ObjectIdentity> identity;
+  identity.reserve(records.size());
+  for (const auto& [id, r] : records) identity.emplace(id, IdentityOf(r, coordination::StableIdentity(r)));
   std::vector<ClashRecord> out;
+  out.reserve(pairs.size());
   for (const ClashPair& p : pairs) {
-    const ObjectRecord& ra = records.at(p.a);
-    const ObjectRecord& rb = records.at(p.b);
-    std::string sa = coordination::StableIdentity(ra), sb = coordination::StableIdentity(rb);
-    std::string key = coordination::ClashKey(t.name, sa, sb);
-    const int rule = rules.Excluding(ra, rb, sa, sb, key);
+    const ObjectIdentity& ia = identity.at(p.a);
+    const ObjectIdentity& ib = identity.at(p.b);
+    std::string key = coordination::ClashKey(t.name, ia.stable, ib.stable);
+    const int rule = rules.Excluding(records.at(p.a), records.at(p.b), ia.stable, ib.stable, key);
     if (rule >= 0) {
       ++removed[rule];
       continue;
     }
-    ClashRecord r;
+    ClashRecord& r = out.emplace_back();
     r.test = t.name;
     r.key = std::move(key);
-    r.a = IdentityOf(ra, std::move(sa));
-    r.b = IdentityOf(rb, std::move(sb));
+    r.a = ia;
+    r.b = ib;
     r.pair = p;
-    out.push_back(std::move(r));
   }
+  out.shrink_to_fit();
   for (size_t i = 0; i < removed.size(); ++i)
     summary->excluded_by_rule.emplace_back(rules.names()[i], removed[i]);
   return out;
@@ -261,10 +266,13 @@ Status Run(const Database& db, const ClashTestFile& file, const ClashTestOptions
     std::vector<ClashRecord> records;
     const auto test_start = std::chrono::steady_clock::now();
     MKTREE_RETURN_IF_ERROR(RunTest(db, t, scan, i, options, &s, &records));
-    std::unordered_map<std::string, uint64_t> keys;
-    for (const ClashRecord& r : records) ++keys[r.key];
+    std::vector<std::string_view> keys;
+    keys.reserve(records.size());
+    for (const ClashRecord& r : records) keys.push_back(r.key);
+    std::sort(keys.begin(), keys.end());
     uint64_t shared = 0;
-    for (const auto& [key, n] : keys) shared += n > 1 ? n : 0;
+    for (size_t k = 0; k < keys.size(); ++k)
+      shared += (k > 0 && keys[k] == keys[k - 1]) || (k + 1 < keys.size() && keys[k] == keys[k + 1]);
     if (shared)
       s.warnings.push_back(std::to_string(shared) +
                            " clashes share their key with another (objects without "
