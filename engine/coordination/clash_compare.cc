@@ -100,7 +100,10 @@ Result<PreviousClashRun> ReadLines(const std::string& path) {
     const std::string where = path + ":" + std::to_string(n);
     Json j = Json::parse(line, nullptr, false);
     if (j.is_discarded() || !j.is_object()) return Status::InvalidArgument(where + ": not a JSON object");
-    if (j.value("summary", false)) {
+    const auto summary = j.find("summary");
+    if (summary != j.end() && !summary->is_boolean())
+      return Status::InvalidArgument(where + ": \"summary\" is not true or false");
+    if (summary != j.end() && summary->get<bool>()) {
       PreviousClashRun::Test t;
       MKTREE_RETURN_IF_ERROR(ReadSummaryLine(j, where, &t));
       if (test_at.count(t.name))

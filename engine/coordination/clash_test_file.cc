@@ -1,13 +1,16 @@
 // ParseClashTests, ReadClashTests and a test's canonical definition (mktree/clash_tests.h). nlohmann-json
 // parses the file; the line of each value comes from a scan of the text alongside (the DOM keeps none).
+#include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <sstream>
 #include <utility>
 
 #include "engine/coordination/clash_keys.h"
+#include "engine/core/guarded.h"
 #include "mktree/clash_tests.h"
 
 namespace mktree {
@@ -292,7 +295,9 @@ const char* ModeName(ClashTestMode m) {
 
 const char* ClashTestModeName(ClashTestMode m) { return ModeName(m); }
 
-Result<ClashTestFile> ParseClashTests(const std::string& text, const std::string& file) {
+namespace {
+
+Result<ClashTestFile> Parse(const std::string& text, const std::string& file) {
   Json root;
   try {
     root = Json::parse(text);
@@ -321,6 +326,12 @@ Result<ClashTestFile> ParseClashTests(const std::string& text, const std::string
     out.tests.push_back(std::move(test));
   }
   return out;
+}
+
+}  // namespace
+
+Result<ClashTestFile> ParseClashTests(const std::string& text, const std::string& file) {
+  return Guarded(file, [&] { return Parse(text, file); });
 }
 
 Result<ClashTestFile> ReadClashTests(const std::string& path) {

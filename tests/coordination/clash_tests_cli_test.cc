@@ -193,6 +193,9 @@ TEST_F(ClashTestsCli, BadInputIsRefusedNamingFileAndLine) {
   Write(TempPath("plain.jsonl"), plain.out);
   ExpectRefused(store + " --tests " + TempPath("tests.json") + " --compare " + TempPath("plain.jsonl"),
                 "plain.jsonl:1: a line without \"test\" and \"key\"");
+  Write(TempPath("flag.jsonl"), "{\"test\": \"all\", \"summary\": 1}\n");
+  ExpectRefused(store + " --tests " + TempPath("tests.json") + " --compare " + TempPath("flag.jsonl"),
+                "flag.jsonl:1: \"summary\" is not true or false");
   Write(TempPath("empty.jsonl"), "");
   ExpectRefused(store + " --tests " + TempPath("tests.json") + " --compare " + TempPath("empty.jsonl"),
                 "empty.jsonl: no test summary line");
