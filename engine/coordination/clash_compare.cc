@@ -42,6 +42,15 @@ ClashClass ClassOf(const std::string& name) {
                                : ClashClass::kHard;
 }
 
+// The source file name and GlobalId a stable identity holds ("duplex.ifc|2O2Fr$t4X7Zf8NOew3FNau"; none
+// after "|name=").
+void FromStable(ObjectIdentity* o) {
+  const size_t bar = o->stable.find('|');
+  if (bar == std::string::npos) return;
+  o->source = o->stable.substr(0, bar);
+  if (o->stable.compare(bar + 1, 5, "name=") != 0) o->global_id = o->stable.substr(bar + 1);
+}
+
 // One pair line of a previous run as a record (its status as written).
 ClashRecord RecordOf(const Json& j) {
   ClashRecord r;
@@ -52,6 +61,8 @@ ClashRecord RecordOf(const Json& j) {
   r.b.stable = Str(j, "id_b");
   r.a.name = Str(j, "name_a");
   r.b.name = Str(j, "name_b");
+  FromStable(&r.a);
+  FromStable(&r.b);
   r.a.id = r.pair.a = static_cast<ObjectId>(U64(j, "a"));
   r.b.id = r.pair.b = static_cast<ObjectId>(U64(j, "b"));
   r.pair.cls = ClassOf(Str(j, "class"));

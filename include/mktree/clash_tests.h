@@ -131,7 +131,9 @@ struct PreviousClashRun {
     std::string name, fingerprint;
     uint64_t selected_a = 0, selected_b = 0;
     std::vector<std::string> sources;
-    std::vector<ClashRecord> records;  // status as recorded; the identities' names, stable and global ids
+    // Status as recorded; of the identities: name (with --names), stable, and from it the source's file
+    // name and the GlobalId; no box, no IFC type.
+    std::vector<ClashRecord> records;
   };
   std::string file;
   std::vector<Test> tests;

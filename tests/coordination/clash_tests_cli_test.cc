@@ -149,6 +149,24 @@ TEST_F(ClashTestsCli, CompareWithAnotherStore) {
     }
     ++statuses[j.at("test")][j.at("status")];
     if (j.at("test") == "all" && j.at("status") == "resolved") {
+      const auto prev = ReadPreviousClashRun(TempPath("previous.jsonl"));
+      ASSERT_TRUE(prev.ok()) << prev.status().ToString();
+      bool seen = false;
+      for (const auto& t : prev->tests)
+        for (const ClashRecord& rec : t.records)
+          if (rec.key == j.at("key")) {
+            seen = true;
+            for (const ObjectIdentity* o : {&rec.a, &rec.b}) {
+              EXPECT_TRUE(o->source == "mep.ifc" || o->source == "structure.ifc") << o->source;
+              if (o->stable.find("|name=") == std::string::npos) {
+                EXPECT_EQ(o->stable, o->source + "|" + o->global_id);
+                EXPECT_EQ(o->global_id.substr(0, 1), "G");
+              } else {
+                EXPECT_TRUE(o->global_id.empty());
+              }
+            }
+          }
+      EXPECT_TRUE(seen);
       EXPECT_TRUE(j.at("name_a") == (*scene_)[lone].name || j.at("name_b") == (*scene_)[lone].name);
       EXPECT_EQ(j.at("a").get<ObjectId>(), std::min(lone, partner));  // the previous run's values
     }
