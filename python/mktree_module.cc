@@ -1,10 +1,11 @@
 // The Python module `mktree` (docs/python.md): the public API of include/mktree/ (database.h, build.h,
-// changes.h) with numpy arrays in and out. Queries, builds, commits and compactions run with the GIL
-// released; the callbacks into Python (the objects of a build, its progress) take it back. A non-ok Status
-// raises mktree.Error with Status::ToString() as its message; a Python exception raised in a callback ends
-// the build and is raised again as it was.
+// changes.h, clash.h, clash_tests.h) with numpy arrays in and out. Queries, builds, commits and compactions
+// run with the GIL released; the callbacks into Python (the objects of a build, its progress) take it back. A
+// non-ok Status raises mktree.Error with Status::ToString() as its message; a Python exception raised in a
+// callback ends the build and is raised again as it was.
 #include <mktree/build.h>
 #include <mktree/changes.h>
+#include <mktree/clash_tests.h>
 #include <mktree/database.h>
 #include <mktree/version.h>
 #include <pybind11/numpy.h>
@@ -481,6 +482,238 @@ std::unique_ptr<PyWriter> OpenWriter(const py::object& path, double compact_thre
 }
 
 // mktree.open and mktree.build.
+// Clash pairs as numpy arrays: a, b (uint32; collide's b is 2**32 - 1), cls (uint8: 0 hard, 1 touch,
+// 2 clearance), distance, depth_lower, depth_upper (float64), point_a, point_b (float64 (n, 3)).
+py::dict PairArrays(const std::vector<const ClashPair*>& pairs) {
+  const auto n = static_cast<py::ssize_t>(pairs.size());
+  py::array_t<uint32_t> a(n), b(n);
+  py::array_t<uint8_t> cls(n);
+  py::array_t<double> distance(n), lower(n), upper(n), pa({n, py::ssize_t{3}}), pb({n, py::ssize_t{3}});
+  for (py::ssize_t i = 0; i < n; ++i) {
+    const ClashPair& p = *pairs[static_cast<size_t>(i)];
+    a.mutable_data()[i] = p.a;
+    b.mutable_data()[i] = p.b;
+    cls.mutable_data()[i] = static_cast<uint8_t>(p.cls);
+    distance.mutable_data()[i] = p.distance;
+    lower.mutable_data()[i] = p.depth_lower;
+    upper.mutable_data()[i] = p.depth_upper;
+    for (int k = 0; k < 3; ++k) {
+      pa.mutable_data()[3 * i + k] = p.point_a[k];
+      pb.mutable_data()[3 * i + k] = p.point_b[k];
+    }
+  }
+  py::dict d;
+  d["a"] = a;
+  d["b"] = b;
+  d["cls"] = cls;
+  d["distance"] = distance;
+  d["depth_lower"] = lower;
+  d["depth_upper"] = upper;
+  d["point_a"] = pa;
+  d["point_b"] = pb;
+  return d;
+}
+
+py::dict ClashStatsDict(const ClashStats& s) {
+  py::dict d;
+  d["pages_read"] = s.pages_read;
+  d["store_pages"] = s.store_pages;
+  d["leaf_reads"] = s.leaf_reads;
+  d["leaf_pairs_visited"] = s.leaf_pairs_visited;
+  d["candidate_pairs"] = s.candidate_pairs;
+  d["excluded_pairs"] = s.excluded_pairs;
+  d["hard"] = s.hard;
+  d["touch"] = s.touch;
+  d["clearance"] = s.clearance;
+  d["capped_pairs"] = s.capped_pairs;
+  d["seconds"] = s.total_seconds;
+  return d;
+}
+
+ClashOptions MakeClashOptions(double clearance, double touch_tolerance, unsigned threads, bool report_touch,
+                              const std::string& exclude_group) {
+  ClashOptions o;
+  o.clearance = clearance;
+  o.touch_tolerance = touch_tolerance;
+  o.threads = threads;
+  o.report_touch = report_touch;
+  o.exclude_group_separator = exclude_group;
+  return o;
+}
+
+py::dict PlainPairs(const std::vector<ClashPair>& pairs, const ClashStats& stats) {
+  std::vector<const ClashPair*> ptrs;
+  for (const ClashPair& p : pairs) ptrs.push_back(&p);
+  py::dict d = PairArrays(ptrs);
+  d["stats"] = ClashStatsDict(stats);
+  return d;
+}
+
+// A clash-test file from a dict (its JSON) or a path.
+ClashTestFile TestsFrom(const py::handle& tests) {
+  if (py::isinstance<py::dict>(tests)) {
+    const std::string text = py::module_::import("json").attr("dumps")(tests).cast<std::string>();
+    return Take(ParseClashTests(text, "<tests dict>"));
+  }
+  const std::string path = PathText(tests);
+  py::gil_scoped_release nogil;
+  return Take(ReadClashTests(path));
+}
+
+py::dict SummaryDict(const ClashTestSummary& s) {
+  py::dict d, rules;
+  for (const auto& [rule, n] : s.excluded_by_rule) rules[Text(rule)] = n;
+  py::list warnings;
+  for (const std::string& w : s.warnings) warnings.append(Text(w));
+  d["name"] = Text(s.name);
+  d["mode"] = s.mode;
+  d["fingerprint"] = s.fingerprint;
+  d["selected_a"] = s.selected_a;
+  d["selected_b"] = s.selected_b;
+  d["hard"] = s.hard;
+  d["touch"] = s.touch;
+  d["clearance"] = s.clearance_pairs;
+  d["duplicates"] = s.duplicates;
+  d["new"] = s.new_clashes;
+  d["active"] = s.active;
+  d["resolved"] = s.resolved;
+  d["groups"] = s.groups;
+  d["excluded_by_rule"] = rules;
+  d["warnings"] = warnings;
+  d["stats"] = ClashStatsDict(s.stats);
+  return d;
+}
+
+// The run's clashes (resolved ones included, status "resolved") as arrays, with test, key, group and
+// status lists per pair, the test summaries and the groups.
+py::dict RunArrays(const ClashRun& run) {
+  std::vector<const ClashPair*> pairs;
+  py::list test, key, group, status, id_a, id_b;
+  for (const ClashGroup& g : run.groups)
+    for (const ClashRecord& r : g.members) {
+      pairs.push_back(&r.pair);
+      test.append(Text(r.test));
+      key.append(r.key);
+      group.append(r.group);
+      status.append(ClashStatusName(r.status));
+      id_a.append(Text(r.a.stable));
+      id_b.append(Text(r.b.stable));
+    }
+  py::dict d = PairArrays(pairs);
+  d["test"] = test;
+  d["key"] = key;
+  d["group"] = group;
+  d["status"] = status;
+  d["id_a"] = id_a;
+  d["id_b"] = id_b;
+  py::list tests, groups;
+  for (const ClashTestSummary& s : run.tests) tests.append(SummaryDict(s));
+  for (const ClashGroup& g : run.groups) {
+    py::dict gd;
+    gd["key"] = g.key;
+    gd["test"] = Text(g.test);
+    gd["title"] = Text(g.title);
+    gd["centre"] = py::make_tuple(g.centre.x, g.centre.y, g.centre.z);
+    gd["box"] = BoundsArray(g.box);
+    gd["worst"] = ClashClassName(g.worst);
+    gd["worst_distance"] = g.worst_distance;
+    gd["status"] = ClashStatusName(g.status);
+    gd["members"] = g.members.size();
+    groups.append(gd);
+  }
+  d["tests"] = tests;
+  d["groups"] = groups;
+  return d;
+}
+
+py::dict Clash(const Database& db, const py::object& tests, const py::object& previous, double clearance,
+               double touch_tolerance, unsigned threads, bool report_touch,
+               const std::string& exclude_group) {
+  if (tests.is_none()) {
+    if (!previous.is_none()) throw py::value_error("previous goes with tests");
+    const ClashOptions o = MakeClashOptions(clearance, touch_tolerance, threads, report_touch, exclude_group);
+    std::vector<ClashPair> pairs;
+    ClashStats stats;
+    Status st;
+    {
+      py::gil_scoped_release nogil;
+      st = db.SelfClash(
+          o, [&](const ClashPair& p) { pairs.push_back(p); }, &stats);
+    }
+    if (!st.ok()) Raise(st);
+    return PlainPairs(pairs, stats);
+  }
+  const ClashTestFile file = TestsFrom(tests);
+  ClashTestOptions o;
+  o.threads = threads;
+  PreviousClashRun before;
+  if (!previous.is_none()) {
+    const std::string path = PathText(previous);
+    py::gil_scoped_release nogil;
+    before = Take(ReadPreviousClashRun(path));
+  }
+  if (!previous.is_none()) o.previous = &before;
+  ClashRun run;
+  Status st;
+  {
+    py::gil_scoped_release nogil;
+    st = RunClashTests(db, file, o, &run);
+  }
+  if (!st.ok()) Raise(st);
+  return RunArrays(run);
+}
+
+// A 4 x 4 matrix [R t; 0 1] as a rigid transform (the engine checks that R is a rotation).
+std::optional<RigidTransform> TransformFrom(const py::object& t) {
+  if (t.is_none()) return std::nullopt;
+  auto m = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(t);
+  if (!m || m.ndim() != 2 || m.shape(0) != 4 || m.shape(1) != 4)
+    throw py::value_error("transform must be a 4 x 4 matrix [R t; 0 1]");
+  RigidTransform r;
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) r.rotation[3 * i + j] = m.at(i, j);
+    r.translation[i] = m.at(i, 3);
+  }
+  return r;
+}
+
+py::dict Collide(const Database& db, const py::object& vertices, const py::object& faces,
+                 const py::object& transform, double clearance, double touch_tolerance, unsigned threads,
+                 bool report_touch) {
+  py::dict item;
+  item["vertices"] = vertices;
+  item["faces"] = faces;
+  SceneObject object;
+  if (Status st = ToSceneObject(item, 0, &object); !st.ok()) Raise(st);
+  const std::optional<RigidTransform> moved = TransformFrom(transform);
+  const ClashOptions o = MakeClashOptions(clearance, touch_tolerance, threads, report_touch, "");
+  std::vector<ClashPair> pairs;
+  ClashStats stats;
+  Status st;
+  {
+    py::gil_scoped_release nogil;
+    st = db.Collide(
+        object.mesh, moved, o, [&](const ClashPair& p) { pairs.push_back(p); }, &stats);
+  }
+  if (!st.ok()) Raise(st);
+  return PlainPairs(pairs, stats);
+}
+
+void DefineClash(py::class_<Database>& c) {
+  c.def("clash", &Clash, py::kw_only(), py::arg("tests") = py::none(), py::arg("previous") = py::none(),
+        py::arg("clearance") = 0.0, py::arg("touch_tolerance") = 0.002, py::arg("threads") = 0,
+        py::arg("report_touch") = true, py::arg("exclude_group") = "",
+        "The self-clash (tests None: dict of arrays a, b, cls, distance, depth_lower, depth_upper, point_a, "
+        "point_b and stats), or the clash tests of a file path or dict (docs/clash_workflow.md): the same "
+        "arrays plus per pair test, key, group, status, id_a, id_b lists, the tests' summaries and the "
+        "groups; previous: a previous run's JSON lines to compare with (statuses new, active, resolved)");
+  c.def("collide", &Collide, py::arg("vertices"), py::arg("faces"), py::arg("transform") = py::none(),
+        py::kw_only(), py::arg("clearance") = 0.0, py::arg("touch_tolerance") = 0.002, py::arg("threads") = 0,
+        py::arg("report_touch") = true,
+        "The store's objects that clash with the mesh (vertices (n, 3), faces (m, 3)) moved by transform (a "
+        "4 x 4 matrix [R t; 0 1], R a rotation; None: as it is): dict of arrays as clash's, b = 2**32 - 1");
+}
+
 void DefineOpenAndBuild(py::module_& m) {
   m.def(
       "open",
@@ -555,8 +788,9 @@ PYBIND11_MODULE(mktree, m) {
   m.attr("__version__") = MKTREE_VERSION_STRING;
   py::register_exception<Error>(m, "Error", PyExc_RuntimeError);
 
-  py::class_<Database>(m, "Database", "An open store; safe to query from many threads at once")
-      .def_property_readonly("path", [](const Database& db) { return Text(db.path()); })
+  py::class_<Database> database(m, "Database", "An open store; safe to query from many threads at once");
+  DefineClash(database);
+  database.def_property_readonly("path", [](const Database& db) { return Text(db.path()); })
       .def_property_readonly("object_count", &Database::object_count, "Live objects")
       .def_property_readonly("revision", &Database::revision,
                              "The revision this Database answers for as long as it is open (0: no change)")

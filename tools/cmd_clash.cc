@@ -18,6 +18,7 @@
 #include "mktree/clash.h"
 #include "mktree/database.h"
 #include "tools/clash_lines.h"
+#include "tools/clash_test_lines.h"
 #include "tools/cli_numbers.h"
 #include "tools/command.h"
 #include "tools/json_text.h"
@@ -45,6 +46,7 @@ struct ClashArgs {
   bool has_revision = false;
   uint64_t since = 0;  // clash --since R, with has_since
   bool has_since = false;
+  std::string tests, compare;  // clash --tests FILE [--compare PREVIOUS.jsonl]
   // collide
   std::string object, translate, rotate;
 };
@@ -213,6 +215,28 @@ int Run(const ClashArgs& a, bool collide) {
   return 0;
 }
 
+// clash --tests: the options that a test file decides are refused, the rest passed on.
+int RunTests(const ClashArgs& a, const CLI::App& cmd) {
+  for (const char* o : {"--clearance", "--touch-tolerance", "--max-pairs", "--no-touch", "--exclude-group",
+                        "--since", "--summary"})
+    if (cmd.get_option(o)->count() > 0)
+      return Fail(std::string(o) +
+                  " does not go with --tests (the test file says it; each test has a summary line)");
+  if (a.window_mib > (uint64_t{1} << 40)) return Fail("--window-mib: at most 2^40");
+  ClashTestsArgs t;
+  t.store = a.store;
+  t.tests = a.tests;
+  t.compare = a.compare;
+  t.names = a.names;
+  t.progress = a.progress;
+  t.cache_pages = a.cache_pages;
+  t.window_bytes = a.window_mib << 20;
+  t.threads = a.threads;
+  t.has_revision = a.has_revision;
+  t.revision = a.revision;
+  return RunClashTestsCommand(t);
+}
+
 void AddCommon(CLI::App* cmd, ClashArgs* a) {
   cmd->add_option("store", a->store, "Store file")->required();
   AddNumberOption(cmd, "--clearance", &a->clearance, "Clearance C: pairs closer than C are reported");
@@ -242,10 +266,23 @@ void RegisterClash(CLI::App& app, CommandRun* run) {
   auto* since = AddNumberOption(cmd, "--since", &args->since,
                                 "Only the pairs that changed since this kept revision: new ones and resolved "
                                 "ones (\"status\")");
+  cmd->add_option(
+      "--tests", args->tests,
+      "Clash-test file (JSON, docs/clash_workflow.md): run its tests, lines with test, key, group");
+  cmd->add_option(
+      "--compare", args->compare,
+      "With --tests: a previous run's lines; label clashes new / active and list the resolved ones");
   cmd->callback([run, args, cmd, since] {
     args->has_revision = cmd->get_option("--revision")->count() > 0;
     args->has_since = since->count() > 0;
-    *run = [args] { return Run(*args, false); };
+    if (!args->tests.empty()) {
+      *run = [args, cmd] { return RunTests(*args, *cmd); };
+      return;
+    }
+    *run = [args] {
+      if (!args->compare.empty()) return Fail("--compare goes with --tests");
+      return Run(*args, false);
+    };
   });
 }
 

@@ -41,6 +41,7 @@ ClashLeafPairs FindLeafPairs(const PartNumbering& parts, const ClashPartPairs& w
   const uint32_t np = static_cast<uint32_t>(parts.part_count());
   auto wanted = [&](uint32_t i, uint32_t j) { return !want || want(i, j); };
   auto marks = [&](uint32_t k) { return focus ? &focus->marks(k) : nullptr; };
+  auto partner = [&](uint32_t k) { return focus ? focus->partner_marks(k) : nullptr; };
   ClashLeafPairs out;
   out.needed.resize(np);
   std::vector<uint8_t> filtered(np, 0);
@@ -48,9 +49,9 @@ ClashLeafPairs FindLeafPairs(const PartNumbering& parts, const ClashPartPairs& w
     const MKTree& t = parts.tree(k);
     filtered[k] = InitNeeded(t, &out.needed[k]);
     if (!wanted(k, k)) continue;
-    std::vector<LeafPair> own = TreeLeafPairs(t, c, marks(k));
+    std::vector<LeafPair> own = TreeLeafPairs(t, c, marks(k), partner(k));
     s->leaf_pairs_tree += own.size();
-    FilterLeafPairs(t, c, pool, &own, &out.needed[k], marks(k));
+    FilterLeafPairs(t, c, pool, &own, &out.needed[k], marks(k), partner(k));
     const uint32_t base = parts.leaf_base(k);
     for (const LeafPair& lp : own) out.pairs.push_back({lp.p + base, lp.q + base});
   }
@@ -61,10 +62,11 @@ ClashLeafPairs FindLeafPairs(const PartNumbering& parts, const ClashPartPairs& w
       if (!wanted(i, j) || ti.empty() || tj.empty() ||
           !GrownMeet(ToBox3d(ti.nodes[0].box), ToBox3d(tj.nodes[0].box), c))
         continue;
-      std::vector<LeafPair> cross = CrossLeafPairs(ti, tj, c, marks(i), marks(j));
+      std::vector<LeafPair> cross = CrossLeafPairs(ti, tj, c, marks(i), marks(j), partner(i), partner(j));
       s->leaf_pairs_tree += cross.size();
       if (filtered[i] && filtered[j]) {
-        FilterCrossLeafPairs(ti, tj, c, pool, &cross, &out.needed[i], &out.needed[j], marks(i), marks(j));
+        FilterCrossLeafPairs(ti, tj, c, pool, &cross, &out.needed[i], &out.needed[j], marks(i), marks(j),
+                             partner(i), partner(j));
       } else if (!cross.empty()) {
         out.needed[i].all = out.needed[j].all = true;
       }

@@ -68,8 +68,9 @@ Status RunMultiClash(const std::vector<ClashPart>& parts, const MultiClashScope&
   MKTREE_ASSIGN_OR_RETURN(const clash::PartNumbering numbering, clash::PartNumbering::Make(parts));
   s.store_pages = numbering.store_pages();
   std::optional<clash::ClashFocus> focus;
+  if (scope.partner && !scope.focus) return Status::InvalidArgument("clash: a partner set without a focus");
   if (scope.focus) {
-    MKTREE_ASSIGN_OR_RETURN(focus, clash::ClashFocus::Make(numbering, *scope.focus));
+    MKTREE_ASSIGN_OR_RETURN(focus, clash::ClashFocus::Make(numbering, *scope.focus, scope.partner));
   }
   clash::WorkPool pool(ThreadCount(o.threads));
   std::optional<clash::Exclusions> ex;

@@ -40,9 +40,14 @@ using ClashPartPairs = std::function<bool(uint32_t i, uint32_t j)>;
 // its leaf and box, the traversal descends only into subtrees that hold a focused object, and a leaf pair
 // whose leaf filter admits no pair with a focused object is neither read nor tested. candidate_pairs and
 // excluded_pairs count only pairs with a focused object.
+// With `partner` as well (a set against a set: clash tests, engine/coordination/): only the pairs with one
+// object in `focus` and the other in `partner` (an object may be in both); the traversal descends only
+// into node pairs where one side may hold a focused object and the other a partner, and a leaf pair whose
+// leaf filter admits no such object pair is neither read nor tested. Needs `focus`.
 struct MultiClashScope {
   ClashPartPairs want;
   const std::vector<ObjectId>* focus = nullptr;
+  const std::vector<ObjectId>* partner = nullptr;
 };
 
 // The self-clash of the union of `parts` within `scope`: each object pair is found once, by the one part

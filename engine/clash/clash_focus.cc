@@ -75,17 +75,33 @@ Status MarkPart(const PartNumbering& parts, size_t k, const std::vector<ObjectId
 
 }  // namespace
 
-Result<ClashFocus> ClashFocus::Make(const PartNumbering& parts, std::vector<ObjectId> ids) {
-  std::sort(ids.begin(), ids.end());
-  ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+Result<ClashFocus> ClashFocus::Make(const PartNumbering& parts, std::vector<ObjectId> ids,
+                                    const std::vector<ObjectId>* partner) {
+  auto sorted = [](std::vector<ObjectId>* v) {
+    std::sort(v->begin(), v->end());
+    v->erase(std::unique(v->begin(), v->end()), v->end());
+  };
+  sorted(&ids);
   ClashFocus f;
   f.marks_.resize(parts.part_count());
   for (size_t k = 0; k < parts.part_count(); ++k)
     MKTREE_RETURN_IF_ERROR(MarkPart(parts, k, ids, &f.marks_[k]));
   f.ids_ = std::move(ids);
+  if (partner) {
+    f.has_partner_ = true;
+    f.partner_ids_ = *partner;
+    sorted(&f.partner_ids_);
+    f.partner_marks_.resize(parts.part_count());
+    for (size_t k = 0; k < parts.part_count(); ++k)
+      MKTREE_RETURN_IF_ERROR(MarkPart(parts, k, f.partner_ids_, &f.partner_marks_[k]));
+  }
   return f;
 }
 
 bool ClashFocus::Holds(ObjectId id) const { return std::binary_search(ids_.begin(), ids_.end(), id); }
+
+bool ClashFocus::HoldsPartner(ObjectId id) const {
+  return !has_partner_ || std::binary_search(partner_ids_.begin(), partner_ids_.end(), id);
+}
 
 }  // namespace mktree::clash

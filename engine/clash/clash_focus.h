@@ -20,15 +20,26 @@ class ClashFocus {
   // stay its leaves'), each one's leaf and the leaf filter positions whose quantised boxes contain its
   // record's box (every position of the leaf when none does), then the nodes above those leaves.
   // Errors: a damaged record page, or a record that names no leaf of the tree.
-  static Result<ClashFocus> Make(const PartNumbering& parts, std::vector<ObjectId> ids);
+  // With `partner` (may be null): the same for the partner set (MultiClashScope::partner).
+  static Result<ClashFocus> Make(const PartNumbering& parts, std::vector<ObjectId> ids,
+                                 const std::vector<ObjectId>* partner = nullptr);
 
   // Is global id `id` in the focus?
   bool Holds(ObjectId id) const;
+  // Is global id `id` in the partner set? True for every id without one.
+  bool HoldsPartner(ObjectId id) const;
   const FocusMarks& marks(size_t part) const { return marks_[part]; }
+  // The partner set's marks; null without one (every node and object may be a partner).
+  const FocusMarks* partner_marks(size_t part) const {
+    return partner_marks_.empty() ? nullptr : &partner_marks_[part];
+  }
 
  private:
   std::vector<ObjectId> ids_;  // increasing
   std::vector<FocusMarks> marks_;
+  bool has_partner_ = false;
+  std::vector<ObjectId> partner_ids_;  // increasing
+  std::vector<FocusMarks> partner_marks_;
 };
 
 }  // namespace mktree::clash

@@ -53,6 +53,7 @@ Status ClashWindow::Read(const std::vector<uint32_t>& leaves, WorkPool& pool, Cl
       }
       obj.box = ToBox3d(entries[pos].box);
       obj.in_focus = !focus_ || focus_->Holds(obj.id);
+      obj.in_partner = !focus_ || focus_->HoldsPartner(obj.id);
       if (needed_[k](parts_.tree(k), leaf, pos)) tasks_.push_back({i, pos});
     }
     loaded_.push_back(std::move(l));

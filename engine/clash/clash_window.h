@@ -22,13 +22,14 @@
 namespace mktree::clash {
 
 // One object of a decoded leaf: its float32 box (empty for a hidden object, ClashPart::hidden, so that it
-// meets nothing), whether it is in the clash's focus (true without one), and its mesh and shape when some
-// candidate pair may need them (NeededObjects).
+// meets nothing), whether it is in the clash's focus and its partner set (true without), and its mesh and
+// shape when some candidate pair may need them (NeededObjects).
 struct LoadedObject {
   ObjectId id = 0;  // global
   Box3d box;
   bool in_focus = true;
-  double resolution = 0;  // CoordinateResolution of its entry (with the shape: only candidates need it)
+  bool in_partner = true;  // in the focus's partner set (true without one)
+  double resolution = 0;   // CoordinateResolution of its entry (with the shape: only candidates need it)
   std::unique_ptr<Mesh> mesh;
   std::unique_ptr<ClashShape> shape;
 };

@@ -31,8 +31,10 @@ struct FocusMarks {
 // Every unordered pair of leaves (a leaf with itself included) whose node boxes grown by c meet, by a
 // dual traversal from the root: a node with itself descends to its children's three pairs, two nodes
 // descend the larger. Each unordered pair once, in traversal order. With `focus`: only the pairs with a
-// leaf under a focus-marked node (the traversal does not descend elsewhere).
-std::vector<LeafPair> TreeLeafPairs(const MKTree& tree, double c, const FocusMarks* focus = nullptr);
+// leaf under a focus-marked node (the traversal does not descend elsewhere); with `partner` marks too,
+// only the pairs with a leaf under a focus-marked node and the other under a partner-marked one.
+std::vector<LeafPair> TreeLeafPairs(const MKTree& tree, double c, const FocusMarks* focus = nullptr,
+                                    const FocusMarks* partner = nullptr);
 
 // Objects of the store indexed as the leaf filter is: leaf_filter_begin[leaf] (bytes) / 8 + position.
 struct NeededObjects {
@@ -45,18 +47,22 @@ struct NeededObjects {
 };
 
 // Keeps the pairs in which the leaf filter's quantised boxes (which contain the objects' float32 boxes)
-// admit a pair of distinct objects whose boxes grown by c meet (with `focus`: one of them focus-marked),
+// admit a pair of distinct objects whose boxes grown by c meet (with `focus`: one of them focus-marked;
+// with `partner` too: one focus-marked and the other partner-marked),
 // and marks those objects in *needed. A pair dropped here cannot hold a candidate pair, so its leaves
 // need not be read for it. Without a leaf filter every pair is kept and every object needed.
 void FilterLeafPairs(const MKTree& tree, double c, WorkPool& pool, std::vector<LeafPair>* pairs,
-                     NeededObjects* needed, const FocusMarks* focus = nullptr);
+                     NeededObjects* needed, const FocusMarks* focus = nullptr,
+                     const FocusMarks* partner = nullptr);
 
 // Two stores in one frame (shards of one sharded store): every pair (p leaf of a, q leaf of b) whose
 // node boxes grown by c meet, by the same dual traversal from both roots. With focus marks (both or
-// neither): only the pairs with a leaf under a focus-marked node.
+// neither): only the pairs with a leaf under a focus-marked node; with partner marks (both or neither,
+// with focus marks), as TreeLeafPairs.
 std::vector<LeafPair> CrossLeafPairs(const MKTree& a, const MKTree& b, double c,
-                                     const FocusMarks* focus_a = nullptr,
-                                     const FocusMarks* focus_b = nullptr);
+                                     const FocusMarks* focus_a = nullptr, const FocusMarks* focus_b = nullptr,
+                                     const FocusMarks* partner_a = nullptr,
+                                     const FocusMarks* partner_b = nullptr);
 
 // Readies *needed for FilterLeafPairs' marks (all zero); false when the tree has no leaf filter (then
 // every object is needed).
@@ -67,6 +73,7 @@ bool InitNeeded(const MKTree& tree, NeededObjects* needed);
 // With focus marks (both or neither): only pairs with a focus-marked object.
 void FilterCrossLeafPairs(const MKTree& a, const MKTree& b, double c, WorkPool& pool,
                           std::vector<LeafPair>* pairs, NeededObjects* needed_a, NeededObjects* needed_b,
-                          const FocusMarks* focus_a = nullptr, const FocusMarks* focus_b = nullptr);
+                          const FocusMarks* focus_a = nullptr, const FocusMarks* focus_b = nullptr,
+                          const FocusMarks* partner_a = nullptr, const FocusMarks* partner_b = nullptr);
 
 }  // namespace mktree::clash

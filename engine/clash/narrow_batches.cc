@@ -12,7 +12,7 @@ namespace {
 constexpr size_t kNarrowChunk = 128;
 
 // Tests the candidate pairs of leaves p and q (the same leaf: its pairs i < j): those whose boxes grown by
-// C meet, with an object in the focus.
+// C meet, with an object in the focus (and the other in its partner set).
 Status TestLeafPair(const std::string& store, const LoadedLeaf& lp, const LoadedLeaf& lq, bool same,
                     const ClashOptions& o, const Exclusions& ex, const Vec3d& origin, PairWork* w) {
   const double c = o.clearance;
@@ -20,7 +20,8 @@ Status TestLeafPair(const std::string& store, const LoadedLeaf& lp, const Loaded
   const auto& B = lq.objects;
   for (size_t i = 0; i < A.size(); ++i) {
     for (size_t j = same ? i + 1 : 0; j < B.size(); ++j) {
-      if ((!A[i].in_focus && !B[j].in_focus) || !GrownMeet(A[i].box, B[j].box, c)) continue;
+      const bool scoped = (A[i].in_focus && B[j].in_partner) || (A[i].in_partner && B[j].in_focus);
+      if (!scoped || !GrownMeet(A[i].box, B[j].box, c)) continue;
       ++w->candidates;
       const LoadedObject* a = &A[i];
       const LoadedObject* b = &B[j];

@@ -13,6 +13,7 @@
 #include "engine/core/guarded.h"
 #include "engine/query/ordered_batch.h"
 #include "engine/query/part_queries.h"
+#include "engine/query/sharded_database.h"
 #include "engine/store_format/store_file.h"
 
 namespace mktree {
@@ -87,12 +88,11 @@ class RevisionDatabase final : public Database {
   }
 
   uint64_t revision() const override { return hold_->manifest().revision; }
+  const std::vector<ClashPart>& clash_parts() const { return clash_parts_; }
   const RevisionManifest& manifest() const { return hold_->manifest(); }
-  Status FocusedClash(const std::vector<ObjectId>& focus, const ClashOptions& o, const ClashVisitor& visit,
+  Status FocusedClash(const MultiClashScope& scope, const ClashOptions& o, const ClashVisitor& visit,
                       ClashStats* stats) const {
-    return Guarded(path_, [&] {
-      return RunMultiClash(clash_parts_, MultiClashScope{nullptr, &focus}, o, visit, stats);
-    });
+    return Guarded(path_, [&] { return RunMultiClash(clash_parts_, scope, o, visit, stats); });
   }
   uint64_t id_limit() const override { return hold_->manifest().next_id; }
 
@@ -356,15 +356,21 @@ Result<std::vector<ObjectId>> TouchedSince(const Database& db, uint64_t since) {
 }
 
 Status FocusedSelfClash(const Database& db, const std::vector<ObjectId>& focus, const ClashOptions& options,
-                        const ClashVisitor& visit, ClashStats* stats) {
+                        const ClashVisitor& visit, ClashStats* stats, const std::vector<ObjectId>* partner) {
+  const MultiClashScope scope{nullptr, &focus, partner};
   if (const auto* r = dynamic_cast<const RevisionDatabase*>(&db))
-    return r->FocusedClash(focus, options, visit, stats);
+    return r->FocusedClash(scope, options, visit, stats);
   if (const auto* s = dynamic_cast<const StoreDatabase*>(&db))
-    return Guarded(db.path(), [&] {
-      return RunMultiClash({ClashPart{&s->leaves()}}, MultiClashScope{nullptr, &focus}, options, visit,
-                           stats);
-    });
-  return Status::Unsupported(db.path() + ": a focused clash needs a store or a revision of one");
+    return Guarded(db.path(),
+                   [&] { return RunMultiClash({ClashPart{&s->leaves()}}, scope, options, visit, stats); });
+  if (db.shard_count() > 0) return ShardedScopedClash(db, scope, options, visit, stats);
+  return Status::Unsupported(db.path() +
+                             ": a focused clash needs a store, a revision of one or a sharded store");
+}
+
+std::vector<ClashPart> RevisionClashParts(const Database& db) {
+  const auto* r = dynamic_cast<const RevisionDatabase*>(&db);
+  return r ? r->clash_parts() : std::vector<ClashPart>();
 }
 
 Result<std::unique_ptr<Database>> OpenRevisionDatabase(const std::string& store_path,

@@ -12,6 +12,7 @@
 #include <utility>
 #include <vector>
 
+#include "engine/clash/clash_engine.h"
 #include "engine/query/store_database.h"
 #include "engine/revision/change_folder.h"
 #include "mktree/database.h"
@@ -47,9 +48,16 @@ const RevisionManifest* RevisionManifestOf(const Database& db);
 Result<std::vector<ObjectId>> TouchedSince(const Database& db, uint64_t since);
 
 // db's self-clash limited to the pairs with an object in `focus` (global ids): RunMultiClash's focus over
-// the revision's parts. A Database of a store without changes runs it over its one store.
+// the revision's parts. A Database of a store without changes runs it over its one store, a sharded store
+// over its shards. With `partner` (may be null): only the pairs with one object in `focus` and the other
+// in `partner` (MultiClashScope::partner).
 Status FocusedSelfClash(const Database& db, const std::vector<ObjectId>& focus, const ClashOptions& options,
-                        const ClashVisitor& visit, ClashStats* stats);
+                        const ClashVisitor& visit, ClashStats* stats,
+                        const std::vector<ObjectId>* partner = nullptr);
+
+// The stores of db's revision as clash parts (leaves, global ids, hidden objects); empty when db is not a
+// revision of a store with changes. Valid while db is open.
+std::vector<ClashPart> RevisionClashParts(const Database& db);
 
 // Opens the revision `hold` holds, and keeps holding it for the Database's life.
 Result<std::unique_ptr<Database>> OpenRevisionDatabase(const std::string& store_path,

@@ -106,6 +106,16 @@ class ShardedDatabase final : public Database {
   }
   Status Collide(const Mesh& mesh, const std::optional<RigidTransform>& transform, const ClashOptions& o,
                  const ClashVisitor& visit, ClashStats* stats) const override;
+  std::vector<ClashPart> ClashParts() const {
+    std::vector<ClashPart> parts;
+    for (size_t s = 0; s < shards_.size(); ++s) parts.push_back(ClashPart{&shards_[s]->leaves(), &ids_[s]});
+    return parts;
+  }
+  // The same sweep within `scope` (its focus and partner sets: global ids).
+  Status ScopedClash(const MultiClashScope& scope, const ClashOptions& o, const ClashVisitor& visit,
+                     ClashStats* stats) const {
+    return Guarded(path_, [&] { return RunMultiClash(ClashParts(), scope, o, visit, stats); });
+  }
   void ClearCache() override {
     for (auto& s : shards_) s->ClearCache();
   }
@@ -168,12 +178,6 @@ class ShardedDatabase final : public Database {
       stack[top++] = t.child[0];
     }
     return out;
-  }
-
-  std::vector<ClashPart> ClashParts() const {
-    std::vector<ClashPart> parts;
-    for (size_t s = 0; s < shards_.size(); ++s) parts.push_back(ClashPart{&shards_[s]->leaves(), &ids_[s]});
-    return parts;
   }
 
   // The shards whose root boxes meet `b` (store frame) grown by c, in shard order.
@@ -283,6 +287,18 @@ Status ShardedDatabase::RunBatchStreamed(const QuerySource& source, const BatchO
 }
 
 }  // namespace
+
+std::vector<ClashPart> ShardedClashParts(const Database& db) {
+  const auto* s = dynamic_cast<const ShardedDatabase*>(&db);
+  return s ? s->ClashParts() : std::vector<ClashPart>();
+}
+
+Status ShardedScopedClash(const Database& db, const MultiClashScope& scope, const ClashOptions& options,
+                          const ClashVisitor& visit, ClashStats* stats) {
+  const auto* s = dynamic_cast<const ShardedDatabase*>(&db);
+  if (!s) return Status::Unsupported(db.path() + ": not a sharded store");
+  return s->ScopedClash(scope, options, visit, stats);
+}
 
 Result<std::unique_ptr<Database>> OpenShardedDatabase(const std::string& manifest_path,
                                                       const OpenOptions& options) {

@@ -7,6 +7,7 @@
 #include <memory>
 #include <string>
 
+#include "engine/clash/clash_engine.h"
 #include "mktree/database.h"
 
 namespace mktree {
@@ -16,5 +17,13 @@ namespace mktree {
 // gets a cache of options.cache_pages / shard count pages (rounded up). Errors name the file and the shard.
 Result<std::unique_ptr<Database>> OpenShardedDatabase(const std::string& manifest_path,
                                                       const OpenOptions& options);
+
+// The shards of a sharded store as clash parts (leaves and global ids); empty when `db` is not one.
+std::vector<ClashPart> ShardedClashParts(const Database& db);
+
+// A sharded store's self-clash within `scope` (MultiClashScope: focus and partner sets of global ids; the
+// part pairs filter is ignored). Unsupported when `db` is not a sharded store.
+Status ShardedScopedClash(const Database& db, const MultiClashScope& scope, const ClashOptions& options,
+                          const ClashVisitor& visit, ClashStats* stats);
 
 }  // namespace mktree
