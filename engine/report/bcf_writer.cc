@@ -68,14 +68,8 @@ std::string ComponentId(const ObjectIdentity& o) {
 std::string Description(const ClashGroup& g, uint32_t listed) {
   std::string d = std::string(report::ClassName(g.worst)) + " clash group of test '" + g.test +
                   "': " + std::to_string(g.members.size()) + (g.members.size() == 1 ? " clash" : " clashes");
-  if (!g.members.empty()) {
-    const ClashRecord* worst = &g.members[0];
-    for (const ClashRecord& r : g.members)
-      if (report::ClassRank(r.pair.cls) < report::ClassRank(worst->pair.cls) ||
-          (r.pair.cls == worst->pair.cls && r.pair.distance < worst->pair.distance))
-        worst = &r;
+  if (const ClashRecord* worst = report::WorstMember(g))
     d += ", worst " + std::string(report::ClassName(worst->pair.cls)) + " " + report::DepthOrGap(worst->pair);
-  }
   d += ".";
   if (g.status != ClashStatus::kNone) d += " Status: " + std::string(report::StatusName(g.status)) + ".";
   size_t n = 0;

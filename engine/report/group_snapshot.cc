@@ -51,7 +51,7 @@ Result<std::vector<uint8_t>> RenderGroupSnapshot(const StoreReader& store, const
   if (group.members.empty()) return Status::InvalidArgument("clash group " + group.key + " has no members");
   ClashMarks marks;
   marks.worst.assign(store.object_count(), 0);
-  const ClashRecord* worst = &group.members[0];
+  const ClashRecord* worst = report::WorstMember(group);
   Box3f box;  // the members' objects' stored boxes (store frame)
   for (const ClashRecord& r : group.members) {
     if (r.a.id >= store.object_count() || r.b.id >= store.object_count())
@@ -61,9 +61,6 @@ Result<std::vector<uint8_t>> RenderGroupSnapshot(const StoreReader& store, const
     const ClashMark m = MarkOf(r.pair.cls);
     ++marks.pairs[static_cast<int>(m)];
     for (ObjectId id : {r.a.id, r.b.id}) marks.worst[id] = std::max(marks.worst[id], static_cast<uint8_t>(m));
-    if (report::ClassRank(r.pair.cls) < report::ClassRank(worst->pair.cls) ||
-        (r.pair.cls == worst->pair.cls && r.pair.distance < worst->pair.distance))
-      worst = &r;
   }
   const Vec3d& origin = store.tree().origin;
   for (int k = 0; k < 3 && !group.box.empty(); ++k) {  // the group's world box in the store frame

@@ -54,4 +54,13 @@ std::string ObjectLine(const ObjectIdentity& o) {
   return s;
 }
 
+const ClashRecord* WorstMember(const ClashGroup& g) {
+  const ClashRecord* worst = nullptr;
+  for (const ClashRecord& r : g.members)
+    if (!worst || ClassRank(r.pair.cls) < ClassRank(worst->pair.cls) ||
+        (r.pair.cls == worst->pair.cls && r.pair.distance < worst->pair.distance))
+      worst = &r;
+  return worst;
+}
+
 }  // namespace mktree::report

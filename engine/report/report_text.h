@@ -23,5 +23,8 @@ std::string ShortNumber(double v);
 std::string ObjectLine(const ObjectIdentity& o);
 // Severity order: hard 0, touch 1, clearance 2.
 inline int ClassRank(ClashClass c) { return static_cast<int>(c); }
+// The group's worst member: worst class, then the most negative distance (deepest overlap, smallest gap);
+// the first of equals. nullptr for a group without members.
+const ClashRecord* WorstMember(const ClashGroup& g);
 
 }  // namespace mktree::report

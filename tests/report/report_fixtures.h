@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <memory>
 #include <string>
@@ -61,7 +62,7 @@ inline ClashGroup Group(std::string key, std::string title, std::vector<ClashRec
   g.centre = {(box.min[0] + box.max[0]) / 2, (box.min[1] + box.max[1]) / 2, (box.min[2] + box.max[2]) / 2};
   g.members = std::move(members);
   g.worst = ClashClass::kClearance;
-  g.worst_distance = 0;
+  g.worst_distance = std::numeric_limits<double>::infinity();
   for (const ClashRecord& r : g.members)
     if (static_cast<int>(r.pair.cls) < static_cast<int>(g.worst)) g.worst = r.pair.cls;
   for (const ClashRecord& r : g.members)
