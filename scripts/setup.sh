@@ -26,6 +26,7 @@ PACKAGES=(
   libocct-ocaf-dev
   libembree-dev      # bench/ ray and nearest peer
   chromium           # tests: the HTML clash report loads in headless Chromium
+  libxml2-utils      # tests: xmllint validates BCF archives against buildingSMART's XSD files
   time               # /usr/bin/time: peak RSS of the engines scripts/bench_clash.py runs
   # The Python module (python/, docs/python.md), for Debian's /usr/bin/python3: pybind11's headers and
   # CMake package, Python's headers, numpy (its arrays in and out), pytest (python/run_tests.sh).

@@ -303,6 +303,8 @@ struct LazyEntry {
   Status* first_error;  // shared by the entries of one archive: the first failure, for the caller
   std::vector<uint8_t> bytes;
   bool made = false;
+  bool size_known = false;
+  uint64_t size = 0;
   size_t read = 0;
   zip_error_t error;
 
@@ -336,10 +338,15 @@ zip_int64_t LazyEntryCallback(void* user, void* data, zip_uint64_t len, zip_sour
       e->made = false;
       return 0;
     case ZIP_SOURCE_STAT: {
-      if (!e->Make()) return -1;
+      // libzip asks again after the entry is written: answer from the size kept, not by making it anew.
+      if (!e->size_known) {
+        if (!e->Make()) return -1;
+        e->size = e->bytes.size();
+        e->size_known = true;
+      }
       auto* st = static_cast<zip_stat_t*>(data);
       zip_stat_init(st);
-      st->size = e->bytes.size();
+      st->size = e->size;
       st->valid |= ZIP_STAT_SIZE;
       return sizeof(*st);
     }
@@ -393,7 +400,7 @@ class BcfArchive {
 
   // Adds `name`, made at the end by `make`; stored as is (`store`, for PNG) or deflated.
   Status Add(const std::string& name, std::function<Status(std::vector<uint8_t>*)> make, bool store = false) {
-    auto* e = new LazyEntry{std::move(make), &first_error_, {}, false, 0, {}};
+    auto* e = new LazyEntry{std::move(make), &first_error_, {}, false, false, 0, 0, {}};
     zip_error_init(&e->error);
     zip_source_t* src = zip_source_function(zip_, LazyEntryCallback, e);
     if (!src) {
@@ -477,14 +484,13 @@ Result<BcfWriteReport> WriteBcf(const ClashRun& run, const std::string& path, co
   for (size_t i = 0; i < run.groups.size(); ++i) {
     const ClashGroup& g = run.groups[i];
     const bool snapshot = o.snapshot && i < o.max_snapshots;
-    // The topic's two XML files are made from this value when they are written; it is small (bounded by
-    // max_components and listed_members), so it is kept rather than made twice.
-    auto topic = std::make_shared<BcfTopic>(BcfTopicOf(g, o, snapshot));
-    const std::string dir = topic->guid + "/";
-    MKTREE_RETURN_IF_ERROR(
-        zip.AddText(dir + "markup.bcf", [topic, v = o.version] { return MarkupXml(*topic, v); }));
-    MKTREE_RETURN_IF_ERROR(zip.AddText(dir + topic->viewpoints[0].file, [topic, v = o.version] {
-      return ViewpointXml(topic->viewpoints[0], v);
+    // The topic's XML files are made from the group when libzip writes them, so that no topic is held.
+    const BcfTopic topic = BcfTopicOf(g, o, snapshot);
+    const std::string dir = topic.guid + "/";
+    MKTREE_RETURN_IF_ERROR(zip.AddText(
+        dir + "markup.bcf", [&g, &o, snapshot] { return MarkupXml(BcfTopicOf(g, o, snapshot), o.version); }));
+    MKTREE_RETURN_IF_ERROR(zip.AddText(dir + topic.viewpoints[0].file, [&g, &o, snapshot] {
+      return ViewpointXml(BcfTopicOf(g, o, snapshot).viewpoints[0], o.version);
     }));
     if (snapshot) {
       MKTREE_RETURN_IF_ERROR(zip.Add(
@@ -499,7 +505,7 @@ Result<BcfWriteReport> WriteBcf(const ClashRun& run, const std::string& path, co
       ++report.snapshots;
     }
     ++report.topics;
-    report.components += topic->viewpoints[0].selected.size();
+    report.components += topic.viewpoints[0].selected.size();
   }
   MKTREE_ASSIGN_OR_RETURN(report.bytes, zip.Commit());
   return report;

@@ -68,6 +68,13 @@ Result<Box3f> FocusBox(const StoreReader& store, const MarkedPair& p, Box3f* pai
   return GrownFocusBox(box);
 }
 
+// Whether `b` lies wholly nearer the viewer than `frame` (e.g. a storey above the framed box in a top view).
+bool NearerThan(const Box3f& b, const Box3f& frame, RenderView view) {
+  const viz::ViewAxes ax = viz::AxesOf(view);
+  return ax.toward_sign > 0 ? b.min[ax.toward] > frame.max[ax.toward]
+                            : b.max[ax.toward] < frame.min[ax.toward];
+}
+
 }  // namespace
 
 Result<ClashRenderReport> RenderClashes(const StoreReader& store, const ClashMarks& marks,
@@ -154,6 +161,8 @@ Result<ClashRenderReport> RenderClashes(const StoreReader& store, const ClashMar
             fade = kNeutralFade;  // the other pairs stay visible, but behind the focus pair in emphasis too
           }
         }
+        if (o.focus_box && c == ClashMark::kNone && NearerThan(e.box, report.framed, o.view))
+          return Status::Ok();
         MKTREE_RETURN_IF_ERROR(DecodeStoredMesh(store, e, &mesh));
         report.triangles += shader.Draw(mesh, ClashColour(c), e.id, layer, ss, &raster, fade);
         return Status::Ok();

@@ -128,13 +128,18 @@ TEST_P(BcfVersions, HandRunValidatesAndReadsBack) {
   const ClashRun run = HandRun();
   BcfOptions o = Fixed(GetParam());
   const std::vector<uint8_t> png = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n', 1, 2, 3};
-  o.snapshot = [&](const ClashGroup&) -> Result<std::vector<uint8_t>> { return png; };
+  int calls = 0;
+  o.snapshot = [&](const ClashGroup&) -> Result<std::vector<uint8_t>> {
+    ++calls;
+    return png;
+  };
   o.max_snapshots = 2;
   const std::string path = Dir().file(std::string("hand_") + BcfVersionId(GetParam()) + ".bcf");
   auto w = WriteBcf(run, path, o);
   ASSERT_TRUE(w.ok()) << w.status().ToString();
   EXPECT_EQ(w->topics, 3u);
   EXPECT_EQ(w->snapshots, 2u);
+  EXPECT_EQ(calls, 2);  // each snapshot made once, however often libzip asks for the entry's size
   EXPECT_EQ(w->bytes, fs::file_size(path));
   ExpectValid(path, GetParam());
 
@@ -377,6 +382,20 @@ TEST(BcfStore, DuplexWithSnapshotsValidates) {
                                << report::ClassName(c) << " colour";
     }
   }
+}
+
+// A snapshot of a group whose objects are not the store's is refused, naming the store.
+TEST(BcfStore, SnapshotOfForeignObjectsIsRefused) {
+  auto sr = DuplexRun(Dir(), 1);
+  if (!sr) GTEST_SKIP() << "../shared/data/buildings/duplex.obj missing";
+  ClashGroup g = sr->run.groups.at(0);
+  g.members[0].b.id = g.members[0].pair.b = static_cast<ObjectId>(sr->reader->object_count() + 5);
+  auto png = RenderGroupSnapshot(*sr->reader, g, {});
+  ASSERT_FALSE(png.ok());
+  EXPECT_NE(png.status().message().find(sr->store), std::string::npos) << png.status().message();
+  GroupSnapshotOptions big;
+  big.width = 1600;
+  EXPECT_FALSE(RenderGroupSnapshot(*sr->reader, sr->run.groups[0], big).ok());  // BCF's 1500 px
 }
 
 }  // namespace
