@@ -1,6 +1,7 @@
 #include "engine/report/bcf_writer.h"
 
 #include <fcntl.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 #include <zip.h>
@@ -8,6 +9,7 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <ctime>
 #include <filesystem>
@@ -379,13 +381,15 @@ class BcfArchive {
   ~BcfArchive() {
     if (zip_) zip_discard(zip_);
     if (!committed_) ::unlink(temp_.c_str());
+    if (lock_fd_ >= 0) ::close(lock_fd_);
   }
 
   Status Open() {
     RemoveStaleTemps(path_);
-    const int fd = ::open(temp_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-    if (fd < 0) return Status::IOError(path_ + ": cannot create file: " + std::strerror(errno));
-    ::close(fd);
+    // Held with a flock while the archive is written, so that another writer's RemoveStaleTemps leaves it.
+    lock_fd_ = ::open(temp_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+    if (lock_fd_ < 0) return Status::IOError(path_ + ": cannot create file: " + std::strerror(errno));
+    ::flock(lock_fd_, LOCK_EX | LOCK_NB);
     int err = 0;
     zip_ = zip_open(temp_.c_str(), ZIP_CREATE | ZIP_TRUNCATE, &err);
     if (!zip_) {
@@ -456,6 +460,7 @@ class BcfArchive {
 
   std::string path_, temp_;
   zip_t* zip_ = nullptr;
+  int lock_fd_ = -1;
   bool committed_ = false;
   Status first_error_;
   uint16_t dos_date_ = 0, dos_time_ = 0;
@@ -465,7 +470,11 @@ class BcfArchive {
 
 Result<BcfWriteReport> WriteBcf(const ClashRun& run, const std::string& path, const BcfOptions& options) {
   BcfOptions o = options;
-  if (o.creation_time < 0) o.creation_time = static_cast<int64_t>(std::time(nullptr));
+  if (o.creation_time < 0) {  // SOURCE_DATE_EPOCH: the reproducible-builds convention for a fixed time
+    const char* epoch = std::getenv("SOURCE_DATE_EPOCH");
+    o.creation_time =
+        epoch && *epoch ? std::strtoll(epoch, nullptr, 10) : static_cast<int64_t>(std::time(nullptr));
+  }
   std::set<std::string> keys;
   for (size_t i = 0; i < run.groups.size(); ++i) {
     if (run.groups[i].key.empty())

@@ -34,7 +34,8 @@ using GroupSnapshotSource = std::function<Result<std::vector<uint8_t>>(const Cla
 struct BcfOptions {
   BcfVersion version = BcfVersion::k2_1;
   std::string author = "mktree";  // CreationAuthor
-  // CreationDate of every topic and the archive entries' times, in seconds since 1970-01-01 UTC; < 0: now.
+  // CreationDate of every topic and the archive entries' times, in seconds since 1970-01-01 UTC; < 0: the
+  // environment's SOURCE_DATE_EPOCH if set, else now.
   int64_t creation_time = -1;
   std::string project_name;              // "": the store's file name (ClashRun::store)
   std::string open_status = "Open";      // TopicStatus of a group that is new, active or not compared

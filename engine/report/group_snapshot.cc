@@ -10,6 +10,8 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <map>
+#include <memory>
 
 #include "engine/report/report_text.h"
 #include "engine/viz/clash_render.h"
@@ -101,6 +103,16 @@ Result<std::vector<uint8_t>> RenderGroupSnapshot(const StoreReader& store, const
 
 GroupSnapshotSource StoreSnapshotSource(const StoreReader& store, const GroupSnapshotOptions& options) {
   return [&store, options](const ClashGroup& g) { return RenderGroupSnapshot(store, g, options); };
+}
+
+GroupSnapshotSource MemoizedSnapshotSource(GroupSnapshotSource source, uint64_t max_groups) {
+  auto kept = std::make_shared<std::map<std::string, std::vector<uint8_t>>>();
+  return [source = std::move(source), kept, max_groups](const ClashGroup& g) -> Result<std::vector<uint8_t>> {
+    if (auto it = kept->find(g.key); it != kept->end()) return it->second;
+    auto png = source(g);
+    if (png.ok() && kept->size() < max_groups) kept->emplace(g.key, *png);
+    return png;
+  };
 }
 
 }  // namespace mktree

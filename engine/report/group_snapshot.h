@@ -35,4 +35,9 @@ Result<std::vector<uint8_t>> RenderGroupSnapshot(const StoreReader& store, const
 // RenderGroupSnapshot as a snapshot source for WriteBcf and WriteHtmlReport. `store` must outlive it.
 GroupSnapshotSource StoreSnapshotSource(const StoreReader& store, const GroupSnapshotOptions& options = {});
 
+// `source` with its answers kept by group key, at most `max_groups` of them (later groups are rendered each
+// time they are asked for): the BCF archive and the HTML report of one run then render each picture once.
+// Errors are not kept. The returned source shares its cache between its copies; one thread at a time.
+GroupSnapshotSource MemoizedSnapshotSource(GroupSnapshotSource source, uint64_t max_groups);
+
 }  // namespace mktree

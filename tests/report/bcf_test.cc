@@ -229,6 +229,21 @@ TEST_P(BcfVersions, SameRunGivesTheSameArchive) {
   EXPECT_EQ(rb->topics[2].guid, ra->topics[0].guid);
 }
 
+// Without a creation time, SOURCE_DATE_EPOCH fixes it (the reproducible-builds convention).
+TEST(BcfDates, SourceDateEpoch) {
+  const ClashRun run = HandRun();
+  const std::string a = Dir().file("epoch_a.bcf"), b = Dir().file("epoch_b.bcf");
+  ::setenv("SOURCE_DATE_EPOCH", "1767225600", 1);
+  ASSERT_TRUE(WriteBcf(run, a, BcfOptions{}).ok());
+  ASSERT_TRUE(WriteBcf(run, b, BcfOptions{}).ok());
+  ::unsetenv("SOURCE_DATE_EPOCH");
+  EXPECT_EQ(ReadFileBytes(a), ReadFileBytes(b));
+  auto r = ReadBcf(a);
+  ASSERT_TRUE(r.ok());
+  EXPECT_EQ(r->topics.at(0).creation_date, "2026-01-01T00:00:00Z");
+  EXPECT_EQ(BcfDateTime(0), "1970-01-01T00:00:00Z");
+}
+
 INSTANTIATE_TEST_SUITE_P(Versions, BcfVersions, ::testing::Values(BcfVersion::k2_1, BcfVersion::k3_0),
                          [](const auto& info) { return info.param == BcfVersion::k2_1 ? "v2_1" : "v3_0"; });
 

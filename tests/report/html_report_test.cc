@@ -10,6 +10,7 @@
 
 #include <regex>
 
+#include "engine/report/group_snapshot.h"
 #include "report/report_fixtures.h"
 
 namespace mktree {
@@ -205,6 +206,37 @@ TEST(HtmlReport, LoadsInHeadlessChromium) {
   EXPECT_GT(red, pixels / 20) << "no snapshot or hard badge in the screenshot";
   if (const char* keep = std::getenv("MKTREE_KEEP_SCREENSHOT"))
     fs::copy_file(shot, keep, fs::copy_options::overwrite_existing);
+}
+
+// The BCF archive and the page of one run render each snapshot once through a memoized source.
+TEST(HtmlReport, MemoizedSnapshotsRenderOnce) {
+  const ClashRun run = HandRun();
+  std::map<std::string, int> calls;
+  const std::vector<uint8_t> png = SolidPng(8, 8, 0, 0, 0);
+  GroupSnapshotSource counted = [&](const ClashGroup& g) -> Result<std::vector<uint8_t>> {
+    ++calls[g.key];
+    if (g.worst == ClashClass::kTouch) return Status::IOError("touch: cannot render");
+    return png;
+  };
+  GroupSnapshotSource memo = MemoizedSnapshotSource(counted, 10);
+  BcfOptions b;
+  b.snapshot = memo;
+  b.max_snapshots = 1;  // the first group only
+  ASSERT_TRUE(WriteBcf(run, Dir().file("memo.bcf"), b).ok());
+  HtmlReportOptions h;
+  h.snapshot = memo;
+  h.max_snapshots = 1;  // the worst group: the same one
+  ASSERT_TRUE(WriteHtmlReport(run, Dir().file("memo.html"), h).ok());
+  EXPECT_EQ(calls, (std::map<std::string, int>{{run.groups[0].key, 1}}));
+  // Errors are not kept: asked again, the source is asked again.
+  EXPECT_FALSE(memo(run.groups[1]).ok());
+  EXPECT_FALSE(memo(run.groups[1]).ok());
+  EXPECT_EQ(calls[run.groups[1].key], 2);
+  // Past max_groups nothing more is kept.
+  GroupSnapshotSource one = MemoizedSnapshotSource(counted, 1);
+  for (int i = 0; i < 2; ++i) ASSERT_TRUE(one(run.groups[2]).ok() && one(run.groups[0]).ok());
+  EXPECT_EQ(calls[run.groups[2].key], 1);
+  EXPECT_EQ(calls[run.groups[0].key], 3);
 }
 
 }  // namespace
