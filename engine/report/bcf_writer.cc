@@ -61,10 +61,13 @@ bool IsIfcGuid(const std::string& s) {
   return true;
 }
 
+// BCF 3.0 refuses empty or blank strings where it asks for one.
+bool Blank(const std::string& s) { return s.find_first_not_of(" \t\r\n") == std::string::npos; }
+
 std::string ComponentId(const ObjectIdentity& o) {
   if (IsIfcGuid(o.global_id)) return o.global_id;
-  if (!o.name.empty()) return o.name;
-  return o.stable;
+  if (!Blank(o.name)) return o.name;
+  return Blank(o.stable) ? "" : o.stable;
 }
 
 std::string Description(const ClashGroup& g, uint32_t listed) {
@@ -185,7 +188,7 @@ std::string VersionXml(BcfVersion v) {
 std::string ProjectXml(const ClashRun& run, const BcfOptions& o) {
   std::string name = o.project_name;
   if (name.empty()) name = std::filesystem::path(run.store).filename().string();
-  if (name.empty()) name = "mktree clash run";
+  if (Blank(name)) name = "mktree clash run";
   const std::string id = UuidV5(BcfNamespace(), "project:" + name);
   const std::string project =
       "<Project ProjectId=\"" + id + "\"><Name>" + XmlEscape(name) + "</Name></Project>";
@@ -204,7 +207,7 @@ std::string ExtensionsXml(const ClashRun& run, const BcfOptions& o) {
   x += "</TopicStatuses><TopicLabels>";
   std::set<std::string> labels = {"hard", "touch", "clearance", "new", "active", "resolved"};
   for (const ClashTestSummary& t : run.tests)
-    if (!t.name.empty()) labels.insert(t.name);
+    if (!Blank(t.name)) labels.insert(t.name);
   for (const std::string& l : labels) x += "<TopicLabel>" + XmlEscape(l) + "</TopicLabel>";
   x += "</TopicLabels><Users><User>" + XmlEscape(o.author) + "</User></Users></Extensions>\n";
   return x;
@@ -259,12 +262,12 @@ BcfTopic BcfTopicOf(const ClashGroup& g, const BcfOptions& o, bool with_snapshot
   if (t.title.empty() && !g.members.empty())
     t.title = std::string(report::ClassName(g.worst)) + ": " + report::ObjectLine(g.members[0].a) + " and " +
               report::ObjectLine(g.members[0].b);
-  if (t.title.empty()) t.title = "Clash group " + g.key;
+  if (Blank(t.title)) t.title = "Clash group " + g.key;
   t.description = Description(g, o.listed_members);
   t.creation_date = BcfDateTime(o.creation_time);
   t.author = o.author;
   t.labels.push_back(report::ClassName(g.worst));
-  if (!g.test.empty()) t.labels.push_back(g.test);
+  if (!Blank(g.test)) t.labels.push_back(g.test);
   if (g.status != ClashStatus::kNone) t.labels.push_back(report::StatusName(g.status));
   BcfViewpoint v;
   v.guid = BcfViewpointGuid(g.key);
@@ -274,7 +277,8 @@ BcfTopic BcfTopicOf(const ClashGroup& g, const BcfOptions& o, bool with_snapshot
   std::map<std::string, ClashClass> worst;
   std::set<std::string> files;
   auto add = [&](const ObjectIdentity& obj, ClashClass c) {
-    if (!obj.source.empty()) files.insert(std::filesystem::path(obj.source).filename().string());
+    const std::string file = std::filesystem::path(obj.source).filename().string();
+    if (!Blank(file)) files.insert(file);
     const std::string id = ComponentId(obj);
     if (id.empty()) return;
     auto [it, inserted] = worst.emplace(id, c);
@@ -470,6 +474,9 @@ class BcfArchive {
 
 Result<BcfWriteReport> WriteBcf(const ClashRun& run, const std::string& path, const BcfOptions& options) {
   BcfOptions o = options;
+  if (Blank(o.author)) o.author = "mktree";
+  if (Blank(o.open_status)) o.open_status = "Open";
+  if (Blank(o.closed_status)) o.closed_status = "Closed";
   if (o.creation_time < 0) {  // SOURCE_DATE_EPOCH: the reproducible-builds convention for a fixed time
     const char* epoch = std::getenv("SOURCE_DATE_EPOCH");
     o.creation_time =

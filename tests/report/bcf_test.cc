@@ -244,6 +244,41 @@ TEST(BcfDates, SourceDateEpoch) {
   EXPECT_EQ(BcfDateTime(0), "1970-01-01T00:00:00Z");
 }
 
+// Blank names, tests and options, control characters and bytes that are not UTF-8 still give valid XML
+// (replaced by U+FFFD), and the reader returns what was written.
+TEST_P(BcfVersions, HostileTextStillValidates) {
+  ClashRun run = HandRun();
+  run.store = "/";
+  ClashGroup& g = run.groups[1];
+  g.title = "  ";
+  g.test = "";
+  g.members[0].a.name =
+      "\x01"
+      "bell\x07 and \xff\xfe bytes ]]> <!-- -->";
+  g.members[0].b.name = " ";
+  g.members[0].b.stable = "";
+  g.members[0].a.source = "dir/";
+  BcfOptions o = Fixed(GetParam());
+  o.author = " ";
+  o.open_status = "";
+  const std::string path = Dir().file(std::string("hostile_") + BcfVersionId(GetParam()) + ".bcf");
+  auto w = WriteBcf(run, path, o);
+  ASSERT_TRUE(w.ok()) << w.status().ToString();
+  ExpectValid(path, GetParam());
+  auto back = ReadBcf(path);
+  ASSERT_TRUE(back.ok()) << back.status().ToString();
+  const BcfTopic& t = back->topics.at(1);
+  EXPECT_EQ(t.title, "Clash group " + g.key);
+  EXPECT_EQ(t.author, "mktree");
+  EXPECT_EQ(t.status, "Open");
+  EXPECT_NE(t.description.find("\xef\xbf\xbd"
+                               "bell\xef\xbf\xbd and \xef\xbf\xbd\xef\xbf\xbd bytes ]]> <!-- -->"),
+            std::string::npos)
+      << t.description;
+  EXPECT_EQ(t.viewpoints.at(0).selected.size(), 1u);  // the blank object has nothing to be named by
+  EXPECT_EQ(back->project_name, "mktree clash run");
+}
+
 INSTANTIATE_TEST_SUITE_P(Versions, BcfVersions, ::testing::Values(BcfVersion::k2_1, BcfVersion::k3_0),
                          [](const auto& info) { return info.param == BcfVersion::k2_1 ? "v2_1" : "v3_0"; });
 
