@@ -26,6 +26,7 @@ PACKAGES=(
   libocct-ocaf-dev
   libembree-dev      # bench/ ray and nearest peer
   chromium           # tests: the HTML clash report loads in headless Chromium
+  libxml2-utils      # tests: xmllint validates BCF archives against buildingSMART's XSD files
   time               # /usr/bin/time: peak RSS of the engines scripts/bench_clash.py runs
   nodejs             # IFC input: tools/ifc/mktree-ifc.mjs runs web-ifc under Node (20; npm comes with it)
   # The Python module (python/, docs/python.md), for Debian's /usr/bin/python3: pybind11's headers and

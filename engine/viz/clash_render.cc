@@ -44,24 +44,35 @@ constexpr uint8_t kFocusLayer = kClashMarks;
 // How far the neutral scene is blended toward white.
 constexpr double kNeutralFade = 0.45;
 
-// The union of the focus pair's boxes (*pair), and that grown by 15 % of its largest side (1 unit if it is
-// a point).
+// `box` grown by 15 % of its largest side (1 unit if it is a point).
+Box3f GrownFocusBox(Box3f box) {
+  float side = 0;
+  for (int k = 0; k < 3; ++k) side = std::max(side, box.max[k] - box.min[k]);
+  const float grow = side > 0 ? 0.15f * side : 1.0f;
+  for (int k = 0; k < 3; ++k) box.min[k] -= grow, box.max[k] += grow;
+  return box;
+}
+
+// The union of the focus pair's boxes (*pair), and that grown (GrownFocusBox).
 Result<Box3f> FocusBox(const StoreReader& store, const MarkedPair& p, Box3f* pair) {
   auto a = StoredObjectBox(store, p.a);
   if (!a.ok()) return a.status();
   auto b = StoredObjectBox(store, p.b);
   if (!b.ok()) return b.status();
   Box3f box;
-  float side = 0;
   for (int k = 0; k < 3; ++k) {
     box.min[k] = std::min(a->min[k], b->min[k]);
     box.max[k] = std::max(a->max[k], b->max[k]);
-    side = std::max(side, box.max[k] - box.min[k]);
   }
   *pair = box;
-  const float grow = side > 0 ? 0.15f * side : 1.0f;
-  for (int k = 0; k < 3; ++k) box.min[k] -= grow, box.max[k] += grow;
-  return box;
+  return GrownFocusBox(box);
+}
+
+// Whether `b` lies wholly nearer the viewer than `frame` (e.g. a storey above the framed box in a top view).
+bool NearerThan(const Box3f& b, const Box3f& frame, RenderView view) {
+  const viz::ViewAxes ax = viz::AxesOf(view);
+  return ax.toward_sign > 0 ? b.min[ax.toward] > frame.max[ax.toward]
+                            : b.max[ax.toward] < frame.min[ax.toward];
 }
 
 }  // namespace
@@ -80,7 +91,11 @@ Result<ClashRenderReport> RenderClashes(const StoreReader& store, const ClashMar
   if (o.focus && !marks.focus) return Status::InvalidArgument("focus asked for without a focus pair");
   ClashRenderReport report;
   report.framed = tree.nodes[0].box;
-  if (o.focus) {
+  if (o.focus && o.focus_box) {
+    if (o.focus_box->empty()) return Status::InvalidArgument("focus box is empty");
+    report.pair_box = *o.focus_box;
+    report.framed = GrownFocusBox(*o.focus_box);
+  } else if (o.focus) {
     auto box = FocusBox(store, *marks.focus, &report.pair_box);
     if (!box.ok()) return box.status();
     report.framed = *box;
@@ -99,7 +114,9 @@ Result<ClashRenderReport> RenderClashes(const StoreReader& store, const ClashMar
     auto num = [&](uint64_t v) { return widest ? std::string(12, '0') : std::to_string(v); };
     std::vector<viz::LegendItem> items;
     std::string title = "CLASHES";
-    if (o.focus)
+    if (o.focus && !o.focus_title.empty())
+      title = o.focus_title;
+    else if (o.focus)
       title = "PAIR " + std::to_string(marks.focus->a) + ", " + std::to_string(marks.focus->b) + " (" +
               ClashMarkName(marks.focus->cls) + ", LINE " + std::to_string(marks.focus->line) + ")";
     items.push_back({viz::LegendItem::kTitle, {}, title + ", " + RenderViewName(o.view) + " VIEW:"});
@@ -140,10 +157,12 @@ Result<ClashRenderReport> RenderClashes(const StoreReader& store, const ClashMar
           if (e.id == marks.focus->a || e.id == marks.focus->b) {
             c = marks.focus->cls;
             layer = kFocusLayer;
-          } else {
+          } else if (!o.focus_box || c == ClashMark::kNone) {
             fade = kNeutralFade;  // the other pairs stay visible, but behind the focus pair in emphasis too
           }
         }
+        if (o.focus_box && c == ClashMark::kNone && NearerThan(e.box, report.framed, o.view))
+          return Status::Ok();
         MKTREE_RETURN_IF_ERROR(DecodeStoredMesh(store, e, &mesh));
         report.triangles += shader.Draw(mesh, ClashColour(c), e.id, layer, ss, &raster, fade);
         return Status::Ok();

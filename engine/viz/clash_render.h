@@ -22,6 +22,7 @@
 #include <array>
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string>
 
 #include "engine/store_format/store_file.h"
@@ -40,6 +41,13 @@ struct ClashRenderOptions {
   uint32_t width = 1600;  // pixels, 64..16384
   uint32_t height = 400;  // pixels, 64..16384
   bool focus = false;     // frame marks.focus (which must be set) instead of the whole scene
+  // With focus, a group of pairs (engine/report/group_snapshot.h): frame and outline this box (store
+  // frame) instead of the focus pair's, draw every marked object in its class unfaded, and title the
+  // legend with `focus_title` (5x7 font: upper case, digits, little punctuation) instead of the pair;
+  // unmarked objects wholly nearer the viewer than the framed box (the storeys above it in a top view) are
+  // left out, as a section box would.
+  std::optional<Box3f> focus_box;
+  std::string focus_title;
   // Optional: (leaves done, leaves total).
   std::function<void(uint64_t, uint64_t)> progress;
 };
