@@ -3,6 +3,10 @@
 #include <cstdio>
 #include <nlohmann/json.hpp>
 
+#include "engine/report/bcf_writer.h"
+#include "engine/report/group_snapshot.h"
+#include "engine/report/html_report.h"
+#include "engine/store_format/store_file.h"
 #include "mktree/database.h"
 #include "tools/clash_lines.h"
 #include "tools/command.h"
@@ -111,6 +115,44 @@ std::string ClashTestSummaryLine(const ClashTestSummary& t, bool compared, uint6
   return j.dump(-1, ' ', false, Json::error_handler_t::replace) + "\n";
 }
 
+namespace {
+
+// --bcf and --report, after the lines: each file is written whole or not at all (temporary file and
+// rename). The pictures come from the store file itself (the newest base: objects added since by changes
+// are framed but not drawn); a manifest of shards gets none, with a warning.
+int WriteClashOutputs(const ClashTestsArgs& a, const ClashRun& run) {
+  if (a.bcf.empty() && a.report.empty()) return 0;
+  std::unique_ptr<StoreReader> store;
+  GroupSnapshotSource snapshots;
+  if (a.snapshots > 0) {
+    auto reader = StoreReader::Open(a.store);
+    if (reader.ok()) {
+      store = std::move(*reader);
+      snapshots = MemoizedSnapshotSource(StoreSnapshotSource(*store), a.snapshots);
+    } else {
+      std::fprintf(stderr, "mktree: warning: no snapshots: %s\n", reader.status().message().c_str());
+    }
+  }
+  if (!a.bcf.empty()) {
+    BcfOptions b;
+    b.version = a.bcf_version == "3.0" ? BcfVersion::k3_0 : BcfVersion::k2_1;
+    b.snapshot = snapshots;
+    b.max_snapshots = a.snapshots;
+    auto written = WriteBcf(run, a.bcf, b);
+    if (!written.ok()) return Fail(written.status().message());
+  }
+  if (!a.report.empty()) {
+    HtmlReportOptions h;
+    h.snapshot = snapshots;
+    h.max_snapshots = a.snapshots;
+    auto written = WriteHtmlReport(run, a.report, h);
+    if (!written.ok()) return Fail(written.status().message());
+  }
+  return 0;
+}
+
+}  // namespace
+
 int RunClashTestsCommand(const ClashTestsArgs& a) {
   auto tests = ReadClashTests(a.tests);
   if (!tests.ok()) return Fail(tests.status().message());
@@ -157,7 +199,7 @@ int RunClashTestsCommand(const ClashTestsArgs& a) {
     put(ClashTestSummaryLine(t, !a.compare.empty(), rss, run.scan_seconds));
   }
   if (failed || std::fflush(stdout) != 0) return Fail("cannot write to standard output");
-  return 0;
+  return WriteClashOutputs(a, run);
 }
 
 }  // namespace mktree::tools

@@ -15,6 +15,10 @@ struct ClashTestsArgs {
   std::string store;
   std::string tests;    // --tests FILE
   std::string compare;  // --compare PREVIOUS.jsonl ("" none)
+  std::string bcf;      // --bcf OUT.bcf ("" none), BCF-XML 2.1 or, with bcf_version "3.0", 3.0
+  std::string bcf_version = "2.1";
+  std::string report;       // --report OUT.html ("" none)
+  uint64_t snapshots = 50;  // --snapshots N: pictures of the N worst groups in the BCF and the report
   bool names = false;
   bool progress = false;
   uint64_t cache_pages = 4096;

@@ -46,7 +46,9 @@ struct ClashArgs {
   bool has_revision = false;
   uint64_t since = 0;  // clash --since R, with has_since
   bool has_since = false;
-  std::string tests, compare;  // clash --tests FILE [--compare PREVIOUS.jsonl]
+  std::string tests, compare;                    // clash --tests FILE [--compare PREVIOUS.jsonl]
+  std::string bcf, bcf_version = "2.1", report;  // [--bcf OUT.bcf [--bcf-version 3.0]] [--report OUT.html]
+  uint64_t snapshots = 50;
   // collide
   std::string object, translate, rotate;
 };
@@ -227,6 +229,10 @@ int RunTests(const ClashArgs& a, const CLI::App& cmd) {
   t.store = a.store;
   t.tests = a.tests;
   t.compare = a.compare;
+  t.bcf = a.bcf;
+  t.bcf_version = a.bcf_version;
+  t.report = a.report;
+  t.snapshots = a.snapshots;
   t.names = a.names;
   t.progress = a.progress;
   t.cache_pages = a.cache_pages;
@@ -272,6 +278,15 @@ void RegisterClash(CLI::App& app, CommandRun* run) {
   cmd->add_option(
       "--compare", args->compare,
       "With --tests: a previous run's lines; label clashes new / active and list the resolved ones");
+  cmd->add_option(
+      "--bcf", args->bcf,
+      "With --tests: write the groups as a BCF-XML archive (one topic per group, docs/clash_reports.md)");
+  cmd->add_option("--bcf-version", args->bcf_version, "BCF-XML version of --bcf: 2.1 or 3.0")
+      ->check(CLI::IsMember({"2.1", "3.0"}));
+  cmd->add_option("--report", args->report,
+                  "With --tests: write a self-contained HTML report of the groups (docs/clash_reports.md)");
+  AddNumberOption(cmd, "--snapshots", &args->snapshots,
+                  "With --bcf/--report: pictures of the N worst groups (default 50; 0: none)");
   cmd->callback([run, args, cmd, since] {
     args->has_revision = cmd->get_option("--revision")->count() > 0;
     args->has_since = since->count() > 0;
@@ -281,6 +296,7 @@ void RegisterClash(CLI::App& app, CommandRun* run) {
     }
     *run = [args] {
       if (!args->compare.empty()) return Fail("--compare goes with --tests");
+      if (!args->bcf.empty() || !args->report.empty()) return Fail("--bcf and --report go with --tests");
       return Run(*args, false);
     };
   });
