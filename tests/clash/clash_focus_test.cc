@@ -110,7 +110,8 @@ std::vector<ClashPair> BruteForce(const std::vector<SceneObject>& scene, double 
   const Vec3d origin = ChooseStoreOrigin(scene.front().mesh.Bounds());
   const auto objects = testing::StoredScene(scene, origin);
   std::vector<std::unique_ptr<ClashShape>> shapes;
-  for (const auto& x : objects) shapes.push_back(std::make_unique<ClashShape>(x.mesh));
+  for (size_t i = 0; i < objects.size(); ++i)
+    shapes.push_back(testing::StoredShape(scene[i].mesh, objects[i].mesh));
   std::vector<ClashPair> out;
   for (size_t i = 0; i < objects.size(); ++i) {
     for (size_t j = i + 1; j < objects.size(); ++j) {

@@ -1,11 +1,12 @@
-// The clash tests' own rules and pair checks (tests/clash, tests/shard): the class of a separation as
-// docs/clash.md §1 states it, restated here rather than taken from engine/clash, and field-by-field
-// comparison of pair lists.
+// The clash tests' own rules and pair checks (tests/clash, tests/shard): the shape of a stored object and
+// the class of a separation as docs/clash.md §1 states them, restated here rather than taken from
+// engine/clash, and field-by-field comparison of pair lists.
 #pragma once
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <memory>
 #include <string>
 #include <tuple>
 #include <vector>
@@ -14,6 +15,15 @@
 #include "mktree/clash.h"
 
 namespace mktree::testing {
+
+// The narrow phase's shape of a stored object: its stored mesh (tests/store_format/stored_geometry.h) with
+// the edge check of its input mesh, which ingest computes and the leaf entry keeps (solid or surface is
+// decided on the input). Not the check of the stored mesh: float32 rounding may weld vertices that were
+// distinct in the input, e.g. a table's legs meeting its top, each a closed part, so that edges are used
+// four times; each part stays closed by its indices, so the object stays a solid.
+inline std::unique_ptr<ClashShape> StoredShape(const Mesh& input, const Mesh& stored) {
+  return std::make_unique<ClashShape>(stored, CheckEdges(input));
+}
 
 // The pair `p` for separation `s` with clearance c, touch tolerance t and r the pair's resolution (the sum
 // of both objects' CoordinateResolution); false when the pair is not reported (apart, gap >= c). Sets
