@@ -39,7 +39,8 @@ std::vector<ClashPair> Oracle(const std::vector<SceneObject>& scene, double c, d
   const Vec3d origin = ChooseStoreOrigin(scene.front().mesh.Bounds());
   const auto objects = testing::StoredScene(scene, origin);
   std::vector<std::unique_ptr<ClashShape>> shapes;
-  for (const auto& x : objects) shapes.push_back(std::make_unique<ClashShape>(x.mesh));
+  for (size_t i = 0; i < objects.size(); ++i)
+    shapes.push_back(testing::StoredShape(scene[i].mesh, objects[i].mesh));
   std::vector<ClashPair> out;
   std::vector<size_t> by_x(objects.size());
   for (size_t i = 0; i < by_x.size(); ++i) by_x[i] = i;
