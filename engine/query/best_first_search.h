@@ -15,6 +15,8 @@
 // The Metric (NearestMetric, RayMetric) says what "near" is:
 //   double Key(size_t part, const Box3d& box) const          a lower bound of the key of anything inside
 //                                                             box (store frame); +inf: nothing inside counts
+//   double Rank(size_t part, const Box3d& box) const         cheaper, and increasing with Key (a squared
+//   double KeyOfRank(double rank) const                       distance): Key(b) == KeyOfRank(Rank(b))
 //   double Bound() const                                     keys above it cannot be answers
 //   Result<bool> Exact(size_t part, const Mesh& m, uint8_t shape_flags, Found* f)
 //                                                             the object's exact key, its point and normal
@@ -58,20 +60,21 @@ struct SearchFound {
 // cached there within its budget).
 Result<const Mesh*> PinnedObjectMesh(const LeafSource& source, PinnedLeaf& pinned, size_t i, Mesh* scratch);
 
-// A leaf's region key: the smallest key of its objects' filter boxes (the leaf's box without a filter).
-template <typename BoxKey>
-double LeafRegionKey(const MKTree& tree, uint32_t leaf, BoxKey&& key) {
+// A leaf's region key: the smallest key of its objects' filter boxes (the leaf's box without a filter),
+// found by the metric's Rank (one KeyOfRank at the end).
+template <typename Metric>
+double LeafRegionKey(const MKTree& tree, uint32_t leaf, const Metric& metric, size_t part) {
   const LeafInfo& info = tree.leaves[leaf];
   if (tree.leaf_filter_begin.empty()) {
     Box3d b;
     for (int a = 0; a < 3; ++a) b.min[a] = info.box.min[a], b.max[a] = info.box.max[a];
-    return key(b);
+    return metric.Key(part, b);
   }
   const uint8_t* q = tree.leaf_filter.data() + tree.leaf_filter_begin[leaf];
   double best = std::numeric_limits<double>::infinity();
   for (uint32_t i = 0; i < info.object_count; ++i)
-    best = std::min(best, key(DequantizeBox(info.box, q + i * kLeafFilterBytesPerObject)));
-  return best;
+    best = std::min(best, metric.Rank(part, DequantizeBox(info.box, q + i * kLeafFilterBytesPerObject)));
+  return metric.KeyOfRank(best);
 }
 
 inline Box3d ToBox3d(const Box3f& f) {
@@ -146,7 +149,7 @@ class BestFirstSearch {
       return Status::Ok();
     }
     if (e.rank == kLeafBox) {
-      const double k = LeafRegionKey(t, e.index, key);
+      const double k = LeafRegionKey(t, e.index, *metric_, e.part);
       if (!(k <= metric_->Bound())) ++s->leaves_filtered;
       Push(k, kLeaf, 0, e.part, e.index);
       return Status::Ok();

@@ -70,11 +70,13 @@ class NearestMetric {
       if (q.kind != DistanceQuery::Kind::kPoint) p.shape = std::make_unique<ClashShape>(p.mesh);
   }
 
-  double Key(size_t part, const Box3d& b) const {
+  double Rank(size_t part, const Box3d& b) const {
     const PartProbe& p = probes_[part];
-    return q_.kind == DistanceQuery::Kind::kPoint ? Shrunk(BoxPointDistanceSquared(b, p.point))
-                                                  : Shrunk(BoxDistanceSquared(b, p.box));
+    return q_.kind == DistanceQuery::Kind::kPoint ? BoxPointDistanceSquared(b, p.point)
+                                                  : BoxDistanceSquared(b, p.box);
   }
+  double KeyOfRank(double rank) const { return Shrunk(rank); }
+  double Key(size_t part, const Box3d& b) const { return KeyOfRank(Rank(part, b)); }
   double Bound() const {
     return kth_.size() == q_.k ? std::min(kth_.top(), q_.max_distance) : q_.max_distance;
   }
@@ -210,8 +212,7 @@ uint64_t NearestPageFloor(const std::vector<SearchPart>& parts, const DistanceQu
   for (size_t p = 0; p < parts.size(); ++p) {
     const MKTree& t = parts[p].tree();
     for (uint32_t leaf = 0; leaf < t.leaves.size(); ++leaf)
-      if (LeafRegionKey(t, leaf, [&](const Box3d& b) { return metric.Key(p, b); }) <= distance)
-        pages += t.leaves[leaf].page_count;
+      if (LeafRegionKey(t, leaf, metric, p) <= distance) pages += t.leaves[leaf].page_count;
   }
   return pages;
 }

@@ -24,6 +24,8 @@ class RayMetric {
     double t;
     return RayBoxEnter(rays_[part], b, Bound(), &t) ? t : std::numeric_limits<double>::infinity();
   }
+  double Rank(size_t part, const Box3d& b) const { return Key(part, b); }
+  double KeyOfRank(double rank) const { return rank; }
   double Bound() const { return q_.all_hits ? q_.max_length : std::min(q_.max_length, first_); }
   void Found(double t) { first_ = std::min(first_, t); }
   Result<bool> Exact(size_t part, const Mesh& mesh, uint8_t, SearchFound* f) const {
@@ -92,8 +94,7 @@ uint64_t RayPageFloor(const std::vector<SearchPart>& parts, const RayQuery& q, d
   for (size_t p = 0; p < parts.size(); ++p) {
     const MKTree& tree = parts[p].tree();
     for (uint32_t leaf = 0; leaf < tree.leaves.size(); ++leaf)
-      if (LeafRegionKey(tree, leaf, [&](const Box3d& b) { return metric.Key(p, b); }) <= t)
-        pages += tree.leaves[leaf].page_count;
+      if (LeafRegionKey(tree, leaf, metric, p) <= t) pages += tree.leaves[leaf].page_count;
   }
   return pages;
 }
