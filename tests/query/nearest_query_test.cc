@@ -8,6 +8,7 @@
 #include "engine/ingest/store_builder.h"
 #include "engine/query/nearest_search.h"
 #include "engine/query/store_database.h"
+#include "engine/scene/scene_source.h"
 #include "query/nearest_oracle.h"
 #include "query/query_oracle.h"
 #include "test_dirs.h"
@@ -248,6 +249,61 @@ TEST(NearestFarScene, DistancesAndPointsAreInWorldCoordinates) {
     testing::ExpectNearestAnswer(got, brute.Nearest(p), 5, brute, p, 1e6);
   }
 }
+
+// The small real scenes of ../shared/data (a ship in AC3D, a building in OBJ): nearest and rays against brute
+// force over the stored geometry.
+class NearestRealScene : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(NearestRealScene, NearestAndRaysMatchBruteForce) {
+  const std::string file = std::string(MKTREE_SHARED_DATA) + "/" + GetParam();
+  std::vector<SceneObject> objs;
+  {
+    auto src = OpenSceneFile(file, 0);
+    ASSERT_TRUE(src.ok()) << src.status().ToString();
+    SceneObject o;
+    while (true) {
+      auto more = (*src)->Next(&o);
+      ASSERT_TRUE(more.ok()) << more.status().ToString();
+      if (!*more) break;
+      objs.push_back(o);
+    }
+  }
+  ASSERT_FALSE(objs.empty());
+  testing::TempDir dir("mktree_nearest_real");
+  IngestOptions o;
+  o.store.backend = Backend::kPagedFile;
+  auto report =
+      BuildStore({[&](ObjectId first) { return OpenSceneFile(file, first); }}, dir.file("s.mkt"), o);
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  auto db = Database::Open(dir.file("s.mkt"), {.cache_pages = 64});
+  ASSERT_TRUE(db.ok());
+  const testing::NearestBruteForce brute(objs, report->origin);
+  const Box3d b = (*db)->bounds();
+  double scale = 1;
+  for (int a = 0; a < 3; ++a) scale = std::max({scale, std::fabs(b.min[a]), std::fabs(b.max[a])});
+  std::mt19937_64 rng(17);
+  std::uniform_real_distribution<double> u(0, 1), d(-1, 1);
+  for (int i = 0; i < 15; ++i) {
+    Vec3d p;
+    for (int a = 0; a < 3; ++a) p[a] = b.min[a] + u(rng) * (b.max[a] - b.min[a]);
+    std::vector<NearestHit> got;
+    ASSERT_TRUE((*db)->Nearest(Query::Nearest(p, 5), &got, nullptr).ok());
+    testing::ExpectNearestAnswer(got, brute.Nearest(p), 5, brute, p, scale);
+    const RayQuery r = Query::Ray(p, {d(rng), d(rng), d(rng)}, INFINITY, true);
+    std::vector<RayHit> hits;
+    ASSERT_TRUE((*db)->Ray(r, &hits, nullptr).ok());
+    const auto want = brute.Hits(r);
+    ASSERT_EQ(hits.size(), want.size());
+    for (size_t j = 0; j < hits.size(); ++j) EXPECT_EQ(hits[j].t, want[j].second);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Files, NearestRealScene,
+                         ::testing::Values("ships/ContainerShip.ac", "buildings/duplex.obj"),
+                         [](const auto& info) {
+                           return std::string(info.param).find("ship") != std::string::npos ? "ContainerShip"
+                                                                                            : "Duplex";
+                         });
 
 }  // namespace
 }  // namespace mktree
