@@ -687,6 +687,30 @@ void DefineChanges(py::module_& m) {
         "added, removed, replaced, objects, compaction, message");
 }
 
+// db.nearest and db.rays (docs/nearest_and_ray.md), added to the Database class defined above.
+void DefineNearest(py::module_& m) {
+  auto cls = py::reinterpret_borrow<py::class_<Database>>(m.attr("Database"));
+  cls.def(
+         "nearest",
+         [](const Database& db, const py::handle& points, uint64_t k, double max_distance, unsigned threads) {
+           return NearestMany(db, points, k, max_distance, threads);
+         },
+         py::arg("points"), py::arg("k") = 1,
+         py::arg("max_distance") = std::numeric_limits<double>::infinity(), py::arg("threads") = 0,
+         "The k nearest objects of each point of an (n, 3) array, by exact distance (0 inside a solid), on "
+         "`threads` threads: (ids int64 (n, k), -1 past the answer; distances (n, k), inf past it; closest "
+         "points (n, k, 3), nan past it)")
+      .def(
+          "rays",
+          [](const Database& db, const py::handle& origins, const py::handle& directions, double max_length,
+             unsigned threads) { return RaysMany(db, origins, directions, max_length, threads); },
+          py::arg("origins"), py::arg("directions"),
+          py::arg("max_length") = std::numeric_limits<double>::infinity(), py::arg("threads") = 0,
+          "The first hit of each ray (origins and directions: (n, 3) arrays; a direction need not be unit): "
+          "(ids int64 (n,), -1 for a miss; t (n,) distance along the ray, inf for a miss; points (n, 3) "
+          "and triangle normals (n, 3), nan for a miss)");
+}
+
 }  // namespace
 }  // namespace mktree
 
@@ -736,24 +760,6 @@ PYBIND11_MODULE(mktree, m) {
              std::optional<uint64_t> limit) { return RunMany(db, rows, 6, exact, threads, csr, limit); },
           py::arg("boxes"), py::arg("exact") = false, py::arg("threads") = 0, py::arg("csr") = false,
           py::arg("limit") = py::none(), "Box queries of an (n, 6) array (min x, y, z, max x, y, z)")
-      .def(
-          "nearest",
-          [](const Database& db, const py::handle& points, uint64_t k, double max_distance,
-             unsigned threads) { return NearestMany(db, points, k, max_distance, threads); },
-          py::arg("points"), py::arg("k") = 1,
-          py::arg("max_distance") = std::numeric_limits<double>::infinity(), py::arg("threads") = 0,
-          "The k nearest objects of each point of an (n, 3) array, by exact distance (0 inside a solid), on "
-          "`threads` threads: (ids int64 (n, k), -1 past the answer; distances (n, k), inf past it; closest "
-          "points (n, k, 3), nan past it)")
-      .def(
-          "rays",
-          [](const Database& db, const py::handle& origins, const py::handle& directions, double max_length,
-             unsigned threads) { return RaysMany(db, origins, directions, max_length, threads); },
-          py::arg("origins"), py::arg("directions"),
-          py::arg("max_length") = std::numeric_limits<double>::infinity(), py::arg("threads") = 0,
-          "The first hit of each ray (origins and directions: (n, 3) arrays; a direction need not be unit): "
-          "(ids int64 (n,), -1 for a miss; t (n,) distance along the ray, inf for a miss; points (n, 3) "
-          "and triangle normals (n, 3), nan for a miss)")
       .def(
           "any",
           [](const Database& db, std::array<double, 3> min, std::optional<std::array<double, 3>> max,
@@ -853,4 +859,5 @@ PYBIND11_MODULE(mktree, m) {
 
   DefineOpenAndBuild(m);
   DefineChanges(m);
+  DefineNearest(m);
 }
