@@ -35,14 +35,18 @@ double BoxPointDistanceSquared(const Box3d& box, const Vec3d& p) {
 }
 
 SurfacePoint ClosestOnSurface(const Mesh& mesh, const Vec3d& p, double bound_squared) {
-  if (mesh.triangle_count() > kClosestPointScanTriangles) {
-    const TriangleHierarchy h(mesh);
-    return ClosestOnSurface(h, p, bound_squared);
-  }
   SurfacePoint best;
   const uint32_t* t = mesh.triangles.data();
-  for (size_t i = 0; i < mesh.triangle_count(); ++i, t += 3)
-    Consider(p, Corner(mesh, t[0]), Corner(mesh, t[1]), Corner(mesh, t[2]), &best);
+  for (size_t i = 0; i < mesh.triangle_count(); ++i, t += 3) {
+    const Vec3d a = Corner(mesh, t[0]), b = Corner(mesh, t[1]), c = Corner(mesh, t[2]);
+    // A triangle whose box is no nearer than the best point cannot give a nearer one.
+    Box3d box;
+    box.Extend(a.x, a.y, a.z);
+    box.Extend(b.x, b.y, b.z);
+    box.Extend(c.x, c.y, c.z);
+    if (BoxPointDistanceSquared(box, p) >= best.distance_squared) continue;
+    Consider(p, a, b, c, &best);
+  }
   if (best.distance_squared > bound_squared) return SurfacePoint{};
   return best;
 }

@@ -3,9 +3,10 @@
 //
 // The surface is the union of the closed triangles (zero-area ones are their segments or points); the
 // distance is computed in double precision from the given vertices (PointTriangleClosest), the minimum
-// over all triangles: by a scan for small meshes, else by a walk of a TriangleHierarchy pruned by the
-// distance of its boxes. Whether a point inside a closed solid is at distance 0 is the caller's decision
-// (SolidClassifier::Contains): this measures the surface only.
+// over all triangles: by a scan that skips triangles whose box is no nearer than the best point (one query
+// never repays building a hierarchy), or by a walk of a TriangleHierarchy the caller keeps. Whether a point
+// inside a closed solid is at distance 0 is the caller's decision (SolidClassifier::Contains): this measures
+// the surface only.
 //
 // Thread-safety: pure functions.
 #pragma once
@@ -23,11 +24,8 @@ struct SurfacePoint {
   Vec3d point;  // the nearest point of the surface (valid when distance_squared is finite)
 };
 
-// Meshes with more triangles than this are walked through a TriangleHierarchy (built for the call).
-inline constexpr size_t kClosestPointScanTriangles = 512;
-
 // The point of the mesh's surface nearest p, if it is at squared distance <= bound_squared (the nearest
-// of several at the same distance: the first in triangle order for a scan). REQUIRES: every triangle
+// of several at the same distance: the first in triangle order). REQUIRES: every triangle
 // index < vertex_count().
 SurfacePoint ClosestOnSurface(const Mesh& mesh, const Vec3d& p,
                               double bound_squared = std::numeric_limits<double>::infinity());

@@ -110,17 +110,22 @@ bool RayBoxEnter(const PreparedRay& ray, const Box3d& box, double max_t, double*
 }
 
 RayHit3 FirstHit(const Mesh& mesh, const PreparedRay& ray, double max_t) {
-  if (mesh.triangle_count() > kRayScanTriangles) {
-    const TriangleHierarchy h(mesh);
-    return FirstHit(h, ray, max_t);
-  }
   RayHit3 best;
   const double* v = mesh.vertices.data();
   auto at = [v](uint32_t i) { return Vec3d{v[3 * size_t{i}], v[3 * size_t{i} + 1], v[3 * size_t{i} + 2]}; };
   const uint32_t* t = mesh.triangles.data();
   for (size_t i = 0; i < mesh.triangle_count(); ++i, t += 3) {
+    const Vec3d a = at(t[0]), b = at(t[1]), c = at(t[2]);
+    // The slab test of the triangle's box rejects most triangles for a few divisions, before the exact signs.
+    Box3d box;
+    box.Extend(a.x, a.y, a.z);
+    box.Extend(b.x, b.y, b.z);
+    box.Extend(c.x, c.y, c.z);
+    double enter;
+    const double limit = std::min(max_t, best.t);
+    if (!RayBoxEnter(ray, box, limit, &enter)) continue;
     RayHit3 h;
-    if (RayTriangle(ray, at(t[0]), at(t[1]), at(t[2]), std::min(max_t, best.t), &h) && h.t < best.t) best = h;
+    if (RayTriangle(ray, a, b, c, limit, &h) && h.t < best.t) best = h;
   }
   return best;
 }

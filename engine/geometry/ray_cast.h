@@ -56,11 +56,9 @@ bool RayTriangle(const PreparedRay& ray, const Vec3d& a, const Vec3d& b, const V
 // holds every hit of what the box contains: *enter is its start. False when it is empty (or the box is).
 bool RayBoxEnter(const PreparedRay& ray, const Box3d& box, double max_t, double* enter);
 
-// Meshes with more triangles than this are walked through a TriangleHierarchy (built for the call).
-inline constexpr size_t kRayScanTriangles = 512;
-
-// The mesh's first hit at t in [0, max_t] (of several at the same t, the first in triangle order for a
-// scan); none: hit() is false.
+// The mesh's first hit at t in [0, max_t] (of several at the same t, the first in triangle order); none:
+// hit() is false. A scan, each triangle's box slab-tested before its exact signs (one query never repays
+// building a hierarchy); the second form walks a TriangleHierarchy the caller keeps.
 RayHit3 FirstHit(const Mesh& mesh, const PreparedRay& ray, double max_t);
 RayHit3 FirstHit(const TriangleHierarchy& hierarchy, const PreparedRay& ray, double max_t);
 
