@@ -5,13 +5,13 @@
 //   build        mktree build of tanker:N (paged file), seconds
 //   nearest k    --queries seeded random points in the scene box, k = 1, 10, 100: exact distance
 //   ray          --queries seeded rays from random points toward random objects' centres: first hit
-// mktree: queries/s warm (a cache of --warm-cache-mib, second pass) and cold (cache 0: every page looked up
-// is read), pages read per query cold against the floor (NearestPageFloor / RayPageFloor: the pages of the
-// leaves whose region is within the answer), RSS of the open Database.
-// Peers, in RAM, on the same triangles (float32 as the store keeps them):
-//   boost        Boost.Geometry rtree (rstar<16>, packing) of the objects' boxes, nearest by its incremental
-//                query iterator, each candidate refined by its exact distance (a scan of its triangles)
-//                until the next box is farther than the k-th exact distance
+// mktree: queries/s warm (a cache of --warm-cache-mib, fastest of 3 passes after a filling one) and cold
+// (cache 0: every page looked up is read), pages read per query cold against the floor (NearestPageFloor /
+// RayPageFloor: the pages of the leaves whose region is within the answer), RSS of the open Database. Peers,
+// in RAM, on the same triangles in float32 world coordinates (mismatches: beyond kFloatTolerance):
+//   boost        Boost.Geometry rtree (rstar<16>, packing) of the objects' boxes: the K = 4k nearest boxes
+//                (4x more while the K-th box is nearer than the k-th exact distance), each refined by its
+//                exact distance (0 inside a closed solid, else a scan of its triangles)
 //   embree       Embree 3: one triangle geometry of all objects; rtcIntersect1 for rays, rtcPointQuery
 //                with a closest-point callback for k = 1
 //   cgal         CGAL's AABB_tree over every triangle (Simple_cartesian<double>): closest_point_and_primitive
@@ -72,6 +72,7 @@ using Clock = std::chrono::steady_clock;
 constexpr double kFloatTolerance = 1e-4;
 
 constexpr size_t kKs[3] = {1, 10, 100};  // the nearest workloads' k
+constexpr int kPasses = 3;               // warm passes timed; the fastest is reported
 
 double Since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
@@ -283,32 +284,42 @@ void CgalPeer(const Soup& soup, const std::vector<Vec3d>& points, const std::vec
       "(its triangles included)\n",
       Since(t0), RssMiB() - rss, HeapMiB() - heap);
   uint64_t mismatches = 0;
-  t0 = Clock::now();
-  for (size_t i = 0; i < points.size(); ++i) {
-    const K::Point_3 p(points[i].x, points[i].y, points[i].z);
-    const auto cp = tree.closest_point_and_primitive(p);
-    const double d = std::sqrt(CGAL::squared_distance(p, cp.first));
-    if (nearest1[i] > 0) mismatches += std::fabs(d - nearest1[i]) > kFloatTolerance;
+  double best_s = INFINITY;  // the fastest of kPasses passes (a shared machine)
+  for (int pass = 0; pass < kPasses; ++pass) {
+    mismatches = 0;
+    t0 = Clock::now();
+    for (size_t i = 0; i < points.size(); ++i) {
+      const K::Point_3 p(points[i].x, points[i].y, points[i].z);
+      const auto cp = tree.closest_point_and_primitive(p);
+      const double d = std::sqrt(CGAL::squared_distance(p, cp.first));
+      if (nearest1[i] > 0) mismatches += std::fabs(d - nearest1[i]) > kFloatTolerance;
+    }
+    best_s = std::min(best_s, Since(t0));
   }
   std::printf("cgal closest_point k=1   %10.0f q/s, mismatches (outside solids) %llu\n",
-              points.size() / Since(t0), static_cast<unsigned long long>(mismatches));
+              points.size() / best_s, static_cast<unsigned long long>(mismatches));
   mismatches = 0;
-  t0 = Clock::now();
-  for (size_t i = 0; i < rays.size(); ++i) {
-    const RayQuery& r = rays[i];
-    const K::Ray_3 ray(K::Point_3(r.origin.x, r.origin.y, r.origin.z),
-                       K::Vector_3(r.direction.x, r.direction.y, r.direction.z));
-    const auto hit = tree.first_intersection(ray);
-    double t = INFINITY;
-    if (hit) {
-      if (const K::Point_3* q = boost::get<K::Point_3>(&hit->first))
-        t = std::sqrt(CGAL::squared_distance(ray.source(), *q));
-      else
-        t = 0;  // a segment: the ray runs in a triangle's plane
+  best_s = INFINITY;
+  for (int pass = 0; pass < kPasses; ++pass) {
+    mismatches = 0;
+    t0 = Clock::now();
+    for (size_t i = 0; i < rays.size(); ++i) {
+      const RayQuery& r = rays[i];
+      const K::Ray_3 ray(K::Point_3(r.origin.x, r.origin.y, r.origin.z),
+                         K::Vector_3(r.direction.x, r.direction.y, r.direction.z));
+      const auto hit = tree.first_intersection(ray);
+      double t = INFINITY;
+      if (hit) {
+        if (const K::Point_3* q = boost::get<K::Point_3>(&hit->first))
+          t = std::sqrt(CGAL::squared_distance(ray.source(), *q));
+        else
+          t = 0;  // a segment: the ray runs in a triangle's plane
+      }
+      mismatches += !(t == first_t[i] || std::fabs(t - first_t[i]) <= kFloatTolerance);
     }
-    mismatches += !(t == first_t[i] || std::fabs(t - first_t[i]) <= kFloatTolerance);
+    best_s = std::min(best_s, Since(t0));
   }
-  std::printf("cgal first_intersection  %10.0f q/s, first-hit t mismatches %llu\n", rays.size() / Since(t0),
+  std::printf("cgal first_intersection  %10.0f q/s, first-hit t mismatches %llu\n", rays.size() / best_s,
               static_cast<unsigned long long>(mismatches));
 }
 
@@ -317,7 +328,7 @@ void Header(const Args& a) {
               a.Name().c_str(), static_cast<unsigned long long>(a.seed), a.queries);
   std::printf(
       "# cores=%ld; cold = cache 0 (every page looked up is read; OS page cache not bypassed); warm = "
-      "%llu MiB cache, second pass; one thread%s\n",
+      "%llu MiB cache, fastest of 3 passes after a first; peers: fastest of 3; one thread%s\n",
       sysconf(_SC_NPROCESSORS_ONLN), static_cast<unsigned long long>(a.warm_cache_mib),
 #ifdef NDEBUG
       ""
@@ -367,8 +378,8 @@ int RunMktree(const Args& a, const std::string& path, const std::vector<Vec3d>& 
     for (size_t i = 0; i < a.queries; ++i)  // a scan of every leaf's filter: not timed
       floor += ray ? RayPageFloor({SearchPart{store}}, rays[i], (*first_t)[i])
                    : NearestPageFloor({SearchPart{store}}, Query::Nearest(points[i], kKs[w]), (*kth)[w][i]);
-    double warm_s = 0;
-    for (int pass = 0; pass < 2; ++pass) {
+    double warm_s = INFINITY;  // the first pass fills the cache; the fastest of the next kPasses
+    for (int pass = 0; pass <= kPasses; ++pass) {
       t0 = Clock::now();
       for (size_t i = 0; i < a.queries; ++i) {
         if (ray) {
@@ -379,7 +390,7 @@ int RunMktree(const Args& a, const std::string& path, const std::vector<Vec3d>& 
           if (!(*warm)->Nearest(Query::Nearest(points[i], kKs[w]), &hits, nullptr).ok()) return 1;
         }
       }
-      warm_s = Since(t0);
+      if (pass > 0) warm_s = std::min(warm_s, Since(t0));
     }
     const std::string name = ray ? "ray" : "nearest k=" + std::to_string(kKs[w]);
     std::printf("%-12s %10.0f %10.0f %12.2f %12.2f %10.3f\n", name.c_str(), a.queries / cold_s,
@@ -403,16 +414,21 @@ void BoostPeer(const Args& a, const Soup& soup, const std::vector<Vec3d>& points
       Since(t0), HeapMiB() - heap, soup.Bytes() / 1048576.0);
   for (int w = 0; w < 3; ++w) {
     uint64_t mismatches = 0;
-    t0 = Clock::now();
-    for (size_t i = 0; i < a.queries; ++i) {
-      const double d = BoostNearest(rtree, soup, points[i], kKs[w]);
-      const bool bad = std::fabs(d - kth[w][i]) > kFloatTolerance;
-      if (bad && mismatches == 0)
-        std::printf("  first mismatch: query %zu, boost %.9g, mktree %.9g\n", i, d, kth[w][i]);
-      mismatches += bad;
+    double best_s = INFINITY;  // the fastest of kPasses passes (a shared machine)
+    for (int pass = 0; pass < kPasses; ++pass) {
+      mismatches = 0;
+      t0 = Clock::now();
+      for (size_t i = 0; i < a.queries; ++i) {
+        const double d = BoostNearest(rtree, soup, points[i], kKs[w]);
+        const bool bad = std::fabs(d - kth[w][i]) > kFloatTolerance;
+        if (bad && mismatches == 0)
+          std::printf("  first mismatch: query %zu, boost %.9g, mktree %.9g\n", i, d, kth[w][i]);
+        mismatches += bad;
+      }
+      best_s = std::min(best_s, Since(t0));
     }
     std::printf("boost nearest k=%-4zu %10.0f q/s, k-th distance mismatches %llu\n", kKs[w],
-                a.queries / Since(t0), static_cast<unsigned long long>(mismatches));
+                a.queries / best_s, static_cast<unsigned long long>(mismatches));
   }
 }
 
@@ -437,50 +453,60 @@ void EmbreePeer(const Args& a, const Soup& soup, const std::vector<Vec3d>& point
   std::printf("embree: %.2f s to build (one thread), RSS +%.0f MiB, heap +%.0f MiB (plus the shared soup)\n",
               Since(t0), RssMiB() - rss, HeapMiB() - heap);
   uint64_t mismatches = 0;
-  t0 = Clock::now();
-  for (size_t i = 0; i < a.queries; ++i) {
-    RTCPointQuery q;
-    q.x = static_cast<float>(points[i].x);
-    q.y = static_cast<float>(points[i].y);
-    q.z = static_cast<float>(points[i].z);
-    q.radius = INFINITY;
-    q.time = 0;
-    RTCPointQueryContext ctx;
-    rtcInitPointQueryContext(&ctx);
-    ClosestQuery cq{&soup};
-    rtcPointQuery(e.scene, &q, &ctx, EmbreeClosest, &cq);
-    // Embree measures surfaces: a point inside a solid is 0 for mktree only.
-    if (nearest1[i] > 0) mismatches += std::fabs(std::sqrt(cq.best2) - nearest1[i]) > kFloatTolerance;
+  double best_s = INFINITY;  // the fastest of kPasses passes (a shared machine)
+  for (int pass = 0; pass < kPasses; ++pass) {
+    mismatches = 0;
+    t0 = Clock::now();
+    for (size_t i = 0; i < a.queries; ++i) {
+      RTCPointQuery q;
+      q.x = static_cast<float>(points[i].x);
+      q.y = static_cast<float>(points[i].y);
+      q.z = static_cast<float>(points[i].z);
+      q.radius = INFINITY;
+      q.time = 0;
+      RTCPointQueryContext ctx;
+      rtcInitPointQueryContext(&ctx);
+      ClosestQuery cq{&soup};
+      rtcPointQuery(e.scene, &q, &ctx, EmbreeClosest, &cq);
+      // Embree measures surfaces: a point inside a solid is 0 for mktree only.
+      if (nearest1[i] > 0) mismatches += std::fabs(std::sqrt(cq.best2) - nearest1[i]) > kFloatTolerance;
+    }
+    best_s = std::min(best_s, Since(t0));
   }
-  std::printf("embree rtcPointQuery k=1 %10.0f q/s, mismatches (outside solids) %llu\n",
-              a.queries / Since(t0), static_cast<unsigned long long>(mismatches));
+  std::printf("embree rtcPointQuery k=1 %10.0f q/s, mismatches (outside solids) %llu\n", a.queries / best_s,
+              static_cast<unsigned long long>(mismatches));
   mismatches = 0;
-  t0 = Clock::now();
-  for (size_t i = 0; i < a.queries; ++i) {
-    RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
-    RTCRayHit rh;
-    const RayQuery& r = rays[i];
-    const double len = std::sqrt(r.direction.x * r.direction.x + r.direction.y * r.direction.y +
-                                 r.direction.z * r.direction.z);
-    rh.ray.org_x = static_cast<float>(r.origin.x);
-    rh.ray.org_y = static_cast<float>(r.origin.y);
-    rh.ray.org_z = static_cast<float>(r.origin.z);
-    rh.ray.dir_x = static_cast<float>(r.direction.x / len);
-    rh.ray.dir_y = static_cast<float>(r.direction.y / len);
-    rh.ray.dir_z = static_cast<float>(r.direction.z / len);
-    rh.ray.tnear = 0;
-    rh.ray.tfar = INFINITY;
-    rh.ray.mask = 0xffffffffu;
-    rh.ray.flags = 0;
-    rh.ray.time = 0;
-    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(e.scene, &ctx, &rh);
-    const double t = rh.hit.geomID == RTC_INVALID_GEOMETRY_ID ? INFINITY : rh.ray.tfar;
-    mismatches += !(t == first_t[i] || std::fabs(t - first_t[i]) <= kFloatTolerance);
+  best_s = INFINITY;
+  for (int pass = 0; pass < kPasses; ++pass) {
+    mismatches = 0;
+    t0 = Clock::now();
+    for (size_t i = 0; i < a.queries; ++i) {
+      RTCIntersectContext ctx;
+      rtcInitIntersectContext(&ctx);
+      RTCRayHit rh;
+      const RayQuery& r = rays[i];
+      const double len = std::sqrt(r.direction.x * r.direction.x + r.direction.y * r.direction.y +
+                                   r.direction.z * r.direction.z);
+      rh.ray.org_x = static_cast<float>(r.origin.x);
+      rh.ray.org_y = static_cast<float>(r.origin.y);
+      rh.ray.org_z = static_cast<float>(r.origin.z);
+      rh.ray.dir_x = static_cast<float>(r.direction.x / len);
+      rh.ray.dir_y = static_cast<float>(r.direction.y / len);
+      rh.ray.dir_z = static_cast<float>(r.direction.z / len);
+      rh.ray.tnear = 0;
+      rh.ray.tfar = INFINITY;
+      rh.ray.mask = 0xffffffffu;
+      rh.ray.flags = 0;
+      rh.ray.time = 0;
+      rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+      rtcIntersect1(e.scene, &ctx, &rh);
+      const double t = rh.hit.geomID == RTC_INVALID_GEOMETRY_ID ? INFINITY : rh.ray.tfar;
+      mismatches += !(t == first_t[i] || std::fabs(t - first_t[i]) <= kFloatTolerance);
+    }
+    best_s = std::min(best_s, Since(t0));
   }
   std::printf("embree rtcIntersect1      %10.0f q/s, first-hit t mismatches (float32 rays) %llu\n",
-              a.queries / Since(t0), static_cast<unsigned long long>(mismatches));
+              a.queries / best_s, static_cast<unsigned long long>(mismatches));
 }
 
 }  // namespace
