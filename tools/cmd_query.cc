@@ -407,8 +407,8 @@ void RegisterQuery(CLI::App& app, CommandRun* run) {
       [run, args, p, b, f, count, any, limit, names, revision, nearest, ray, k, max_distance, all_hits] {
         if (p->count() + b->count() + f->count() + nearest->count() + ray->count() == 0)
           throw CLI::RequiredError("one of --point, --box, --nearest, --ray or --queries");
-        if (k->count() && !nearest->count() && !f->count())
-          throw CLI::ValidationError("--k", "needs --nearest");
+        if (k->count() && !nearest->count())
+          throw CLI::ValidationError("--k", "needs --nearest (a file's nearest lines carry their own k)");
         if (max_distance->count() && !nearest->count() && !ray->count())
           throw CLI::ValidationError("--max-distance", "needs --nearest or --ray");
         if (all_hits->count() && !ray->count() && !f->count())
