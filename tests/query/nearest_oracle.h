@@ -117,11 +117,18 @@ class NearestBruteForce {
     Sort(&out);
     return out;
   }
-  // Each object's first hit along the ray (every triangle tested), in order of t then id.
+  // Each object's first hit along the ray (every triangle of every object whose box the ray enters), in order
+  // of t then id.
   std::vector<std::pair<ObjectId, double>> Hits(const RayQuery& q) const {
     const PreparedRay ray(Local(q.origin), q.direction);
     std::vector<std::pair<ObjectId, double>> out;
     for (const StoredObject& o : stored_) {
+      // The stored box holds every triangle, and RayBoxEnter's interval holds every hit inside
+      // (RayCast.BoxEnterIsALowerBoundOfEveryHitInside): objects whose box the ray misses have no hit.
+      double enter;
+      Box3d box;
+      for (int a = 0; a < 3; ++a) box.min[a] = o.box.min[a], box.max[a] = o.box.max[a];
+      if (!RayBoxEnter(ray, box, q.max_length, &enter)) continue;
       double best = INFINITY;
       const Mesh& m = o.mesh;
       for (size_t t = 0; t < m.triangle_count(); ++t) {
