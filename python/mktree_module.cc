@@ -12,11 +12,16 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <atomic>
+#include <cmath>
 #include <cstring>
+#include <functional>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <thread>
 #include <vector>
 
 namespace py = pybind11;
@@ -149,6 +154,146 @@ py::object RunMany(const Database& db, const py::handle& rows_in, int width, boo
   for (size_t i = 0; i < n; ++i)
     out[i] = IdArray(ids.data() + offsets[i], static_cast<size_t>(offsets[i + 1] - offsets[i]));
   return out;
+}
+
+// `st` with `prefix` before its message, its code kept.
+Status Prefix(const Status& st, const std::string& prefix) {
+  std::string m = prefix + st.message();
+  switch (st.code()) {
+    case Status::Code::kOk:
+      return st;
+    case Status::Code::kInvalidArgument:
+      return Status::InvalidArgument(std::move(m));
+    case Status::Code::kNotFound:
+      return Status::NotFound(std::move(m));
+    case Status::Code::kCorruption:
+      return Status::Corruption(std::move(m));
+    case Status::Code::kIOError:
+      return Status::IOError(std::move(m));
+    case Status::Code::kUnsupported:
+      return Status::Unsupported(std::move(m));
+    case Status::Code::kInternal:
+      break;
+  }
+  return Status::Internal(std::move(m));
+}
+
+// Runs job(0..count-1) on `threads` threads (0: one per core), the GIL released by the caller; returns the
+// error of the lowest failing index, the jobs after a failure may be skipped.
+Status ParallelFor(size_t count, unsigned threads, const std::function<Status(size_t)>& job) {
+  if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
+  threads = static_cast<unsigned>(std::min<size_t>(threads, std::max<size_t>(count, 1)));
+  std::atomic<size_t> next{0};
+  std::atomic<size_t> failed{count};
+  std::vector<Status> errors(threads, Status::Ok());
+  std::vector<size_t> error_at(threads, count);
+  auto work = [&](unsigned w) {
+    for (size_t i; (i = next.fetch_add(1)) < count && i < failed.load();) {
+      Status st = job(i);
+      if (st.ok()) continue;
+      if (i < error_at[w]) errors[w] = std::move(st), error_at[w] = i;
+      size_t f = failed.load();
+      while (i < f && !failed.compare_exchange_weak(f, i)) {
+      }
+    }
+  };
+  std::vector<std::thread> pool;
+  for (unsigned w = 1; w < threads; ++w) pool.emplace_back(work, w);
+  work(0);
+  for (std::thread& t : pool) t.join();
+  size_t best = 0;
+  for (unsigned w = 1; w < threads; ++w)
+    if (error_at[w] < error_at[best]) best = w;
+  return error_at[best] < count ? Prefix(errors[best], "query " + std::to_string(error_at[best]) + ": ")
+                                : Status::Ok();
+}
+
+// An (n, width) float64 array, or a value error naming `what`.
+py::array_t<double, py::array::c_style | py::array::forcecast> Rows(const py::handle& in, int width,
+                                                                    const char* what) {
+  auto rows = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(in);
+  if (!rows || rows.ndim() != 2 || rows.shape(1) != width)
+    throw py::value_error(std::string(what) + ": expected an array of shape (n, " + std::to_string(width) +
+                          ")");
+  return rows;
+}
+
+// The k nearest objects of each row of `points` ((n, 3)): (ids int64 (n, k), -1 past the answer;
+// distances float64 (n, k), inf past it; points float64 (n, k, 3), nan past it).
+py::tuple NearestMany(const Database& db, const py::handle& points_in, uint64_t k, double max_distance,
+                      unsigned threads) {
+  if (k == 0 || k > (uint64_t{1} << 20)) throw py::value_error("k must be from 1 to 2^20");
+  auto points = Rows(points_in, 3, "points");
+  const size_t n = static_cast<size_t>(points.shape(0));
+  const py::ssize_t sn = static_cast<py::ssize_t>(n), sk = static_cast<py::ssize_t>(k);
+  py::array_t<int64_t> ids({sn, sk});
+  py::array_t<double> dist({sn, sk});
+  py::array_t<double> at({sn, sk, py::ssize_t{3}});
+  int64_t* id_out = ids.mutable_data();
+  double* d_out = dist.mutable_data();
+  double* p_out = at.mutable_data();
+  const double* p = points.data();
+  Status st;
+  {
+    py::gil_scoped_release nogil;
+    st = ParallelFor(n, threads, [&](size_t i) -> Status {
+      std::vector<NearestHit> hits;
+      MKTREE_RETURN_IF_ERROR(db.Nearest(
+          Query::Nearest({p[3 * i], p[3 * i + 1], p[3 * i + 2]}, k, max_distance), &hits, nullptr));
+      for (size_t j = 0; j < k; ++j) {
+        const bool has = j < hits.size();
+        id_out[i * k + j] = has ? int64_t{hits[j].id} : -1;
+        d_out[i * k + j] = has ? hits[j].distance : std::numeric_limits<double>::infinity();
+        for (int a = 0; a < 3; ++a)
+          p_out[3 * (i * k + j) + a] = has ? hits[j].point[a] : std::numeric_limits<double>::quiet_NaN();
+      }
+      return Status::Ok();
+    });
+  }
+  if (!st.ok()) Raise(st);
+  return py::make_tuple(ids, dist, at);
+}
+
+// The first hit of each ray (rows of `origins` and `directions`, (n, 3) each): (ids int64 (n,), -1 for a
+// miss; t float64 (n,), inf for a miss; points and normals float64 (n, 3), nan for a miss).
+py::tuple RaysMany(const Database& db, const py::handle& origins_in, const py::handle& directions_in,
+                   double max_length, unsigned threads) {
+  auto origins = Rows(origins_in, 3, "origins");
+  auto directions = Rows(directions_in, 3, "directions");
+  if (origins.shape(0) != directions.shape(0))
+    throw py::value_error("origins and directions must have the same number of rows");
+  const size_t n = static_cast<size_t>(origins.shape(0));
+  const py::ssize_t sn = static_cast<py::ssize_t>(n);
+  py::array_t<int64_t> ids(sn);
+  py::array_t<double> t(sn);
+  py::array_t<double> points({sn, py::ssize_t{3}});
+  py::array_t<double> normals({sn, py::ssize_t{3}});
+  int64_t* id_out = ids.mutable_data();
+  double* t_out = t.mutable_data();
+  double* p_out = points.mutable_data();
+  double* n_out = normals.mutable_data();
+  const double* o = origins.data();
+  const double* d = directions.data();
+  Status st;
+  {
+    py::gil_scoped_release nogil;
+    st = ParallelFor(n, threads, [&](size_t i) -> Status {
+      std::vector<RayHit> hits;
+      MKTREE_RETURN_IF_ERROR(db.Ray(Query::Ray({o[3 * i], o[3 * i + 1], o[3 * i + 2]},
+                                               {d[3 * i], d[3 * i + 1], d[3 * i + 2]}, max_length),
+                                    &hits, nullptr));
+      const bool has = !hits.empty();
+      id_out[i] = has ? int64_t{hits[0].id} : -1;
+      t_out[i] = has ? hits[0].t : std::numeric_limits<double>::infinity();
+      for (int a = 0; a < 3; ++a) {
+        p_out[3 * i + a] = has ? hits[0].point[a] : std::numeric_limits<double>::quiet_NaN();
+        n_out[3 * i + a] = has ? hits[0].normal[a] : std::numeric_limits<double>::quiet_NaN();
+      }
+      return Status::Ok();
+    });
+  }
+  if (!st.ok()) Raise(st);
+  return py::make_tuple(ids, t, points, normals);
 }
 
 py::array_t<double> BoundsArray(const Box3d& b) {
@@ -778,6 +923,30 @@ void DefineChanges(py::module_& m) {
         "added, removed, replaced, objects, compaction, message");
 }
 
+// db.nearest and db.rays (docs/nearest_and_ray.md), added to the Database class defined above.
+void DefineNearest(py::module_& m) {
+  auto cls = py::reinterpret_borrow<py::class_<Database>>(m.attr("Database"));
+  cls.def(
+         "nearest",
+         [](const Database& db, const py::handle& points, uint64_t k, double max_distance, unsigned threads) {
+           return NearestMany(db, points, k, max_distance, threads);
+         },
+         py::arg("points"), py::arg("k") = 1,
+         py::arg("max_distance") = std::numeric_limits<double>::infinity(), py::arg("threads") = 0,
+         "The k nearest objects of each point of an (n, 3) array, by exact distance (0 inside a solid), on "
+         "`threads` threads: (ids int64 (n, k), -1 past the answer; distances (n, k), inf past it; closest "
+         "points (n, k, 3), nan past it)")
+      .def(
+          "rays",
+          [](const Database& db, const py::handle& origins, const py::handle& directions, double max_length,
+             unsigned threads) { return RaysMany(db, origins, directions, max_length, threads); },
+          py::arg("origins"), py::arg("directions"),
+          py::arg("max_length") = std::numeric_limits<double>::infinity(), py::arg("threads") = 0,
+          "The first hit of each ray (origins and directions: (n, 3) arrays; a direction need not be unit): "
+          "(ids int64 (n,), -1 for a miss; t (n,) distance along the ray, inf for a miss; points (n, 3) "
+          "and triangle normals (n, 3), nan for a miss)");
+}
+
 }  // namespace
 }  // namespace mktree
 
@@ -927,4 +1096,5 @@ PYBIND11_MODULE(mktree, m) {
 
   DefineOpenAndBuild(m);
   DefineChanges(m);
+  DefineNearest(m);
 }

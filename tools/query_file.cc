@@ -4,6 +4,7 @@
 #include <charconv>
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <string_view>
 
 #include "tools/path_checks.h"
@@ -52,6 +53,28 @@ Result<Query> MakeQuery(const std::string& kind, const std::vector<double>& v, c
   return Query::Box(b);
 }
 
+Result<DistanceQuery> MakeNearest(const std::vector<double>& v, const std::string& where) {
+  if (v.size() != 4 && v.size() != 5)
+    return Status::InvalidArgument(where + ": a nearest query needs X Y Z K [D], got " +
+                                   std::to_string(v.size()) + " numbers");
+  if (v[3] < 1 || v[3] != std::floor(v[3]) || v[3] > 1e18)
+    return Status::InvalidArgument(where + ": nearest query: k must be a whole number >= 1");
+  const double d = v.size() == 5 ? v[4] : std::numeric_limits<double>::infinity();
+  if (d < 0) return Status::InvalidArgument(where + ": nearest query: max distance must be >= 0");
+  return DistanceQuery::Nearest(Vec3d{v[0], v[1], v[2]}, static_cast<uint64_t>(v[3]), d);
+}
+
+Result<RayQuery> MakeRay(const std::vector<double>& v, const std::string& where, bool all_hits) {
+  if (v.size() != 6 && v.size() != 7)
+    return Status::InvalidArgument(where + ": a ray needs OX OY OZ DX DY DZ [L], got " +
+                                   std::to_string(v.size()) + " numbers");
+  if (v[3] == 0 && v[4] == 0 && v[5] == 0)
+    return Status::InvalidArgument(where + ": ray query: zero direction");
+  const double l = v.size() == 7 ? v[6] : std::numeric_limits<double>::infinity();
+  if (l < 0) return Status::InvalidArgument(where + ": ray query: max length must be >= 0");
+  return Query::Ray(Vec3d{v[0], v[1], v[2]}, Vec3d{v[3], v[4], v[5]}, l, all_hits);
+}
+
 }  // namespace
 
 Result<std::unique_ptr<QueryFileReader>> QueryFileReader::Open(const std::string& path) {
@@ -62,6 +85,17 @@ Result<std::unique_ptr<QueryFileReader>> QueryFileReader::Open(const std::string
 }
 
 Result<bool> QueryFileReader::Next(Query* q) {
+  FileQuery f;
+  MKTREE_ASSIGN_OR_RETURN(const bool more, Next(&f));
+  if (!more) return false;
+  if (f.kind != FileQuery::Kind::kQuery)
+    return Status::InvalidArgument(path_ + ":" + std::to_string(line_no_) +
+                                   ": a nearest or ray query where only point and box queries are taken");
+  *q = f.query;
+  return true;
+}
+
+Result<bool> QueryFileReader::Next(FileQuery* q) {
   while (std::getline(in_, line_)) {
     ++line_no_;
     std::string& line = line_;
@@ -71,13 +105,23 @@ Result<bool> QueryFileReader::Next(Query* q) {
     const std::string where = path_ + ":" + std::to_string(line_no_);
     size_t e = line.find_first_of(" \t", s);
     const std::string kind = line.substr(s, e == std::string::npos ? std::string::npos : e - s);
-    if (kind != "point" && kind != "box")
-      return Status::InvalidArgument(where + ": unknown query '" + kind + "' (expected point or box)");
+    if (kind != "point" && kind != "box" && kind != "nearest" && kind != "ray")
+      return Status::InvalidArgument(where + ": unknown query '" + kind +
+                                     "' (expected point, box, nearest or ray)");
     std::string bad;
     if (!ParseNumbers(e == std::string::npos ? std::string_view() : std::string_view(line).substr(e),
                       &numbers_, &bad))
       return Status::InvalidArgument(where + ": '" + bad + "' is not a finite number");
-    MKTREE_ASSIGN_OR_RETURN(*q, MakeQuery(kind, numbers_, where));
+    if (kind == "nearest") {
+      q->kind = FileQuery::Kind::kNearest;
+      MKTREE_ASSIGN_OR_RETURN(q->nearest, MakeNearest(numbers_, where));
+    } else if (kind == "ray") {
+      q->kind = FileQuery::Kind::kRay;
+      MKTREE_ASSIGN_OR_RETURN(q->ray, MakeRay(numbers_, where, false));
+    } else {
+      q->kind = FileQuery::Kind::kQuery;
+      MKTREE_ASSIGN_OR_RETURN(q->query, MakeQuery(kind, numbers_, where));
+    }
     return true;
   }
   if (in_.bad()) return Status::IOError(path_ + ": read failed");
@@ -131,6 +175,29 @@ Result<Query> ParseBoxArg(const std::string& text) {
   auto v = ParseArgNumbers(text, "--box");
   if (!v.ok()) return v.status();
   return MakeQuery("box", *v, "--box");
+}
+
+Result<DistanceQuery> ParseNearestArg(const std::string& text, uint64_t k, double max_distance) {
+  auto v = ParseArgNumbers(text, "--nearest");
+  if (!v.ok()) return v.status();
+  if (v->size() != 3)
+    return Status::InvalidArgument("--nearest: a point needs 3 numbers, got " + std::to_string(v->size()));
+  if (k < 1) return Status::InvalidArgument("--nearest: --k must be at least 1");
+  if (std::isnan(max_distance) || max_distance < 0)
+    return Status::InvalidArgument("--nearest: --max-distance must be >= 0");
+  return DistanceQuery::Nearest(Vec3d{(*v)[0], (*v)[1], (*v)[2]}, k, max_distance);
+}
+
+Result<RayQuery> ParseRayArg(const std::string& text, double max_length, bool all_hits) {
+  auto v = ParseArgNumbers(text, "--ray");
+  if (!v.ok()) return v.status();
+  if (v->size() != 6)
+    return Status::InvalidArgument("--ray: a ray needs 6 numbers, got " + std::to_string(v->size()));
+  if (std::isnan(max_length) || max_length < 0)
+    return Status::InvalidArgument("--ray: --max-distance must be >= 0");
+  MKTREE_ASSIGN_OR_RETURN(RayQuery q, MakeRay(*v, "--ray", all_hits));
+  q.max_length = max_length;
+  return q;
 }
 
 }  // namespace mktree::tools

@@ -93,6 +93,58 @@ Status Database::Run(const Query& query, QueryResult* result) const {
   });
 }
 
+Result<std::unique_ptr<NearestCursor>> Database::OpenNearest(const DistanceQuery&) const {
+  return Status::Unsupported(path() + ": nearest queries are not supported by this database");
+}
+
+Result<bool> Database::VisitRay(const RayQuery&, const RayVisitor&, QueryStats* stats) const {
+  if (stats) stats->Reset();
+  return Status::Unsupported(path() + ": ray queries are not supported by this database");
+}
+
+Result<bool> Database::VisitNearest(const DistanceQuery& query, const NearestVisitor& visit,
+                                    QueryStats* stats) const {
+  if (stats) stats->Reset();
+  MKTREE_ASSIGN_OR_RETURN(std::unique_ptr<NearestCursor> cursor, OpenNearest(query));
+  NearestHit hit;
+  bool complete = true;
+  while (true) {
+    Result<bool> more = cursor->Next(&hit);
+    if (stats) *stats = cursor->stats();
+    if (!more.ok()) return more.status();
+    if (!*more) break;
+    if (!visit(hit)) {
+      complete = false;
+      break;
+    }
+  }
+  return complete;
+}
+
+Status Database::Nearest(const DistanceQuery& query, std::vector<NearestHit>* hits, QueryStats* stats) const {
+  hits->clear();
+  return VisitNearest(
+             query,
+             [hits](const NearestHit& h) {
+               hits->push_back(h);
+               return true;
+             },
+             stats)
+      .status();
+}
+
+Status Database::Ray(const RayQuery& query, std::vector<RayHit>* hits, QueryStats* stats) const {
+  hits->clear();
+  return VisitRay(
+             query,
+             [hits](const RayHit& h) {
+               hits->push_back(h);
+               return true;
+             },
+             stats)
+      .status();
+}
+
 Status Database::RunBatchStreamed(const std::vector<Query>& queries, const BatchOptions& options,
                                   const ResultVisitor& deliver) const {
   BatchOptions o = options;

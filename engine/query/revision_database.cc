@@ -11,9 +11,11 @@
 #include "engine/clash/clash_engine.h"
 #include "engine/clash/pair_rules.h"
 #include "engine/core/guarded.h"
+#include "engine/query/nearest_search.h"
 #include "engine/query/ordered_batch.h"
 #include "engine/query/part_queries.h"
 #include "engine/query/sharded_database.h"
+#include "engine/query/ray_search.h"
 #include "engine/store_format/store_file.h"
 
 namespace mktree {
@@ -89,6 +91,12 @@ class RevisionDatabase final : public Database {
 
   uint64_t revision() const override { return hold_->manifest().revision; }
   const std::vector<ClashPart>& clash_parts() const { return clash_parts_; }
+  std::vector<SearchPart> SearchParts() const {
+    std::vector<SearchPart> out;
+    for (const RevisionPartDb& p : parts_)
+      out.push_back({p.db.get(), p.ids.empty() ? nullptr : &p.ids, p.hidden_count ? &p.hidden : nullptr});
+    return out;
+  }
   const RevisionManifest& manifest() const { return hold_->manifest(); }
   Status FocusedClash(const MultiClashScope& scope, const ClashOptions& o, const ClashVisitor& visit,
                       ClashStats* stats) const {
@@ -135,6 +143,14 @@ class RevisionDatabase final : public Database {
 
   Status RunBatchStreamed(const QuerySource& source, const BatchOptions& options,
                           const ResultVisitor& deliver) const override;
+
+  // One best-first search over every part's tree, hidden objects left out.
+  Result<std::unique_ptr<NearestCursor>> OpenNearest(const DistanceQuery& q) const override {
+    return OpenNearestSearch(SearchParts(), q, path_);
+  }
+  Result<bool> VisitRay(const RayQuery& q, const RayVisitor& visit, QueryStats* stats) const override {
+    return RunRaySearch(SearchParts(), q, path_, visit, stats);
+  }
 
   // One sweep over all the parts' leaves, hidden objects left out (ClashPart::hidden).
   Status SelfClash(const ClashOptions& o, const ClashVisitor& visit, ClashStats* stats) const override {

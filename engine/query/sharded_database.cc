@@ -15,8 +15,10 @@
 #include "engine/clash/clash_engine.h"
 #include "engine/clash/pair_rules.h"
 #include "engine/core/guarded.h"
+#include "engine/query/nearest_search.h"
 #include "engine/query/ordered_batch.h"
 #include "engine/query/part_queries.h"
+#include "engine/query/ray_search.h"
 #include "engine/query/shard_open.h"
 #include "engine/query/store_database.h"
 #include "engine/shard/manifest.h"
@@ -98,6 +100,20 @@ class ShardedDatabase final : public Database {
 
   Status RunBatchStreamed(const QuerySource& source, const BatchOptions& options,
                           const ResultVisitor& deliver) const override;
+
+  // One best-first search over every shard's tree: the nearest shard is searched first, and a shard's
+  // leaves are read only when nearer than the answers still to come.
+  Result<std::unique_ptr<NearestCursor>> OpenNearest(const DistanceQuery& q) const override {
+    return OpenNearestSearch(SearchParts(), q, path_);
+  }
+  Result<bool> VisitRay(const RayQuery& q, const RayVisitor& visit, QueryStats* stats) const override {
+    return RunRaySearch(SearchParts(), q, path_, visit, stats);
+  }
+  std::vector<SearchPart> SearchParts() const {
+    std::vector<SearchPart> out;
+    for (size_t s = 0; s < shards_.size(); ++s) out.push_back({shards_[s].get(), &ids_[s], nullptr});
+    return out;
+  }
 
   // One sweep over all the shards' leaves (docs/shards.md, "Clash"): the pairs inside each shard and,
   // for shards i < j whose root boxes grown by C meet, the pairs of a leaf of i and a leaf of j.

@@ -18,7 +18,9 @@
 #include "engine/clash/clash_engine.h"
 #include "engine/core/guarded.h"
 #include "engine/geometry/exact_geometry.h"
+#include "engine/query/nearest_search.h"
 #include "engine/query/ordered_batch.h"
+#include "engine/query/ray_search.h"
 #include "engine/query/sorted_ids.h"
 #include "engine/store_format/leaf_reader.h"
 #include "engine/store_format/object_codec.h"
@@ -381,6 +383,15 @@ Status StoreDatabase::VisitSpans(const Query& q, const SpanVisitor& visit, Query
           },
           stats)
       .status();
+}
+
+Result<std::unique_ptr<NearestCursor>> StoreDatabase::OpenNearest(const DistanceQuery& query) const {
+  return OpenNearestSearch({SearchPart{this}}, query, path());
+}
+
+Result<bool> StoreDatabase::VisitRay(const RayQuery& query, const RayVisitor& visit,
+                                     QueryStats* stats) const {
+  return RunRaySearch({SearchPart{this}}, query, path(), visit, stats);
 }
 
 Status StoreDatabase::SelfClash(const ClashOptions& options, const ClashVisitor& visit,

@@ -33,6 +33,8 @@ class StoreDatabase final : public Database {
   Status SelfClash(const ClashOptions& options, const ClashVisitor& visit, ClashStats* stats) const override;
   Status Collide(const Mesh& mesh, const std::optional<RigidTransform>& transform,
                  const ClashOptions& options, const ClashVisitor& visit, ClashStats* stats) const override;
+  Result<std::unique_ptr<NearestCursor>> OpenNearest(const DistanceQuery& query) const override;
+  Result<bool> VisitRay(const RayQuery& query, const RayVisitor& visit, QueryStats* stats) const override;
   void ClearCache() override { cache_.Clear(); }
   const std::string& path() const override { return reader_->path(); }
   uint64_t object_count() const override { return reader_->object_count(); }

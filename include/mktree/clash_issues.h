@@ -59,8 +59,8 @@ struct ClashGroup {
 
 struct ClashTestSummary {
   std::string name;
-  std::string
-      mode;  // "hard", "touch", "clearance" or "duplicates" (with clearance and touch tolerance below)
+  // "hard", "touch", "clearance" or "duplicates" (with clearance and touch tolerance below).
+  std::string mode;
   double clearance = 0, touch_tolerance = 0;
   uint64_t selected_a = 0, selected_b = 0;  // objects each selection picked (b = a for a self test)
   uint64_t hard = 0, touch = 0, clearance_pairs = 0;

@@ -41,6 +41,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <span>
@@ -49,6 +50,7 @@
 
 #include "mktree/clash.h"
 #include "mktree/geometry.h"
+#include "mktree/nearest.h"
 #include "mktree/query_stats.h"
 #include "mktree/scene.h"
 #include "mktree/status.h"
@@ -96,6 +98,15 @@ struct Query {
     return {Kind::kPoint, p, {}, mode};
   }
   static Query Box(const Box3d& b, QueryMode mode = QueryMode::kAabb) { return {Kind::kBox, {}, b, mode}; }
+  // The other query shapes (mktree/nearest.h), run by Database::Nearest and Database::Ray.
+  static DistanceQuery Nearest(const Vec3d& p, uint64_t k,
+                               double max_distance = std::numeric_limits<double>::infinity()) {
+    return DistanceQuery::Nearest(p, k, max_distance);
+  }
+  static RayQuery Ray(const Vec3d& origin, const Vec3d& direction,
+                      double max_length = std::numeric_limits<double>::infinity(), bool all_hits = false) {
+    return {origin, direction, max_length, all_hits};
+  }
 };
 
 struct QueryResult {
@@ -232,6 +243,21 @@ class Database {
                            ClashStats* stats) const = 0;
   virtual Status Collide(const Mesh& mesh, const std::optional<RigidTransform>& transform,
                          const ClashOptions& options, const ClashVisitor& visit, ClashStats* stats) const = 0;
+
+  // Nearest and within-distance queries (mktree/nearest.h, docs/nearest_and_ray.md): an incremental
+  // best-first search over the tree, the leaf filter and the objects' boxes, exact distances last.
+  // OpenNearest checks the query and returns its cursor (nothing read yet); VisitNearest hands the answers
+  // to `visit` nearest first until it returns false (returns whether the answer was visited to its end);
+  // Nearest collects them. `stats` (may be null) is reset and filled. Sharded stores and revisions answer
+  // as one store: one search over all their parts' trees, nearest part first.
+  virtual Result<std::unique_ptr<NearestCursor>> OpenNearest(const DistanceQuery& query) const;
+  Result<bool> VisitNearest(const DistanceQuery& query, const NearestVisitor& visit, QueryStats* stats) const;
+  Status Nearest(const DistanceQuery& query, std::vector<NearestHit>* hits, QueryStats* stats) const;
+  // Ray queries: the tree walked front to back along the ray, the first hit's search ending at it.
+  // VisitRay hands the hits in order to `visit` until it returns false; Ray collects them (empty: nothing
+  // hit). `stats` (may be null) is reset and filled.
+  virtual Result<bool> VisitRay(const RayQuery& query, const RayVisitor& visit, QueryStats* stats) const;
+  Status Ray(const RayQuery& query, std::vector<RayHit>* hits, QueryStats* stats) const;
 
   // Empties the page cache (pages pinned by running queries stay until released).
   virtual void ClearCache() = 0;

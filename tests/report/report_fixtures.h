@@ -90,22 +90,33 @@ inline ClashRun HandRun() {
   const auto wall = Ident(4, "wall-north", "", "");
   const auto slab = Ident(5, "slab-1", "", "");
   const auto pipe = Ident(6, "Pipe P-7", "IfcPipeSegment", "3Fz8s$7kX0PuAqk2mlF5e1");
-  ClashTestSummary mep{"mep-vs-structure",      "clearance", 0.05, 0.002, 12, 40, 2, 0, 1, 2, 0, 1,
-                       {{"hosted_filling", 7}}, {}};
-  ClashTestSummary self{"architecture",
-                        "hard",
-                        0,
-                        0.002,
-                        30,
-                        30,
-                        0,
-                        1,
-                        0,
-                        0,
-                        1,
-                        0,
-                        {{"same_aggregate", 3}},
-                        {"selection b matched nothing"}};
+  ClashTestSummary mep{.name = "mep-vs-structure",
+                       .mode = "clearance",
+                       .clearance = 0.05,
+                       .touch_tolerance = 0.002,
+                       .selected_a = 12,
+                       .selected_b = 40,
+                       .hard = 2,
+                       .touch = 0,
+                       .clearance_pairs = 1,
+                       .new_clashes = 2,
+                       .active = 0,
+                       .resolved = 1,
+                       .excluded_by_rule = {{"hosted_filling", 7}}};
+  ClashTestSummary self{.name = "architecture",
+                        .mode = "hard",
+                        .clearance = 0,
+                        .touch_tolerance = 0.002,
+                        .selected_a = 30,
+                        .selected_b = 30,
+                        .hard = 0,
+                        .touch = 1,
+                        .clearance_pairs = 0,
+                        .new_clashes = 0,
+                        .active = 1,
+                        .resolved = 0,
+                        .excluded_by_rule = {{"same_aggregate", 3}},
+                        .warnings = {"selection b matched nothing"}};
   run.tests = {mep, self};
   run.groups.push_back(
       Group("mep-vs-structure|" + beam.stable, "IfcBeam Beam B-12 hit by 2 IfcDuctSegment",
@@ -181,7 +192,8 @@ inline std::unique_ptr<StoreRun> DuplexRun(const testing::TempDir& dir, size_t m
     return static_cast<int>(x.cls) < static_cast<int>(y.cls) || (x.cls == y.cls && x.distance < y.distance);
   });
   out->run.store = out->store;
-  out->run.tests.push_back({"self", "clearance", 0.05, 0.002, 0, 0, 0, 0, 0, 0, 0, 0, {}, {}});
+  out->run.tests.push_back(
+      {.name = "self", .mode = "clearance", .clearance = 0.05, .touch_tolerance = 0.002});
   ClashTestSummary& t = out->run.tests[0];
   for (const ClashPair& p : pairs) {
     (p.cls == ClashClass::kHard ? t.hard : p.cls == ClashClass::kTouch ? t.touch : t.clearance_pairs)++;
