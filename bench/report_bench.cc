@@ -49,39 +49,33 @@ ObjectIdentity Object(uint64_t id, uint64_t n) {
 ClashRun SyntheticRun(uint64_t clashes, uint64_t groups, const StoreReader* store) {
   ClashRun run;
   run.store = store ? store->path() : "synthetic.mkt";
-  run.tests.push_back({"mep-vs-structure",
-                       "clearance",
-                       0.05,
-                       0.002,
-                       1000,
-                       5000,
-                       0,
-                       0,
-                       0,
-                       0,
-                       0,
-                       0,
-                       {{"hosted_filling", 123}},
-                       {}});
+  ClashTestSummary summary;
+  summary.name = "mep-vs-structure";
+  summary.mode = "clearance";
+  summary.clearance = 0.05;
+  summary.touch_tolerance = 0.002;
+  summary.selected_a = 1000;
+  summary.selected_b = 5000;
+  summary.excluded_by_rule = {{"hosted_filling", 123}};
+  run.tests.push_back(std::move(summary));
   const uint64_t objects = store ? store->object_count() : UINT64_MAX;
   uint64_t next = 0;
   for (uint64_t g = 0; g < groups; ++g) {
     ClashGroup group;
     group.test = "mep-vs-structure";
-    const ObjectIdentity anchor = Object(next % objects, next),
-                         first = Object((next + 1) % objects, next + 1);
+    const auto anchor = std::make_shared<const ObjectIdentity>(Object(next % objects, next));
+    const ObjectIdentity first = Object((next + 1) % objects, next + 1);
     ++next;
-    group.key = group.test + "|" + anchor.stable;
+    group.key = group.test + "|" + anchor->stable;
     const uint64_t members = clashes / groups + (g < clashes % groups ? 1 : 0);
-    group.title = anchor.ifc_type + " " + anchor.name + " hit by " + std::to_string(members);
+    group.title = anchor->ifc_type + " " + anchor->name + " hit by " + std::to_string(members);
     for (uint64_t m = 0; m < members; ++m) {
       ClashRecord r;
-      r.test = group.test;
       r.a = anchor;
-      r.b = Object(next % objects, next);
+      r.b = std::make_shared<const ObjectIdentity>(Object(next % objects, next));
       ++next;
-      r.key = group.key + "|" + r.b.stable;
-      r.pair.a = r.a.id, r.pair.b = r.b.id;
+      r.key = group.key + "|" + r.b->stable;
+      r.pair.a = r.a->id, r.pair.b = r.b->id;
       r.pair.cls = m % 3 == 0 ? ClashClass::kHard : m % 3 == 1 ? ClashClass::kTouch : ClashClass::kClearance;
       r.pair.distance = r.pair.cls == ClashClass::kClearance ? 0.01 : -0.001 * (m % 50);
       r.pair.depth_upper = r.pair.depth_lower = std::max(0.0, -r.pair.distance);
@@ -96,7 +90,7 @@ ClashRun SyntheticRun(uint64_t clashes, uint64_t groups, const StoreReader* stor
     group.box.max = {double(g) + 1, 1, 3};
     if (store) {
       group.box = Box3d{};
-      for (uint64_t id : {anchor.id, first.id}) {
+      for (uint64_t id : {anchor->id, first.id}) {
         auto b = StoredObjectBox(*store, id);
         if (!b.ok()) continue;
         for (int k = 0; k < 3; ++k) {

@@ -737,12 +737,12 @@ py::dict RunArrays(const ClashRun& run) {
   for (const ClashGroup& g : run.groups)
     for (const ClashRecord& r : g.members) {
       pairs.push_back(&r.pair);
-      test.append(Text(r.test));
+      test.append(Text(g.test));
       key.append(r.key);
-      group.append(r.group);
+      group.append(g.key);
       status.append(ClashStatusName(r.status));
-      id_a.append(Text(r.a.stable));
-      id_b.append(Text(r.b.stable));
+      id_a.append(Text(r.a->stable));
+      id_b.append(Text(r.b->stable));
     }
   py::dict d = PairArrays(pairs);
   d["test"] = test;

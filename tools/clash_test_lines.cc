@@ -27,18 +27,18 @@ void AppendString(std::string* s, const char* key, const std::string& value) {
 
 }  // namespace
 
-std::string ClashRecordLine(const ClashRecord& r, bool names) {
+std::string ClashRecordLine(const ClashGroup& group, const ClashRecord& r, bool names) {
   // By hand like PairLine: nlohmann-json's dump is several times slower per line (bench/README.md).
   const ClashPair& p = r.pair;
-  std::string s = "{\"test\": \"" + JsonText(r.test) + "\"";
+  std::string s = "{\"test\": \"" + JsonText(group.test) + "\"";
   AppendString(&s, "key", r.key);
-  AppendString(&s, "group", r.group);
+  AppendString(&s, "group", group.key);
   s += ", \"a\": " + std::to_string(p.a) + ", \"b\": " + std::to_string(p.b);
-  AppendString(&s, "id_a", r.a.stable);
-  AppendString(&s, "id_b", r.b.stable);
+  AppendString(&s, "id_a", r.a->stable);
+  AppendString(&s, "id_b", r.b->stable);
   if (names) {
-    AppendString(&s, "name_a", r.a.name);
-    AppendString(&s, "name_b", r.b.name);
+    AppendString(&s, "name_a", r.a->name);
+    AppendString(&s, "name_b", r.b->name);
   }
   s += ", \"class\": \"";
   s += ClassName(p.cls);
@@ -189,12 +189,12 @@ int RunClashTestsCommand(const ClashTestsArgs& a) {
     for (const ClashGroup& g : run.groups) {
       if (g.test != t.name) continue;
       for (const ClashRecord& r : g.members)
-        if (r.status != ClashStatus::kResolved) put(ClashRecordLine(r, a.names));
+        if (r.status != ClashStatus::kResolved) put(ClashRecordLine(g, r, a.names));
     }
     for (const ClashGroup& g : run.groups) {
       if (g.test != t.name) continue;
       for (const ClashRecord& r : g.members)
-        if (r.status == ClashStatus::kResolved) put(ClashRecordLine(r, a.names));
+        if (r.status == ClashStatus::kResolved) put(ClashRecordLine(g, r, a.names));
     }
     put(ClashTestSummaryLine(t, !a.compare.empty(), rss, run.scan_seconds));
   }

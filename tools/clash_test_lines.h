@@ -28,8 +28,8 @@ struct ClashTestsArgs {
   uint64_t revision = 0;
 };
 
-// The pair line of one record (a resolved record: its previous values).
-std::string ClashRecordLine(const ClashRecord& r, bool names);
+// The pair line of one record of `group` (a resolved record: its previous values).
+std::string ClashRecordLine(const ClashGroup& group, const ClashRecord& r, bool names);
 // The summary line of one test (scan_seconds: the run's selection scan, shared by its tests).
 std::string ClashTestSummaryLine(const ClashTestSummary& s, bool compared, uint64_t peak_rss_bytes,
                                  double scan_seconds);

@@ -4,8 +4,11 @@
 #include <cmath>
 #include <fstream>
 #include <map>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <set>
+#include <string_view>
+#include <unordered_map>
 #include <unordered_set>
 
 #include "engine/core/guarded.h"
@@ -51,20 +54,45 @@ void FromStable(ObjectIdentity* o) {
   if (o->stable.compare(bar + 1, 5, "name=") != 0) o->global_id = o->stable.substr(bar + 1);
 }
 
+// The identities of a previous run's lines, each distinct (id, stable identity, name) once.
+class PreviousIdentities {
+ public:
+  std::shared_ptr<const ObjectIdentity> Get(ObjectId id, std::string stable, std::string name) {
+    std::string k = std::to_string(id) + '\n' + stable + '\n' + name;
+    auto it = known_.find(k);
+    if (it != known_.end()) return it->second;
+    auto o = std::make_shared<ObjectIdentity>();
+    o->id = id;
+    o->stable = std::move(stable);
+    o->name = std::move(name);
+    FromStable(o.get());
+    known_.emplace(std::move(k), o);
+    return o;
+  }
+
+ private:
+  std::unordered_map<std::string, std::shared_ptr<const ObjectIdentity>> known_;
+};
+
+// Distinct strings, each once, by index.
+struct Interned {
+  std::vector<std::string> names;
+  std::unordered_map<std::string, uint32_t> index;
+  uint32_t Index(std::string s) {
+    auto [it, added] = index.try_emplace(std::move(s), static_cast<uint32_t>(names.size()));
+    if (added) names.push_back(it->first);
+    return it->second;
+  }
+};
+
 // One pair line of a previous run as a record (its status as written).
-ClashRecord RecordOf(const Json& j) {
+ClashRecord RecordOf(const Json& j, PreviousIdentities* identities) {
   ClashRecord r;
-  r.test = Str(j, "test");
   r.key = Str(j, "key");
-  r.group = Str(j, "group");
-  r.a.stable = Str(j, "id_a");
-  r.b.stable = Str(j, "id_b");
-  r.a.name = Str(j, "name_a");
-  r.b.name = Str(j, "name_b");
-  FromStable(&r.a);
-  FromStable(&r.b);
-  r.a.id = r.pair.a = static_cast<ObjectId>(U64(j, "a"));
-  r.b.id = r.pair.b = static_cast<ObjectId>(U64(j, "b"));
+  r.pair.a = static_cast<ObjectId>(U64(j, "a"));
+  r.pair.b = static_cast<ObjectId>(U64(j, "b"));
+  r.a = identities->Get(r.pair.a, Str(j, "id_a"), Str(j, "name_a"));
+  r.b = identities->Get(r.pair.b, Str(j, "id_b"), Str(j, "name_b"));
   r.pair.cls = ClassOf(Str(j, "class"));
   r.pair.distance = Real(j, "distance");
   r.pair.depth_lower = Real(j, "depth_lower");
@@ -102,7 +130,16 @@ Result<PreviousClashRun> ReadLines(const std::string& path) {
   PreviousClashRun run;
   run.file = path;
   std::map<std::string, size_t> test_at;
-  std::vector<std::pair<ClashRecord, uint64_t>> records;  // with their lines
+  // The pair lines are placed once the summaries are read (a test's summary follows its pairs): each
+  // line's test and group as indices into the distinct names seen, the records not resolved.
+  Interned tests, groups;
+  std::vector<std::pair<uint32_t, uint64_t>> test_of_line;  // (test, line number), every pair line
+  struct Pending {
+    ClashRecord record;
+    uint32_t test, group;
+  };
+  std::vector<Pending> pending;
+  PreviousIdentities identities;
   std::string line;
   uint64_t n = 0;
   while (std::getline(in, line)) {
@@ -126,17 +163,30 @@ Result<PreviousClashRun> ReadLines(const std::string& path) {
     if (Str(j, "test").empty() || Str(j, "key").empty())
       return Status::InvalidArgument(
           where + ": a line without \"test\" and \"key\" (not written by mktree clash --tests)");
-    records.emplace_back(RecordOf(j), n);
+    const uint32_t test = tests.Index(Str(j, "test"));
+    test_of_line.emplace_back(test, n);
+    ClashRecord r = RecordOf(j, &identities);
+    if (r.status != ClashStatus::kResolved)
+      pending.push_back({std::move(r), test, groups.Index(Str(j, "group"))});
   }
   if (in.bad()) return Status::IOError(path + ": cannot read the previous run");
   if (run.tests.empty())
     return Status::InvalidArgument(path + ": no test summary line (not the output of mktree clash --tests)");
-  for (auto& [r, at] : records) {
-    auto t = test_at.find(r.test);
+  std::vector<size_t> test_index(tests.names.size());
+  for (const auto& [test, at] : test_of_line) {
+    auto t = test_at.find(tests.names[test]);
     if (t == test_at.end())
-      return Status::InvalidArgument(path + ":" + std::to_string(at) + ": a clash of test \"" + r.test +
-                                     "\", which has no summary line");
-    if (r.status != ClashStatus::kResolved) run.tests[t->second].records.push_back(std::move(r));
+      return Status::InvalidArgument(path + ":" + std::to_string(at) + ": a clash of test \"" +
+                                     tests.names[test] + "\", which has no summary line");
+    test_index[test] = t->second;
+  }
+  std::vector<std::unordered_map<uint32_t, uint32_t>> group_at(run.tests.size());
+  for (Pending& p : pending) {
+    PreviousClashRun::Test& test = run.tests[test_index[p.test]];
+    auto [g, added] = group_at[test_index[p.test]].try_emplace(p.group, test.group_keys.size());
+    if (added) test.group_keys.push_back(groups.names[p.group]);
+    test.group_of.push_back(g->second);
+    test.records.push_back(std::move(p.record));
   }
   return run;
 }
@@ -176,19 +226,22 @@ Status CheckComparable(const PreviousClashRun& before, const std::vector<ClashTe
   return Status::Ok();
 }
 
-std::vector<ClashRecord> LabelAgainst(const PreviousClashRun::Test& before, std::vector<ClashRecord>* now) {
-  std::unordered_set<std::string> had, has;
+std::vector<ResolvedClash> LabelAgainst(const PreviousClashRun::Test& before, std::vector<ClashRecord>* now) {
+  // Views of keys that `before` and `*now` hold and outlive the sets.
+  std::unordered_set<std::string_view> had, has;
+  had.reserve(before.records.size());
+  has.reserve(now->size());
   for (const ClashRecord& r : before.records) had.insert(r.key);
   for (ClashRecord& r : *now) {
     r.status = had.count(r.key) ? ClashStatus::kActive : ClashStatus::kNew;
     has.insert(r.key);
   }
-  std::vector<ClashRecord> resolved;
-  for (const ClashRecord& r : before.records) {
-    if (has.count(r.key)) continue;
-    resolved.push_back(r);
-    resolved.back().status = ClashStatus::kResolved;
-    has.insert(r.key);  // once, should the previous file repeat it
+  std::vector<ResolvedClash> resolved;
+  for (size_t i = 0; i < before.records.size(); ++i) {
+    const ClashRecord& r = before.records[i];
+    if (!has.insert(r.key).second) continue;  // found now, or resolved already (a repeated line)
+    resolved.push_back({r, before.group_keys[before.group_of[i]]});
+    resolved.back().record.status = ClashStatus::kResolved;
   }
   return resolved;
 }

@@ -16,8 +16,14 @@ namespace mktree::coordination {
 // of the previous run that no selected object comes from now.
 Status CheckComparable(const PreviousClashRun& before, const std::vector<ClashTestSummary>& now);
 
+// A clash of the previous run not found now, with the key of the group it was in ("" when none).
+struct ResolvedClash {
+  ClashRecord record;
+  std::string group;
+};
+
 // Labels the test's records new or active against the previous run's records of that test, and returns
 // the previous records whose keys are not among them, as resolved (the previous values and names).
-std::vector<ClashRecord> LabelAgainst(const PreviousClashRun::Test& before, std::vector<ClashRecord>* now);
+std::vector<ResolvedClash> LabelAgainst(const PreviousClashRun::Test& before, std::vector<ClashRecord>* now);
 
 }  // namespace mktree::coordination

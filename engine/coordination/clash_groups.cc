@@ -21,14 +21,14 @@ int ClassRank(ClashClass c) { return c == ClashClass::kHard ? 0 : c == ClashClas
 // them for a clearance pair), which depends on the geometry only; the engine's contact point depends on
 // which object is a (the lower id). A resolved record without boxes: the middle of its points.
 Vec3d Where(const ClashRecord& r) {
-  if (r.a.box.empty() || r.b.box.empty()) {
+  if (r.a->box.empty() || r.b->box.empty()) {
     const ClashPair& p = r.pair;
     return {(p.point_a.x + p.point_b.x) / 2, (p.point_a.y + p.point_b.y) / 2,
             (p.point_a.z + p.point_b.z) / 2};
   }
   Vec3d at;
   for (int i = 0; i < 3; ++i)
-    at[i] = (std::max(r.a.box.min[i], r.b.box.min[i]) + std::min(r.a.box.max[i], r.b.box.max[i])) / 2;
+    at[i] = (std::max(r.a->box.min[i], r.b->box.min[i]) + std::min(r.a->box.max[i], r.b->box.max[i])) / 2;
   return at;
 }
 
@@ -61,8 +61,8 @@ std::vector<ClashGroup> ByElement(const std::string& test, std::vector<ClashReco
   };
   for (uint32_t i : order) {
     const ClashRecord& r = (*records)[i];
-    add(r.a.stable, i);
-    if (r.b.stable != r.a.stable) add(r.b.stable, i);
+    add(r.a->stable, i);
+    if (r.b->stable != r.a->stable) add(r.b->stable, i);
   }
   std::vector<uint32_t> nodes(identity.size());
   std::iota(nodes.begin(), nodes.end(), 0);
@@ -87,8 +87,8 @@ std::vector<ClashGroup> ByElement(const std::string& test, std::vector<ClashReco
     const std::string anchor_id(identity[anchors[k]]);
     g.key = Hex64(StableHash("element\n" + test + "\n" + anchor_id));
     const ClashRecord& first = (*records)[members[k].front()];
-    const ObjectIdentity& anchor = first.a.stable == anchor_id ? first.a : first.b;
-    const ObjectIdentity& other = first.a.stable == anchor_id ? first.b : first.a;
+    const ObjectIdentity& anchor = first.a->stable == anchor_id ? *first.a : *first.b;
+    const ObjectIdentity& other = first.a->stable == anchor_id ? *first.b : *first.a;
     g.title = members[k].size() == 1
                   ? Describe(anchor) + " with " + Describe(other)
                   : Describe(anchor) + ": " + std::to_string(members[k].size()) + " clashes";
@@ -175,10 +175,9 @@ void FinishGroup(ClashGroup* g) {
   int worst = 3;
   bool any_new = false, all_resolved = true, any_status = false;
   for (ClashRecord& r : g->members) {
-    r.group = g->key;
-    Grow(&g->box, r.a.box);
-    Grow(&g->box, r.b.box);
-    if (r.a.box.empty() || r.b.box.empty()) {
+    Grow(&g->box, r.a->box);
+    Grow(&g->box, r.b->box);
+    if (r.a->box.empty() || r.b->box.empty()) {
       g->box.Extend(r.pair.point_a.x, r.pair.point_a.y, r.pair.point_a.z);
       g->box.Extend(r.pair.point_b.x, r.pair.point_b.y, r.pair.point_b.z);
     }
@@ -217,7 +216,7 @@ bool WorseGroup(const ClashGroup& x, const ClashGroup& y) {
 std::vector<ClashGroup> GroupClashes(const std::string& test, std::vector<ClashRecord> records,
                                      ClashGrouping grouping, double distance) {
   // Key order first, so that ties and unions do not depend on the order the records came in (indices
-  // sorted: a record is a dozen strings to move).
+  // sorted, then each record moved once).
   std::vector<uint32_t> order(records.size());
   std::iota(order.begin(), order.end(), 0);
   std::sort(order.begin(), order.end(),

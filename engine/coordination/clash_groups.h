@@ -15,7 +15,7 @@ namespace mktree::coordination {
 // in, as one group anchored by it (key: the test and the anchor's identity). By proximity: the clashes
 // whose places (the middle of the overlap of the two objects' boxes) lie within `distance` of each other,
 // chained (single linkage over a grid of cells of that size; key: the test and its smallest member key).
-// Each record's group is set; groups come back worst first (class, then distance), then by key, each
+// Groups come back worst first (class, then distance), then by key, each
 // with its members in key order. Records with status kResolved and an empty box count by their points.
 std::vector<ClashGroup> GroupClashes(const std::string& test, std::vector<ClashRecord> records,
                                      ClashGrouping grouping, double distance);

@@ -2,6 +2,7 @@
 // scoped to its two sets, the rules, keys, comparison and groups.
 #include <algorithm>
 #include <chrono>
+#include <memory>
 #include <mutex>
 #include <string_view>
 #include <unordered_map>
@@ -92,15 +93,15 @@ Status ReadRecords(const Database& db, const std::vector<std::pair<ObjectId, Obj
   return Status::Ok();
 }
 
-ObjectIdentity IdentityOf(const ObjectRecord& r, std::string stable) {
-  ObjectIdentity o;
-  o.id = r.id;
-  o.name = r.name;
-  o.source = r.source;
-  o.ifc_type = std::string(coordination::AttributeValue(r, "ifc_type"));
-  o.global_id = std::string(coordination::AttributeValue(r, "ifc_global_id"));
-  o.stable = std::move(stable);
-  o.box = r.box;
+std::shared_ptr<const ObjectIdentity> IdentityOf(const ObjectRecord& r, std::string stable) {
+  auto o = std::make_shared<ObjectIdentity>();
+  o->id = r.id;
+  o->name = r.name;
+  o->source = r.source;
+  o->ifc_type = std::string(coordination::AttributeValue(r, "ifc_type"));
+  o->global_id = std::string(coordination::AttributeValue(r, "ifc_global_id"));
+  o->stable = std::move(stable);
+  o->box = r.box;
   return o;
 }
 
@@ -116,23 +117,22 @@ std::vector<ClashRecord> ApplyRules(const ClashTest& t, const std::vector<ClashP
                                     ClashTestSummary* summary) {
   const coordination::ClashRuleSet rules(t);
   std::vector<uint64_t> removed(rules.names().size(), 0);
-  // Each object's identity once, not once per pair.
-  std::unordered_map<ObjectId, ObjectIdentity> identity;
+  // Each object's identity once, shared by its records.
+  std::unordered_map<ObjectId, std::shared_ptr<const ObjectIdentity>> identity;
   identity.reserve(records.size());
   for (const auto& [id, r] : records) identity.emplace(id, IdentityOf(r, coordination::StableIdentity(r)));
   std::vector<ClashRecord> out;
   out.reserve(pairs.size());
   for (const ClashPair& p : pairs) {
-    const ObjectIdentity& ia = identity.at(p.a);
-    const ObjectIdentity& ib = identity.at(p.b);
-    std::string key = coordination::ClashKey(t.name, ia.stable, ib.stable);
-    const int rule = rules.Excluding(records.at(p.a), records.at(p.b), ia.stable, ib.stable, key);
+    const std::shared_ptr<const ObjectIdentity>& ia = identity.at(p.a);
+    const std::shared_ptr<const ObjectIdentity>& ib = identity.at(p.b);
+    std::string key = coordination::ClashKey(t.name, ia->stable, ib->stable);
+    const int rule = rules.Excluding(records.at(p.a), records.at(p.b), ia->stable, ib->stable, key);
     if (rule >= 0) {
       ++removed[rule];
       continue;
     }
     ClashRecord& r = out.emplace_back();
-    r.test = t.name;
     r.key = std::move(key);
     r.a = ia;
     r.b = ib;
@@ -224,14 +224,14 @@ void Summarise(const ClashTest& t, const TestSelections& sel, ClashTestSummary* 
 // The test's groups, with the resolved records of a comparison put in the group they were in when it is
 // still there, else in groups of their own (by their previous group keys).
 std::vector<ClashGroup> GroupWithResolved(const ClashTest& t, std::vector<ClashRecord> records,
-                                          std::vector<ClashRecord> resolved) {
+                                          std::vector<coordination::ResolvedClash> resolved) {
   std::vector<ClashGroup> groups =
       coordination::GroupClashes(t.name, std::move(records), t.grouping, t.group_distance);
   std::unordered_map<std::string, size_t> at;
   for (size_t i = 0; i < groups.size(); ++i) at[groups[i].key] = i;
   std::vector<size_t> touched;
-  for (ClashRecord& r : resolved) {
-    if (r.group.empty()) r.group = coordination::Hex64(coordination::StableHash("resolved\n" + r.key));
+  for (coordination::ResolvedClash& r : resolved) {
+    if (r.group.empty()) r.group = coordination::Hex64(coordination::StableHash("resolved\n" + r.record.key));
     auto it = at.find(r.group);
     if (it == at.end()) {
       it = at.emplace(r.group, groups.size()).first;
@@ -240,7 +240,7 @@ std::vector<ClashGroup> GroupWithResolved(const ClashTest& t, std::vector<ClashR
       g.test = t.name;
       groups.push_back(std::move(g));
     }
-    groups[it->second].members.push_back(std::move(r));
+    groups[it->second].members.push_back(std::move(r.record));
     touched.push_back(it->second);
   }
   std::sort(touched.begin(), touched.end());
@@ -277,7 +277,7 @@ Status Run(const Database& db, const ClashTestFile& file, const ClashTestOptions
       s.warnings.push_back(std::to_string(shared) +
                            " clashes share their key with another (objects without "
                            "a unique GlobalId or name in their source model)");
-    std::vector<ClashRecord> resolved;
+    std::vector<coordination::ResolvedClash> resolved;
     if (options.previous) {
       for (const PreviousClashRun::Test& before : options.previous->tests)
         if (before.name == t.name) resolved = coordination::LabelAgainst(before, &records);

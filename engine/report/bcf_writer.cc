@@ -82,7 +82,7 @@ std::string Description(const ClashGroup& g, uint32_t listed) {
     if (n == listed) break;
     d += '\n';
     d += std::to_string(++n) + ". " + report::ClassName(r.pair.cls) + ", " + report::DepthOrGap(r.pair) +
-         ": " + report::ObjectLine(r.a) + " and " + report::ObjectLine(r.b);
+         ": " + report::ObjectLine(*r.a) + " and " + report::ObjectLine(*r.b);
     if (r.status != ClashStatus::kNone) d += " [" + std::string(report::StatusName(r.status)) + "]";
   }
   if (g.members.size() > n) d += "\n(and " + std::to_string(g.members.size() - n) + " more)";
@@ -260,8 +260,8 @@ BcfTopic BcfTopicOf(const ClashGroup& g, const BcfOptions& o, bool with_snapshot
   t.status = g.status == ClashStatus::kResolved ? o.closed_status : o.open_status;
   t.title = g.title;
   if (t.title.empty() && !g.members.empty())
-    t.title = std::string(report::ClassName(g.worst)) + ": " + report::ObjectLine(g.members[0].a) + " and " +
-              report::ObjectLine(g.members[0].b);
+    t.title = std::string(report::ClassName(g.worst)) + ": " + report::ObjectLine(*g.members[0].a) + " and " +
+              report::ObjectLine(*g.members[0].b);
   if (Blank(t.title)) t.title = "Clash group " + g.key;
   t.description = Description(g, o.listed_members);
   t.creation_date = BcfDateTime(o.creation_time);
@@ -288,7 +288,7 @@ BcfTopic BcfTopicOf(const ClashGroup& g, const BcfOptions& o, bool with_snapshot
       it->second = c;
     }
   };
-  for (const ClashRecord& r : g.members) add(r.a, r.pair.cls), add(r.b, r.pair.cls);
+  for (const ClashRecord& r : g.members) add(*r.a, r.pair.cls), add(*r.b, r.pair.cls);
   for (ClashClass c : {ClashClass::kHard, ClashClass::kTouch, ClashClass::kClearance}) {
     BcfColouring colouring{ClassColour(c), {}};
     for (const std::string& id : v.selected)

@@ -56,13 +56,14 @@ Result<std::vector<uint8_t>> RenderGroupSnapshot(const StoreReader& store, const
   const ClashRecord* worst = report::WorstMember(group);
   Box3f box;  // the members' objects' stored boxes (store frame)
   for (const ClashRecord& r : group.members) {
-    if (r.a.id >= store.object_count() || r.b.id >= store.object_count())
+    if (r.a->id >= store.object_count() || r.b->id >= store.object_count())
       return Status::InvalidArgument(store.path() + ": clash group " + group.key + " names object " +
-                                     std::to_string(std::max(r.a.id, r.b.id)) + ", past the store's " +
+                                     std::to_string(std::max(r.a->id, r.b->id)) + ", past the store's " +
                                      std::to_string(store.object_count()) + " objects");
     const ClashMark m = MarkOf(r.pair.cls);
     ++marks.pairs[static_cast<int>(m)];
-    for (ObjectId id : {r.a.id, r.b.id}) marks.worst[id] = std::max(marks.worst[id], static_cast<uint8_t>(m));
+    for (ObjectId id : {r.a->id, r.b->id})
+      marks.worst[id] = std::max(marks.worst[id], static_cast<uint8_t>(m));
   }
   const Vec3d& origin = store.tree().origin;
   for (int k = 0; k < 3 && !group.box.empty(); ++k) {  // the group's world box in the store frame
@@ -76,7 +77,7 @@ Result<std::vector<uint8_t>> RenderGroupSnapshot(const StoreReader& store, const
     if (!b.ok()) return b.status();
     box.Extend(*b);
   }
-  marks.focus = MarkedPair{worst->a.id, worst->b.id, MarkOf(worst->pair.cls), 0};
+  marks.focus = MarkedPair{worst->a->id, worst->b->id, MarkOf(worst->pair.cls), 0};
   ClashRenderOptions ro;
   ro.view = o.view;
   ro.width = o.width;

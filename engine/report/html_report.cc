@@ -205,14 +205,14 @@ std::string GroupHtml(const ClashGroup& g, size_t rank, const std::string& png_b
     if (n == members) break;
     ++n;
     for (const std::string* f :
-         {&r.a.name, &r.a.ifc_type, &r.a.global_id, &r.b.name, &r.b.ifc_type, &r.b.global_id}) {
+         {&r.a->name, &r.a->ifc_type, &r.a->global_id, &r.b->name, &r.b->ifc_type, &r.b->global_id}) {
       text.push_back(' ');
       text += Lower(*f);
     }
     rows += "<tr><td class=\"n\">" + N(n) + "</td><td><span class=\"cls " +
             std::string(report::ClassName(r.pair.cls)) + "\">" + report::ClassName(r.pair.cls) +
-            "</span></td><td>" + Esc(report::DepthOrGap(r.pair)) + "</td><td>" + ObjectCell(r.a) +
-            "</td><td>" + ObjectCell(r.b) + "</td><td>" + Esc(report::StatusName(r.status)) + "</td></tr>\n";
+            "</span></td><td>" + Esc(report::DepthOrGap(r.pair)) + "</td><td>" + ObjectCell(*r.a) +
+            "</td><td>" + ObjectCell(*r.b) + "</td><td>" + Esc(report::StatusName(r.status)) + "</td></tr>\n";
   }
   *listed = n;
   std::string worst_text;

@@ -3,12 +3,15 @@
 // engine/report/, the Python module). RunClashTests fills it; docs/clash_workflow.md is the account of keys,
 // groups and statuses.
 //
-// Memory: a run holds its groups and, per group, its members' records. The records of one group are kept
-// in the group; nothing here holds the store's objects.
-// Thread safety: plain values.
+// Memory: a run holds its groups and, per group, its members' records: per clash a small fixed record (the
+// pair as the engine found it, its key, its status and two shared pointers), and one ObjectIdentity per
+// distinct object of the run, shared by every record that names it (a record's test and group are those of
+// the group holding it). Nothing here holds the store's objects.
+// Thread safety: plain values; the identities are immutable once shared (copies of a run share them).
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
@@ -36,13 +39,14 @@ struct ObjectIdentity {
 // A clash against a previous run (`--compare`): found now and not before, found in both, found before only.
 enum class ClashStatus : uint8_t { kNone, kNew, kActive, kResolved };
 
+// One clash of a test. Its test is its group's (ClashGroup::test) and its group key its group's
+// (ClashGroup::key).
 struct ClashRecord {
-  std::string test;  // the clash test's name
-  std::string key;   // stable: the test and both objects' stable identities, independent of ids and A/B order
-  ObjectIdentity a, b;
-  ClashPair pair;  // as the clash engine found it (a resolved clash: the previous run's values)
+  // The two objects, shared with every other record of the run naming them (never null in a run).
+  std::shared_ptr<const ObjectIdentity> a, b;
+  std::string key;  // stable: the test and both objects' stable identities, independent of ids and A/B order
+  ClashPair pair;   // as the clash engine found it (a resolved clash: the previous run's values)
   ClashStatus status = ClashStatus::kNone;
-  std::string group;  // the key of its group (ClashGroup::key)
 };
 
 struct ClashGroup {

@@ -131,9 +131,14 @@ struct PreviousClashRun {
     std::string name, fingerprint;
     uint64_t selected_a = 0, selected_b = 0;
     std::vector<std::string> sources;
-    // Status as recorded; of the identities: name (with --names), stable, and from it the source's file
-    // name and the GlobalId; no box, no IFC type.
+    // The pair lines that were not resolved, status as recorded; of the identities (one per distinct
+    // stable identity and name in the file, shared): name (with --names), stable, and from it the
+    // source's file name and the GlobalId; no box, no IFC type.
     std::vector<ClashRecord> records;
+    // The key of the group each record was in (records[i] in group_keys[group_of[i]]; "" when the line
+    // had none), each distinct key once.
+    std::vector<uint32_t> group_of;
+    std::vector<std::string> group_keys;
   };
   std::string file;
   std::vector<Test> tests;

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <map>
+#include <memory>
 #include <numeric>
 #include <random>
 #include <set>
@@ -29,9 +30,8 @@ ObjectIdentity Object(int i, const Vec3d& at, double half = 0.1) {
 
 ClashRecord Clash(const ObjectIdentity& a, const ObjectIdentity& b, ClashClass cls, double distance) {
   ClashRecord r;
-  r.test = "t";
-  r.a = a;
-  r.b = b;
+  r.a = std::make_shared<const ObjectIdentity>(a);
+  r.b = std::make_shared<const ObjectIdentity>(b);
   r.key = coordination::ClashKey("t", a.stable, b.stable);
   r.pair.a = a.id;
   r.pair.b = b.id;
@@ -44,10 +44,7 @@ std::set<std::set<std::string>> Partition(const std::vector<ClashGroup>& groups)
   std::set<std::set<std::string>> out;
   for (const ClashGroup& g : groups) {
     std::set<std::string> keys;
-    for (const ClashRecord& r : g.members) {
-      keys.insert(r.key);
-      EXPECT_EQ(r.group, g.key);
-    }
+    for (const ClashRecord& r : g.members) keys.insert(r.key);
     out.insert(keys);
   }
   return out;

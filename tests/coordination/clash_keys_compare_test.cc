@@ -32,8 +32,8 @@ const char* kSwapped = R"({"tests": [
 // test/key -> (identity a, identity b, group), with identities sorted.
 std::map<std::string, std::tuple<std::string, std::string, std::string>> Keyed(const ClashRun& run) {
   std::map<std::string, std::tuple<std::string, std::string, std::string>> out;
-  for (const ClashRecord& r : testing::Records(run)) {
-    auto ids = std::minmax(r.a.stable, r.b.stable);
+  for (const testing::RunRecord& r : testing::Records(run)) {
+    auto ids = std::minmax(r.a->stable, r.b->stable);
     EXPECT_TRUE(out.emplace(r.test + "/" + r.key, std::tuple{ids.first, ids.second, r.group}).second);
   }
   return out;
@@ -88,8 +88,12 @@ PreviousClashRun AsPrevious(const ClashRun& run) {
     t.selected_a = s.selected_a;
     t.selected_b = s.selected_b;
     t.sources = s.sources;
-    for (const ClashRecord& r : testing::Records(run))
-      if (r.test == s.name && r.status != ClashStatus::kResolved) t.records.push_back(r);
+    for (const testing::RunRecord& r : testing::Records(run))
+      if (r.test == s.name && r.status != ClashStatus::kResolved) {
+        t.records.push_back(r);
+        t.group_of.push_back(static_cast<uint32_t>(t.group_keys.size()));
+        t.group_keys.push_back(r.group);
+      }
     p.tests.push_back(std::move(t));
   }
   return p;
@@ -99,9 +103,9 @@ PreviousClashRun AsPrevious(const ClashRun& run) {
 std::pair<ObjectId, ObjectId> LoneClash(const ClashRun& run, const std::string& test) {
   std::map<ObjectId, int> degree;
   const auto records = testing::Records(run);
-  for (const ClashRecord& r : records)
+  for (const testing::RunRecord& r : records)
     if (r.test == test) ++degree[r.pair.a], ++degree[r.pair.b];
-  for (const ClashRecord& r : records)
+  for (const testing::RunRecord& r : records)
     if (r.test == test && degree[r.pair.a] == 1) return {r.pair.a, r.pair.b};
   ADD_FAILURE() << "no object with one clash";
   return {0, 0};
@@ -140,14 +144,14 @@ TEST(ClashCompare, RevisionResolvesOneAndAddsOne) {
   EXPECT_EQ(s.new_clashes, 1u);
   EXPECT_EQ(s.active, n_before - 1);
   uint64_t resolved = 0, fresh = 0;
-  for (const ClashRecord& r : testing::Records(after)) {
+  for (const testing::RunRecord& r : testing::Records(after)) {
     if (r.status == ClashStatus::kResolved) {
       ++resolved;
       EXPECT_TRUE(r.pair.a == lone || r.pair.b == lone);
     }
     if (r.status == ClashStatus::kNew) {
       ++fresh;
-      EXPECT_TRUE(r.a.global_id == "GNEW" || r.b.global_id == "GNEW");
+      EXPECT_TRUE(r.a->global_id == "GNEW" || r.b->global_id == "GNEW");
       EXPECT_TRUE(r.pair.a == host || r.pair.b == host);
     }
   }

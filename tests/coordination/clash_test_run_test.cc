@@ -102,7 +102,7 @@ void ExpectBrute(const ClashRun& run, const BruteTest& t, const std::vector<Scen
     }
   }
   std::set<std::pair<ObjectId, ObjectId>> got;
-  for (const ClashRecord& r : testing::Records(run))
+  for (const testing::RunRecord& r : testing::Records(run))
     if (r.test == t.name) EXPECT_TRUE(got.insert({r.pair.a, r.pair.b}).second) << "a pair twice";
   EXPECT_EQ(got, want);
   uint64_t excluded = 0;
@@ -177,14 +177,14 @@ TEST(ClashTests, SelectionsAndRulesAgainstBruteForce) {
 
   // Approved pairs, by key and by identities, are removed and counted.
   std::vector<ClashRecord> found;
-  for (const ClashRecord& r : testing::Records(run))
+  for (const testing::RunRecord& r : testing::Records(run))
     if (r.test == "structure") found.push_back(r);
   ASSERT_GE(found.size(), 2u);
   const std::string approving = R"({"tests": [
     {"name": "structure", "a": {}, "b": {"source": ["*structure.ifc"], "exclude": {"ifc_type": ["IfcSpace"]}},
      "rules": ["hosted_fillings", "same_aggregate", {"approved": [")" +
-                                found[0].key + R"(", [")" + found[1].b.stable + R"(", ")" +
-                                found[1].a.stable + R"("]]}]}]})";
+                                found[0].key + R"(", [")" + found[1].b->stable + R"(", ")" +
+                                found[1].a->stable + R"("]]}]}]})";
   const ClashRun approved = testing::RunTests(*db, testing::Tests(approving));
   structure.rules.approved = {{found[0].pair.a, found[0].pair.b}, {found[1].pair.a, found[1].pair.b}};
   ExpectBrute(approved, structure, scene, all);
@@ -208,7 +208,7 @@ TEST(ClashTests, ModesAgainstTheSelfClash) {
     want_c.insert({p.a, p.b});
     if (p.cls == ClashClass::kHard) want_h.insert({p.a, p.b});
   }
-  for (const ClashRecord& r : testing::Records(run))
+  for (const testing::RunRecord& r : testing::Records(run))
     (r.test == "c" ? got_c : got_h).insert({r.pair.a, r.pair.b});
   EXPECT_EQ(got_c, want_c);
   EXPECT_EQ(got_h, want_h);
@@ -246,11 +246,11 @@ TEST(ClashTests, NarrowTestReadsFewerPages) {
       if (a.key == "zone" && a.value == z) return true;
     return false;
   };
-  for (const ClashRecord& r : testing::Records(w)) {
+  for (const testing::RunRecord& r : testing::Records(w)) {
     const ObjectId a = r.pair.a, b = r.pair.b;
     if ((zone(a, "a") && zone(b, "b")) || (zone(a, "b") && zone(b, "a"))) want.insert({a, b});
   }
-  for (const ClashRecord& r : testing::Records(n)) got.insert({r.pair.a, r.pair.b});
+  for (const testing::RunRecord& r : testing::Records(n)) got.insert({r.pair.a, r.pair.b});
   EXPECT_EQ(got, want);
   EXPECT_GT(got.size(), 5u);
 }

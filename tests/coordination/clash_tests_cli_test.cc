@@ -89,7 +89,7 @@ TEST_F(ClashTestsCli, LinesPerTestAgreeWithTheLibrary) {
   EXPECT_EQ(order, (std::vector<std::string>{"mep-vs-structure", "all", "nothing"}));
   for (const ClashTestSummary& s : run.tests) {
     std::set<std::string> want;
-    for (const ClashRecord& rec : testing::Records(run))
+    for (const testing::RunRecord& rec : testing::Records(run))
       if (rec.test == s.name) want.insert(rec.key);
     EXPECT_EQ(keys_by_test[s.name], want) << s.name;
     const Json& j = summary[s.name];
@@ -156,7 +156,7 @@ TEST_F(ClashTestsCli, CompareWithAnotherStore) {
         for (const ClashRecord& rec : t.records)
           if (rec.key == j.at("key")) {
             seen = true;
-            for (const ObjectIdentity* o : {&rec.a, &rec.b}) {
+            for (const ObjectIdentity* o : {rec.a.get(), rec.b.get()}) {
               EXPECT_TRUE(o->source == "mep.ifc" || o->source == "structure.ifc") << o->source;
               if (o->stable.find("|name=") == std::string::npos) {
                 EXPECT_EQ(o->stable, o->source + "|" + o->global_id);

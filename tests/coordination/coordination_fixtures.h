@@ -140,11 +140,17 @@ inline ClashRun RunTests(const Database& db, const ClashTestFile& tests, const C
   return run;
 }
 
+// A record of a run with its group's test and key.
+struct RunRecord : ClashRecord {
+  std::string test, group;
+};
+
 // Every record of the run's groups (resolved ones included), by test and key.
-inline std::vector<ClashRecord> Records(const ClashRun& run) {
-  std::vector<ClashRecord> out;
-  for (const ClashGroup& g : run.groups) out.insert(out.end(), g.members.begin(), g.members.end());
-  std::sort(out.begin(), out.end(), [](const ClashRecord& x, const ClashRecord& y) {
+inline std::vector<RunRecord> Records(const ClashRun& run) {
+  std::vector<RunRecord> out;
+  for (const ClashGroup& g : run.groups)
+    for (const ClashRecord& r : g.members) out.push_back({r, g.test, g.key});
+  std::sort(out.begin(), out.end(), [](const RunRecord& x, const RunRecord& y) {
     return std::tie(x.test, x.key) < std::tie(y.test, y.key);
   });
   return out;

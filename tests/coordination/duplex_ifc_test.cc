@@ -33,8 +33,9 @@ TEST(DuplexIfc, TypeSelectionsAndGlobalIdKeys) {
                     {}, [&](const ClashPair& p) { all.push_back(p); }, nullptr)
                   .ok());
   const ClashRun run = testing::RunTests(*db, testing::Tests(R"({"tests": [
-    {"name": "openings", "a": {"ifc_type": ["IfcDoor", "IfcWindow"]}, "b": {"ifc_type": ["IfcWall"]}},
-    {"name": "all", "a": {}}]})"));
+    {"name": "openings", "a": {"ifc_type": ["IfcDoor", "IfcWindow"]}, "b": {"ifc_type": ["IfcWall"]},
+     "rules": [], "keep_spatial": true},
+    {"name": "all", "a": {}, "rules": [], "keep_spatial": true}]})"));
   const std::set<std::string> fillings{"IfcDoor", "IfcWindow", "IfcDoorStandardCase",
                                        "IfcWindowStandardCase"};
   const std::set<std::string> walls{"IfcWall", "IfcWallStandardCase", "IfcWallElementedCase"};
@@ -46,17 +47,17 @@ TEST(DuplexIfc, TypeSelectionsAndGlobalIdKeys) {
       want.insert({p.a, p.b});
   }
   size_t standard_case_walls = 0;
-  for (const ClashRecord& r : testing::Records(run)) {
+  for (const testing::RunRecord& r : testing::Records(run)) {
     (r.test == "openings" ? got : got_all).insert({r.pair.a, r.pair.b});
-    for (const ObjectIdentity* o : {&r.a, &r.b}) {
+    for (const ObjectIdentity* o : {r.a.get(), r.b.get()}) {
       ASSERT_FALSE(o->global_id.empty());
       EXPECT_EQ(o->stable, "duplex.ifc|" + o->global_id);
       standard_case_walls += o->ifc_type == "IfcWallStandardCase";
     }
-    EXPECT_EQ(r.key, coordination::ClashKey(r.test, r.a.stable, r.b.stable));
+    EXPECT_EQ(r.key, coordination::ClashKey(r.test, r.a->stable, r.b->stable));
   }
   EXPECT_EQ(got, want);
-  EXPECT_EQ(got_all, want_all);  // no spatial container, no relation: nothing removed
+  EXPECT_EQ(got_all, want_all);  // no rule, spatial containers kept: nothing removed
   EXPECT_GT(want.size(), 20u);
   EXPECT_GT(standard_case_walls, 0u);  // "IfcWall" selected its subtype
   for (const ClashTestSummary& s : run.tests) {

@@ -64,7 +64,7 @@ TEST(Duplicates, AgainstBruteForce) {
       testing::Tests(
           R"({"tests": [{"name": "d", "a": {}, "mode": "duplicates", "tolerance": 0.001, "keep_spatial": true, "rules": []}]})"));
   std::set<std::pair<ObjectId, ObjectId>> got, want;
-  for (const ClashRecord& r : testing::Records(run)) got.insert({r.pair.a, r.pair.b});
+  for (const testing::RunRecord& r : testing::Records(run)) got.insert({r.pair.a, r.pair.b});
   // Brute force over the stored meshes (float32 in the store): every pair.
   std::vector<Mesh> stored;
   for (ObjectId i = 0; i < scene.size(); ++i) {

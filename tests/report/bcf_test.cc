@@ -252,12 +252,16 @@ TEST_P(BcfVersions, HostileTextStillValidates) {
   ClashGroup& g = run.groups[1];
   g.title = "  ";
   g.test = "";
-  g.members[0].a.name =
+  auto a = std::make_shared<ObjectIdentity>(*g.members[0].a);
+  auto b = std::make_shared<ObjectIdentity>(*g.members[0].b);
+  a->name =
       "\x01"
       "bell\x07 and \xff\xfe bytes ]]> <!-- -->";
-  g.members[0].b.name = " ";
-  g.members[0].b.stable = "";
-  g.members[0].a.source = "dir/";
+  b->name = " ";
+  b->stable = "";
+  a->source = "dir/";
+  g.members[0].a = a;
+  g.members[0].b = b;
   BcfOptions o = Fixed(GetParam());
   o.author = " ";
   o.open_status = "";
@@ -439,7 +443,9 @@ TEST(BcfStore, SnapshotOfForeignObjectsIsRefused) {
   auto sr = DuplexRun(Dir(), 1);
   if (!sr) GTEST_SKIP() << "../shared/data/buildings/duplex.obj missing";
   ClashGroup g = sr->run.groups.at(0);
-  g.members[0].b.id = g.members[0].pair.b = static_cast<ObjectId>(sr->reader->object_count() + 5);
+  auto foreign = std::make_shared<ObjectIdentity>(*g.members[0].b);
+  foreign->id = g.members[0].pair.b = static_cast<ObjectId>(sr->reader->object_count() + 5);
+  g.members[0].b = foreign;
   auto png = RenderGroupSnapshot(*sr->reader, g, {});
   ASSERT_FALSE(png.ok());
   EXPECT_NE(png.status().message().find(sr->store), std::string::npos) << png.status().message();

@@ -39,10 +39,9 @@ inline ObjectIdentity Ident(ObjectId id, std::string name, std::string type, std
 inline ClashRecord Record(const std::string& test, const ObjectIdentity& a, const ObjectIdentity& b,
                           ClashClass c, double distance, ClashStatus status) {
   ClashRecord r;
-  r.test = test;
   r.key = test + "|" + std::min(a.stable, b.stable) + "|" + std::max(a.stable, b.stable);
-  r.a = a;
-  r.b = b;
+  r.a = std::make_shared<const ObjectIdentity>(a);
+  r.b = std::make_shared<const ObjectIdentity>(b);
   r.pair.a = a.id;
   r.pair.b = b.id;
   r.pair.cls = c;
@@ -52,11 +51,11 @@ inline ClashRecord Record(const std::string& test, const ObjectIdentity& a, cons
   return r;
 }
 
-inline ClashGroup Group(std::string key, std::string title, std::vector<ClashRecord> members, Box3d box,
-                        ClashStatus status) {
+inline ClashGroup Group(std::string test, std::string key, std::string title,
+                        std::vector<ClashRecord> members, Box3d box, ClashStatus status) {
   ClashGroup g;
   g.key = std::move(key);
-  g.test = members.empty() ? "" : members[0].test;
+  g.test = std::move(test);
   g.title = std::move(title);
   g.box = box;
   g.centre = {(box.min[0] + box.max[0]) / 2, (box.min[1] + box.max[1]) / 2, (box.min[2] + box.max[2]) / 2};
@@ -118,17 +117,17 @@ inline ClashRun HandRun() {
                         .excluded_by_rule = {{"same_aggregate", 3}},
                         .warnings = {"selection b matched nothing"}};
   run.tests = {mep, self};
+  run.groups.push_back(Group(
+      "mep-vs-structure", "mep-vs-structure|" + beam.stable, "IfcBeam Beam B-12 hit by 2 IfcDuctSegment",
+      {Record("mep-vs-structure", beam, duct1, ClashClass::kHard, -0.04, ClashStatus::kNew),
+       Record("mep-vs-structure", beam, duct2, ClashClass::kHard, -0.012, ClashStatus::kActive)},
+      BoxOf(0, 0, 2.5, 6, 0.4, 3.1), ClashStatus::kNew));
   run.groups.push_back(
-      Group("mep-vs-structure|" + beam.stable, "IfcBeam Beam B-12 hit by 2 IfcDuctSegment",
-            {Record("mep-vs-structure", beam, duct1, ClashClass::kHard, -0.04, ClashStatus::kNew),
-             Record("mep-vs-structure", beam, duct2, ClashClass::kHard, -0.012, ClashStatus::kActive)},
-            BoxOf(0, 0, 2.5, 6, 0.4, 3.1), ClashStatus::kNew));
-  run.groups.push_back(
-      Group("architecture|" + wall.stable, "wall-north touches slab-1",
+      Group("architecture", "architecture|" + wall.stable, "wall-north touches slab-1",
             {Record("architecture", wall, slab, ClashClass::kTouch, 0, ClashStatus::kActive)},
             BoxOf(-1, -1, 0, 9, 0.3, 3), ClashStatus::kActive));
   run.groups.push_back(
-      Group("mep-vs-structure|" + pipe.stable, "Pipe P-7 near Beam B-12",
+      Group("mep-vs-structure", "mep-vs-structure|" + pipe.stable, "Pipe P-7 near Beam B-12",
             {Record("mep-vs-structure", beam, pipe, ClashClass::kClearance, 0.03, ClashStatus::kResolved)},
             BoxOf(5, 0, 2.4, 6.2, 0.5, 3.1), ClashStatus::kResolved));
   return run;
@@ -208,7 +207,7 @@ inline std::unique_ptr<StoreRun> DuplexRun(const testing::TempDir& dir, size_t m
     Box3d box = ra->box;
     for (int k = 0; k < 3; ++k)
       box.min[k] = std::min(box.min[k], rb->box.min[k]), box.max[k] = std::max(box.max[k], rb->box.max[k]);
-    out->run.groups.push_back(Group("self|" + std::to_string(p.a) + "|" + std::to_string(p.b),
+    out->run.groups.push_back(Group("self", "self|" + std::to_string(p.a) + "|" + std::to_string(p.b),
                                     ra->name + " and " + rb->name, {r}, box, ClashStatus::kNone));
   }
   auto reader = StoreReader::Open(out->store);
