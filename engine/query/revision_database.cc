@@ -14,8 +14,8 @@
 #include "engine/query/nearest_search.h"
 #include "engine/query/ordered_batch.h"
 #include "engine/query/part_queries.h"
-#include "engine/query/sharded_database.h"
 #include "engine/query/ray_search.h"
+#include "engine/query/sharded_database.h"
 #include "engine/store_format/store_file.h"
 
 namespace mktree {
