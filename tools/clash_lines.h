@@ -59,17 +59,9 @@ inline const char* MeetingName(ClashMeeting m) {
   return "cross";
 }
 
-// The JSON line of one pair; in collide, b (the query object) is -1. With names (--names), name_a and
-// name_b follow b (name_b is null in collide). With a status (clash --since: "new" or "resolved"), a last
-// key "status".
-inline std::string PairLine(const ClashPair& p, const std::string* name_a = nullptr,
-                            const std::string* name_b = nullptr, const char* status = nullptr) {
-  std::string s = "{\"a\": " + std::to_string(p.a) + ", \"b\": ";
-  s += p.b == kCollideObject ? std::string("-1") : std::to_string(p.b);
-  if (name_a) {
-    s += ", \"name_a\": \"" + JsonText(*name_a) + "\", \"name_b\": ";
-    s += name_b ? "\"" + JsonText(*name_b) + "\"" : std::string("null");
-  }
+// The fields every pair line has: class, distance, depth bounds and the two points.
+inline void AppendPairMeasures(std::string* out, const ClashPair& p) {
+  std::string& s = *out;
   s += ", \"class\": \"";
   s += ClassName(p.cls);
   s += "\", \"distance\": ";
@@ -84,6 +76,20 @@ inline std::string PairLine(const ClashPair& p, const std::string* name_a = null
   AppendPoint(&s, p.point_a);
   s += ", \"point_b\": ";
   AppendPoint(&s, p.point_b);
+}
+
+// The JSON line of one pair; in collide, b (the query object) is -1. With names (--names), name_a and
+// name_b follow b (name_b is null in collide). With a status (clash --since: "new" or "resolved"), a last
+// key "status".
+inline std::string PairLine(const ClashPair& p, const std::string* name_a = nullptr,
+                            const std::string* name_b = nullptr, const char* status = nullptr) {
+  std::string s = "{\"a\": " + std::to_string(p.a) + ", \"b\": ";
+  s += p.b == kCollideObject ? std::string("-1") : std::to_string(p.b);
+  if (name_a) {
+    s += ", \"name_a\": \"" + JsonText(*name_a) + "\", \"name_b\": ";
+    s += name_b ? "\"" + JsonText(*name_b) + "\"" : std::string("null");
+  }
+  AppendPairMeasures(&s, p);
   s += ", \"meeting\": \"";
   s += MeetingName(p.meeting);
   s += "\", \"resolution\": ";

@@ -40,20 +40,7 @@ std::string ClashRecordLine(const ClashGroup& group, const ClashRecord& r, bool 
     AppendString(&s, "name_a", r.a->name);
     AppendString(&s, "name_b", r.b->name);
   }
-  s += ", \"class\": \"";
-  s += ClassName(p.cls);
-  s += "\", \"distance\": ";
-  AppendReal(&s, p.distance);
-  s += ", \"depth_lower\": ";
-  AppendReal(&s, p.depth_lower);
-  s += ", \"depth_upper\": ";
-  AppendReal(&s, p.depth_upper);
-  s += ", \"depth_exact\": ";
-  s += p.depth_exact ? "true" : "false";
-  s += ", \"point_a\": ";
-  AppendPoint(&s, p.point_a);
-  s += ", \"point_b\": ";
-  AppendPoint(&s, p.point_b);
+  AppendPairMeasures(&s, p);
   if (r.status != ClashStatus::kResolved) {
     s += ", \"meeting\": \"";
     s += MeetingName(p.meeting);

@@ -71,19 +71,19 @@ std::string ComponentId(const ObjectIdentity& o) {
 }
 
 std::string Description(const ClashGroup& g, uint32_t listed) {
-  std::string d = std::string(report::ClassName(g.worst)) + " clash group of test '" + g.test +
+  std::string d = std::string(ClashClassName(g.worst)) + " clash group of test '" + g.test +
                   "': " + std::to_string(g.members.size()) + (g.members.size() == 1 ? " clash" : " clashes");
   if (const ClashRecord* worst = report::WorstMember(g))
-    d += ", worst " + std::string(report::ClassName(worst->pair.cls)) + " " + report::DepthOrGap(worst->pair);
+    d += ", worst " + std::string(ClashClassName(worst->pair.cls)) + " " + report::DepthOrGap(worst->pair);
   d += ".";
-  if (g.status != ClashStatus::kNone) d += " Status: " + std::string(report::StatusName(g.status)) + ".";
+  if (g.status != ClashStatus::kNone) d += " Status: " + std::string(ClashStatusName(g.status)) + ".";
   size_t n = 0;
   for (const ClashRecord& r : g.members) {
     if (n == listed) break;
     d += '\n';
-    d += std::to_string(++n) + ". " + report::ClassName(r.pair.cls) + ", " + report::DepthOrGap(r.pair) +
-         ": " + report::ObjectLine(*r.a) + " and " + report::ObjectLine(*r.b);
-    if (r.status != ClashStatus::kNone) d += " [" + std::string(report::StatusName(r.status)) + "]";
+    d += std::to_string(++n) + ". " + ClashClassName(r.pair.cls) + ", " + report::DepthOrGap(r.pair) + ": " +
+         report::ObjectLine(*r.a) + " and " + report::ObjectLine(*r.b);
+    if (r.status != ClashStatus::kNone) d += " [" + std::string(ClashStatusName(r.status)) + "]";
   }
   if (g.members.size() > n) d += "\n(and " + std::to_string(g.members.size() - n) + " more)";
   return d;
@@ -260,15 +260,15 @@ BcfTopic BcfTopicOf(const ClashGroup& g, const BcfOptions& o, bool with_snapshot
   t.status = g.status == ClashStatus::kResolved ? o.closed_status : o.open_status;
   t.title = g.title;
   if (t.title.empty() && !g.members.empty())
-    t.title = std::string(report::ClassName(g.worst)) + ": " + report::ObjectLine(*g.members[0].a) + " and " +
+    t.title = std::string(ClashClassName(g.worst)) + ": " + report::ObjectLine(*g.members[0].a) + " and " +
               report::ObjectLine(*g.members[0].b);
   if (Blank(t.title)) t.title = "Clash group " + g.key;
   t.description = Description(g, o.listed_members);
   t.creation_date = BcfDateTime(o.creation_time);
   t.author = o.author;
-  t.labels.push_back(report::ClassName(g.worst));
+  t.labels.push_back(ClashClassName(g.worst));
   if (!Blank(g.test)) t.labels.push_back(g.test);
-  if (g.status != ClashStatus::kNone) t.labels.push_back(report::StatusName(g.status));
+  if (g.status != ClashStatus::kNone) t.labels.push_back(ClashStatusName(g.status));
   BcfViewpoint v;
   v.guid = BcfViewpointGuid(g.key);
   if (with_snapshot) v.snapshot_file = "snapshot.png";

@@ -84,7 +84,7 @@ Result<std::vector<uint8_t>> RenderGroupSnapshot(const StoreReader& store, const
   ro.height = o.height;
   ro.focus = true;
   ro.focus_box = box;
-  ro.focus_title = LegendText(std::string(report::ClassName(group.worst)) + " group, " +
+  ro.focus_title = LegendText(std::string(ClashClassName(group.worst)) + " group, " +
                               std::to_string(group.members.size()) + " clashes, " + group.test);
   static std::atomic<uint64_t> counter{0};
   const std::string png =

@@ -63,7 +63,7 @@ std::string Lower(std::string_view s) {
   return out;
 }
 
-std::string StatusWord(ClashStatus s) { return s == ClashStatus::kNone ? "none" : report::StatusName(s); }
+std::string StatusWord(ClashStatus s) { return s == ClashStatus::kNone ? "none" : ClashStatusName(s); }
 
 std::string N(uint64_t v) { return std::to_string(v); }
 
@@ -197,7 +197,7 @@ std::string Filters(const ClashRun& run, uint64_t listed) {
 
 std::string GroupHtml(const ClashGroup& g, size_t rank, const std::string& png_base64, uint32_t members,
                       uint64_t* listed) {
-  const std::string cls = report::ClassName(g.worst);
+  const std::string cls = ClashClassName(g.worst);
   std::string text = Lower(g.title + " " + g.test + " " + g.key);
   std::string rows;
   size_t n = 0;
@@ -210,9 +210,9 @@ std::string GroupHtml(const ClashGroup& g, size_t rank, const std::string& png_b
       text += Lower(*f);
     }
     rows += "<tr><td class=\"n\">" + N(n) + "</td><td><span class=\"cls " +
-            std::string(report::ClassName(r.pair.cls)) + "\">" + report::ClassName(r.pair.cls) +
+            std::string(ClashClassName(r.pair.cls)) + "\">" + ClashClassName(r.pair.cls) +
             "</span></td><td>" + Esc(report::DepthOrGap(r.pair)) + "</td><td>" + ObjectCell(*r.a) +
-            "</td><td>" + ObjectCell(*r.b) + "</td><td>" + Esc(report::StatusName(r.status)) + "</td></tr>\n";
+            "</td><td>" + ObjectCell(*r.b) + "</td><td>" + Esc(ClashStatusName(r.status)) + "</td></tr>\n";
   }
   *listed = n;
   std::string worst_text;

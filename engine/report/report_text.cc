@@ -5,32 +5,6 @@
 
 namespace mktree::report {
 
-const char* ClassName(ClashClass c) {
-  switch (c) {
-    case ClashClass::kHard:
-      return "hard";
-    case ClashClass::kTouch:
-      return "touch";
-    case ClashClass::kClearance:
-      return "clearance";
-  }
-  return "hard";
-}
-
-const char* StatusName(ClashStatus s) {
-  switch (s) {
-    case ClashStatus::kNone:
-      return "";
-    case ClashStatus::kNew:
-      return "new";
-    case ClashStatus::kActive:
-      return "active";
-    case ClashStatus::kResolved:
-      return "resolved";
-  }
-  return "";
-}
-
 std::string ShortNumber(double v) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.4g", v);

@@ -10,10 +10,6 @@
 
 namespace mktree::report {
 
-// "hard", "touch", "clearance".
-const char* ClassName(ClashClass c);
-// "", "new", "active", "resolved".
-const char* StatusName(ClashStatus s);
 // "depth 0.012" (hard and touch pairs; "depth 0.01 to 0.012" when only bounds are known), "gap 0.03"
 // (clearance pairs, and touches by the store's resolution), "touching" (depth 0). Store units.
 std::string DepthOrGap(const ClashPair& p);

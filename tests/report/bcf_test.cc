@@ -432,8 +432,8 @@ TEST(BcfStore, DuplexWithSnapshotsValidates) {
         if (c == ClashClass::kTouch) coloured += r > 200 && g > 90 && g < 170 && b < 60;
         if (c == ClashClass::kClearance) coloured += r > 190 && g > 160 && b < 60;
       }
-      EXPECT_GT(coloured, 50u) << "group " << i << " (" << report::ClassName(c) << ") shows no "
-                               << report::ClassName(c) << " colour";
+      EXPECT_GT(coloured, 50u) << "group " << i << " (" << ClashClassName(c) << ") shows no "
+                               << ClashClassName(c) << " colour";
     }
   }
 }
