@@ -7,7 +7,8 @@
 #            or memlimit (they assert on peak RSS or run under an address-space limit, which the
 #            sanitizer's shadow memory makes meaningless) and heavy (the slowest under ASan, whose code
 #            smaller tests cover; tests/CMakeLists.txt)
-#   thread   TSan in build-tsan/: the tests labelled concurrency (tests/CMakeLists.txt)
+#   thread   TSan in build-tsan/: the tests labelled concurrency (tests/CMakeLists.txt), building only the
+#            programs that hold them (target mktree_concurrency_tests)
 # A finding fails its test (-fno-sanitize-recover=all; LeakSanitizer and TSan reports make the program
 # exit non-zero); suppressions, only for libraries we do not own: tests/sanitizers/.
 # Set CMAKE_CXX_COMPILER_LAUNCHER=ccache to rebuild faster; nothing here needs it.
@@ -16,18 +17,20 @@ cd "$(dirname "$0")/.."
 
 flavour="${1:-}"
 case "$flavour" in
-  address) build=build-asan; sanitize=address,undefined; select=(-LE "rss|memlimit|heavy") ;;
-  thread) build=build-tsan; sanitize=thread; select=(-L concurrency) ;;
+  address) build=build-asan; sanitize=address,undefined; select=(-LE "rss|memlimit|heavy"); targets=(all) ;;
+  thread) build=build-tsan; sanitize=thread; select=(-L concurrency); targets=(mktree_concurrency_tests) ;;
   *) echo "usage: scripts/sanitize.sh address|thread [ctest arguments]" >&2; exit 2 ;;
 esac
 shift
 
 scripts/setup.sh --no-build  # the libraries; gcc's sanitizer runtimes come with build-essential
 jobs="$(nproc)"
-# RelWithDebInfo: optimized as in use, with the line numbers the sanitizers' reports print.
-cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DMKTREE_SANITIZE="$sanitize" -DMKTREE_BUILD_BENCH=OFF \
-  >/dev/null
-cmake --build "$build" -j "$jobs"
+# -O1 -g1, as the sanitizers' own documentation advises: optimized enough to run the suite, and the line
+# tables their reports print. RelWithDebInfo's -O2 -g compiles twice as long (bench/README.md, "CI time").
+flags="-O1 -g1 -DNDEBUG"
+cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="$flags" \
+  -DCMAKE_C_FLAGS_RELWITHDEBINFO="$flags" -DMKTREE_SANITIZE="$sanitize" -DMKTREE_BUILD_BENCH=OFF >/dev/null
+cmake --build "$build" -j "$jobs" --target "${targets[@]}"
 
 # The sanitizers of gcc 12 map their shadow memory at fixed addresses, which kernels that randomise
 # mmap with more than 28 bits can collide with; without address randomisation they work there too.
