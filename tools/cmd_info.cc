@@ -109,13 +109,17 @@ int RunObject(const InfoArgs& a) {
   return 0;
 }
 
-// A sharded store (docs/shards.md): the manifest's top levels and shards, after opening it whole (every
-// shard store and id file checked).
+// A sharded store (docs/shards.md) at a revision: its base manifest's top levels and shards, after opening
+// the revision whole (every shard store and id file checked), and what lies beside that base.
 int RunManifestInfo(const InfoArgs& a) {
-  auto m = ReadManifest(a.store);
+  auto view = OpenRevisionView(a);
+  if (!view.ok()) return Fail(view.status().message());
+  const RevisionView& v = *view;
+  auto m = ReadManifest(v.base_path);
   if (!m.ok()) return Fail(m.status().message());
-  auto db = Database::Open(a.store, InfoOpenOptions(a, 0));
-  if (!db.ok()) return Fail(db.status().message());
+  const std::unique_ptr<Database>* db = &v.db;
+  const auto live = static_cast<unsigned long long>(v.db->object_count());
+  const auto revision = static_cast<unsigned long long>(v.db->revision());
   const char* keys[] = {"min", "max"};
   if (a.json) {
     std::string top = "[", shards = "[";
@@ -133,16 +137,26 @@ int RunManifestInfo(const InfoArgs& a) {
                 ", \"objects\": " + std::to_string(e.objects) + "}";
     }
     std::printf(
-        "{\"manifest\": \"%s\", \"objects\": %llu, \"shards\": %zu, \"origin\": [%.17g, %.17g, %.17g], "
+        "{\"manifest\": \"%s\", \"objects\": %llu, \"revision\": %llu, \"base_objects\": %llu, "
+        "\"delta_stores\": %llu, \"delta_objects\": %llu, \"removed_ids\": %llu, \"shards\": %zu, "
+        "\"origin\": [%.17g, %.17g, %.17g], "
         "\"bounds\": %s, \"objects_per_page\": %.4f, \"top_levels\": %s], \"shard_files\": %s], \"tree\": "
         "%s}\n",
-        JsonText(a.store).c_str(), static_cast<unsigned long long>(m->objects), m->shards.size(), m->origin.x,
-        m->origin.y, m->origin.z, JsonBox((*db)->bounds()).c_str(), (*db)->objects_per_page(), top.c_str(),
-        shards.c_str(), (*db)->stats_json().c_str());
+        JsonText(a.store).c_str(), live, revision, static_cast<unsigned long long>(m->objects),
+        static_cast<unsigned long long>(v.deltas), static_cast<unsigned long long>(v.delta_objects),
+        static_cast<unsigned long long>(v.removed), m->shards.size(), m->origin.x, m->origin.y, m->origin.z,
+        JsonBox((*db)->bounds()).c_str(), (*db)->objects_per_page(), top.c_str(), shards.c_str(),
+        (*db)->stats_json().c_str());
     return 0;
   }
-  std::printf("sharded store %s: %llu objects in %zu shards\n", a.store.c_str(),
-              static_cast<unsigned long long>(m->objects), m->shards.size());
+  std::printf("sharded store %s: %llu objects in %zu shards\n", a.store.c_str(), live, m->shards.size());
+  std::printf("revision      %llu\n", revision);
+  if (v.base_path != a.store)
+    std::printf(
+        "changes       base %s of %llu objects; %llu delta stores of %llu objects, %llu ids removed\n",
+        v.base_path.c_str(), static_cast<unsigned long long>(m->objects),
+        static_cast<unsigned long long>(v.deltas), static_cast<unsigned long long>(v.delta_objects),
+        static_cast<unsigned long long>(v.removed));
   std::printf("store frame   origin (%.17g, %.17g, %.17g)\n", m->origin.x, m->origin.y, m->origin.z);
   std::printf("bounds        %s (world)\n", TextBox((*db)->bounds()).c_str());
   for (size_t n = 0; n < m->top.nodes.size(); ++n) {

@@ -1,12 +1,10 @@
 // mktree log STORE [--json]: the revisions a store keeps, oldest first, one a line (docs/cli.md).
-#include <sys/stat.h>
 
 #include <cstdio>
 #include <ctime>
 #include <string>
 #include <vector>
 
-#include "engine/shard/manifest.h"
 #include "mktree/changes.h"
 #include "tools/command.h"
 #include "tools/json_text.h"
@@ -43,20 +41,8 @@ std::string LogLine(const RevisionInfo& r, bool json) {
          "  " + u(r.objects) + " objects  " + LineText(r.message) + "\n";
 }
 
-// A sharded store takes no changes (docs/changes.md): its one revision, 0, as ListRevisions gives a store's
-// that has taken none.
-Result<std::vector<RevisionInfo>> ManifestRevisions(const std::string& manifest) {
-  MKTREE_ASSIGN_OR_RETURN(const Manifest m, ReadManifest(manifest));
-  RevisionInfo info;
-  info.objects = m.objects;
-  struct stat st {};
-  if (::stat(manifest.c_str(), &st) == 0) info.time = st.st_mtime;
-  info.message = "built";
-  return std::vector<RevisionInfo>{info};
-}
-
 int RunLog(const LogArgs& a) {
-  auto revisions = IsManifestFile(a.store) ? ManifestRevisions(a.store) : ListRevisions(a.store);
+  auto revisions = ListRevisions(a.store);
   if (!revisions.ok()) return Fail(revisions.status().message());
   std::string out;
   for (const RevisionInfo& r : *revisions) out += LogLine(r, a.json);

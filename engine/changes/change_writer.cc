@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <limits>
 #include <map>
+#include <optional>
 #include <set>
 #include <unordered_map>
 
@@ -21,6 +22,7 @@
 #include "engine/query/revision_database.h"
 #include "engine/revision/change_folder.h"
 #include "engine/shard/manifest.h"
+#include "engine/shard/top_levels.h"
 #include "engine/store_format/record_codec.h"
 #include "engine/store_format/store_file.h"
 #include "storage/atomic_file.h"
@@ -57,20 +59,41 @@ Status WriteRevisionFile(const std::string& folder, const RevisionManifest& m, F
   return st;
 }
 
-// Every file name a revision refers to.
-void NamesOf(const RevisionManifest& m, std::set<std::string>* names) {
+// Every file name a revision refers to: a sharded base's shard files too (named in its manifest).
+Status NamesOf(const std::string& folder, const RevisionManifest& m, std::set<std::string>* names) {
   auto add = [&](const RevisionFile& f) {
     if (!f.name.empty()) names->insert(f.name);
   };
   add(m.base.store);
   add(m.base.ids);
+  const std::string base = ChangesFile(folder, m.base.store.name);
+  if (IsManifestFile(base)) {
+    MKTREE_ASSIGN_OR_RETURN(const Manifest sharded, ReadManifest(base));
+    for (const ShardEntry& e : sharded.shards) {
+      add(e.store);
+      add(e.ids);
+    }
+  }
   for (const RevisionPart& d : m.deltas) {
     add(d.store);
     add(d.ids);
   }
   for (const RevisionIdList& l : m.removals) add(l.file);
   for (const RevisionIdList& l : m.touched) add(l.file);
+  return Status::Ok();
 }
+
+// The live objects of a revision's parts as a scene (a sharded compaction's passes read them so).
+class LiveSource final : public SceneSource {
+ public:
+  LiveSource(const std::vector<const RevisionPartDb*>& parts, size_t spill_from, const std::string& dir,
+             FileOps& ops)
+      : live_(parts, spill_from, dir, ops) {}
+  Result<bool> Next(SceneObject* out) override { return live_.Next(out); }
+
+ private:
+  LiveObjectStream live_;
+};
 
 class Writer final : public ChangeWriter {
  public:
@@ -113,8 +136,10 @@ class Writer final : public ChangeWriter {
   Status MergeDeltas(RevisionManifest* m);
   Status CommitRevision(RevisionManifest m);
   Result<std::pair<uint64_t, uint64_t>> RetireAndCollect();
+  Result<RevisionPart> BuildShardedBase(uint64_t rev);
   void SkipPastUnnamedFiles();
   Status RelinkStore();
+  void RemoveBuiltShardFiles();
   PartBuild Part(const std::string& name, uint64_t made_at) const {
     PartBuild b;
     b.folder = folder_;
@@ -132,6 +157,7 @@ class Writer final : public ChangeWriter {
   }
 
   std::string store_, folder_;
+  bool sharded_ = false;  // the store is a sharded store's manifest
   ChangeOptions options_;
   FileOps& ops_;
   std::shared_ptr<void> lock_;
@@ -144,9 +170,8 @@ class Writer final : public ChangeWriter {
 };
 
 Status Writer::Start() {
-  if (IsManifestFile(store_))
-    return Status::Unsupported(store_ + ": a sharded store takes no changes yet (docs/changes.md)");
   MKTREE_RETURN_IF_ERROR(storage_internal::CheckInputFile(store_));
+  sharded_ = IsManifestFile(store_);
   MKTREE_ASSIGN_OR_RETURN(std::vector<uint64_t> revisions, ListRevisionNumbers(folder_));
   bool kept = !revisions.empty();
   if (kept) {
@@ -190,7 +215,15 @@ void Writer::SkipPastUnnamedFiles() {
 // is replaced whole.
 Status Writer::Initialize() {
   // The store first: a store that does not open keeps the folder it has (nothing is set aside for it).
-  MKTREE_ASSIGN_OR_RETURN(auto reader, StoreReader::Open(store_));
+  uint64_t objects = 0;
+  std::optional<Manifest> sharded;
+  if (sharded_) {
+    MKTREE_ASSIGN_OR_RETURN(sharded, ReadManifest(store_));
+    objects = sharded->objects;
+  } else {
+    MKTREE_ASSIGN_OR_RETURN(auto reader, StoreReader::Open(store_));
+    objects = reader->object_count();
+  }
   std::error_code ec;
   if (fs::exists(folder_, ec)) {
     const std::string stale = folder_ + ".stale." + std::to_string(::getpid());
@@ -206,14 +239,24 @@ Status Writer::Initialize() {
   m.revision = 0;
   m.time = std::time(nullptr);
   m.message = "built";
-  m.next_id = m.live = reader->object_count();
+  m.next_id = m.live = objects;
   m.base.made_at = 0;
-  m.base.objects = reader->object_count();
+  m.base.objects = objects;
   const std::string base_name = "base-0.mkt";
-  if (::link(store_.c_str(), ChangesFile(folder_, base_name).c_str()) != 0)
-    return Status::IOError(
-        ChangesFile(folder_, base_name) + ": cannot link the store into its changes folder: " +
-        storage_internal::ErrnoText(errno) + " (the folder must be on the store's file system)");
+  // A sharded store's shard files are linked in beside its manifest, under the names it gives them: every
+  // base of the folder finds its shards beside it.
+  std::vector<std::pair<std::string, std::string>> links{{store_, ChangesFile(folder_, base_name)}};
+  if (sharded) {
+    for (const ShardEntry& e : sharded->shards)
+      for (const ShardFileInfo* f : {&e.store, &e.ids})
+        links.push_back({ShardFilePath(store_, f->name), ChangesFile(folder_, f->name)});
+  }
+  for (const auto& [from, to] : links) {
+    if (::link(from.c_str(), to.c_str()) != 0)
+      return Status::IOError(to + ": cannot link " + from +
+                             " into the store's changes folder: " + storage_internal::ErrnoText(errno) +
+                             " (the folder must be on the store's file system)");
+  }
   MKTREE_ASSIGN_OR_RETURN(m.base.store, FingerprintFile(ChangesFile(folder_, base_name)));
   MKTREE_RETURN_IF_ERROR(storage_internal::SyncParentDir(ChangesFile(folder_, base_name), ops_));
   if (Status st = storage_internal::SyncParentDir(folder_, ops_); !st.ok())
@@ -456,16 +499,20 @@ Result<CompactReport> Writer::CompactUnguarded() {
   m.added = m.removed = m.replaced = 0;
   if (keep_) m.keep = *keep_;
   if (!head_.deltas.empty() || !head_.removals.empty()) {
-    std::vector<const RevisionPartDb*> all;
-    for (const RevisionPartDb& p : parts_) all.push_back(&p);
-    LiveObjectStream live(all, 1, folder_, ops_);
-    IdOrderedObjects next = [&](SceneObject* out) { return live.Next(out); };
-    PartBuild b = Part(NewPartName("base", rev), rev);
-    b.identity_ids = true;
     if (head_.live == 0)
       return Status::Unsupported(store_ +
                                  ": compaction of a store with no live object (remove fewer, or build anew)");
-    MKTREE_ASSIGN_OR_RETURN(m.base, BuildRevisionPart(b, next));
+    if (sharded_) {
+      MKTREE_ASSIGN_OR_RETURN(m.base, BuildShardedBase(rev));
+    } else {
+      std::vector<const RevisionPartDb*> all;
+      for (const RevisionPartDb& p : parts_) all.push_back(&p);
+      LiveObjectStream live(all, BasePartCount(parts_), folder_, ops_);
+      IdOrderedObjects next = [&](SceneObject* out) { return live.Next(out); };
+      PartBuild b = Part(NewPartName("base", rev), rev);
+      b.identity_ids = true;
+      MKTREE_ASSIGN_OR_RETURN(m.base, BuildRevisionPart(b, next));
+    }
     report.folded = head_.deltas.size() + head_.removals.size();
     m.deltas.clear();
     m.removals.clear();
@@ -483,6 +530,78 @@ Result<CompactReport> Writer::CompactUnguarded() {
   return report;
 }
 
+// A sharded store's compaction: a sharded build of the live objects into the folder, as `mktree build
+// --shards` would make it (top levels chosen from a sample of their boxes, the same shard count unless
+// the live objects are too few to give every shard one; the base's frame), each object keeping its id.
+// The manifest is written last; on an error nothing of it stays.
+Result<RevisionPart> Writer::BuildShardedBase(uint64_t rev) {
+  MKTREE_ASSIGN_OR_RETURN(const Manifest old, ReadManifest(ChangesFile(folder_, head_.base.store.name)));
+  std::vector<const RevisionPartDb*> all;
+  for (const RevisionPartDb& p : parts_) all.push_back(&p);
+  const size_t spill_from = BasePartCount(parts_);
+  const std::string manifest_path = ChangesFile(folder_, NewPartName("base", rev) + ".mkt");
+  Manifest nm;
+  nm.build_id = NewBuildId();
+  nm.objects = head_.live;
+  nm.origin = old.origin;
+  struct Discard {
+    const std::string& path;
+    size_t shards = 0;
+    bool keep = false;
+    ~Discard() {
+      if (keep) return;
+      std::error_code ec;
+      fs::remove(path, ec);
+      for (uint32_t s = 0; s < shards; ++s) {
+        DiscardShard(path, s);
+        fs::remove(ShardStorePath(path, s), ec);
+        fs::remove(ShardIdsPath(path, s), ec);
+      }
+    }
+  } discard{manifest_path, old.shards.size()};
+  {
+    ShardSample sample;
+    LiveSource live(all, spill_from, folder_, ops_);
+    SceneObject o;
+    for (;;) {
+      MKTREE_ASSIGN_OR_RETURN(const bool more, live.Next(&o));
+      if (!more) break;
+      sample.Add(o.id, o.mesh.Bounds());
+    }
+    const std::vector<ShardSample::Item> items = sample.Items();
+    Result<TopLevels> top = Status::Internal("no shard count tried");
+    for (uint32_t k = static_cast<uint32_t>(old.shards.size()); k >= 1; k = k / 2) {
+      top = ChooseTopLevels(items, k);
+      if (top.ok() || k == 1) break;
+    }
+    if (!top.ok()) return top.status();
+    nm.top = std::move(*top);
+  }
+  IngestOptions ingest = base_ingest_;
+  ingest.store.file_ops = &ops_;
+  ingest.spill_file_ops = &ops_;
+  ingest.input_name = "compaction";
+  for (uint32_t s = 0; s < nm.top.shard_count; ++s) {
+    IngestReport report;
+    MKTREE_ASSIGN_OR_RETURN(
+        ShardEntry e, BuildShardFrom(
+                          [&]() -> Result<std::unique_ptr<SceneSource>> {
+                            return ShardObjectsOf(
+                                std::make_unique<LiveSource>(all, spill_from, folder_, ops_), nm.top, s);
+                          },
+                          manifest_path, nm, s, ingest, &report));
+    nm.shards.push_back(std::move(e));
+  }
+  for (uint32_t s = 0; s < nm.top.shard_count; ++s) MKTREE_RETURN_IF_ERROR(PublishShard(manifest_path, s));
+  MKTREE_RETURN_IF_ERROR(WriteManifest(manifest_path, nm, ops_));
+  RevisionPart base;
+  base.made_at = rev;
+  base.objects = nm.objects;
+  MKTREE_ASSIGN_OR_RETURN(base.store, FingerprintFile(manifest_path));
+  discard.keep = true;
+  return base;
+}
+
 // The store file becomes (a hard link of) the newest base, so that the store's name holds the newest
 // objects' pages and an old base's pages are freed once no kept revision names it. The temporary link has
 // one name, removed first, so that the link a writer killed before its rename left is removed too (the
@@ -491,14 +610,41 @@ Status Writer::RelinkStore() {
   const std::string temp = store_ + ".relink";
   ::unlink(temp.c_str());
   MKTREE_ASSIGN_OR_RETURN(const RevisionFile now, FingerprintFile(store_));
-  if (now.bytes == head_.base.store.bytes && now.fingerprint == head_.base.store.fingerprint)
+  if (now.bytes == head_.base.store.bytes && now.fingerprint == head_.base.store.fingerprint) {
+    RemoveBuiltShardFiles();  // those a writer killed after the relink left
     return Status::Ok();
+  }
   if (::link(ChangesFile(folder_, head_.base.store.name).c_str(), temp.c_str()) != 0)
     return Status::IOError(temp + ": cannot link the compacted base: " + storage_internal::ErrnoText(errno));
   bool renamed = false;
   Status st = RenameOverTarget(temp, store_, ops_, "the compacted store " + store_, &renamed);
   if (!renamed) ::unlink(temp.c_str());
+  if (st.ok()) RemoveBuiltShardFiles();
   return st;
+}
+
+// A sharded store's build left its shard files beside its manifest, "<store>.shard-N.mkt" and ".ids"; the
+// first change links them into the folder as revision 0's. Once the store file is a compaction's manifest
+// (whose shards are in the folder) they are no longer the store's, and go, so that their pages are freed
+// with revision 0's links. Only while this writer holds the store's locks: no sharded build of the path is
+// writing them, and one that wrote them since would have made the folder another store's.
+void Writer::RemoveBuiltShardFiles() {
+  if (!sharded_ || head_.base.store.name == "base-0.mkt") return;
+  const fs::path store(store_);
+  const std::string stem = store.filename().string() + ".shard-";
+  std::error_code ec;
+  std::vector<fs::path> remove;
+  for (fs::directory_iterator it(store.has_parent_path() ? store.parent_path() : fs::path("."), ec), end;
+       !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (name.rfind(stem, 0) != 0) continue;
+    const size_t dot = name.find('.', stem.size());
+    const std::string digits = name.substr(stem.size(), dot == std::string::npos ? 0 : dot - stem.size());
+    const std::string ext = dot == std::string::npos ? "" : name.substr(dot);
+    if (digits.empty() || digits.find_first_not_of("0123456789") != std::string::npos) continue;
+    if (ext == ".mkt" || ext == ".ids") remove.push_back(it->path());
+  }
+  for (const fs::path& p : remove) fs::remove(p, ec);
 }
 
 // Retires the revisions older than the newest `keep` that no reader holds, then removes every file of the
@@ -532,7 +678,7 @@ Result<std::pair<uint64_t, uint64_t>> Writer::RetireAndCollect() {
       if (m.status().code() == Status::Code::kNotFound) continue;
       return m.status();
     }
-    NamesOf(*m, &names);
+    MKTREE_RETURN_IF_ERROR(NamesOf(folder_, *m, &names));
     names.insert(RevisionFileName(r));
   }
   std::error_code ec;
@@ -565,6 +711,11 @@ Result<std::unique_ptr<ChangeWriter>> OpenChangeWriter(const std::string& store_
   return Guarded(store_path, [&]() -> Result<std::unique_ptr<ChangeWriter>> {
     if (!(options.compact_threshold >= 0)) return Status::InvalidArgument("compact_threshold must be >= 0");
     MKTREE_ASSIGN_OR_RETURN(std::shared_ptr<void> lock, StoreWriter::HoldLock(store_path));
+    if (IsManifestFile(store_path)) {  // and the lock of sharded builds of the path
+      MKTREE_ASSIGN_OR_RETURN(std::unique_ptr<ShardBuildLock> build, ShardBuildLock::Acquire(store_path));
+      lock = std::make_shared<std::pair<std::shared_ptr<void>, std::unique_ptr<ShardBuildLock>>>(
+          std::move(lock), std::move(build));
+    }
     auto w = std::make_unique<Writer>(store_path, options, ops, std::move(lock));
     MKTREE_RETURN_IF_ERROR(w->Start());
     return std::unique_ptr<ChangeWriter>(std::move(w));
@@ -586,9 +737,14 @@ Result<std::vector<RevisionInfo>> ListRevisions(const std::string& store_path) {
     }
     std::vector<RevisionInfo> out;
     if (!kept) {
-      MKTREE_ASSIGN_OR_RETURN(auto reader, StoreReader::Open(store_path));
       RevisionInfo info;
-      info.objects = reader->object_count();
+      if (IsManifestFile(store_path)) {
+        MKTREE_ASSIGN_OR_RETURN(const Manifest m, ReadManifest(store_path));
+        info.objects = m.objects;
+      } else {
+        MKTREE_ASSIGN_OR_RETURN(auto reader, StoreReader::Open(store_path));
+        info.objects = reader->object_count();
+      }
       struct stat st;
       if (::stat(store_path.c_str(), &st) == 0) info.time = st.st_mtime;
       info.message = "built";

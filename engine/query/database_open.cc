@@ -14,14 +14,10 @@ namespace mktree {
 
 Result<std::unique_ptr<Database>> Database::Open(const std::string& path, const OpenOptions& options) {
   return Guarded(path, [&]() -> Result<std::unique_ptr<Database>> {
-    if (IsManifestFile(path)) {
-      if (options.revision && *options.revision != 0)
-        return Status::NotFound(path + ": revision " + std::to_string(*options.revision) +
-                                " is not kept (a sharded store takes no changes: it has revision 0 only)");
-      return OpenShardedDatabase(path, options);
-    }
+    // A store file, or a sharded store's manifest: either may have taken changes (a revision holds them).
     MKTREE_ASSIGN_OR_RETURN(StoreRevision at, OpenStoreRevision(path, options.revision));
     if (at.hold) return OpenRevisionDatabase(path, std::move(at.hold), options);
+    if (IsManifestFile(path)) return OpenShardedDatabase(path, options);
     ReadOptions ro;
     ro.direct_io = options.direct_io;
     MKTREE_ASSIGN_OR_RETURN(auto reader, StoreReader::Open(path, ro));

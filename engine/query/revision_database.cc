@@ -15,6 +15,7 @@
 #include "engine/query/ordered_batch.h"
 #include "engine/query/part_queries.h"
 #include "engine/query/ray_search.h"
+#include "engine/query/shard_open.h"
 #include "engine/query/sharded_database.h"
 #include "engine/store_format/store_file.h"
 
@@ -76,12 +77,14 @@ class RevisionDatabase final : public Database {
                   ", \"live_objects\": " + std::to_string(m.live) +
                   ", \"deltas\": " + std::to_string(m.deltas.size()) + ", \"parts\": [";
     double pages = 0;
+    bool any_bounds = false;
     for (size_t p = 0; p < parts_.size(); ++p) {
       const StoreDatabase& db = *parts_[p].db;
       stats_json_ += (p ? ", " : "") + db.stats_json();
       const double opp = db.objects_per_page();
       if (opp > 0) pages += static_cast<double>(db.object_count()) / opp;
-      if (db.object_count() > 0) bounds_ = p == 0 ? db.bounds() : UnionBox(bounds_, db.bounds());
+      if (db.object_count() > 0) bounds_ = any_bounds ? UnionBox(bounds_, db.bounds()) : db.bounds();
+      any_bounds = any_bounds || db.object_count() > 0;
       clash_parts_.push_back(ClashPart{&db.leaves(), parts_[p].ids.empty() ? nullptr : &parts_[p].ids,
                                        parts_[p].hidden_count ? &parts_[p].hidden : nullptr});
     }
@@ -263,33 +266,63 @@ Status RevisionDatabase::RunBatchStreamed(const QuerySource& source, const Batch
 
 }  // namespace
 
+size_t BasePartCount(const std::vector<RevisionPartDb>& parts) {
+  size_t n = 0;
+  while (n < parts.size() && parts[n].base) ++n;
+  return n;
+}
+
 Result<std::vector<RevisionPartDb>> OpenRevisionParts(const std::string& store_path,
                                                       const RevisionManifest& m, const OpenOptions& options,
                                                       std::vector<RevisionPartDb>* reuse) {
   const std::string folder = ChangesFolder(store_path);
-  const uint64_t k = 1 + m.deltas.size();
+  const std::string base_path = ChangesFile(folder, m.base.store.name);
+  MKTREE_RETURN_IF_ERROR(CheckFile(folder, m.base.store, "its base store"));
+  std::optional<Manifest> sharded;
+  if (IsManifestFile(base_path)) {
+    MKTREE_ASSIGN_OR_RETURN(sharded, ReadManifest(base_path));
+    if (sharded->objects != m.base.objects)
+      return Status::Corruption(base_path + ": " + std::to_string(sharded->objects) +
+                                " objects, the revision says " + std::to_string(m.base.objects));
+  }
+  const uint64_t k = (sharded ? sharded->shards.size() : 1) + m.deltas.size();
   OpenOptions part_options = options;
   part_options.cache_pages = (options.cache_pages + k - 1) / k;
   part_options.revision.reset();
   std::vector<RevisionPartDb> parts;
-  std::vector<const RevisionPart*> described{&m.base};
+  auto reused = [&](const std::string& path) {
+    if (!reuse) return false;
+    auto it = std::find_if(reuse->begin(), reuse->end(),
+                           [&](const RevisionPartDb& r) { return r.db && r.db->path() == path; });
+    if (it == reuse->end()) return false;
+    parts.push_back(std::move(*it));
+    reuse->erase(it);
+    return true;
+  };
+  if (sharded) {
+    // Its shards, with the ids the sharded build or the compaction gave them (below next_id).
+    for (uint32_t s = 0; s < sharded->shards.size(); ++s) {
+      if (reused(ShardFilePath(base_path, sharded->shards[s].store.name))) continue;
+      MKTREE_ASSIGN_OR_RETURN(ManifestShard shard,
+                              OpenManifestShard(base_path, *sharded, s, part_options, m.next_id));
+      RevisionPartDb part;
+      part.db = std::move(shard.db);
+      part.ids = std::move(shard.ids);
+      part.base = true;
+      parts.push_back(std::move(part));
+    }
+  }
+  std::vector<const RevisionPart*> described;
+  if (!sharded) described.push_back(&m.base);
   for (const RevisionPart& d : m.deltas) described.push_back(&d);
   for (const RevisionPart* d : described) {
     const std::string what =
         d == &m.base ? "its base store" : "the changes of revision " + std::to_string(d->made_at);
     const std::string path = ChangesFile(folder, d->store.name);
+    if (reused(path)) continue;
     RevisionPartDb part;
-    if (reuse) {
-      auto it = std::find_if(reuse->begin(), reuse->end(),
-                             [&](const RevisionPartDb& r) { return r.db && r.db->path() == path; });
-      if (it != reuse->end()) {
-        part = std::move(*it);
-        reuse->erase(it);
-        parts.push_back(std::move(part));
-        continue;
-      }
-    }
-    MKTREE_RETURN_IF_ERROR(CheckFile(folder, d->store, what));
+    part.base = d == &m.base;
+    if (!part.base) MKTREE_RETURN_IF_ERROR(CheckFile(folder, d->store, what));
     ReadOptions ro;
     ro.direct_io = options.direct_io;
     MKTREE_ASSIGN_OR_RETURN(auto reader, StoreReader::Open(path, ro));
@@ -318,8 +351,8 @@ Result<std::vector<RevisionPartDb>> OpenRevisionParts(const std::string& store_p
   for (size_t p = parts.size(); p-- > 0;) {
     parts[p].hidden_count = MarkHidden(&parts[p], gone);
     live += parts[p].db->object_count() - parts[p].hidden_count;
-    if (p == 0) break;  // the base: no part before it to hide anything in
-    // Only the base has identity ids (no id file): a delta always has its id file.
+    if (parts[p].base) continue;  // base parts hold disjoint ids: none hides anything in another
+    // Only a base has identity ids (no id file): a delta always has its id file.
     std::vector<ObjectId> merged;
     merged.reserve(gone.size() + parts[p].ids.size());
     std::set_union(gone.begin(), gone.end(), parts[p].ids.begin(), parts[p].ids.end(),

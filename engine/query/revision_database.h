@@ -19,9 +19,11 @@
 
 namespace mktree {
 
-// One store of a revision, opened and checked.
+// One store of a revision, opened and checked: the base store, one shard of a sharded base (the parts of a
+// base hold disjoint ids), or a delta.
 struct RevisionPartDb {
   std::unique_ptr<StoreDatabase> db;
+  bool base = false;
   std::vector<ObjectId> ids;  // local id -> global id, increasing; empty: identity
   std::vector<bool> hidden;   // by local id: not live at this revision
   uint64_t hidden_count = 0;
@@ -32,13 +34,17 @@ struct RevisionPartDb {
 std::optional<std::pair<size_t, ObjectId>> FindLive(const std::vector<RevisionPartDb>& parts, ObjectId id);
 
 // The parts of revision `m` in the changes folder of `store_path`, each file checked against the manifest
-// (size, fingerprint, id file of this store's history), with the hidden objects marked. Each part gets
+// (size, fingerprint, id file of this store's history), with the hidden objects marked. A base that is a
+// sharded store's manifest gives a part per shard, first (its shard files in the folder). Each part gets
 // cache_pages / parts pages (rounded up). Corruption naming the file when a check fails. Parts of `reuse`
 // (may be null) whose store file is one of m's are taken from it instead of opened again (a writer's
 // parts from one revision to the next).
 Result<std::vector<RevisionPartDb>> OpenRevisionParts(const std::string& store_path,
                                                       const RevisionManifest& m, const OpenOptions& options,
                                                       std::vector<RevisionPartDb>* reuse = nullptr);
+
+// The number of base parts of `parts` (1, or a sharded base's shards): they come first.
+size_t BasePartCount(const std::vector<RevisionPartDb>& parts);
 
 // The manifest of the revision `db` answers, when db is a revision of a store with changes; else null.
 const RevisionManifest* RevisionManifestOf(const Database& db);

@@ -8,7 +8,7 @@
 namespace mktree {
 
 Result<ManifestShard> OpenManifestShard(const std::string& manifest_path, const Manifest& m, uint32_t s,
-                                        const OpenOptions& shard_options) {
+                                        const OpenOptions& shard_options, uint64_t id_limit) {
   const ShardEntry& e = m.shards[s];
   const std::string store_path = ShardFilePath(manifest_path, e.store.name);
   const std::string ids_path = ShardFilePath(manifest_path, e.ids.name);
@@ -32,7 +32,7 @@ Result<ManifestShard> OpenManifestShard(const std::string& manifest_path, const 
   if (o.x != m.origin.x || o.y != m.origin.y || o.z != m.origin.z)
     return Status::Corruption(store_path + ": its frame is not the manifest's" + of);
   ManifestShard shard;
-  MKTREE_ASSIGN_OR_RETURN(shard.ids, ReadShardIds(ids_path, m.build_id, s, m.objects));
+  MKTREE_ASSIGN_OR_RETURN(shard.ids, ReadShardIds(ids_path, m.build_id, s, id_limit ? id_limit : m.objects));
   if (shard.ids.size() != e.objects)
     return Status::Corruption(ids_path + ": " + std::to_string(shard.ids.size()) + " ids for " +
                               std::to_string(e.objects) + " objects" + of);

@@ -21,8 +21,10 @@ struct ManifestShard {
 };
 
 // Shard s of manifest m read from manifest_path; `shard_options` are the shard's own (its share of the
-// cache). Corruption naming the file and the shard when a check fails.
+// cache). Corruption naming the file and the shard when a check fails. Global ids are below `id_limit`
+// (0: m.objects, a sharded build's ids; a compaction's shards keep the ids of the live objects, which may
+// have gaps, docs/changes.md).
 Result<ManifestShard> OpenManifestShard(const std::string& manifest_path, const Manifest& m, uint32_t s,
-                                        const OpenOptions& shard_options);
+                                        const OpenOptions& shard_options, uint64_t id_limit = 0);
 
 }  // namespace mktree

@@ -102,7 +102,7 @@ std::string ShardFilePath(const std::string& manifest, const std::string& name) 
   return (std::filesystem::path(manifest).parent_path() / name).string();
 }
 
-Status WriteManifest(const std::string& path, const Manifest& m) {
+Status WriteManifest(const std::string& path, const Manifest& m, FileOps& ops) {
   std::vector<uint8_t> b;
   ByteWriter w(&b);
   w.PutBytes(kManifestMagic, sizeof kManifestMagic);
@@ -132,7 +132,7 @@ Status WriteManifest(const std::string& path, const Manifest& m) {
     for (int i = 0; i < 3; ++i) w.Put<float>(s.box.max[i]);
   }
   AppendChecksum(&b);
-  return WriteAtomically(path, b);
+  return WriteAtomically(path, b, ops);
 }
 
 Result<Manifest> ReadManifest(const std::string& path) {

@@ -43,7 +43,7 @@ struct Manifest {
 // Whether the file starts with the manifest's magic (false when it cannot be read).
 bool IsManifestFile(const std::string& path);
 
-Status WriteManifest(const std::string& path, const Manifest& m);
+Status WriteManifest(const std::string& path, const Manifest& m, FileOps& ops = DefaultFileOps());
 // Refuses a truncated, damaged or inconsistent manifest with Corruption naming the file.
 Result<Manifest> ReadManifest(const std::string& path);
 

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <cmath>
 #include <fstream>
 #include <limits>
 
@@ -195,7 +196,7 @@ TEST_P(BadChange, ARevisionNeverCommittedOrRetired) {
   EXPECT_EQ((*kept)->revision(), store_.revision - 1);
 }
 
-TEST_P(BadChange, AStoreThatDoesNotExistOrIsSharded) {
+TEST_P(BadChange, AStoreThatDoesNotExistAndBadBatchesOfAShardedStore) {
   const std::string missing = dir_.file("store/none.mkt");
   auto w = ChangeWriter::Open(missing);
   ASSERT_FALSE(w.ok());
@@ -213,11 +214,28 @@ TEST_P(BadChange, AStoreThatDoesNotExistOrIsSharded) {
   o.shards = 2;
   const std::string manifest = dir_.file("store/sharded.mkts");
   ASSERT_TRUE(BuildFromObjects(testing::ClusteredScene(80, 2), manifest, o).ok());
+  // A sharded store takes changes, and refuses a bad batch as a store file does: nothing committed.
   auto sharded = ChangeWriter::Open(manifest);
-  ASSERT_FALSE(sharded.ok());
-  EXPECT_EQ(sharded.status().code(), Status::Code::kUnsupported) << sharded.status().ToString();
-  EXPECT_TRUE(Contains(sharded.status(), manifest)) << sharded.status().ToString();
-  EXPECT_FALSE(std::filesystem::exists(ChangesFolder(manifest)));
+  ASSERT_TRUE(sharded.ok()) << sharded.status().ToString();
+  ChangeBatch unknown;
+  unknown.remove = {80};
+  auto r = (*sharded)->Commit(unknown);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().code(), Status::Code::kInvalidArgument) << r.status().ToString();
+  EXPECT_NE(r.status().message().find("no object 80 "), std::string::npos) << r.status().ToString();
+  ChangeBatch nan;
+  nan.add = testing::ClusteredScene(1, 3);
+  nan.add[0].mesh.vertices[4] = std::nan("");
+  r = (*sharded)->Commit(nan);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().code(), Status::Code::kInvalidArgument) << r.status().ToString();
+  EXPECT_TRUE(Contains(r.status(), manifest)) << r.status().ToString();
+  sharded->reset();
+  auto log = ListRevisions(manifest);
+  ASSERT_TRUE(log.ok()) << log.status().ToString();
+  ASSERT_EQ(log->size(), 1u);
+  EXPECT_EQ(log->back().revision, 0u);
+  EXPECT_EQ(log->back().objects, 80u);
   ExpectUnchanged();
 }
 

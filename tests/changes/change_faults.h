@@ -21,6 +21,7 @@
 
 #include "change_fixtures.h"
 #include "engine/revision/change_folder.h"
+#include "engine/shard/manifest.h"
 #include "storage/file_ops.h"
 
 namespace mktree::testing {
@@ -84,6 +85,13 @@ inline void CopyStore(const std::string& from, const std::string& to) {
   fs::remove_all(fs::path(to).parent_path());
   fs::create_directories(fs::path(to).parent_path());
   fs::copy_file(from, to, fs::copy_options::overwrite_existing);
+  // A sharded store's shard files beside its manifest ("<store>.shard-N.mkt", ".ids"), under its new name.
+  const std::string stem = fs::path(from).filename().string();
+  for (const auto& e : fs::directory_iterator(fs::path(from).parent_path())) {
+    const std::string name = e.path().filename().string();
+    if (name.rfind(stem + ".shard-", 0) == 0)
+      fs::copy_file(e.path(), fs::path(to).string() + name.substr(stem.size()));
+  }
   if (fs::exists(ChangesFolder(from)))
     fs::copy(ChangesFolder(from), ChangesFolder(to), fs::copy_options::recursive);
 }
@@ -110,6 +118,11 @@ inline std::vector<std::string> FolderProblems(const std::string& store, bool wr
     };
     add(m->base.store);
     add(m->base.ids);
+    if (auto sharded = ReadManifest(ChangesFile(folder, m->base.store.name)); sharded.ok())
+      for (const ShardEntry& e : sharded->shards) {
+        add(e.store);
+        add(e.ids);
+      }
     for (const RevisionPart& d : m->deltas) {
       add(d.store);
       add(d.ids);
@@ -125,11 +138,18 @@ inline std::vector<std::string> FolderProblems(const std::string& store, bool wr
   for (const std::string& name : named)
     if (!present.count(name)) problems.push_back("missing " + folder + "/" + name);
   const std::string stem = fs::path(store).filename().string();
+  std::set<std::string> beside;  // the shard files the store's manifest names beside it
+  if (auto m = ReadManifest(store); m.ok())
+    for (const ShardEntry& e : m->shards) {
+      beside.insert(e.store.name);
+      beside.insert(e.ids.name);
+    }
   for (const auto& e : fs::directory_iterator(fs::path(store).parent_path())) {
     const std::string name = e.path().filename().string();
     if (name == stem || name == stem + ".changes" || name.compare(0, stem.size() + 1, stem + ".") != 0)
       continue;
-    if (writer_open && name == stem + ".lock") continue;
+    if (writer_open && (name == stem + ".lock" || name == stem + ".build-lock")) continue;
+    if (name.rfind(stem + ".shard-", 0) == 0 && beside.count(name)) continue;
     problems.push_back("leftover " + e.path().string());
   }
   return problems;
@@ -214,10 +234,13 @@ struct PristineStore {
   uint64_t revision = 0;
   uint64_t counter = 0;  // names given so far
 };
+// `shards` > 0: a sharded store of that many shards.
 inline void MakePristineStore(const std::string& path, Backend backend, size_t objects, int commits,
-                              PristineStore* out) {
+                              PristineStore* out, uint32_t shards = 0) {
   const std::vector<SceneObject> scene = ClusteredScene(objects, 38);
-  ASSERT_TRUE(BuildFromObjects(scene, path, SmallPages(backend)).ok());
+  ASSERT_TRUE((shards ? BuildShardedFromObjects(scene, path, SmallPages(backend), shards)
+                      : BuildFromObjects(scene, path, SmallPages(backend)))
+                  .ok());
   out->path = path;
   out->origin = ChooseStoreOrigin(scene[0].mesh.Bounds());
   for (const SceneObject& o : scene) out->live[o.id] = o;

@@ -6,12 +6,14 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <filesystem>
 #include <map>
 #include <random>
 #include <string>
 #include <vector>
 
 #include "engine/geometry/exact_geometry.h"
+#include "engine/ingest/shard_build.h"
 #include "engine/ingest/store_builder.h"
 #include "mktree/changes.h"
 #include "mktree/database.h"
@@ -180,6 +182,43 @@ inline std::vector<ClashPair> SelfClashPairs(const Database& db, const ClashOpti
       o, [&](const ClashPair& p) { got.push_back(p); }, nullptr);
   EXPECT_TRUE(st.ok()) << st.ToString();
   return got;
+}
+
+// The self-clash of `db` equals that of a fresh store of the same live objects (same frame).
+inline void ExpectClashOfFreshBuild(const Database& db, const LiveSet& live,
+                                    const IngestOptions& base_options, const Vec3d& origin,
+                                    const std::string& dir) {
+  std::vector<SceneObject> objs;
+  std::vector<ObjectId> ids;
+  for (const auto& [id, o] : live) {
+    objs.push_back(o);
+    objs.back().id = static_cast<ObjectId>(ids.size());
+    ids.push_back(id);
+  }
+  IngestOptions o = base_options;
+  o.origin = origin;
+  const std::string fresh = dir + "/fresh.mkt";
+  std::filesystem::remove(fresh);
+  ASSERT_TRUE(BuildFromObjects(objs, fresh, o).ok());
+  auto fdb = Database::Open(fresh);
+  ASSERT_TRUE(fdb.ok());
+  std::vector<ClashPair> want = SelfClashPairs(**fdb);
+  for (ClashPair& p : want) {
+    p.a = ids[p.a];
+    p.b = ids[p.b];
+    if (p.a > p.b) std::swap(p.a, p.b);
+  }
+  EXPECT_EQ(SortedPairs(SelfClashPairs(db)), SortedPairs(want));
+}
+
+// A sharded store of `objs` (ids 0..n-1) in `shards` shards, as `mktree build --shards` makes one.
+inline Status BuildShardedFromObjects(const std::vector<SceneObject>& objs, const std::string& path,
+                                      const IngestOptions& o, uint32_t shards) {
+  std::vector<SceneOpener> in{[&objs](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
+    return std::unique_ptr<SceneSource>(new VectorSceneSource(&objs, first));
+  }};
+  auto r = BuildShardedStore(in, path, o, shards);
+  return r.ok() ? Status::Ok() : r.status();
 }
 
 }  // namespace mktree::testing

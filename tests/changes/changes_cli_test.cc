@@ -331,19 +331,48 @@ TEST_F(ChangesCli, TankerStoreRefusesBadChangesAndKeepsItsLog) {
             "2000");
 }
 
-// A sharded store takes no change yet: its log is revision 0, an update is refused, --revision 0 answers.
-TEST_F(ChangesCli, ShardedStoreHasRevisionZeroOnly) {
+// A sharded store takes changes as a store file does: update, log, --revision, clash --since, compact and
+// info, through the tool; the clash now is the clash at the older revision with its new and resolved pairs.
+TEST_F(ChangesCli, AShardedStoreTakesChangesLikeAStoreFile) {
   const std::string store = P("sh.mkt");
   Ok("build tanker:500 -o " + store + " --shards 2 --quiet");
-  const std::vector<std::string> log = Lines(Ok("log " + store + " --json"));
+  std::vector<std::string> log = Lines(Ok("log " + store + " --json"));
   ASSERT_EQ(log.size(), 1u);
   EXPECT_EQ(Field(log[0], "revision"), "0");
   EXPECT_EQ(Field(log[0], "objects"), "500");
-  EXPECT_EQ(Field(log[0], "message"), "built");
-  ExpectRefused("update " + store + " --remove-ids 1", "sharded", store);
+  // Two cubes across the tanker's middle, where they meet its objects.
+  Write("add.obj", ObjOf({{"new_a", 120, -2, 2, 3}, {"new_b", 150, -2, 2, 3}}));
+  const std::string clash0 = Ok("clash " + store);
+  const std::string out =
+      Ok("update " + store + " --add " + P("add.obj") + " --remove-ids 1,2,3 --message edit");
+  EXPECT_NE(out.find("revision 1"), std::string::npos) << out;
+  log = Lines(Ok("log " + store + " --json"));
+  ASSERT_EQ(log.size(), 2u);
+  EXPECT_EQ(Field(log[1], "added"), "2");
+  EXPECT_EQ(Field(log[1], "removed"), "3");
+  EXPECT_EQ(Field(log[1], "message"), "edit");
   const std::string box = " --box -1000,-1000,-1000,1000,1000,1000 --count";
+  EXPECT_EQ(Field(Ok("query " + store + box), "hit_count"), "499");
   EXPECT_EQ(Field(Ok("query " + store + box + " --revision 0"), "hit_count"), "500");
-  ExpectRefused("query " + store + box + " --revision 1", "revision 1", store);
+  ExpectRefused("update " + store + " --remove-ids 2", "no object 2", store);
+  // clash --since 0: the clash at 0 with the resolved pairs out and the new ones in is the clash now.
+  const std::string since = Ok("clash " + store + " --since 0");
+  std::set<std::pair<std::string, std::string>> want = PairIds(clash0);
+  for (const auto& p : PairIds(since, "resolved")) EXPECT_EQ(want.erase(p), 1u) << p.first << " " << p.second;
+  const auto added = PairIds(since, "new");
+  EXPECT_FALSE(added.empty());
+  want.insert(added.begin(), added.end());
+  EXPECT_EQ(want, PairIds(Ok("clash " + store)));
+  const std::string compact = Ok("compact " + store);
+  EXPECT_NE(compact.find("revision 2"), std::string::npos) << compact;
+  EXPECT_EQ(Field(Ok("query " + store + box), "hit_count"), "499");
+  EXPECT_EQ(Field(Ok("query " + store + box + " --revision 1"), "hit_count"), "499");
+  EXPECT_EQ(want, PairIds(Ok("clash " + store)));
+  const std::string info = Ok("info " + store + " --json");
+  EXPECT_EQ(Field(info, "objects"), "499");
+  EXPECT_EQ(Field(info, "revision"), "2");
+  EXPECT_EQ(Field(info, "shards"), "2");
+  ExpectRefused("query " + store + box + " --revision 9", "revision 9", store);
 }
 
 }  // namespace

@@ -11,32 +11,6 @@ using testing::LiveSet;
 
 class Churn : public ::testing::TestWithParam<Backend> {};
 
-// The self-clash of `db` equals that of a fresh store of the same live objects (same frame).
-void ExpectClashOfFreshBuild(const Database& db, const LiveSet& live, const IngestOptions& base_options,
-                             const Vec3d& origin, const std::string& dir) {
-  std::vector<SceneObject> objs;
-  std::vector<ObjectId> ids;
-  for (const auto& [id, o] : live) {
-    objs.push_back(o);
-    objs.back().id = static_cast<ObjectId>(ids.size());
-    ids.push_back(id);
-  }
-  IngestOptions o = base_options;
-  o.origin = origin;
-  const std::string fresh = dir + "/fresh.mkt";
-  std::filesystem::remove(fresh);
-  ASSERT_TRUE(testing::BuildFromObjects(objs, fresh, o).ok());
-  auto fdb = Database::Open(fresh);
-  ASSERT_TRUE(fdb.ok());
-  std::vector<ClashPair> want = testing::SelfClashPairs(**fdb);
-  for (ClashPair& p : want) {
-    p.a = ids[p.a];
-    p.b = ids[p.b];
-    if (p.a > p.b) std::swap(p.a, p.b);
-  }
-  EXPECT_EQ(testing::SortedPairs(testing::SelfClashPairs(db)), testing::SortedPairs(want));
-}
-
 TEST_P(Churn, EveryBatchAnswersAsBruteForceOverTheLiveSet) {
   testing::TempDir dir("mktree_churn");
   std::mt19937_64 rng(38);
@@ -67,7 +41,7 @@ TEST_P(Churn, EveryBatchAnswersAsBruteForceOverTheLiveSet) {
     ASSERT_EQ((*db)->revision(), done->revision);
     testing::ExpectAnswers(**db, live, origin, testing::RandomQueries(30, rng),
                            "step " + std::to_string(step));
-    if (step % 8 == 7) ExpectClashOfFreshBuild(**db, live, opts, origin, dir.path().string());
+    if (step % 8 == 7) testing::ExpectClashOfFreshBuild(**db, live, opts, origin, dir.path().string());
   }
   auto c = (*w)->Compact();
   ASSERT_TRUE(c.ok()) << c.status().ToString();
@@ -75,7 +49,7 @@ TEST_P(Churn, EveryBatchAnswersAsBruteForceOverTheLiveSet) {
   auto db = Database::Open(store);
   ASSERT_TRUE(db.ok()) << db.status().ToString();
   testing::ExpectAnswers(**db, live, origin, testing::RandomQueries(60, rng), "after compaction");
-  ExpectClashOfFreshBuild(**db, live, opts, origin, dir.path().string());
+  testing::ExpectClashOfFreshBuild(**db, live, opts, origin, dir.path().string());
   // The store file is the compacted base itself: one part.
   EXPECT_EQ((*db)->stats_json().find("\"parts\": [{"), (*db)->stats_json().find("\"parts\": ["));
 }
@@ -221,7 +195,9 @@ TEST_P(Churn, HundredsOfSmallBatchesWithLargeObjects) {
       ASSERT_EQ(done->compaction_error, "");
       testing::Apply(batch, *done, &live);
     }
-    if (step % 25 == 24) ASSERT_TRUE((*w)->Compact().ok());
+    if (step % 25 == 24) {
+      ASSERT_TRUE((*w)->Compact().ok());
+    }
     auto db = Database::Open(store, {.cache_pages = 16});
     ASSERT_TRUE(db.ok()) << db.status().ToString();
     testing::ExpectAnswers(**db, live, origin, testing::RandomQueries(6, rng),

@@ -42,7 +42,9 @@ TEST_P(ClashSinceTest, NewAndResolvedTurnTheOldClashIntoTheNew) {
       ASSERT_TRUE(done.ok()) << done.status().ToString();
       testing::Apply(batch, *done, &live);
     }
-    if (round == 1) ASSERT_TRUE((*w)->Compact().ok());  // across a compaction too
+    if (round == 1) {  // across a compaction too
+      ASSERT_TRUE((*w)->Compact().ok());
+    }
     auto now = Database::Open(store);
     ASSERT_TRUE(now.ok());
     const PairIds after = Ids(testing::SelfClashPairs(**now, o));

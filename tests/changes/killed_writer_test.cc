@@ -33,8 +33,8 @@ class KilledWriter : public ::testing::TestWithParam<Backend> {
   // The store before: built, then `commits` batches committed.
   void Prepare(int commits) {
     std::filesystem::create_directories(dir_ / "pristine");
-    ASSERT_NO_FATAL_FAILURE(
-        testing::MakePristineStore(dir_.file("pristine/s.mkt"), GetParam(), 200, commits, &pristine_));
+    ASSERT_NO_FATAL_FAILURE(testing::MakePristineStore(dir_.file("pristine/s.mkt"), GetParam(), 200, commits,
+                                                       &pristine_, shards_));
     std::mt19937_64 rng(99);
     batch_ = testing::MixedBatch(pristine_.live, 4, rng, &pristine_.counter);
     queries_ = testing::RandomQueries(40, rng);
@@ -139,6 +139,7 @@ class KilledWriter : public ::testing::TestWithParam<Backend> {
   ChangeBatch batch_;
   std::vector<Query> queries_;
   ChangeOptions options_{.compact_threshold = 0, .threads = 1};
+  uint32_t shards_ = 0;  // > 0: a sharded store
 };
 
 TEST_P(KilledWriter, CommitOpensBeforeOrAfterAndTheNextWriterCleansUp) {
@@ -163,6 +164,26 @@ TEST_P(KilledWriter, CommitThenItsCompactionOpensAtOneOfTheirRevisions) {
   ASSERT_NO_FATAL_FAILURE(Prepare(3));
   KillAtEveryStep(Operation::kCommitThenCompaction);
 }
+
+// The same on a sharded store of 2 shards: the first change links its shard files into the folder, and a
+// compaction is a sharded build whose manifest is written last.
+class KilledShardedWriter : public KilledWriter {
+ protected:
+  KilledShardedWriter() { shards_ = 2; }
+};
+
+TEST_P(KilledShardedWriter, FirstCommitOpensBeforeOrAfter) {
+  ASSERT_NO_FATAL_FAILURE(Prepare(0));
+  KillAtEveryStep(Operation::kCommit);
+}
+
+TEST_P(KilledShardedWriter, CommitThenItsCompactionOpensAtOneOfTheirRevisions) {
+  ASSERT_NO_FATAL_FAILURE(Prepare(3));
+  KillAtEveryStep(Operation::kCommitThenCompaction);
+}
+
+INSTANTIATE_TEST_SUITE_P(Backends, KilledShardedWriter, ::testing::Values(Backend::kPagedFile),
+                         [](const auto& info) { return std::string(BackendName(info.param)); });
 
 INSTANTIATE_TEST_SUITE_P(Backends, KilledWriter, ::testing::Values(Backend::kHdf5, Backend::kPagedFile),
                          [](const auto& info) { return std::string(BackendName(info.param)); });

@@ -41,8 +41,8 @@ class WriteFault : public ::testing::TestWithParam<Backend> {
   // The store before: built, then `commits` batches committed.
   void Prepare(int commits) {
     std::filesystem::create_directories(dir_ / "pristine");
-    ASSERT_NO_FATAL_FAILURE(
-        testing::MakePristineStore(dir_.file("pristine/s.mkt"), GetParam(), 200, commits, &pristine_));
+    ASSERT_NO_FATAL_FAILURE(testing::MakePristineStore(dir_.file("pristine/s.mkt"), GetParam(), 200, commits,
+                                                       &pristine_, shards_));
     std::mt19937_64 rng(17);
     batch_ = testing::MixedBatch(pristine_.live, 4, rng, &pristine_.counter);
     queries_ = testing::RandomQueries(40, rng);
@@ -165,6 +165,7 @@ class WriteFault : public ::testing::TestWithParam<Backend> {
   ChangeBatch batch_;
   std::vector<Query> queries_;
   ChangeOptions options_{.compact_threshold = 0, .threads = 1};
+  uint32_t shards_ = 0;  // > 0: a sharded store
 };
 
 TEST_P(WriteFault, FullDiskDuringACommit) {
@@ -261,6 +262,24 @@ TEST_P(WriteFault, AFailedRelinkAfterACompactionLosesNothing) {
   ASSERT_TRUE(now.ok());
   EXPECT_EQ(now->fingerprint, head->base.store.fingerprint);
 }
+
+// A sharded store of 2 shards: the first change links its shard files in; a compaction builds shards.
+class ShardedWriteFault : public WriteFault {
+ protected:
+  ShardedWriteFault() { shards_ = 2; }
+};
+
+TEST_P(ShardedWriteFault, FullDiskDuringTheFirstCommitOfABuiltStore) {
+  ASSERT_NO_FATAL_FAILURE(Prepare(0));
+  FailAtEveryStep(Operation::kFirstCommit, ENOSPC);
+}
+TEST_P(ShardedWriteFault, IoErrorDuringACompaction) {
+  ASSERT_NO_FATAL_FAILURE(Prepare(3));
+  FailAtEveryStep(Operation::kCompact, EIO);
+}
+
+INSTANTIATE_TEST_SUITE_P(Backends, ShardedWriteFault, ::testing::Values(Backend::kPagedFile),
+                         [](const auto& info) { return std::string(BackendName(info.param)); });
 
 INSTANTIATE_TEST_SUITE_P(Backends, WriteFault, ::testing::Values(Backend::kHdf5, Backend::kPagedFile),
                          [](const auto& info) { return std::string(BackendName(info.param)); });

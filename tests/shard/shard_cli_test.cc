@@ -47,7 +47,9 @@ TEST(ShardCli, BuildQueryAndInfo) {
   }
   auto info = RunMktree("info " + d + "/s.mkts --json", dir);
   ASSERT_EQ(info.code, 0) << info.err;
-  EXPECT_NE(info.out.find("\"objects\": 8000, \"shards\": 3"), std::string::npos) << info.out;
+  EXPECT_NE(info.out.find("\"objects\": 8000, \"revision\": 0, \"base_objects\": 8000,"), std::string::npos)
+      << info.out;
+  EXPECT_NE(info.out.find("\"removed_ids\": 0, \"shards\": 3,"), std::string::npos) << info.out;
   EXPECT_NE(info.out.find("\"top_levels\": [{\"axis\""), std::string::npos) << info.out;
   auto object = RunMktree("info " + d + "/s.mkts --object 77", dir);
   auto plain_object = RunMktree("info " + d + "/plain.mkt --object 77", dir);

@@ -632,7 +632,7 @@ int RunClash(int argc, char** argv, int rank, int ranks) {
   if (const int code = ParseClash(argc, argv, rank, &a); code >= 0) return code;
   auto fail = [rank](const std::string& message) { return FailOnRank(rank, message); };
   bool ok = true;
-  auto m = ReadManifest(a.manifest);
+  auto m = ReadManifestAsBuilt(a.manifest);
   if (!m.ok()) ok = fail(m.status().message());
   const auto run_pairs = RunPairs();
   if (!run_pairs.ok()) ok = fail(run_pairs.status().message());

@@ -12,6 +12,7 @@
 
 #include "engine/core/guarded.h"
 #include "engine/query/shard_open.h"
+#include "engine/revision/change_folder.h"
 #include "engine/shard/manifest.h"
 #include "mktree/database.h"
 #include "tools/mpi/mpi_cli.h"
@@ -80,6 +81,16 @@ QueryStats GetStats(const std::vector<uint8_t>& b, size_t* at) {
 
 }  // namespace
 
+Result<Manifest> ReadManifestAsBuilt(const std::string& manifest) {
+  MKTREE_ASSIGN_OR_RETURN(StoreRevision at, OpenStoreRevision(manifest, std::nullopt));
+  if (at.hold && at.hold->manifest().revision != 0)
+    return Status::Unsupported(manifest + ": has taken changes (revision " +
+                               std::to_string(at.hold->manifest().revision) +
+                               "); mktree-mpi answers a sharded store as built: use mktree query or clash, "
+                               "which answer every kept revision");
+  return ReadManifest(manifest);
+}
+
 Result<OpenShard> OpenOneShard(const std::string& manifest, const Manifest& m, uint32_t s,
                                uint64_t cache_pages) {
   return Guarded(manifest, [&]() -> Result<OpenShard> {
@@ -99,7 +110,7 @@ int RunQuery(int argc, char** argv, int rank, int ranks) {
     return false;
   };
   bool ok = true;
-  auto m = ReadManifest(a.manifest);
+  auto m = ReadManifestAsBuilt(a.manifest);
   if (!m.ok()) ok = fail(m.status().message());
   auto queries = tools::ReadQueryFile(a.queries);
   if (!queries.ok()) ok = fail(queries.status().message());

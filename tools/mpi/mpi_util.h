@@ -54,6 +54,10 @@ inline bool AllOk(bool ok) {
   return all == 1;
 }
 
+// The manifest of a sharded store that has taken no change. One that has (docs/changes.md) is refused
+// naming its revision: mktree-mpi answers a sharded store as built, `mktree` answers its revisions.
+Result<Manifest> ReadManifestAsBuilt(const std::string& manifest);
+
 // One shard of a manifest opened on a rank: its store's Database (local ids) and its id file.
 struct OpenShard {
   uint32_t index = 0;
