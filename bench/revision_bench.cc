@@ -7,7 +7,9 @@
 //             at each: cold pages per query (engine cache emptied before each query) of --queries points
 //             and 0.5 / 2 / 8 m boxes on the revision, against the same queries on a compaction of a copy
 //             of the store (= a fresh build of the live objects in id order), answers cross-checked;
-//             compaction time and its process's peak RSS against the tanker's build
+//             compaction time and its process's peak RSS against a fresh build of the same live objects
+//             read from an .mks file (written from the compacted copy, untimed) and against the tanker's
+//             build (the generator: no input to read)
 //   clash     a --clash-batch change batch: ClashSince (incremental) against the full self-clash of the new
 //             revision and against collide of each added or replacing object: time and pages read
 //   reader    one thread running box2 queries warm for --seconds, with the writer idle, then with the
@@ -33,6 +35,7 @@
 
 #include "engine/generator/tanker_generator.h"
 #include "engine/ingest/store_builder.h"
+#include "engine/scene/mkscene_format.h"
 #include "mktree/changes.h"
 #include "mktree/database.h"
 
@@ -198,7 +201,7 @@ void RunPages(const Args& a, const std::string& store, double build_seconds, dou
   std::printf("%-8s %6s %7s", "changed", "parts", "commits");
   for (const Workload& w : ws)
     std::printf(" %8s %8s %6s", (w.name + ".r").c_str(), (w.name + ".c").c_str(), "ratio");
-  std::printf(" %9s %8s %9s\n", "compact_s", "rss_MiB", "answers");
+  std::printf(" %9s %8s %8s %9s %9s\n", "compact_s", "rss_MiB", "fresh_s", "fresh_MiB", "answers");
   auto w = Must(ChangeWriter::Open(store, {.compact_threshold = 0}), "writer");
   Changes changes(a.objects, a.seed + 1);
   uint64_t changed = 0, commits = 0;
@@ -229,12 +232,43 @@ void RunPages(const Args& a, const std::string& store, double build_seconds, dou
     if (rc != 0) Die("compaction", Status::Internal("child failed"));
     auto cdb = Must(Database::Open(copy), "open compacted");
     const std::vector<double> fresh = ColdPages(*cdb, ws, &want);
+    // The same live objects as a scene file, built afresh (as a user rebuilding would, from a file).
+    const std::string mks = a.dir + "/revision_bench_live.mks";
+    {
+      auto out = Must(MkSceneWriter::Create(mks), "live scene");
+      SceneObject o;
+      for (ObjectId id = 0; id < cdb->id_limit(); ++id) {
+        auto r = cdb->Object(id);
+        if (!r.ok()) continue;  // removed
+        o.id = id;
+        o.name = r->name;
+        o.source = r->source;
+        o.attributes = r->attributes;
+        o.mesh = Must(cdb->ObjectGeometry(id), "geometry");
+        if (Status st = out->Write(o); !st.ok()) Die("live scene", st);
+      }
+      if (Status st = out->Finish(); !st.ok()) Die("live scene", st);
+    }
+    const std::string rebuilt = a.dir + "/revision_bench_fresh.mkt";
+    fs::remove(rebuilt);
+    const auto tf = Clock::now();
+    const auto [frc, fresh_rss] = InChild([&] {
+      IngestOptions o;
+      o.store.backend = Backend::kPagedFile;
+      auto r = BuildStore({[&](ObjectId first) { return OpenMkSceneFile(mks, first); }}, rebuilt, o);
+      return r.ok() ? 0 : 1;
+    });
+    const double fresh_s = Since(tf);
+    if (frc != 0) Die("fresh build", Status::Internal("child failed"));
+    fs::remove(rebuilt);
+    fs::remove(mks);
     const std::string& js = db->stats_json();
     const int parts = 1 + std::atoi(js.c_str() + js.find("\"deltas\": ") + 10);
     std::printf("%-7.0f%% %6d %7llu", f * 100, parts, static_cast<unsigned long long>(commits));
     for (size_t i = 0; i < ws.size(); ++i)
       std::printf(" %8.2f %8.2f %6.3f", rev[i], fresh[i], rev[i] / fresh[i]);
-    std::printf(" %9.2f %8.0f %9s\n", compact_s, rss, got == want ? "same" : "DIFFER");
+    std::printf(" %9.2f %8.0f %8.2f %9.0f %9s\n", compact_s, rss, fresh_s, fresh_rss,
+                got == want ? "same" : "DIFFER");
     if (got != want) std::exit(2);
   }
   std::sort(latencies.begin(), latencies.end());

@@ -44,7 +44,7 @@ constexpr uint64_t kMergeRatio = 2;
 
 // The writer's page cache over a revision's parts: it reads records and leaves in order (names, merges,
 // compaction), so a few pages do; a reader's default would add its 48 MiB to a compaction's peak.
-constexpr uint64_t kWriterCachePages = 256;
+constexpr uint64_t kWriterCachePages = 64;
 
 // The commit point. On an error the file is removed even when its rename was done (a failed fsync of the
 // folder after it), so that an error means that nothing was committed: the writer's head stays, and its
@@ -271,7 +271,7 @@ Status Writer::OpenHead() {
   o.cache_pages = kWriterCachePages;
   std::vector<RevisionPartDb> reuse = std::move(parts_);
   parts_.clear();
-  MKTREE_ASSIGN_OR_RETURN(parts_, OpenRevisionParts(store_, head_, o, &reuse));
+  MKTREE_ASSIGN_OR_RETURN(parts_, OpenRevisionParts(store_, head_, o, &reuse, false));
   base_ingest_ = PartIngestOptions(*parts_[0].db, options_.threads);
   return Status::Ok();
 }
@@ -402,6 +402,7 @@ Result<CommitReport> Writer::CommitUnguarded(const ChangeBatch& batch) {
       if (at == written.size()) return false;
       *out = *written[at].object;  // the one copy the build takes
       out->id = written[at++].id;
+      out->stored_shape = 0;  // judged on the caller's coordinates
       return true;
     };
     MKTREE_ASSIGN_OR_RETURN(RevisionPart delta,
@@ -453,7 +454,8 @@ Status Writer::MergeDeltas(RevisionManifest* m) {
          m->deltas[m->deltas.size() - 2].objects <= kMergeRatio * m->deltas.back().objects) {
     OpenOptions o;
     o.cache_pages = kWriterCachePages;
-    MKTREE_ASSIGN_OR_RETURN(std::vector<RevisionPartDb> parts, OpenRevisionParts(store_, *m, o, &parts_));
+    MKTREE_ASSIGN_OR_RETURN(std::vector<RevisionPartDb> parts,
+                            OpenRevisionParts(store_, *m, o, &parts_, false));
     const size_t n = parts.size();
     LiveObjectStream live({&parts[n - 2], &parts[n - 1]}, 0, folder_, ops_);
     IdOrderedObjects next = [&](SceneObject* out) { return live.Next(out); };

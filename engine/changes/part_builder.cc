@@ -18,17 +18,52 @@ namespace mktree {
 
 namespace {
 
+// Increasing ids as runs of consecutive ones: a compaction's ids have a gap per removed object at most, so
+// the build's peak holds no 4 bytes an object for them.
+class IdRuns {
+ public:
+  void Clear() { runs_.clear(); }
+  bool Add(ObjectId id) {  // false: not above the last
+    if (!runs_.empty()) {
+      auto& [first, count] = runs_.back();
+      const uint64_t next = uint64_t{first} + count;
+      if (id < next) return false;
+      if (id == next) {
+        ++count;
+        return true;
+      }
+    }
+    runs_.push_back({id, 1});
+    return true;
+  }
+  uint64_t size() const {
+    uint64_t n = 0;
+    for (const auto& r : runs_) n += r.second;
+    return n;
+  }
+  bool identity() const { return runs_.empty() || (runs_.size() == 1 && runs_[0].first == 0); }
+  std::vector<ObjectId> Expand() const {
+    std::vector<ObjectId> ids;
+    ids.reserve(size());
+    for (const auto& [first, count] : runs_)
+      for (uint64_t i = 0; i < count; ++i) ids.push_back(static_cast<ObjectId>(first + i));
+    return ids;
+  }
+
+ private:
+  std::vector<std::pair<ObjectId, uint64_t>> runs_;
+};
+
 // The stream renumbered 0, 1, 2, ... with the global ids kept aside.
 class RenumberedSource final : public SceneSource {
  public:
-  RenumberedSource(const IdOrderedObjects& objects, ObjectId first, std::vector<ObjectId>* ids)
+  RenumberedSource(const IdOrderedObjects& objects, ObjectId first, IdRuns* ids)
       : objects_(objects), next_(first), ids_(ids) {}
   Result<bool> Next(SceneObject* out) override {
     MKTREE_ASSIGN_OR_RETURN(const bool more, objects_(out));
     if (!more) return false;
-    if (!ids_->empty() && out->id <= ids_->back())
+    if (!ids_->Add(out->id))
       return Status::Internal("object " + std::to_string(out->id) + ": part objects out of id order");
-    ids_->push_back(out->id);
     out->id = next_++;
     return true;
   }
@@ -36,7 +71,7 @@ class RenumberedSource final : public SceneSource {
  private:
   const IdOrderedObjects& objects_;
   ObjectId next_;
-  std::vector<ObjectId>* ids_;
+  IdRuns* ids_;
 };
 
 }  // namespace
@@ -54,9 +89,9 @@ Result<RevisionPart> BuildRevisionPart(const PartBuild& b, const IdOrderedObject
       std::filesystem::remove(ids, ec);
     }
   } discard{store_path, ids_path};
-  std::vector<ObjectId> ids;
+  IdRuns ids;
   const SceneOpener opener = [&](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
-    ids.clear();
+    ids.Clear();
     return std::unique_ptr<SceneSource>(std::make_unique<RenumberedSource>(objects, first, &ids));
   };
   MKTREE_ASSIGN_OR_RETURN(const IngestReport report, BuildStore({opener}, store_path, b.ingest));
@@ -66,11 +101,9 @@ Result<RevisionPart> BuildRevisionPart(const PartBuild& b, const IdOrderedObject
   part.made_at = b.made_at;
   part.objects = ids.size();
   MKTREE_ASSIGN_OR_RETURN(part.store, FingerprintFile(store_path));
-  bool identity = b.identity_ids;
-  for (size_t i = 0; identity && i < ids.size(); ++i) identity = ids[i] == i;
-  if (!identity) {
+  if (!(b.identity_ids && ids.identity())) {
     MKTREE_RETURN_IF_ERROR(
-        WriteShardIds(ids_path, b.history, static_cast<uint32_t>(b.made_at), ids,
+        WriteShardIds(ids_path, b.history, static_cast<uint32_t>(b.made_at), ids.Expand(),
                       b.ingest.store.file_ops ? *b.ingest.store.file_ops : DefaultFileOps()));
     MKTREE_ASSIGN_OR_RETURN(part.ids, FingerprintFile(ids_path));
   }
@@ -100,6 +133,7 @@ struct LiveObjectStream::Cursor {
       return &leaves.front();
     }
     MKTREE_ASSIGN_OR_RETURN(PinnedLeaf pinned, part.db->leaves().Read(leaf, nullptr));
+    std::vector<uint64_t>().swap(pinned.seen);  // the read's check bits, a bit per object of the store
     Leaf l;
     l.leaf = leaf;
     l.pinned = std::move(pinned);
@@ -138,7 +172,7 @@ struct LiveObjectStream::Cursor {
         MKTREE_RETURN_IF_ERROR(part.db->leaves().DecodeMesh(e, &mesh));
         for (size_t v = 0; v < mesh.vertices.size(); ++v) mesh.vertices[v] += o[v % 3];
         where[e.id] = at + buf.size();
-        const uint64_t counts[2] = {mesh.vertices.size(), mesh.triangles.size()};
+        const uint64_t counts[3] = {mesh.vertices.size(), mesh.triangles.size(), e.shape_flags};
         auto put = [&](const void* p, size_t n) {
           buf.insert(buf.end(), static_cast<const uint8_t*>(p), static_cast<const uint8_t*>(p) + n);
         };
@@ -151,16 +185,17 @@ struct LiveObjectStream::Cursor {
     return flush();
   }
 
-  Status ReadSpilled(ObjectId local, Mesh* mesh) {
+  Status ReadSpilled(ObjectId local, Mesh* mesh, uint8_t* shape) {
     const uint64_t at = where[local];
     if (at == kNowhere)
       return Status::Corruption(part.db->reader().path() + ": object " + std::to_string(local) +
                                 " is in no leaf");
-    uint64_t counts[2];
+    uint64_t counts[3];
     const std::string& path = part.db->reader().path();
     MKTREE_RETURN_IF_ERROR(storage_internal::PreadFull(scratch_fd, counts, sizeof counts, at, path));
     mesh->vertices.resize(counts[0]);
     mesh->triangles.resize(counts[1]);
+    *shape = static_cast<uint8_t>(counts[2]);
     MKTREE_RETURN_IF_ERROR(storage_internal::PreadFull(scratch_fd, mesh->vertices.data(), 8 * counts[0],
                                                        at + sizeof counts, path));
     return storage_internal::PreadFull(scratch_fd, mesh->triangles.data(), 4 * counts[1],
@@ -174,7 +209,7 @@ struct LiveObjectStream::Cursor {
     out->name = r->name;
     out->attributes = r->attributes;
     out->mesh = Mesh();
-    if (scratch_fd >= 0) return ReadSpilled(local, &out->mesh);
+    if (scratch_fd >= 0) return ReadSpilled(local, &out->mesh, &out->stored_shape);
     const uint32_t leaf = r->leaf;
     MKTREE_ASSIGN_OR_RETURN(const Leaf* l, LeafOf(leaf));
     auto at = l->position.find(local);
@@ -182,7 +217,9 @@ struct LiveObjectStream::Cursor {
       return Status::Corruption(reader.path() + ": object " + std::to_string(local) +
                                 ": its record puts it in leaf " + std::to_string(leaf) +
                                 ", which does not hold it");
-    MKTREE_RETURN_IF_ERROR(part.db->leaves().DecodeMesh(l->pinned.view.entry(at->second), &out->mesh));
+    const ObjectEntryView& entry = l->pinned.view.entry(at->second);
+    MKTREE_RETURN_IF_ERROR(part.db->leaves().DecodeMesh(entry, &out->mesh));
+    out->stored_shape = entry.shape_flags;
     const Vec3d& o = reader.tree().origin;
     for (size_t v = 0; v < out->mesh.vertices.size(); ++v) out->mesh.vertices[v] += o[v % 3];
     return Status::Ok();
@@ -237,6 +274,7 @@ IngestOptions PartIngestOptions(const StoreDatabase& base, unsigned threads) {
   o.store.file_ops = nullptr;
   o.store.direct_io = false;
   o.origin = base.reader().tree().origin;
+  o.keep_stored_shape = true;  // a commit's own objects come with stored_shape 0 (ChangeWriter)
   o.threads = threads;
   o.tuning.threads = static_cast<int>(threads);
   return o;

@@ -43,9 +43,14 @@ void EncodeBatch(const EncoderOptions& options, Batch* b) {
   b->error_at = std::numeric_limits<size_t>::max();
   for (size_t i = 0; i < b->count; ++i) {
     const SceneObject& obj = b->objects[i];
-    const EdgeCheck edges = CheckEdges(obj.mesh);
-    const uint8_t shape =
-        kShapeKnown | (edges.even ? kShapeEvenEdges : 0) | (edges.closed ? kShapeClosed : 0);
+    uint8_t shape = 0;
+    if (options.keep_stored_shape && (obj.stored_shape & kShapeKnown) &&
+        obj.stored_shape <= (kShapeKnown | kShapeEvenEdges | kShapeClosed)) {
+      shape = obj.stored_shape;
+    } else {
+      const EdgeCheck edges = CheckEdges(obj.mesh);
+      shape = kShapeKnown | (edges.even ? kShapeEvenEdges : 0) | (edges.closed ? kShapeClosed : 0);
+    }
     Box3f box;
     auto encoded = EncodeObjectEntry(obj, options.origin, options.codec, &b->entries, shape, &box);
     if (!encoded.ok()) {

@@ -28,7 +28,8 @@ struct EncoderOptions {
   // Encoding threads: 1 runs every stage on the calling thread (no other thread); n > 1 starts n
   // encoders and a drain thread besides the reading caller; 0 means one per core.
   uint32_t threads = 0;
-  Vec3d origin;  // the store frame's origin (engine/store_format/object_codec.h)
+  Vec3d origin;                    // the store frame's origin (engine/store_format/object_codec.h)
+  bool keep_stored_shape = false;  // IngestOptions::keep_stored_shape
 };
 
 // Fills *obj with the next object; false at the end of the input. Called on the calling thread only.

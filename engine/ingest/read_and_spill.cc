@@ -224,6 +224,7 @@ Result<ReadAndSpillOutput> ReadAndSpill(const std::vector<SceneOpener>& inputs, 
   encoder.codec.dictionary.reset();
   encoder.origin = report->origin;
   encoder.threads = options.threads;
+  encoder.keep_stored_shape = options.keep_stored_shape;
   // The objects read ahead to train the dictionary, handed to the encoder after `first`.
   std::deque<SceneObject> ahead;
   if (first_pending && encoder.codec.codec == Codec::kZstd)

@@ -55,6 +55,9 @@ struct IngestOptions {
   // tuning.spill_file_ops is set); null: POSIX. Tests inject faults through it (storage/file_ops.h); it
   // must outlive the build. The store's own writes go through store.file_ops.
   FileOps* spill_file_ops = nullptr;
+  // The objects are a store's, re-encoded (a merge of changes, a compaction): SceneObject::stored_shape,
+  // when known, is their shape, as judged on the input they were first stored from.
+  bool keep_stored_shape = false;
 };
 
 struct IngestReport {

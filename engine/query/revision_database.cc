@@ -274,7 +274,8 @@ size_t BasePartCount(const std::vector<RevisionPartDb>& parts) {
 
 Result<std::vector<RevisionPartDb>> OpenRevisionParts(const std::string& store_path,
                                                       const RevisionManifest& m, const OpenOptions& options,
-                                                      std::vector<RevisionPartDb>* reuse) {
+                                                      std::vector<RevisionPartDb>* reuse,
+                                                      bool keep_leaf_filters) {
   const std::string folder = ChangesFolder(store_path);
   const std::string base_path = ChangesFile(folder, m.base.store.name);
   MKTREE_RETURN_IF_ERROR(CheckFile(folder, m.base.store, "its base store"));
@@ -303,8 +304,8 @@ Result<std::vector<RevisionPartDb>> OpenRevisionParts(const std::string& store_p
     // Its shards, with the ids the sharded build or the compaction gave them (below next_id).
     for (uint32_t s = 0; s < sharded->shards.size(); ++s) {
       if (reused(ShardFilePath(base_path, sharded->shards[s].store.name))) continue;
-      MKTREE_ASSIGN_OR_RETURN(ManifestShard shard,
-                              OpenManifestShard(base_path, *sharded, s, part_options, m.next_id));
+      MKTREE_ASSIGN_OR_RETURN(ManifestShard shard, OpenManifestShard(base_path, *sharded, s, part_options,
+                                                                     m.next_id, keep_leaf_filters));
       RevisionPartDb part;
       part.db = std::move(shard.db);
       part.ids = std::move(shard.ids);
@@ -325,6 +326,7 @@ Result<std::vector<RevisionPartDb>> OpenRevisionParts(const std::string& store_p
     if (!part.base) MKTREE_RETURN_IF_ERROR(CheckFile(folder, d->store, what));
     ReadOptions ro;
     ro.direct_io = options.direct_io;
+    ro.keep_leaf_filter = keep_leaf_filters;
     MKTREE_ASSIGN_OR_RETURN(auto reader, StoreReader::Open(path, ro));
     part.db = OpenStoreDatabase(std::move(reader), part_options);
     if (part.db->object_count() != d->objects)

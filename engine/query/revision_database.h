@@ -38,10 +38,12 @@ std::optional<std::pair<size_t, ObjectId>> FindLive(const std::vector<RevisionPa
 // sharded store's manifest gives a part per shard, first (its shard files in the folder). Each part gets
 // cache_pages / parts pages (rounded up). Corruption naming the file when a check fails. Parts of `reuse`
 // (may be null) whose store file is one of m's are taken from it instead of opened again (a writer's
-// parts from one revision to the next).
+// parts from one revision to the next). A writer, which reads leaves whole, drops the leaf filters
+// (ReadOptions::keep_leaf_filter).
 Result<std::vector<RevisionPartDb>> OpenRevisionParts(const std::string& store_path,
                                                       const RevisionManifest& m, const OpenOptions& options,
-                                                      std::vector<RevisionPartDb>* reuse = nullptr);
+                                                      std::vector<RevisionPartDb>* reuse = nullptr,
+                                                      bool keep_leaf_filters = true);
 
 // The number of base parts of `parts` (1, or a sharded base's shards): they come first.
 size_t BasePartCount(const std::vector<RevisionPartDb>& parts);

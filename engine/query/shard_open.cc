@@ -8,7 +8,8 @@
 namespace mktree {
 
 Result<ManifestShard> OpenManifestShard(const std::string& manifest_path, const Manifest& m, uint32_t s,
-                                        const OpenOptions& shard_options, uint64_t id_limit) {
+                                        const OpenOptions& shard_options, uint64_t id_limit,
+                                        bool keep_leaf_filter) {
   const ShardEntry& e = m.shards[s];
   const std::string store_path = ShardFilePath(manifest_path, e.store.name);
   const std::string ids_path = ShardFilePath(manifest_path, e.ids.name);
@@ -24,6 +25,7 @@ Result<ManifestShard> OpenManifestShard(const std::string& manifest_path, const 
   }
   ReadOptions ro;
   ro.direct_io = shard_options.direct_io;
+  ro.keep_leaf_filter = keep_leaf_filter;
   MKTREE_ASSIGN_OR_RETURN(auto reader, StoreReader::Open(store_path, ro));
   if (reader->object_count() != e.objects || reader->tree().empty() ||
       !(reader->tree().nodes[0].box == e.box))

@@ -25,6 +25,7 @@ struct ManifestShard {
 // (0: m.objects, a sharded build's ids; a compaction's shards keep the ids of the live objects, which may
 // have gaps, docs/changes.md).
 Result<ManifestShard> OpenManifestShard(const std::string& manifest_path, const Manifest& m, uint32_t s,
-                                        const OpenOptions& shard_options, uint64_t id_limit = 0);
+                                        const OpenOptions& shard_options, uint64_t id_limit = 0,
+                                        bool keep_leaf_filter = true);
 
 }  // namespace mktree

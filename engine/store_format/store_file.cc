@@ -337,6 +337,10 @@ Result<std::unique_ptr<StoreReader>> StoreReader::Open(const std::string& path, 
     r->tree_ = std::move(o.contents.tree);
     if (!r->tree_.IndexLeafFilter())
       return Status::Corruption(path + ": leaf filter does not match the leaves");
+    if (!opts.keep_leaf_filter) {
+      decltype(r->tree_.leaf_filter)().swap(r->tree_.leaf_filter);  // = {} would keep the capacity
+      decltype(r->tree_.leaf_filter_begin)().swap(r->tree_.leaf_filter_begin);
+    }
     r->objects_ = std::move(o.contents.objects);
     r->stats_json_ = std::move(o.contents.stats_json);
     r->notice_ = std::move(o.notice);

@@ -137,6 +137,9 @@ struct ReadOptions {
   // filesystem or page size does not allow it, reads fall back to buffered I/O and notice() says why.
   // HDF5: not supported; notice() says so.
   bool direct_io = false;
+  // false: the leaf filter is checked, then dropped (a change writer reads leaves whole; it would only add
+  // 8 bytes an object to a compaction's peak). Queries still answer, testing every entry of a leaf.
+  bool keep_leaf_filter = true;
 };
 
 // Thread safety: after Open, every const method (and pages().ReadPage) may be called from many threads.

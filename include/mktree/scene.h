@@ -46,6 +46,11 @@ struct SceneObject {
   std::string source;
   std::vector<ObjectAttribute> attributes;
   Mesh mesh;
+  // Internal: how the mesh was judged (closed, even edges) when the object was first stored, so that a
+  // store rebuilt from stored objects (a merge of changes, a compaction) keeps the judgement made on the
+  // input's coordinates, not one made on float32-rounded ones. 0: judged from `mesh`; builds from callers'
+  // objects ignore it.
+  uint8_t stored_shape = 0;
   // Bounds() rounded outward to float32, in world coordinates (a store keeps boxes in its own frame).
   Box3f Aabb() const { return RoundOutward(mesh.Bounds()); }
 };

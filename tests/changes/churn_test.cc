@@ -284,3 +284,66 @@ TEST(ChangesAndBuild, ALostRevisionFileIsNotReusedByTheNextWriter) {
 
 }  // namespace
 }  // namespace mktree
+
+namespace mktree {
+namespace {
+
+// Two unit cubes in one object, the second 1e-9 beyond the first: closed in the input's doubles, but
+// float32 storage welds their facing corners. Whether an object is a solid is decided on the input and
+// kept (docs/clash.md §1); a merge of deltas or a compaction re-encodes stored objects and must keep it.
+SceneObject TwoCubesWeldedByRounding() {
+  SceneObject o;
+  o.name = "two_cubes";
+  const Mesh a = testing::BoxMesh(Box3d{{10, 10, 10}, {11, 11, 11}});
+  const Mesh b = testing::BoxMesh(Box3d{{11 + 1e-9, 10, 10}, {12, 11, 11}});
+  o.mesh = a;
+  const uint32_t base = static_cast<uint32_t>(a.vertex_count());
+  o.mesh.vertices.insert(o.mesh.vertices.end(), b.vertices.begin(), b.vertices.end());
+  for (uint32_t t : b.triangles) o.mesh.triangles.push_back(base + t);
+  return o;
+}
+
+TEST(ChangesAndBuild, ASolidJudgedOnTheInputStaysOneThroughMergesAndCompaction) {
+  testing::TempDir dir("mktree_churn");
+  std::vector<SceneObject> scene;
+  scene.push_back(TwoCubesWeldedByRounding());
+  SceneObject inner;  // wholly inside the first cube: a containment pair, only while the cubes are a solid
+  inner.name = "inner";
+  inner.mesh = testing::BoxMesh(Box3d{{10.4, 10.4, 10.4}, {10.6, 10.6, 10.6}});
+  scene.push_back(inner);
+  for (int i = 0; i < 6; ++i) {
+    SceneObject f;
+    f.name = "far_" + std::to_string(i);
+    f.mesh = testing::BoxMesh(Box3d{{20.0 + 3 * i, 10, 10}, {21.0 + 3 * i, 11, 11}});
+    scene.push_back(f);
+  }
+  for (size_t i = 0; i < scene.size(); ++i) scene[i].id = static_cast<ObjectId>(i);
+  const std::string store = dir.file("s.mkt");
+  ASSERT_TRUE(testing::BuildFromObjects(scene, store, testing::SmallPages(Backend::kPagedFile)).ok());
+  const auto pairs_now = [&] {
+    auto db = Database::Open(store);
+    EXPECT_TRUE(db.ok()) << db.status().ToString();
+    return testing::SortedPairs(testing::SelfClashPairs(**db));
+  };
+  const auto built = pairs_now();
+  ASSERT_EQ(built.size(), 1u);
+  ASSERT_EQ(std::get<0>(built[0]), 0u);
+  ASSERT_EQ(std::get<1>(built[0]), 1u);
+  auto w = ChangeWriter::Open(store, {.compact_threshold = 0, .threads = 1});
+  ASSERT_TRUE(w.ok()) << w.status().ToString();
+  ChangeBatch again;  // the same cubes from the input again: a delta holds them
+  again.replace.push_back(TwoCubesWeldedByRounding());
+  again.replace.back().id = 0;
+  ASSERT_TRUE((*w)->Commit(again).ok());
+  EXPECT_EQ(pairs_now(), built);
+  ChangeBatch other;  // a delta of one object: the two deltas merge, re-encoding the cubes
+  other.replace.push_back(scene[4]);
+  ASSERT_TRUE((*w)->Commit(other).ok());
+  EXPECT_EQ(pairs_now(), built) << "after the merge of deltas";
+  auto c = (*w)->Compact();
+  ASSERT_TRUE(c.ok()) << c.status().ToString();
+  EXPECT_EQ(pairs_now(), built) << "after compaction";
+}
+
+}  // namespace
+}  // namespace mktree
