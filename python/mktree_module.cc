@@ -422,7 +422,8 @@ py::dict Build(const py::object& path, const py::object& objects, const py::obje
                const std::string& backend, const std::string& codec, int zstd_level, uint32_t block_size,
                uint32_t blocks_per_page, double balance_r, uint32_t split_budget,
                const std::string& split_policy, unsigned threads, const py::object& spill_dir,
-               double chord_tolerance, double angular_deflection, const py::object& progress) {
+               double chord_tolerance, double angular_deflection, const py::object& progress,
+               uint32_t shards) {
   if (objects.is_none() == files.is_none()) throw py::value_error("give either objects or files");
   BuildOptions opts;
   opts.backend = ParseBackend(backend);
@@ -434,6 +435,7 @@ py::dict Build(const py::object& path, const py::object& objects, const py::obje
   opts.split_budget = split_budget;
   opts.split_policy = ParsePolicy(split_policy);
   opts.threads = threads;
+  opts.shards = shards;
   if (!spill_dir.is_none()) opts.spill_dir = PathText(spill_dir);
   opts.chord_tolerance = chord_tolerance;
   opts.angular_deflection = angular_deflection;
@@ -886,9 +888,11 @@ void DefineOpenAndBuild(py::module_& m) {
         py::arg("split_budget") = 64, py::arg("split_policy") = "compact", py::arg("threads") = 0,
         py::arg("spill_dir") = py::none(), py::arg("chord_tolerance") = BuildOptions{}.chord_tolerance,
         py::arg("angular_deflection") = BuildOptions{}.angular_deflection, py::arg("progress") = py::none(),
+        py::arg("shards") = 0,
         "Builds the store at `path` from `objects` (an iterable of dicts or objects with vertices (n, 3), "
         "faces (m, 3), optional name and attributes) or `files` (a path or a list: any format mktree "
-        "build reads, or 'tanker:N:SEED'). Returns the build statistics as a dict.");
+        "build reads, or 'tanker:N:SEED'); with `shards` K > 0, a sharded store of K shards (`path` is its "
+        "manifest). Returns the build statistics as a dict.");
 }
 
 // The change API (mktree/changes.h): the Writer class, open_writer and log.

@@ -142,3 +142,30 @@ def test_commit_releases_the_gil(store):
     assert ran_while_worker_busy and n >= 1
     assert w.revision == 3
     w.close()
+
+
+def test_sharded_store_takes_changes(tmp_path):
+    """A sharded store (build(..., shards=K) from files) takes commits and compacts as a store does."""
+    path = tmp_path / "s.mkts"
+    mktree.build(path, files="tanker:400:3", backend="pagefile", block_size=1024, blocks_per_page=2, shards=3)
+    db = mktree.open(path)
+    built = {i: np.asarray(db.object(i)["box"]) for i in range(db.object_count)}
+    rng = np.random.default_rng(13)
+    mins = rng.uniform([-5, -30, -5], [300, 25, 30], size=(300, 3))
+    queries = np.hstack([mins, mins + rng.uniform(0, 20, size=(300, 1))])
+    assert_answers(db, built, queries)
+    live = dict(built)
+    new_objects, new_boxes = random_boxes(20, 7)
+    with mktree.open_writer(path, compact_threshold=0) as w:
+        r = w.commit(add=new_objects, remove=[0, 7, 399], message="sharded")
+        assert (r["revision"], r["added"], r["removed"]) == (1, 20, 3)
+        for i in (0, 7, 399):
+            del live[i]
+        for k, i in enumerate(r["added_ids"]):
+            live[int(i)] = new_boxes[k]
+        assert_answers(mktree.open(path), live, queries)
+        c = w.compact()
+        assert c["revision"] == 2 and c["objects"] == len(live)
+    assert_answers(mktree.open(path), live, queries)
+    assert_answers(db, built, queries)  # the snapshot opened before still answers revision 0
+    assert [e["revision"] for e in mktree.log(path)] == [0, 1, 2]
