@@ -15,8 +15,12 @@
 //   reader    one thread running box2 queries warm for --seconds, with the writer idle, then with the
 //             writer committing batches of --clash-batch on the other thread: reader queries/s
 //
+// With --shards K, every store (the tanker's, the fresh build's) is a sharded store of K shards, and a
+// compaction is a sharded build of the live objects (docs/changes.md, "Sharded stores").
+//
 // Usage: revision_bench [--objects N] [--seed S] [--queries Q] [--batch B] [--clash-batch K]
 //                       [--seconds T] [--dir DIR] [--only pages|clash|reader] [--fractions 0.01,0.1,0.3]
+//                       [--shards K]
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -34,6 +38,7 @@
 #include <vector>
 
 #include "engine/generator/tanker_generator.h"
+#include "engine/ingest/shard_build.h"
 #include "engine/ingest/store_builder.h"
 #include "engine/scene/mkscene_format.h"
 #include "mktree/changes.h"
@@ -57,7 +62,16 @@ struct Args {
   std::string dir = ".";
   std::string only;
   std::vector<double> fractions{0.01, 0.10, 0.30};
+  uint32_t shards = 0;
 };
+
+// The store at `path` built from `inputs` with the bench's options: one store, or `shards` shards.
+Status BuildBenchStore(const std::vector<SceneOpener>& inputs, const std::string& path, uint32_t shards) {
+  IngestOptions o;
+  o.store.backend = Backend::kPagedFile;
+  if (shards > 0) return BuildShardedStore(inputs, path, o, shards).status();
+  return BuildStore(inputs, path, o).status();
+}
 
 [[noreturn]] void Die(const std::string& what, const Status& st) {
   std::fprintf(stderr, "revision_bench: %s: %s\n", what.c_str(), st.ToString().c_str());
@@ -187,11 +201,27 @@ class Changes {
   std::vector<ObjectId> live_, replaced_;
 };
 
+// The store, its changes folder and a sharded store's shard files beside it, removed.
+void RemoveStore(const std::string& path) {
+  fs::remove(path);
+  fs::remove_all(path + ".changes");
+  const std::string stem = fs::path(path).filename().string() + ".shard-";
+  std::vector<fs::path> shards;
+  for (const auto& e : fs::directory_iterator(fs::path(path).parent_path()))
+    if (e.path().filename().string().rfind(stem, 0) == 0) shards.push_back(e.path());
+  for (const fs::path& p : shards) fs::remove(p);
+}
+
+// The store, its changes folder and a sharded store's shard files beside it ("<store>.shard-N...").
 void CopyStore(const std::string& from, const std::string& to) {
-  fs::remove(to);
-  fs::remove_all(to + ".changes");
+  RemoveStore(to);
   fs::copy_file(from, to);
   fs::copy(from + ".changes", to + ".changes", fs::copy_options::recursive);
+  const std::string stem = fs::path(from).filename().string() + ".shard-";
+  for (const auto& e : fs::directory_iterator(fs::path(from).parent_path()))
+    if (e.path().filename().string().rfind(stem, 0) == 0)
+      fs::copy_file(e.path(), to + e.path().filename().string().substr(stem.size() - 7),
+                    fs::copy_options::overwrite_existing);
 }
 
 void RunPages(const Args& a, const std::string& store, double build_seconds, double build_rss) {
@@ -250,20 +280,22 @@ void RunPages(const Args& a, const std::string& store, double build_seconds, dou
       if (Status st = out->Finish(); !st.ok()) Die("live scene", st);
     }
     const std::string rebuilt = a.dir + "/revision_bench_fresh.mkt";
-    fs::remove(rebuilt);
+    RemoveStore(rebuilt);
     const auto tf = Clock::now();
     const auto [frc, fresh_rss] = InChild([&] {
-      IngestOptions o;
-      o.store.backend = Backend::kPagedFile;
-      auto r = BuildStore({[&](ObjectId first) { return OpenMkSceneFile(mks, first); }}, rebuilt, o);
-      return r.ok() ? 0 : 1;
+      return BuildBenchStore({[&](ObjectId first) { return OpenMkSceneFile(mks, first); }}, rebuilt, a.shards)
+                     .ok()
+                 ? 0
+                 : 1;
     });
     const double fresh_s = Since(tf);
     if (frc != 0) Die("fresh build", Status::Internal("child failed"));
-    fs::remove(rebuilt);
+    RemoveStore(rebuilt);
     fs::remove(mks);
     const std::string& js = db->stats_json();
-    const int parts = 1 + std::atoi(js.c_str() + js.find("\"deltas\": ") + 10);
+    int parts = 0;  // the stores the revision answers from: a part per shard of a sharded base, then deltas
+    for (size_t at = js.find("\"leaves\": "); at != std::string::npos; at = js.find("\"leaves\": ", at + 1))
+      ++parts;
     std::printf("%-7.0f%% %6d %7llu", f * 100, parts, static_cast<unsigned long long>(commits));
     for (size_t i = 0; i < ws.size(); ++i)
       std::printf(" %8.2f %8.2f %6.3f", rev[i], fresh[i], rev[i] / fresh[i]);
@@ -437,6 +469,8 @@ int main(int argc, char** argv) {
       a.seconds = std::stod(next());
     else if (k == "--dir")
       a.dir = next();
+    else if (k == "--shards")
+      a.shards = static_cast<uint32_t>(std::stoul(next()));
     else if (k == "--only")
       a.only = next();
     else if (k == "--fractions") {
@@ -454,21 +488,20 @@ int main(int argc, char** argv) {
   }
   std::printf(
       "# revision_bench: tanker objects=%llu seed=%llu queries/workload=%zu batch=%zu clash-batch=%zu "
-      "page=12 KiB pagefile cores=%ld\n",
+      "page=12 KiB pagefile shards=%u cores=%ld\n",
       static_cast<unsigned long long>(a.objects), static_cast<unsigned long long>(a.seed), a.queries, a.batch,
-      a.clash_batch, sysconf(_SC_NPROCESSORS_ONLN));
+      a.clash_batch, a.shards, sysconf(_SC_NPROCESSORS_ONLN));
   const std::string store = a.dir + "/revision_bench.mkt";
-  fs::remove(store);
-  fs::remove_all(store + ".changes");
+  RemoveStore(store);
   const auto t = Clock::now();
   const auto [rc, rss] = InChild([&] {
-    IngestOptions o;
-    o.store.backend = Backend::kPagedFile;
-    auto r = BuildStore({[&](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
-                          return MakeTankerSource(a.objects, a.seed, first);
-                        }},
-                        store, o);
-    return r.ok() ? 0 : 1;
+    return BuildBenchStore({[&](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
+                             return MakeTankerSource(a.objects, a.seed, first);
+                           }},
+                           store, a.shards)
+                   .ok()
+               ? 0
+               : 1;
   });
   const double build_s = Since(t);
   if (rc != 0) Die("build", Status::Internal("child failed"));

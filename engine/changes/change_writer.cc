@@ -83,16 +83,14 @@ Status NamesOf(const std::string& folder, const RevisionManifest& m, std::set<st
   return Status::Ok();
 }
 
-// The live objects of a revision's parts as a scene (a sharded compaction's passes read them so).
-class LiveSource final : public SceneSource {
+// A live object stream read as a scene (a sharded compaction's passes read it so); the stream outlives it.
+class StreamSource final : public SceneSource {
  public:
-  LiveSource(const std::vector<const RevisionPartDb*>& parts, size_t spill_from, const std::string& dir,
-             FileOps& ops)
-      : live_(parts, spill_from, dir, ops) {}
-  Result<bool> Next(SceneObject* out) override { return live_.Next(out); }
+  explicit StreamSource(LiveObjectStream* live) : live_(live) {}
+  Result<bool> Next(SceneObject* out) override { return live_->Next(out); }
 
  private:
-  LiveObjectStream live_;
+  LiveObjectStream* live_;
 };
 
 class Writer final : public ChangeWriter {
@@ -561,9 +559,12 @@ Result<RevisionPart> Writer::BuildShardedBase(uint64_t rev) {
       }
     }
   } discard{manifest_path, old.shards.size()};
+  // One stream for every pass: the deltas are read into its scratch file once. The first pass samples
+  // every live object's bounds; each shard's pass then decodes only the objects whose record box may
+  // route to it.
+  LiveObjectStream live(all, spill_from, folder_, ops_);
   {
     ShardSample sample;
-    LiveSource live(all, spill_from, folder_, ops_);
     SceneObject o;
     for (;;) {
       MKTREE_ASSIGN_OR_RETURN(const bool more, live.Next(&o));
@@ -583,17 +584,23 @@ Result<RevisionPart> Writer::BuildShardedBase(uint64_t rev) {
   ingest.store.file_ops = &ops_;
   ingest.spill_file_ops = &ops_;
   ingest.input_name = "compaction";
+  uint64_t built = 0;
   for (uint32_t s = 0; s < nm.top.shard_count; ++s) {
+    live.SetFilter([&, s](const Box3d& box, double slack) { return nm.top.CanRouteTo(box, slack, s); });
     IngestReport report;
-    MKTREE_ASSIGN_OR_RETURN(
-        ShardEntry e, BuildShardFrom(
-                          [&]() -> Result<std::unique_ptr<SceneSource>> {
-                            return ShardObjectsOf(
-                                std::make_unique<LiveSource>(all, spill_from, folder_, ops_), nm.top, s);
-                          },
-                          manifest_path, nm, s, ingest, &report));
+    MKTREE_ASSIGN_OR_RETURN(ShardEntry e, BuildShardFrom(
+                                              [&]() -> Result<std::unique_ptr<SceneSource>> {
+                                                live.Rewind();
+                                                return ShardObjectsOf(std::make_unique<StreamSource>(&live),
+                                                                      nm.top, s);
+                                              },
+                                              manifest_path, nm, s, ingest, &report));
+    built += e.objects;
     nm.shards.push_back(std::move(e));
   }
+  if (built != nm.objects)  // an object the record filter skipped in its own shard's pass: never commit that
+    return Status::Internal(manifest_path + ": the shards hold " + std::to_string(built) + " objects of " +
+                            std::to_string(nm.objects) + " live");
   for (uint32_t s = 0; s < nm.top.shard_count; ++s) MKTREE_RETURN_IF_ERROR(PublishShard(manifest_path, s));
   MKTREE_RETURN_IF_ERROR(WriteManifest(manifest_path, nm, ops_));
   RevisionPart base;

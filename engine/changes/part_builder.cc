@@ -2,6 +2,8 @@
 
 #include <unistd.h>
 
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <limits>
 #include <list>
@@ -249,22 +251,49 @@ Result<bool> LiveObjectStream::Next(SceneObject* out) {
     for (size_t p = spill_from_; p < cursors_.size(); ++p)
       MKTREE_RETURN_IF_ERROR(cursors_[p]->Spill(scratch_dir_, ops_));
   }
-  Cursor* best = nullptr;
-  ObjectId best_id = std::numeric_limits<ObjectId>::max();
-  for (auto& c : cursors_) {
-    const RevisionPartDb& part = c->part;
-    while (c->next < part.hidden.size() && part.hidden[c->next]) ++c->next;
-    if (c->next >= part.hidden.size()) continue;
-    const ObjectId id = part.global(static_cast<ObjectId>(c->next));
-    if (!best || id < best_id) {
-      best = c.get();
-      best_id = id;
+  for (;;) {
+    Cursor* best = nullptr;
+    ObjectId best_id = std::numeric_limits<ObjectId>::max();
+    for (auto& c : cursors_) {
+      const RevisionPartDb& part = c->part;
+      while (c->next < part.hidden.size() && part.hidden[c->next]) ++c->next;
+      if (c->next >= part.hidden.size()) continue;
+      const ObjectId id = part.global(static_cast<ObjectId>(c->next));
+      if (!best || id < best_id) {
+        best = c.get();
+        best_id = id;
+      }
     }
+    if (!best) return false;
+    if (filter_) {
+      const ObjectId local = static_cast<ObjectId>(best->next);
+      MKTREE_ASSIGN_OR_RETURN(const StoredRecord* r, best->records.Get(local, nullptr));
+      const Vec3d& o = best->part.db->reader().tree().origin;
+      Box3d world;
+      double largest = 1;
+      for (int a = 0; a < 3; ++a) {
+        world.min[a] = double{r->box.min[a]} + o[a];
+        world.max[a] = double{r->box.max[a]} + o[a];
+        largest = std::max({largest, std::abs(double{r->box.min[a]}), std::abs(double{r->box.max[a]})});
+      }
+      // The record box is rounded outward to float32 in the store's frame, and decoded vertices are
+      // within a few float32 units of the input's: 2^-16 of the largest coordinate is ample.
+      if (!filter_(world, largest * 0x1p-16)) {
+        ++best->next;
+        continue;
+      }
+    }
+    MKTREE_RETURN_IF_ERROR(best->Read(static_cast<ObjectId>(best->next++), out));
+    out->id = best_id;
+    return true;
   }
-  if (!best) return false;
-  MKTREE_RETURN_IF_ERROR(best->Read(static_cast<ObjectId>(best->next++), out));
-  out->id = best_id;
-  return true;
+}
+
+void LiveObjectStream::Rewind() {
+  for (auto& c : cursors_) {
+    c->next = 0;
+    c->leaves.clear();
+  }
 }
 
 IngestOptions PartIngestOptions(const StoreDatabase& base, unsigned threads) {

@@ -49,6 +49,13 @@ class LiveObjectStream {
                    std::string scratch_dir, FileOps& ops = DefaultFileOps());
   ~LiveObjectStream();
   Result<bool> Next(SceneObject* out);
+  // From the first live object again; the deltas' scratch files are kept (not read again from their stores).
+  void Rewind();
+  // Objects whose stored record box (world coordinates, rounded outward to float32 in the store's frame)
+  // `keep` rejects, given a slack that covers that rounding and the decoded vertices', are skipped without
+  // decoding their geometry. Null: every live object.
+  using RecordFilter = std::function<bool(const Box3d& record_box, double slack)>;
+  void SetFilter(RecordFilter keep) { filter_ = std::move(keep); }
 
  private:
   struct Cursor;
@@ -57,6 +64,7 @@ class LiveObjectStream {
   std::string scratch_dir_;
   FileOps& ops_;
   bool spilled_ = false;
+  RecordFilter filter_;
 };
 
 // The ingest options that build a part like the store `base`: its backend, codec (a dictionary of its

@@ -157,6 +157,24 @@ uint32_t TopLevels::ShardOf(const Box3d& box) const {
   return nodes[n].shard;
 }
 
+bool TopLevels::CanRouteTo(const Box3d& box, double slack, uint32_t shard) const {
+  uint32_t stack[128];
+  size_t depth = 0;
+  stack[depth++] = 0;
+  while (depth > 0) {
+    const TopNode& t = nodes[stack[--depth]];
+    if (t.is_leaf()) {
+      if (t.shard == shard) return true;
+      continue;
+    }
+    const double k = Key(box, t.axis, t.key);
+    if (depth + 2 > sizeof stack / sizeof stack[0]) return true;  // deeper than Validate allows: say maybe
+    if (k - slack < t.cut) stack[depth++] = t.child[0];
+    if (!(k + slack < t.cut)) stack[depth++] = t.child[1];
+  }
+  return false;
+}
+
 Status TopLevels::Validate(const std::string& name) const {
   auto bad = [&](const std::string& what) { return Status::Corruption(name + ": top levels: " + what); };
   if (shard_count == 0 || nodes.size() != 2 * uint64_t{shard_count} - 1) return bad("wrong node count");

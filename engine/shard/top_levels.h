@@ -59,6 +59,9 @@ struct TopLevels {
 
   // The shard of an object with world box `box`.
   uint32_t ShardOf(const Box3d& box) const;
+  // Whether some box whose coordinates are each within `slack` of `box`'s routes to `shard`: a reader that
+  // knows an object's box only rounded (a stored float32 record box) can skip the objects of other shards.
+  bool CanRouteTo(const Box3d& box, double slack, uint32_t shard) const;
   // Structure check (a manifest read from disk): preorder tree, each shard a leaf exactly once, finite
   // cuts, axes 0..2. Corruption naming `name` otherwise.
   Status Validate(const std::string& name) const;

@@ -488,6 +488,45 @@ TEST(TopLevels, EveryObjectRoutesToExactlyOneShardAndSamplesMerge) {
   }
 }
 
+// CanRouteTo (a sharded compaction's record-box filter): with no slack, exactly ShardOf's shard; with a
+// slack, at least the shard of every box within it, objects on a cut (boxes a hair either side) included.
+TEST(TopLevels, CanRouteToCoversEveryBoxWithinTheSlack) {
+  const std::vector<SceneObject> objs = testing::ClusteredScene(3000, 12);
+  ShardSample sample(400);
+  for (const SceneObject& o : objs) sample.Add(o.id, o.mesh.Bounds());
+  std::mt19937_64 rng(3);
+  for (uint32_t k = 1; k <= 6; ++k) {
+    auto top = ChooseTopLevels(sample.Items(), k);
+    ASSERT_TRUE(top.ok()) << top.status().ToString();
+    std::vector<Box3d> boxes;
+    for (const SceneObject& o : objs) boxes.push_back(o.mesh.Bounds());
+    for (const TopNode& t : top->nodes) {  // boxes whose key is the cut, and a hair either side of it
+      if (t.is_leaf()) continue;
+      for (const double d : {0.0, 1e-9, -1e-9}) {
+        Box3d b = boxes[rng() % boxes.size()];
+        const double w = b.max[t.axis] - b.min[t.axis];
+        b.min[t.axis] = t.key == ShardKey::kMin ? t.cut + d : t.cut + d - w;
+        b.max[t.axis] = b.min[t.axis] + w;
+        boxes.push_back(b);
+      }
+    }
+    const double slack = 1e-6;
+    std::uniform_real_distribution<double> jitter(-slack, slack);
+    for (const Box3d& b : boxes) {
+      const uint32_t own = top->ShardOf(b);
+      for (uint32_t s = 0; s < k; ++s) EXPECT_EQ(top->CanRouteTo(b, 0, s), s == own);
+      for (int j = 0; j < 4; ++j) {
+        Box3d moved = b;
+        for (int a = 0; a < 3; ++a) {
+          moved.min[a] += jitter(rng);
+          moved.max[a] += jitter(rng);
+        }
+        EXPECT_TRUE(top->CanRouteTo(b, slack, top->ShardOf(moved)));
+      }
+    }
+  }
+}
+
 // The MPI build's disjoint reads (tools/mpi): the tanker's id ranges, generated without the objects before
 // them, are together exactly the whole scene's objects, for any split.
 TEST(ShardParts, TankerRangesAreTheWholeScenesObjects) {
