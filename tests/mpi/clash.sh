@@ -75,8 +75,8 @@ grep -q "s$k.mkts.shard-1.mkt" "$dir/err"
 # store as built), for query and clash, and writes nothing on stdout.
 "$m" build tanker:3000:2 -o "$dir/changed.mkts" --shards 2 -q
 "$m" update "$dir/changed.mkts" --remove-ids 5 >/dev/null
-printf 'b 0 -30 0 300 30 30\n' >"$dir/q"
-for cmd in "query $dir/changed.mkts $dir/q" "clash $dir/changed.mkts"; do
+printf 'box 0 -30 0 300 30 30\n' >"$dir/q"
+for cmd in "query $dir/changed.mkts --queries $dir/q" "clash $dir/changed.mkts"; do
   if run "$mpi" $cmd >"$dir/out" 2>"$dir/err"; then exit 1; fi
   grep -q "changed.mkts: has taken changes (revision 1)" "$dir/err"
   [[ ! -s "$dir/out" ]]
