@@ -3433,17 +3433,22 @@ def change_corruptions(fx, other):
     return out
 
 
-def cat_changes_sharded(h):
-    """The changes fixture on a sharded store (2 shards, paged file): its shard files damaged, its writers
-    killed. Numbered on their own: the unsharded category's case ids stay as they were."""
+def case_numbering(h, cat):
+    """next_case(title, row): the category's next case, numbered in order (None when --case skips it)."""
     counter = [0]
 
     def next_case(title, row):
         counter[0] += 1
-        if not h.wanted("changes-sharded", counter[0]):
+        if not h.wanted(cat, counter[0]):
             return None
-        return h.new_case("changes-sharded", counter[0], title, row=row)
+        return h.new_case(cat, counter[0], title, row=row)
+    return next_case
 
+
+def cat_changes_sharded(h):
+    """The changes fixture on a sharded store (2 shards, paged file): its shard files damaged, its writers
+    killed. Numbered on their own: the unsharded category's case ids stay as they were."""
+    next_case = case_numbering(h, "changes-sharded")
     fx = ChangeFixture(h, "pagefile", tag="sharded", shards=2)
     other = ChangeFixture(h, "pagefile", scene="tanker:3000:2", tag="sharded_other", shards=2)
     changes_corrupt(h, fx, other, next_case)
@@ -3451,14 +3456,7 @@ def cat_changes_sharded(h):
 
 
 def cat_changes(h):
-    counter = [0]
-
-    def next_case(title, row):
-        counter[0] += 1
-        if not h.wanted("changes", counter[0]):
-            return None
-        return h.new_case("changes", counter[0], title, row=row)
-
+    next_case = case_numbering(h, "changes")
     for backend in ("pagefile", "hdf5"):
         fx = ChangeFixture(h, backend)
         other = ChangeFixture(h, backend, scene="tanker:3000:2", tag="other")
