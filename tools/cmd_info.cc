@@ -117,7 +117,6 @@ int RunManifestInfo(const InfoArgs& a) {
   const RevisionView& v = *view;
   auto m = ReadManifest(v.base_path);
   if (!m.ok()) return Fail(m.status().message());
-  const std::unique_ptr<Database>* db = &v.db;
   const auto live = static_cast<unsigned long long>(v.db->object_count());
   const auto revision = static_cast<unsigned long long>(v.db->revision());
   const char* keys[] = {"min", "max"};
@@ -145,8 +144,8 @@ int RunManifestInfo(const InfoArgs& a) {
         JsonText(a.store).c_str(), live, revision, static_cast<unsigned long long>(m->objects),
         static_cast<unsigned long long>(v.deltas), static_cast<unsigned long long>(v.delta_objects),
         static_cast<unsigned long long>(v.removed), m->shards.size(), m->origin.x, m->origin.y, m->origin.z,
-        JsonBox((*db)->bounds()).c_str(), (*db)->objects_per_page(), top.c_str(), shards.c_str(),
-        (*db)->stats_json().c_str());
+        JsonBox(v.db->bounds()).c_str(), v.db->objects_per_page(), top.c_str(), shards.c_str(),
+        v.db->stats_json().c_str());
     return 0;
   }
   std::printf("sharded store %s: %llu objects in %zu shards\n", a.store.c_str(), live, m->shards.size());
@@ -158,7 +157,7 @@ int RunManifestInfo(const InfoArgs& a) {
         static_cast<unsigned long long>(v.deltas), static_cast<unsigned long long>(v.delta_objects),
         static_cast<unsigned long long>(v.removed));
   std::printf("store frame   origin (%.17g, %.17g, %.17g)\n", m->origin.x, m->origin.y, m->origin.z);
-  std::printf("bounds        %s (world)\n", TextBox((*db)->bounds()).c_str());
+  std::printf("bounds        %s (world)\n", TextBox(v.db->bounds()).c_str());
   for (size_t n = 0; n < m->top.nodes.size(); ++n) {
     const TopNode& t = m->top.nodes[n];
     if (t.is_leaf())
