@@ -275,7 +275,8 @@ size_t BasePartCount(const std::vector<RevisionPartDb>& parts) {
 Result<std::vector<RevisionPartDb>> OpenRevisionParts(const std::string& store_path,
                                                       const RevisionManifest& m, const OpenOptions& options,
                                                       std::vector<RevisionPartDb>* reuse,
-                                                      bool keep_leaf_filters) {
+                                                      bool keep_leaf_filters,
+                                                      const std::vector<uint8_t>* open) {
   const std::string folder = ChangesFolder(store_path);
   const std::string base_path = ChangesFile(folder, m.base.store.name);
   MKTREE_RETURN_IF_ERROR(CheckFile(folder, m.base.store, "its base store"));
@@ -286,7 +287,12 @@ Result<std::vector<RevisionPartDb>> OpenRevisionParts(const std::string& store_p
       return Status::Corruption(base_path + ": " + std::to_string(sharded->objects) +
                                 " objects, the revision says " + std::to_string(m.base.objects));
   }
-  const uint64_t k = (sharded ? sharded->shards.size() : 1) + m.deltas.size();
+  const uint64_t k = RevisionPartCount(m, sharded ? sharded->shards.size() : 0);
+  if (open && open->size() != k)
+    return Status::InvalidArgument(store_path + ": parts to open given for " + std::to_string(open->size()) +
+                                   " parts, revision " + std::to_string(m.revision) + " has " +
+                                   std::to_string(k));
+  auto opened = [&](size_t index) { return !open || (*open)[index]; };
   OpenOptions part_options = options;
   part_options.cache_pages = (options.cache_pages + k - 1) / k;
   part_options.revision.reset();
@@ -303,26 +309,47 @@ Result<std::vector<RevisionPartDb>> OpenRevisionParts(const std::string& store_p
   if (sharded) {
     // Its shards, with the ids the sharded build or the compaction gave them (below next_id).
     for (uint32_t s = 0; s < sharded->shards.size(); ++s) {
-      if (reused(ShardFilePath(base_path, sharded->shards[s].store.name))) continue;
+      if (!opened(s)) continue;
+      if (reused(ShardFilePath(base_path, sharded->shards[s].store.name))) {
+        parts.back().index = s;
+        continue;
+      }
       MKTREE_ASSIGN_OR_RETURN(ManifestShard shard, OpenManifestShard(base_path, *sharded, s, part_options,
                                                                      m.next_id, keep_leaf_filters));
       RevisionPartDb part;
       part.db = std::move(shard.db);
       part.ids = std::move(shard.ids);
       part.base = true;
+      part.index = s;
       parts.push_back(std::move(part));
     }
   }
   std::vector<const RevisionPart*> described;
   if (!sharded) described.push_back(&m.base);
   for (const RevisionPart& d : m.deltas) described.push_back(&d);
-  for (const RevisionPart* d : described) {
+  const size_t first_described = k - described.size();
+  // The ids of each delta left closed, by index: they hide what the parts before it hold.
+  std::vector<std::pair<uint32_t, std::vector<ObjectId>>> closed_ids;
+  for (size_t at = 0; at < described.size(); ++at) {
+    const RevisionPart* d = described[at];
+    const uint32_t index = static_cast<uint32_t>(first_described + at);
     const std::string what =
         d == &m.base ? "its base store" : "the changes of revision " + std::to_string(d->made_at);
+    if (!opened(index)) {
+      if (d == &m.base) continue;
+      MKTREE_ASSIGN_OR_RETURN(std::vector<ObjectId> ids,
+                              ReadIdFile(folder, m, d->ids, d->made_at, d->objects, what + "'s ids"));
+      closed_ids.emplace_back(index, std::move(ids));
+      continue;
+    }
     const std::string path = ChangesFile(folder, d->store.name);
-    if (reused(path)) continue;
+    if (reused(path)) {
+      parts.back().index = index;
+      continue;
+    }
     RevisionPartDb part;
     part.base = d == &m.base;
+    part.index = index;
     if (!part.base) MKTREE_RETURN_IF_ERROR(CheckFile(folder, d->store, what));
     ReadOptions ro;
     ro.direct_io = options.direct_io;
@@ -349,18 +376,24 @@ Result<std::vector<RevisionPartDb>> OpenRevisionParts(const std::string& store_p
     gone.insert(gone.end(), ids.begin(), ids.end());
   }
   std::sort(gone.begin(), gone.end());
+  auto hide = [&gone](const std::vector<ObjectId>& ids) {
+    std::vector<ObjectId> merged;
+    merged.reserve(gone.size() + ids.size());
+    std::set_union(gone.begin(), gone.end(), ids.begin(), ids.end(), std::back_inserter(merged));
+    gone = std::move(merged);
+  };
   uint64_t live = 0;
+  // Newest first: each part hides what the ones before it hold of the same ids.
+  auto closed = closed_ids.rbegin();
   for (size_t p = parts.size(); p-- > 0;) {
+    for (; closed != closed_ids.rend() && closed->first > parts[p].index; ++closed) hide(closed->second);
     parts[p].hidden_count = MarkHidden(&parts[p], gone);
     live += parts[p].db->object_count() - parts[p].hidden_count;
     if (parts[p].base) continue;  // base parts hold disjoint ids: none hides anything in another
     // Only a base has identity ids (no id file): a delta always has its id file.
-    std::vector<ObjectId> merged;
-    merged.reserve(gone.size() + parts[p].ids.size());
-    std::set_union(gone.begin(), gone.end(), parts[p].ids.begin(), parts[p].ids.end(),
-                   std::back_inserter(merged));
-    gone = std::move(merged);
+    hide(parts[p].ids);
   }
+  if (open) return parts;  // the live count is over every part
   if (live != m.live)
     return Status::Corruption(ChangesFile(folder, RevisionFileName(m.revision)) + ": " +
                               std::to_string(live) + " live objects in its stores, the revision says " +

@@ -6,6 +6,8 @@
 // Thread safety: as Database: every const method may run on many threads at once.
 #pragma once
 
+#include <algorithm>
+#include <cstdint>
 #include <memory>
 #include <optional>
 #include <string>
@@ -24,6 +26,7 @@ namespace mktree {
 struct RevisionPartDb {
   std::unique_ptr<StoreDatabase> db;
   bool base = false;
+  uint32_t index = 0;         // its place among the revision's parts: a sharded base's shards, then deltas
   std::vector<ObjectId> ids;  // local id -> global id, increasing; empty: identity
   std::vector<bool> hidden;   // by local id: not live at this revision
   uint64_t hidden_count = 0;
@@ -39,11 +42,20 @@ std::optional<std::pair<size_t, ObjectId>> FindLive(const std::vector<RevisionPa
 // cache_pages / parts pages (rounded up). Corruption naming the file when a check fails. Parts of `reuse`
 // (may be null) whose store file is one of m's are taken from it instead of opened again (a writer's
 // parts from one revision to the next). A writer, which reads leaves whole, drops the leaf filters
-// (ReadOptions::keep_leaf_filter).
+// (ReadOptions::keep_leaf_filter). `open` (null: all) chooses the parts to open by index (mktree-mpi's
+// ranks each open some): of a delta left closed only its id file is read, for the hidden marks of the parts
+// before it, and the revision's live count is checked only when every part is open.
 Result<std::vector<RevisionPartDb>> OpenRevisionParts(const std::string& store_path,
                                                       const RevisionManifest& m, const OpenOptions& options,
                                                       std::vector<RevisionPartDb>* reuse = nullptr,
-                                                      bool keep_leaf_filters = true);
+                                                      bool keep_leaf_filters = true,
+                                                      const std::vector<uint8_t>* open = nullptr);
+
+// The number of parts of revision `m`, open or not: a sharded base's shards (`base_shards`; 0 or 1: the
+// base is one store) and the deltas.
+inline size_t RevisionPartCount(const RevisionManifest& m, size_t base_shards) {
+  return std::max<size_t>(base_shards, 1) + m.deltas.size();
+}
 
 // The number of base parts of `parts` (1, or a sharded base's shards): they come first.
 size_t BasePartCount(const std::vector<RevisionPartDb>& parts);

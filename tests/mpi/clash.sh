@@ -5,7 +5,7 @@
 # unsharded lines sorted so, and the same on 1 rank as on R; the cap keeps the first N of that order;
 # --names gives the unsharded --names lines; runs of a few pairs (MKTREE_MPI_TEST_SORT_RUN_BYTES) give
 # the same bytes through the external sort's files and merge levels, which go to $TMPDIR. A missing
-# shard fails every rank, printing nothing, and so does a sharded store that has taken changes.
+# shard fails every rank, printing nothing. (A store that has taken changes: tests/mpi/changes.sh.)
 #   tests/mpi/clash.sh R MKTREE_MPI MKTREE MPIEXEC
 set -euo pipefail
 ranks=$1 mpi=$2 m=$3 mpiexec=$4
@@ -71,14 +71,4 @@ rm "$dir/s$k.mkts.shard-1.mkt"
 if run "$mpi" clash "$dir/s$k.mkts" >"$dir/out" 2>"$dir/err"; then exit 1; fi
 grep -q "s$k.mkts.shard-1.mkt" "$dir/err"
 [[ ! -s "$dir/out" ]]
-# A sharded store that has taken changes: mktree-mpi refuses it naming its revision (it answers a sharded
-# store as built), for query and clash, and writes nothing on stdout.
-"$m" build tanker:3000:2 -o "$dir/changed.mkts" --shards 2 -q
-"$m" update "$dir/changed.mkts" --remove-ids 5 >/dev/null
-printf 'box 0 -30 0 300 30 30\n' >"$dir/q"
-for cmd in "query $dir/changed.mkts --queries $dir/q" "clash $dir/changed.mkts"; do
-  if run "$mpi" $cmd >"$dir/out" 2>"$dir/err"; then exit 1; fi
-  grep -q "changed.mkts: has taken changes (revision 1)" "$dir/err"
-  [[ ! -s "$dir/out" ]]
-done
 echo "mpi clash $ranks ranks: ok"

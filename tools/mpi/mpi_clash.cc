@@ -2,10 +2,14 @@
 // finding the pairs of its shard group.
 //   mpirun -n R mktree-mpi clash MANIFEST [--clearance C] [--touch-tolerance T] [--max-pairs N] [--no-touch]
 //                                [--exclude-group SEP] [--threads N] [--cache-pages N] [--summary] [--names]
-// Rank r owns the shards the build wrote there (RankOfShard). A pair of objects in shards i <= j is found by
-// the owner of i alone: the pairs inside its shards and, for j > i whose root box grown by C meets i's, the
-// pairs between i and j (j's store opened read-only on r too, checked as the Database checks it). Each rank
-// runs one RunMultiClash over the shards it opened, limited to those part pairs, and sorts its pairs by
+//                                [--revision R]
+// Rank r owns the shards the build wrote there (RankOfShard) and, of a store that has taken changes, some
+// of the revision's delta stores (tools/mpi/mpi_parts.h; the parts are the shards, then the deltas). A
+// pair of objects in parts i <= j is found by the owner of i alone: the pairs inside its parts and, for
+// j > i, the pairs between i and j, where j is a delta or a shard whose root box grown by C meets i's
+// (j's store opened read-only on r too, checked as the Database checks it; every rank opens every delta).
+// Objects a part no longer answers for (removed, or replaced in a later part) are hidden. Each rank
+// runs one RunMultiClash over the parts it opened, limited to those part pairs, and sorts its pairs by
 // (a, b) in bounded RAM (runs of at most 4 MiB to unnamed temporary files, merged by a heap). When every
 // rank has finished without error, rank 0 merges the ranks' sorted streams (each sent in bounded messages
 // as rank 0 needs them) and prints them in (a, b) order, the same bytes for any R and K; the cap keeps the
@@ -33,11 +37,11 @@
 
 #include "engine/clash/clash_engine.h"
 #include "engine/clash/pair_rules.h"
-#include "engine/query/store_database.h"
 #include "storage/file_util.h"
 #include "tools/clash_lines.h"
 #include "tools/cli_numbers.h"
 #include "tools/mpi/mpi_cli.h"
+#include "tools/mpi/mpi_parts.h"
 #include "tools/mpi/mpi_util.h"
 
 namespace mktree {
@@ -65,11 +69,13 @@ struct ClashArgs {
   uint64_t cache_pages = 4096;  // over the manifest's shards, as `mktree clash`
   bool summary = false;
   bool names = false;
+  std::optional<uint64_t> revision;
 };
 
 constexpr char kUsage[] =
     "usage: mktree-mpi clash MANIFEST [--clearance C] [--touch-tolerance T] [--max-pairs N] "
-    "[--no-touch] [--exclude-group SEP] [--threads N] [--cache-pages N] [--summary] [--names]";
+    "[--no-touch] [--exclude-group SEP] [--threads N] [--cache-pages N] [--summary] [--names] "
+    "[--revision R]";
 
 // A distance option: a finite number >= 0.
 bool DistanceOption(const std::string& flag, const std::string& text, double* out, int rank) {
@@ -94,7 +100,7 @@ bool CountOf(const std::string& flag, const std::string& text, uint64_t most, ui
 int ParseClash(int argc, char** argv, int rank, ClashArgs* a) {
   CLI::App app{"mktree-mpi clash: the self-clash of a sharded store, each rank its shard group", "clash"};
   std::vector<std::string> manifests;
-  std::string clearance, touch, max_pairs, threads, cache_pages, exclude;
+  std::string clearance, touch, max_pairs, threads, cache_pages, exclude, revision;
   app.add_option("manifest", manifests, "The sharded store's manifest");
   app.add_option("--clearance", clearance, "Clearance C: pairs closer than C are reported");
   app.add_option("--touch-tolerance", touch, "Touch tolerance T: meeting pairs with depth <= T are touches");
@@ -106,6 +112,7 @@ int ParseClash(int argc, char** argv, int rank, ClashArgs* a) {
   app.add_flag("--no-touch", no_touch, "Count touch pairs without printing them");
   app.add_flag("--summary", a->summary, "A last line with counts and statistics");
   app.add_flag("--names", a->names, "Each pair's object names as name_a, name_b");
+  app.add_option("--revision", revision, "Answer this kept revision (default: the newest)");
   if (const int code = ParseMpiCommandLine(&app, argc, argv, rank); code >= 0) return code;
   a->o.threads = 1;  // as `mktree-mpi query`: ranks on one machine share its cores
   uint64_t n = a->o.threads;
@@ -115,6 +122,11 @@ int ParseClash(int argc, char** argv, int rank, ClashArgs* a) {
       !CountOf("--threads", threads, 65536, &n, rank) ||
       !CountOf("--cache-pages", cache_pages, std::numeric_limits<uint64_t>::max(), &a->cache_pages, rank))
     return 2;
+  if (!revision.empty()) {
+    uint64_t r = 0;
+    if (!CountOf("--revision", revision, std::numeric_limits<uint64_t>::max(), &r, rank)) return 2;
+    a->revision = r;
+  }
   a->o.threads = static_cast<unsigned>(n);
   if (app.count("--exclude-group")) {
     if (exclude.empty()) return UsageError(rank, "--exclude-group needs a separator");
@@ -345,13 +357,13 @@ struct NamedPair {
 };
 
 // A rank's sorted pairs with their names. Names are looked up by the rank that found the pair, on the
-// shards it has open: both objects' shards are among them (the pair is inside one of its shards or
-// between its shard and a neighbour it opened), so no rank opens more shards for names, and rank 0 does
-// not look up every name alone. A shard's ObjectName is what the one-process Database gives.
+// parts it has open: both objects' parts are among them (the pair is inside one of its parts or between
+// its part and one it opened), so no rank opens more parts for names, and rank 0 does not look up every
+// name alone. A part's ObjectName is what the one-process Database gives.
 class LocalStream {
  public:
-  LocalStream(PairSorter* sorter, const std::vector<OpenShard>* shards, bool names)
-      : sorter_(sorter), shards_(shards), names_(names) {}
+  LocalStream(PairSorter* sorter, const std::vector<RankStore>* parts, bool names)
+      : sorter_(sorter), parts_(parts), names_(names) {}
 
   Result<bool> Next(NamedPair* out) {
     MKTREE_ASSIGN_OR_RETURN(const bool more, sorter_->Next(&out->pair));
@@ -363,13 +375,13 @@ class LocalStream {
 
  private:
   Result<std::string> NameOf(ObjectId id) const {
-    for (const OpenShard& s : *shards_)
-      if (auto local = LocalIdOf(s.ids, id)) return s.db->ObjectName(*local);
-    return Status::Internal("object " + std::to_string(id) + " is in no shard open on this rank");
+    for (const RankStore& p : *parts_)
+      if (auto local = LocalIdOf(p.ids, id); local && !p.Hidden(*local)) return p.db->ObjectName(*local);
+    return Status::Internal("object " + std::to_string(id) + " is live in no part open on this rank");
   }
 
   PairSorter* sorter_;
-  const std::vector<OpenShard>* shards_;
+  const std::vector<RankStore>* parts_;
   bool names_;
 };
 
@@ -484,44 +496,47 @@ bool FailOnRank(int rank, const std::string& message) {
   return false;
 }
 
-// The shards rank `rank` reads: its own, and those above one of its own whose root box grown by C meets it.
-std::vector<uint8_t> ShardsToOpen(const Manifest& m, double c, int rank, int ranks) {
-  const uint32_t k = static_cast<uint32_t>(m.shards.size());
-  std::vector<uint8_t> open(k, 0);
-  for (uint32_t i = 0; i < k; ++i) {
-    if (RankOfShard(i, k, ranks) != rank) continue;
+// The parts rank `rank` reads: its own; every delta; and the shards above one of its own whose root box
+// grown by C meets it.
+std::vector<uint8_t> PartsToOpen(const RankRevision& r, double c, int rank, int ranks) {
+  const uint32_t k = r.shard_count();
+  std::vector<uint8_t> open(r.part_count(), 0);
+  for (uint32_t i = 0; i < open.size(); ++i) {
+    if (i >= k) open[i] = 1;
+    if (i >= k || r.OwnerOf(i, ranks) != rank) continue;
     open[i] = 1;
     for (uint32_t j = i + 1; j < k; ++j)
-      if (clash::GrownMeet(clash::ToBox3d(m.shards[i].box), clash::ToBox3d(m.shards[j].box), c)) open[j] = 1;
+      if (clash::GrownMeet(clash::ToBox3d(r.base.shards[i].box), clash::ToBox3d(r.base.shards[j].box), c))
+        open[j] = 1;
   }
   return open;
 }
 
 // This rank's pairs into the sorter (finished when every pair is in) and its statistics; false after an
 // error, printed.
-bool ClashOnRank(const ClashArgs& a, const std::vector<OpenShard>& shards, uint32_t k, int rank, int ranks,
-                 PairSorter* sorter, ClashStats* stats) {
+bool ClashOnRank(const ClashArgs& a, const RankRevision& r, const std::vector<RankStore>& parts, int rank,
+                 int ranks, PairSorter* sorter, ClashStats* stats) {
   auto fail = [rank](const std::string& message) { return FailOnRank(rank, message); };
   bool ok = true;
-  std::vector<ClashPart> parts;
-  for (const OpenShard& s : shards) parts.push_back(ClashPart{&s.db->leaves(), &s.ids});
+  std::vector<ClashPart> clash_parts;
+  for (const RankStore& p : parts) clash_parts.push_back(p.AsClashPart());
   ClashOptions o = a.o;
   o.max_pairs = std::numeric_limits<uint64_t>::max();  // the cap is rank 0's, over every rank's pairs
   Status sort_status;
   const Status st = RunMultiClash(
-      parts, [&](uint32_t i, uint32_t) { return RankOfShard(shards[i].index, k, ranks) == rank; }, o,
+      clash_parts, [&](uint32_t i, uint32_t) { return r.OwnerOf(parts[i].index, ranks) == rank; }, o,
       [&](const ClashPair& p) {
         if (sort_status.ok()) sort_status = sorter->Add(p);
       },
       stats);
   if (!st.ok()) ok = fail(st.message());
   if (ok && !sort_status.ok()) ok = fail(sort_status.message());
-  // The store's pages are counted by the shards' owners (a shard read for its pairs with a lower one
-  // is read here too: its reads count, its size does not).
+  // The store's pages are counted by the parts' owners (a part read for its pairs with a lower one is
+  // read here too: its reads count, its size does not).
   stats->store_pages = 0;
-  for (const OpenShard& s : shards)
-    if (RankOfShard(s.index, k, ranks) == rank)
-      for (const LeafInfo& l : s.db->reader().tree().leaves) stats->store_pages += l.page_count;
+  for (const RankStore& p : parts)
+    if (r.OwnerOf(p.index, ranks) == rank)
+      for (const LeafInfo& l : p.db->reader().tree().leaves) stats->store_pages += l.page_count;
   if (ok) {
     const Status fs = sorter->Finish();
     if (!fs.ok()) ok = fail(fs.message());
@@ -550,7 +565,7 @@ struct Printed {
 };
 
 // The ranks' sorted pairs, printed by rank 0; false after an error.
-bool MergePairs(const ClashArgs& a, const std::vector<OpenShard>& shards, PairSorter* sorter, int rank,
+bool MergePairs(const ClashArgs& a, const std::vector<RankStore>& parts, PairSorter* sorter, int rank,
                 int ranks, Printed* printed) {
   // Pairs: the ranks' sorted streams merged on rank 0. A rank sends only to rank 0 (blocking) and rank 0
   // receives from the rank whose pair it needs next, so no rank waits on a cycle. Every rank's messages
@@ -559,7 +574,7 @@ bool MergePairs(const ClashArgs& a, const std::vector<OpenShard>& shards, PairSo
   // rank exits 1.
   const size_t message_bytes = std::clamp(kRank0MessageBudget / static_cast<size_t>(std::max(ranks - 1, 1)),
                                           kMinMessageBytes, kMaxMessageBytes);
-  LocalStream local(sorter, &shards, a.names);
+  LocalStream local(sorter, &parts, a.names);
   uint64_t& reported = printed->reported;
   uint64_t& capped = printed->capped;
   bool& write_failed = printed->write_failed;
@@ -632,37 +647,34 @@ int RunClash(int argc, char** argv, int rank, int ranks) {
   if (const int code = ParseClash(argc, argv, rank, &a); code >= 0) return code;
   auto fail = [rank](const std::string& message) { return FailOnRank(rank, message); };
   bool ok = true;
-  auto m = ReadManifestAsBuilt(a.manifest);
-  if (!m.ok()) ok = fail(m.status().message());
+  auto r = HoldRankRevision(a.manifest, a.revision, rank);
+  if (!r.ok() && !r.status().message().empty()) ok = fail(r.status().message());
   const auto run_pairs = RunPairs();
   if (!run_pairs.ok()) ok = fail(run_pairs.status().message());
+  if (!AllOk(ok) || !r.ok()) return 1;
+  auto parts = OpenRankStores(*r, PartsToOpen(*r, a.o.clearance, rank, ranks), a.cache_pages);
+  if (!parts.ok()) ok = fail(parts.status().message());
   if (!AllOk(ok)) return 1;
-  const uint32_t k = static_cast<uint32_t>(m->shards.size());
-  const std::vector<uint8_t> open = ShardsToOpen(*m, a.o.clearance, rank, ranks);
-  std::vector<OpenShard> shards;
-  for (uint32_t s = 0; s < k && ok; ++s) {
-    if (!open[s]) continue;
-    auto o = OpenOneShard(a.manifest, *m, s, a.cache_pages);
-    if (!o.ok())
-      ok = fail(o.status().message());
-    else
-      shards.push_back(std::move(*o));
+  if (const Status live = CheckOwnedLive(*r, *parts, rank, ranks); !live.ok()) {
+    if (!live.message().empty()) fail(live.message());
+    return 1;
   }
   // Sorted as they come: a run is sorted and written when full, so RAM grows by at most one run on top of
   // the clash's own (measured: sorting a spill after the clash peaked as high, the clash's memory being
   // still held, and wrote every pair once more).
   PairSorter sorter(*run_pairs);
   ClashStats stats;
-  if (ok) ok = ClashOnRank(a, shards, k, rank, ranks, &sorter, &stats);
+  if (ok) ok = ClashOnRank(a, *r, *parts, rank, ranks, &sorter, &stats);
   if (!AllOk(ok)) return 1;
   // Statistics: every rank's, summed on rank 0 (peak RSS gathered after the merge, in FinishOutput).
   ClashStats total = SumOnRankZero(stats, rank, ranks);
   Printed printed;
-  ok = MergePairs(a, shards, &sorter, rank, ranks, &printed);
+  ok = MergePairs(a, *parts, &sorter, rank, ranks, &printed);
   ok = FinishOutput(a, &total, printed, ok, rank, ranks, start);
   if (!AllOk(ok)) return 1;
   if (rank != 0) return 0;
-  std::fprintf(stderr, "clash of %u shards over %d ranks: %llu pairs, %llu pages read of %llu\n", k, ranks,
+  std::fprintf(stderr, "clash of %u shards%s over %d ranks: %llu pairs, %llu pages read of %llu\n",
+               r->shard_count(), r->DeltaNote().c_str(), ranks,
                static_cast<unsigned long long>(total.hard + total.touch + total.clearance),
                static_cast<unsigned long long>(total.pages_read),
                static_cast<unsigned long long>(total.store_pages));

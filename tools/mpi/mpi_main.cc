@@ -2,7 +2,7 @@
 //   mpirun -n R mktree-mpi SCENE... -o MANIFEST --shards K [--backend hdf5|pagefile] [--threads N]
 //                          [--round-bytes B] [-q]
 //   mpirun -n R mktree-mpi query MANIFEST --queries FILE [--exact] [--cold] [--threads N] [--cache-pages N]
-//   mpirun -n R mktree-mpi clash MANIFEST [--clearance C] [--touch-tolerance T] [--max-pairs N] ...
+//   ... mpirun -n R mktree-mpi clash MANIFEST [--clearance C] [--touch-tolerance T] [--max-pairs N] ...
 // Each command parses its own command line with CLI11 (tools/mpi/mpi_cli.h).
 #include <mpi.h>
 

@@ -1,21 +1,21 @@
 // mktree-mpi query: a query batch over a sharded store (docs/shards.md), each rank answering for its shards.
 //   mpirun -n R mktree-mpi query MANIFEST --queries FILE [--exact] [--cold] [--threads N] [--cache-pages N]
-// Rank r opens the shards the build wrote there (RankOfShard), each an ordinary store answering with its
-// local ids, checked as the one-process Database checks it (engine/query/shard_open.h); every rank reads the
-// query file and runs every query on its shards, in chunks; rank 0 gathers each chunk, maps nothing (the
-// ranks send global ids), merges each query's ids in order, sums the shards' statistics and prints one JSON
-// line a query, as `mktree query` does (query, kind, hits, and the counts).
+//                                [--revision R]
+// Rank r opens the parts it owns (tools/mpi/mpi_parts.h): the shards the build wrote there (RankOfShard),
+// and of a store that has taken changes some of the revision's delta stores; each is an ordinary store
+// answering with its local ids, checked as the one-process Database checks it. Every rank reads the query
+// file and runs every query on its parts, in chunks, dropping the objects a part no longer answers for;
+// rank 0 gathers each chunk, maps nothing (the ranks send global ids), merges each query's ids in order,
+// sums the parts' statistics and prints one JSON line a query, as `mktree query` does (query, kind, hits,
+// and the counts).
 #include <algorithm>
 #include <cstdio>
 #include <string>
 #include <vector>
 
-#include "engine/core/guarded.h"
-#include "engine/query/shard_open.h"
-#include "engine/revision/change_folder.h"
-#include "engine/shard/manifest.h"
 #include "mktree/database.h"
 #include "tools/mpi/mpi_cli.h"
+#include "tools/mpi/mpi_parts.h"
 #include "tools/mpi/mpi_util.h"
 #include "tools/query_file.h"
 
@@ -30,22 +30,25 @@ struct QueryArgs {
   bool exact = false, cold = false;
   unsigned threads = 1;         // as `mktree query`: ranks on one machine share its cores
   uint64_t cache_pages = 4096;  // over the manifest's shards, as `mktree query`
+  std::optional<uint64_t> revision;
 };
 
 constexpr char kUsage[] =
-    "usage: mktree-mpi query MANIFEST --queries FILE [--exact] [--cold] [--threads N] [--cache-pages N]";
+    "usage: mktree-mpi query MANIFEST --queries FILE [--exact] [--cold] [--threads N] [--cache-pages N] "
+    "[--revision R]";
 
 // -1 to go on, else the exit status.
 int ParseQuery(int argc, char** argv, int rank, QueryArgs* a) {
   CLI::App app{"mktree-mpi query: a query batch over a sharded store, each rank its shards", "query"};
   std::vector<std::string> manifests;
-  std::string threads, cache_pages;
+  std::string threads, cache_pages, revision;
   app.add_option("manifest", manifests, "The sharded store's manifest");
   app.add_option("--queries", a->queries, "File: one 'point X Y Z' or 'box X0 Y0 Z0 X1 Y1 Z1' a line");
   app.add_flag("--exact", a->exact, "Exact geometry instead of AABBs");
   app.add_flag("--cold", a->cold, "Empty the cache before each query");
   app.add_option("--threads", threads, "Each rank's query threads (0: one per core)");
   app.add_option("--cache-pages", cache_pages, "LRU page cache capacity in pages, over the shards");
+  app.add_option("--revision", revision, "Answer this kept revision (default: the newest)");
   if (const int code = ParseMpiCommandLine(&app, argc, argv, rank); code >= 0) return code;
   if (manifests.size() > 1) return UsageError(rank, "one manifest only: " + manifests[1]);
   if (!threads.empty()) {
@@ -57,6 +60,10 @@ int ParseQuery(int argc, char** argv, int rank, QueryArgs* a) {
     const auto n = CountOption(cache_pages, UINT64_MAX);
     if (!n) return UsageError(rank, "--cache-pages must be a whole number");
     a->cache_pages = *n;
+  }
+  if (!revision.empty()) {
+    a->revision = CountOption(revision, UINT64_MAX);
+    if (!a->revision) return UsageError(rank, "--revision must be a whole number");
   }
   if (manifests.empty() || a->queries.empty()) return UsageError(rank, kUsage);
   a->manifest = manifests[0];
@@ -81,27 +88,6 @@ QueryStats GetStats(const std::vector<uint8_t>& b, size_t* at) {
 
 }  // namespace
 
-Result<Manifest> ReadManifestAsBuilt(const std::string& manifest) {
-  MKTREE_ASSIGN_OR_RETURN(StoreRevision at, OpenStoreRevision(manifest, std::nullopt));
-  if (at.hold && at.hold->manifest().revision != 0)
-    return Status::Unsupported(manifest + ": has taken changes (revision " +
-                               std::to_string(at.hold->manifest().revision) +
-                               "); mktree-mpi answers a sharded store as built: use mktree query or clash, "
-                               "which answer every kept revision");
-  return ReadManifest(manifest);
-}
-
-Result<OpenShard> OpenOneShard(const std::string& manifest, const Manifest& m, uint32_t s,
-                               uint64_t cache_pages) {
-  return Guarded(manifest, [&]() -> Result<OpenShard> {
-    const uint64_t k = m.shards.size();
-    OpenOptions shard_options;
-    shard_options.cache_pages = (cache_pages + k - 1) / k;  // as the one-process Database
-    MKTREE_ASSIGN_OR_RETURN(ManifestShard shard, OpenManifestShard(manifest, m, s, shard_options));
-    return OpenShard{s, std::move(shard.db), std::move(shard.ids)};
-  });
-}
-
 int RunQuery(int argc, char** argv, int rank, int ranks) {
   QueryArgs a;
   if (const int code = ParseQuery(argc, argv, rank, &a); code >= 0) return code;
@@ -110,23 +96,22 @@ int RunQuery(int argc, char** argv, int rank, int ranks) {
     return false;
   };
   bool ok = true;
-  auto m = ReadManifestAsBuilt(a.manifest);
-  if (!m.ok()) ok = fail(m.status().message());
+  auto r = HoldRankRevision(a.manifest, a.revision, rank);
+  if (!r.ok() && !r.status().message().empty()) ok = fail(r.status().message());
   auto queries = tools::ReadQueryFile(a.queries);
   if (!queries.ok()) ok = fail(queries.status().message());
-  if (!AllOk(ok)) return 1;
+  if (!AllOk(ok) || !r.ok()) return 1;
   for (Query& q : *queries) q.mode = a.exact ? QueryMode::kExact : QueryMode::kAabb;
-  const uint32_t k = static_cast<uint32_t>(m->shards.size());
-  std::vector<OpenShard> shards;
-  for (uint32_t s = 0; s < k && ok; ++s) {
-    if (RankOfShard(s, k, ranks) != rank) continue;
-    auto o = OpenOneShard(a.manifest, *m, s, a.cache_pages);
-    if (!o.ok())
-      ok = fail(o.status().message());
-    else
-      shards.push_back(std::move(*o));
-  }
+  // The parts this rank answers for: a delta left to another rank is not opened (its ids are read).
+  std::vector<uint8_t> open(r->part_count(), 0);
+  for (uint32_t i = 0; i < open.size(); ++i) open[i] = r->OwnerOf(i, ranks) == rank;
+  auto parts = OpenRankStores(*r, open, a.cache_pages);
+  if (!parts.ok()) ok = fail(parts.status().message());
   if (!AllOk(ok)) return 1;
+  if (const Status live = CheckOwnedLive(*r, *parts, rank, ranks); !live.ok()) {
+    if (!live.message().empty()) fail(live.message());
+    return 1;
+  }
 
   const size_t n = queries->size();
   uint64_t pages = 0, hits = 0;
@@ -135,12 +120,13 @@ int RunQuery(int argc, char** argv, int rank, int ranks) {
     const std::vector<Query> chunk(queries->begin() + first, queries->begin() + first + count);
     std::vector<std::vector<ObjectId>> answer(count);
     std::vector<QueryStats> stats(count);
-    for (const OpenShard& s : shards) {
+    for (const RankStore& p : *parts) {
       if (!ok) break;
-      Status st = s.db->RunBatchStreamed(chunk, {.threads = a.threads, .cold = a.cold},
-                                         [&](uint64_t i, const QueryResult& r) {
-                                           for (ObjectId local : r.hits) answer[i].push_back(s.ids[local]);
-                                           stats[i] += r.stats;
+      Status st = p.db->RunBatchStreamed(chunk, {.threads = a.threads, .cold = a.cold},
+                                         [&](uint64_t i, const QueryResult& result) {
+                                           for (ObjectId local : result.hits)
+                                             if (!p.Hidden(local)) answer[i].push_back(p.ids[local]);
+                                           stats[i] += result.stats;
                                            return Status::Ok();
                                          });
       if (!st.ok()) ok = fail(st.message());
@@ -163,7 +149,7 @@ int RunQuery(int argc, char** argv, int rank, int ranks) {
         for (uint64_t j = 0; j < c; ++j) ids.push_back(Get<ObjectId>(all[r], &at[r]));
         total += GetStats(all[r], &at[r]);
       }
-      std::sort(ids.begin(), ids.end());  // shards hold disjoint ids
+      std::sort(ids.begin(), ids.end());  // an id is live in one part
       pages += total.pages_read;
       hits += ids.size();
       std::string line = "{\"query\": " + std::to_string(first + i) + ", \"kind\": \"" +
@@ -179,8 +165,9 @@ int RunQuery(int argc, char** argv, int rank, int ranks) {
     }
   }
   if (rank == 0)
-    std::fprintf(stderr, "%zu queries on %u shards over %d ranks: %llu hits, %llu pages read\n", n, k, ranks,
-                 static_cast<unsigned long long>(hits), static_cast<unsigned long long>(pages));
+    std::fprintf(stderr, "%zu queries on %u shards%s over %d ranks: %llu hits, %llu pages read\n", n,
+                 r->shard_count(), r->DeltaNote().c_str(), ranks, static_cast<unsigned long long>(hits),
+                 static_cast<unsigned long long>(pages));
   return 0;
 }
 

@@ -54,21 +54,6 @@ inline bool AllOk(bool ok) {
   return all == 1;
 }
 
-// The manifest of a sharded store that has taken no change. One that has (docs/changes.md) is refused
-// naming its revision: mktree-mpi answers a sharded store as built, `mktree` answers its revisions.
-Result<Manifest> ReadManifestAsBuilt(const std::string& manifest);
-
-// One shard of a manifest opened on a rank: its store's Database (local ids) and its id file.
-struct OpenShard {
-  uint32_t index = 0;
-  std::unique_ptr<StoreDatabase> db;
-  std::vector<ObjectId> ids;  // local -> global
-};
-// Shard s of the manifest, opened and checked as Database::Open(manifest) opens it (OpenManifestShard), with
-// its share of `cache_pages` over the manifest's shards, as the one-process Database.
-Result<OpenShard> OpenOneShard(const std::string& manifest, const Manifest& m, uint32_t s,
-                               uint64_t cache_pages);
-
 // The commands (tools/mpi/mpi_build.cc, mpi_query.cc, mpi_clash.cc), on every rank after MPI_Init; the exit
 // status.
 int RunBuild(int argc, char** argv, int rank, int ranks);
