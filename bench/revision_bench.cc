@@ -21,7 +21,7 @@
 // Usage: revision_bench [--objects N] [--seed S] [--queries Q] [--batch B] [--clash-batch K]
 //                       [--seconds T] [--dir DIR] [--only pages|clash|reader] [--fractions 0.01,0.1,0.3]
 //                       [--shards K]
-#include <sys/resource.h>
+#include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -31,7 +31,6 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
-#include <functional>
 #include <random>
 #include <string>
 #include <thread>
@@ -41,6 +40,7 @@
 #include "engine/ingest/shard_build.h"
 #include "engine/ingest/store_builder.h"
 #include "engine/scene/mkscene_format.h"
+#include "mktree/build.h"
 #include "mktree/changes.h"
 #include "mktree/database.h"
 
@@ -83,15 +83,50 @@ T Must(Result<T> r, const std::string& what) {
   return std::move(*r);
 }
 
-// Runs `work` in a child process; returns its exit status and peak RSS in MiB.
-std::pair<int, double> InChild(const std::function<int()>& work) {
+// The peak RSS of this process in MiB (VmHWM: this address space's, which an exec starts afresh).
+double PeakRssMiB() {
+  std::FILE* f = std::fopen("/proc/self/status", "r");
+  if (!f) return 0;
+  char line[256];
+  double kib = 0;
+  while (std::fgets(line, sizeof line, f))
+    if (std::sscanf(line, "VmHWM: %lf kB", &kib) == 1) break;
+  std::fclose(f);
+  return kib / 1024;
+}
+
+// Runs this program with `args` and the path of a file for its peak RSS (which it writes last, from
+// PeakRssMiB) in a process of its own; returns its exit status and that peak in MiB. The child's rusage
+// would not do: Linux counts in it the resident pages of this process, which the child shared until its
+// exec (fork) or whose address space it borrowed (posix_spawn's vfork).
+std::pair<int, double> Spawn(std::vector<std::string> args, const std::string& dir) {
   std::fflush(stdout);
-  const pid_t pid = fork();
-  if (pid == 0) _exit(work());
+  const std::string peak = dir + "/revision_bench.peak";
+  fs::remove(peak);
+  args.push_back(peak);
+  std::vector<char*> argv{const_cast<char*>("revision_bench")};
+  for (std::string& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  pid_t pid = 0;
+  if (posix_spawn(&pid, "/proc/self/exe", nullptr, nullptr, argv.data(), environ) != 0) return {127, 0};
   int status = 0;
-  struct rusage ru {};
-  wait4(pid, &status, 0, &ru);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : 128, ru.ru_maxrss / 1024.0};
+  waitpid(pid, &status, 0);
+  double mib = 0;
+  if (std::FILE* f = std::fopen(peak.c_str(), "r")) {
+    if (std::fscanf(f, "%lf", &mib) != 1) mib = 0;
+    std::fclose(f);
+  }
+  fs::remove(peak);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : 128, mib};
+}
+
+// A child's last step: its peak RSS to `path`; its exit status.
+int ReportPeak(const std::string& path, bool ok) {
+  if (std::FILE* f = std::fopen(path.c_str(), "w")) {
+    std::fprintf(f, "%.1f\n", PeakRssMiB());
+    std::fclose(f);
+  }
+  return ok ? 0 : 1;
 }
 
 struct Workload {
@@ -253,11 +288,8 @@ void RunPages(const Args& a, const std::string& store, double build_seconds, dou
     const std::string copy = a.dir + "/revision_bench_compacted.mkt";
     CopyStore(store, copy);
     const auto t = Clock::now();
-    // A process of its own (exec'd), so that its peak RSS is the compaction's, not this one's too.
-    const auto [rc, rss] = InChild([&] {
-      execl("/proc/self/exe", "revision_bench", "--compact-only", copy.c_str(), static_cast<char*>(nullptr));
-      return 127;
-    });
+    // A process of its own (spawned), so that its peak RSS is the compaction's, not this one's too.
+    const auto [rc, rss] = Spawn({"--compact-only", copy}, a.dir);
     const double compact_s = Since(t);
     if (rc != 0) Die("compaction", Status::Internal("child failed"));
     auto cdb = Must(Database::Open(copy), "open compacted");
@@ -282,16 +314,11 @@ void RunPages(const Args& a, const std::string& store, double build_seconds, dou
     const std::string rebuilt = a.dir + "/revision_bench_fresh.mkt";
     RemoveStore(rebuilt);
     const auto tf = Clock::now();
-    const auto [frc, fresh_rss] = InChild([&] {
-      return BuildBenchStore({[&](ObjectId first) { return OpenMkSceneFile(mks, first); }}, rebuilt, a.shards)
-                     .ok()
-                 ? 0
-                 : 1;
-    });
+    const auto [frc, fresh_rss] = Spawn({"--build-only", mks, rebuilt, std::to_string(a.shards)}, a.dir);
     const double fresh_s = Since(tf);
     if (frc != 0) Die("fresh build", Status::Internal("child failed"));
     RemoveStore(rebuilt);
-    fs::remove(mks);
+    if (!std::getenv("REVISION_BENCH_KEEP_MKS")) fs::remove(mks);
     const std::string& js = db->stats_json();
     int parts = 0;  // the stores the revision answers from: a part per shard of a sharded base, then deltas
     for (size_t at = js.find("\"leaves\": "); at != std::string::npos; at = js.find("\"leaves\": ", at + 1))
@@ -441,9 +468,28 @@ void RunReader(const Args& a, const std::string& store) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc == 3 && std::strcmp(argv[1], "--compact-only") == 0) {
+  // The children Spawn runs (their last argument: the file for their peak RSS).
+  if (argc == 4 && std::strcmp(argv[1], "--compact-only") == 0) {  // STORE
     auto cw = ChangeWriter::Open(argv[2]);
-    return cw.ok() && (*cw)->Compact().ok() ? 0 : 1;
+    return ReportPeak(argv[3], cw.ok() && (*cw)->Compact().ok());
+  }
+  if (argc == 6 && std::strcmp(argv[1], "--build-only") == 0) {  // MKS STORE SHARDS: as `mktree build`
+    BuildOptions o;
+    o.backend = BuildOptions::Backend::kPagedFile;
+    o.shards = static_cast<uint32_t>(std::stoul(argv[4]));
+    auto built = BuildFromFiles({argv[2]}, argv[3], o);
+    if (!built.ok())
+      std::fprintf(stderr, "revision_bench: fresh build: %s\n", built.status().ToString().c_str());
+    return ReportPeak(argv[5], built.ok());
+  }
+  if (argc == 7 && std::strcmp(argv[1], "--tanker-only") == 0) {  // N SEED STORE SHARDS
+    const uint64_t n = std::stoull(argv[2]), seed = std::stoull(argv[3]);
+    const Status st = BuildBenchStore({[&](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
+                                        return MakeTankerSource(n, seed, first);
+                                      }},
+                                      argv[4], static_cast<uint32_t>(std::stoul(argv[5])));
+    if (!st.ok()) std::fprintf(stderr, "revision_bench: build: %s\n", st.ToString().c_str());
+    return ReportPeak(argv[6], st.ok());
   }
   Args a;
   for (int i = 1; i < argc; ++i) {
@@ -494,15 +540,9 @@ int main(int argc, char** argv) {
   const std::string store = a.dir + "/revision_bench.mkt";
   RemoveStore(store);
   const auto t = Clock::now();
-  const auto [rc, rss] = InChild([&] {
-    return BuildBenchStore({[&](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
-                             return MakeTankerSource(a.objects, a.seed, first);
-                           }},
-                           store, a.shards)
-                   .ok()
-               ? 0
-               : 1;
-  });
+  const auto [rc, rss] = Spawn(
+      {"--tanker-only", std::to_string(a.objects), std::to_string(a.seed), store, std::to_string(a.shards)},
+      a.dir);
   const double build_s = Since(t);
   if (rc != 0) Die("build", Status::Internal("child failed"));
   std::printf("build: %.2f s, peak RSS %.0f MiB\n", build_s, rss);
