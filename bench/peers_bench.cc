@@ -7,7 +7,7 @@
 //                  (a sweep of sizes; 0.1 %, 1 % and 5 % are the headline ones)
 //   box<s>m        tanker only: cubes of side 0.5, 2 and 8 m, centred the same way
 // Engines: mktree-{pagefile,hdf5}-{zstd,none}, libspatialindex, sqlite-rtree, boost-rtree. Each file engine
-// is built in a child process (build time, objects/s, peak RSS from wait4, file size), then queried cold
+// is built in a child process (build time, objects/s, its own peak RSS, file size), then queried cold
 // (engine cache emptied and OS cache bypassed or dropped before each query: pages read mean/p50/p99 against
 // the I/O floor ceil(T / B), KiB read, queries/s) and warm (64 MiB cache, second pass, queries/s).
 // Every engine's AABB answers are checked against Boost.Geometry's (itself checked against a brute-force
@@ -21,7 +21,6 @@
 #include <hdf5.h>
 #include <spatialindex/Version.h>
 #include <sqlite3.h>
-#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 #include <zstd.h>
@@ -41,6 +40,7 @@
 #include <string>
 #include <vector>
 
+#include "bench/peak_rss.h"
 #include "bench/peer_engine.h"
 #include "engine/generator/tanker_generator.h"
 #include "engine/ingest/store_builder.h"
@@ -390,6 +390,7 @@ int ChildBuild(const Args& a) {
     std::fprintf(stderr, "error: build %s: %s\n", a.child_engine.c_str(), st.ToString().c_str());
     return 1;
   }
+  facts["peak_rss_mib"] = bench::PeakRssMiB();
   for (const auto& [k, v] : facts) std::printf("%s=%.17g\n", k.c_str(), v);
   return 0;
 }
@@ -399,7 +400,8 @@ struct BuildResult {
   double peak_rss_mib = 0;
 };
 
-// Runs this program as `--child-build ENGINE`, reads its facts from a pipe and its peak RSS from wait4.
+// Runs this program as `--child-build ENGINE` and reads its facts from a pipe, its peak RSS among them
+// (bench/peak_rss.h: wait4's would count this process's pages, the scene and the reference index).
 Result<BuildResult> SpawnBuild(const std::string& engine, const Args& a) {
   int fds[2];
   if (pipe(fds) != 0) return Status::IOError("pipe");
@@ -434,18 +436,18 @@ Result<BuildResult> SpawnBuild(const std::string& engine, const Args& a) {
   while ((n = read(fds[0], buf, sizeof buf)) > 0) out.append(buf, static_cast<size_t>(n));
   close(fds[0]);
   int status = 0;
-  struct rusage ru {};
-  if (wait4(pid, &status, 0, &ru) != pid) return Status::IOError("wait4");
+  if (waitpid(pid, &status, 0) != pid) return Status::IOError("waitpid");
   if (!WIFEXITED(status) || WEXITSTATUS(status) != 0)
     return Status::Internal("build of " + engine + " failed (child status " + std::to_string(status) + ")");
   BuildResult r;
-  r.peak_rss_mib = static_cast<double>(ru.ru_maxrss) / 1024.0;
   std::istringstream in(out);
   std::string line;
   while (std::getline(in, line)) {
     const size_t eq = line.find('=');
     if (eq != std::string::npos) r.facts[line.substr(0, eq)] = std::stod(line.substr(eq + 1));
   }
+  r.peak_rss_mib = r.facts["peak_rss_mib"];
+  r.facts.erase("peak_rss_mib");
   return r;
 }
 

@@ -36,6 +36,7 @@
 #include <thread>
 #include <vector>
 
+#include "bench/peak_rss.h"
 #include "engine/generator/tanker_generator.h"
 #include "engine/ingest/shard_build.h"
 #include "engine/ingest/store_builder.h"
@@ -83,22 +84,9 @@ T Must(Result<T> r, const std::string& what) {
   return std::move(*r);
 }
 
-// The peak RSS of this process in MiB (VmHWM: this address space's, which an exec starts afresh).
-double PeakRssMiB() {
-  std::FILE* f = std::fopen("/proc/self/status", "r");
-  if (!f) return 0;
-  char line[256];
-  double kib = 0;
-  while (std::fgets(line, sizeof line, f))
-    if (std::sscanf(line, "VmHWM: %lf kB", &kib) == 1) break;
-  std::fclose(f);
-  return kib / 1024;
-}
-
 // Runs this program with `args` and the path of a file for its peak RSS (which it writes last, from
-// PeakRssMiB) in a process of its own; returns its exit status and that peak in MiB. The child's rusage
-// would not do: Linux counts in it the resident pages of this process, which the child shared until its
-// exec (fork) or whose address space it borrowed (posix_spawn's vfork).
+// bench::PeakRssMiB, not this process's rusage of it) in a process of its own; returns its exit status and
+// that peak in MiB.
 std::pair<int, double> Spawn(std::vector<std::string> args, const std::string& dir) {
   std::fflush(stdout);
   const std::string peak = dir + "/revision_bench.peak";
@@ -123,7 +111,7 @@ std::pair<int, double> Spawn(std::vector<std::string> args, const std::string& d
 // A child's last step: its peak RSS to `path`; its exit status.
 int ReportPeak(const std::string& path, bool ok) {
   if (std::FILE* f = std::fopen(path.c_str(), "w")) {
-    std::fprintf(f, "%.1f\n", PeakRssMiB());
+    std::fprintf(f, "%.1f\n", bench::PeakRssMiB());
     std::fclose(f);
   }
   return ok ? 0 : 1;

@@ -98,7 +98,7 @@ echo "\`scripts/bench_peers.sh $args\` on $(date -u '+%Y-%m-%d %H:%M UTC'), comm
   echo "- Cold: engine cache emptied before each query, and the OS page cache bypassed (O_DIRECT, mktree paged file)"
   echo "  or dropped with posix_fadvise(POSIX_FADV_DONTNEED) on the engine's files (all others). Warm: a 64 MiB engine cache"
   echo "  (libspatialindex: our LRU in front of its disk manager), one filling pass, then the timed pass; OS cache left warm."
-  echo "- Build: each engine built in its own child process; peak RSS is that process's (wait4). mktree builds single-threaded (its default)."
+  echo "- Build: each engine built in its own child process; peak RSS is that process's own (VmHWM, bench/peak_rss.h). mktree builds single-threaded (its default)."
   echo "- Answers: every engine's AABB answers are compared with Boost.Geometry's on every query (Boost itself with a brute-force"
   echo "  scan on the first queries of each workload); a mismatch fails the run."
   echo
