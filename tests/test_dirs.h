@@ -1,5 +1,5 @@
-// The one temporary-folder fixture of the tests: a fresh folder under the system's temporary directory,
-// removed with everything in it at destruction.
+// The temporary folders of the tests: a fixture, a fresh folder under the system's temporary directory
+// removed with everything in it at destruction, and the test program's own such folder.
 #pragma once
 
 #include <stdlib.h>
@@ -38,5 +38,15 @@ class TempDir {
  private:
   std::filesystem::path path_;
 };
+
+// The test program's own folder (named after it, MKTREE_TEST_PROGRAM), made on first use and removed when
+// the program ends: one for all its files, which tests/CMakeLists.txt compiles as a few unity sources.
+inline const TempDir& ProgramDir() {
+  static const TempDir dir(MKTREE_TEST_PROGRAM);
+  return dir;
+}
+
+// The path of `name` in ProgramDir().
+inline std::string TempPath(const std::string& name) { return ProgramDir().file(name); }
 
 }  // namespace mktree::testing

@@ -35,10 +35,7 @@ using testing::ExpectSame;
 using testing::OracleClass;
 using testing::Sorted;
 
-std::string TempPath(const std::string& name) {
-  static const testing::TempDir dir("mktree_clash_focus");
-  return dir.file(name);
-}
+using testing::TempPath;
 
 // A clustered scene; every fifth object's name puts it in one of seven groups ("grp3/...").
 std::vector<SceneObject> Scene(size_t n, uint64_t seed) {

@@ -38,10 +38,7 @@ using testing::ExpectSame;
 using testing::OracleClass;
 using testing::Sorted;
 
-std::string TempPath(const std::string& name) {
-  static const testing::TempDir dir("mktree_clash");
-  return dir.file(name);
-}
+using testing::TempPath;
 
 Status Build(const std::vector<SceneObject>& objs, const std::string& path, Backend backend,
              uint32_t block = 512, uint32_t d = 2) {

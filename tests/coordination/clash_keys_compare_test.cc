@@ -17,10 +17,7 @@
 namespace mktree {
 namespace {
 
-std::string TempPath(const std::string& name) {
-  static const testing::TempDir dir("mktree_clash_keys");
-  return dir.file(name);
-}
+using testing::TempPath;
 
 const char* kTests = R"({"tests": [
   {"name": "mep", "a": {"ifc_type": ["IfcDuctSegment", "IfcPipeSegment"]}, "b": {"ifc_type": ["IfcWall*", "IfcBeam"]}},

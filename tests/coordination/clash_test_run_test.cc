@@ -18,10 +18,7 @@ namespace {
 
 using testing::Attr;
 
-std::string TempPath(const std::string& name) {
-  static const testing::TempDir dir("mktree_clash_tests");
-  return dir.file(name);
-}
+using testing::TempPath;
 
 std::vector<ClashPair> SelfClash(const Database& db, const ClashOptions& o) {
   std::vector<ClashPair> out;

@@ -23,11 +23,8 @@ namespace {
 
 using Json = nlohmann::json;
 
-const testing::TempDir& Dir() {
-  static const testing::TempDir dir("mktree_clash_tests_cli");
-  return dir;
-}
-std::string TempPath(const std::string& name) { return Dir().file(name); }
+using testing::ProgramDir;
+using testing::TempPath;
 
 void Write(const std::string& path, const std::string& text) {
   std::ofstream out(path, std::ios::binary);
@@ -44,7 +41,9 @@ std::vector<Json> Lines(const std::string& out) {
   return lines;
 }
 
-testing::ToolRun Clash(const std::string& args) { return testing::RunMktree("clash " + args, Dir().path()); }
+testing::ToolRun Clash(const std::string& args) {
+  return testing::RunMktree("clash " + args, ProgramDir().path());
+}
 
 const char* kTests = R"({"tests": [
   {"name": "mep-vs-structure", "a": {"ifc_type": ["IfcDuct*", "IfcPipe*"]}, "b": {"source": ["*structure.ifc"]}},

@@ -16,10 +16,7 @@
 namespace mktree {
 namespace {
 
-std::string TempPath(const std::string& name) {
-  static const testing::TempDir dir("mktree_duplicates");
-  return dir.file(name);
-}
+using testing::TempPath;
 
 // Every vertex of each within `tol` (per axis) of some vertex of the other, and the same counts.
 bool BruteSame(const Mesh& a, const Mesh& b, double tol) {

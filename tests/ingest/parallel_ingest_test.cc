@@ -23,11 +23,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// In a folder of this program's, removed when it ends.
-std::string TempPath(const std::string& name) {
-  static const testing::TempDir dir("mktree_parallel");
-  return dir.file(name);
-}
+using testing::TempPath;
 
 // Two inputs continuing one numbering, so that the reader also crosses from one source to the next.
 std::vector<SceneOpener> TwoTankers(uint64_t first, uint64_t second) {

@@ -23,11 +23,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// In a folder of this program's, removed when it ends.
-std::string TempPath(const std::string& name) {
-  static const testing::TempDir dir("mktree_query");
-  return dir.file(name);
-}
+using testing::TempPath;
 
 IngestOptions Options(Backend backend, Codec codec, uint32_t block, uint32_t d) {
   IngestOptions o;

@@ -27,10 +27,7 @@
 namespace mktree {
 namespace {
 
-std::string TempPath(const std::string& name) {
-  static const testing::TempDir dir("mktree_decoded");
-  return dir.file(name);
-}
+using testing::TempPath;
 
 Status Build(const std::vector<SceneObject>& objs, const std::string& path) {
   IngestOptions o;

@@ -22,10 +22,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string TempPath(const std::string& name) {
-  static const testing::TempDir dir("mktree_streaming");
-  return dir.file(name);
-}
+using testing::TempPath;
 
 Status Build(const std::vector<SceneObject>& objs, const std::string& path, Backend backend) {
   IngestOptions o;

@@ -19,10 +19,7 @@
 namespace mktree {
 namespace {
 
-std::string TempPath(const std::string& name) {
-  static const testing::TempDir dir("mktree_warm_runs");
-  return dir.file(name);
-}
+using testing::TempPath;
 
 // ClusteredScene with every seventh object a pipe of many sides: entries of several KiB, leaves of
 // several 2 KiB pages.

@@ -17,16 +17,14 @@
 #include "engine/report/sha1.h"
 #include "engine/report/uuid_v5.h"
 #include "report/report_fixtures.h"
+#include "test_dirs.h"
 
 namespace mktree {
 namespace {
 
 namespace fs = std::filesystem;
 
-const testing::TempDir& Dir() {
-  static const testing::TempDir dir("mktree_report_bcf");
-  return dir;
-}
+using testing::ProgramDir;
 
 constexpr int64_t kFixedTime = 1767225600;  // 2026-01-01T00:00:00Z
 
@@ -73,7 +71,7 @@ TEST(BcfGuids, UuidV5KnownVectors) {
 int SchemaFailures(const std::string& archive, BcfVersion v, std::string* log) {
   const std::string xsd = std::string(MKTREE_TESTS_DIR) + "/data/bcf/" + BcfVersionId(v) + "/";
   const auto entries = ZipEntries(archive);
-  const fs::path out = Dir() / ("unpacked_" + fs::path(archive).stem().string());
+  const fs::path out = ProgramDir() / ("unpacked_" + fs::path(archive).stem().string());
   int checked = 0, failed = 0;
   for (const auto& [name, bytes] : entries) {
     std::string schema;
@@ -115,7 +113,7 @@ TEST(BcfSchema, CatchesAFieldOfViewOutOfRange) {
   BcfOptions o;
   o.creation_time = 0;
   o.field_of_view = 75;
-  const std::string path = Dir().file("wide.bcf");
+  const std::string path = ProgramDir().file("wide.bcf");
   ASSERT_TRUE(WriteBcf(HandRun(), path, o).ok());
   std::string log;
   EXPECT_EQ(SchemaFailures(path, BcfVersion::k2_1, &log), 3) << log;
@@ -134,7 +132,7 @@ TEST_P(BcfVersions, HandRunValidatesAndReadsBack) {
     return png;
   };
   o.max_snapshots = 2;
-  const std::string path = Dir().file(std::string("hand_") + BcfVersionId(GetParam()) + ".bcf");
+  const std::string path = ProgramDir().file(std::string("hand_") + BcfVersionId(GetParam()) + ".bcf");
   auto w = WriteBcf(run, path, o);
   ASSERT_TRUE(w.ok()) << w.status().ToString();
   EXPECT_EQ(w->topics, 3u);
@@ -201,7 +199,7 @@ TEST_P(BcfVersions, HandRunValidatesAndReadsBack) {
 
 TEST_P(BcfVersions, SameRunGivesTheSameArchive) {
   const ClashRun run = HandRun();
-  const std::string a = Dir().file("same_a.bcf"), b = Dir().file("same_b.bcf");
+  const std::string a = ProgramDir().file("same_a.bcf"), b = ProgramDir().file("same_b.bcf");
   ASSERT_TRUE(WriteBcf(run, a, Fixed(GetParam())).ok());
   ASSERT_TRUE(WriteBcf(run, b, Fixed(GetParam())).ok());
   EXPECT_EQ(ReadFileBytes(a), ReadFileBytes(b));
@@ -232,7 +230,7 @@ TEST_P(BcfVersions, SameRunGivesTheSameArchive) {
 // Without a creation time, SOURCE_DATE_EPOCH fixes it (the reproducible-builds convention).
 TEST(BcfDates, SourceDateEpoch) {
   const ClashRun run = HandRun();
-  const std::string a = Dir().file("epoch_a.bcf"), b = Dir().file("epoch_b.bcf");
+  const std::string a = ProgramDir().file("epoch_a.bcf"), b = ProgramDir().file("epoch_b.bcf");
   ::setenv("SOURCE_DATE_EPOCH", "1767225600", 1);
   ASSERT_TRUE(WriteBcf(run, a, BcfOptions{}).ok());
   ASSERT_TRUE(WriteBcf(run, b, BcfOptions{}).ok());
@@ -265,7 +263,7 @@ TEST_P(BcfVersions, HostileTextStillValidates) {
   BcfOptions o = Fixed(GetParam());
   o.author = " ";
   o.open_status = "";
-  const std::string path = Dir().file(std::string("hostile_") + BcfVersionId(GetParam()) + ".bcf");
+  const std::string path = ProgramDir().file(std::string("hostile_") + BcfVersionId(GetParam()) + ".bcf");
   auto w = WriteBcf(run, path, o);
   ASSERT_TRUE(w.ok()) << w.status().ToString();
   ExpectValid(path, GetParam());
@@ -316,14 +314,14 @@ TEST(BcfCamera, FramesTheWholeBox) {
 
 TEST(BcfErrors, UnwritablePathLeavesNothing) {
   const ClashRun run = HandRun();
-  const std::string missing_dir = Dir().file("no_such_dir") + "/out.bcf";
+  const std::string missing_dir = ProgramDir().file("no_such_dir") + "/out.bcf";
   auto w = WriteBcf(run, missing_dir, Fixed(BcfVersion::k2_1));
   ASSERT_FALSE(w.ok());
   EXPECT_NE(w.status().message().find(missing_dir), std::string::npos) << w.status().message();
-  EXPECT_FALSE(fs::exists(Dir().file("no_such_dir")));
+  EXPECT_FALSE(fs::exists(ProgramDir().file("no_such_dir")));
 
   if (::geteuid() != 0) {  // root writes into read-only folders
-    const fs::path ro = Dir() / "read_only";
+    const fs::path ro = ProgramDir() / "read_only";
     fs::create_directories(ro);
     fs::permissions(ro, fs::perms::owner_read | fs::perms::owner_exec);
     auto r = WriteBcf(run, (ro / "out.bcf").string(), Fixed(BcfVersion::k2_1));
@@ -335,7 +333,7 @@ TEST(BcfErrors, UnwritablePathLeavesNothing) {
 
 TEST(BcfErrors, FailingSnapshotLeavesTheOldArchive) {
   const ClashRun run = HandRun();
-  const fs::path dir = Dir() / "failing";
+  const fs::path dir = ProgramDir() / "failing";
   fs::create_directories(dir);
   const std::string path = (dir / "out.bcf").string();
   ASSERT_TRUE(WriteBcf(run, path, Fixed(BcfVersion::k2_1)).ok());
@@ -362,7 +360,7 @@ TEST(BcfErrors, FailingSnapshotLeavesTheOldArchive) {
 TEST(BcfErrors, KeysMustBeUniqueAndPresent) {
   ClashRun run = HandRun();
   run.groups[2].key = run.groups[0].key;
-  const std::string path = Dir().file("dup.bcf");
+  const std::string path = ProgramDir().file("dup.bcf");
   auto w = WriteBcf(run, path, Fixed(BcfVersion::k2_1));
   ASSERT_FALSE(w.ok());
   EXPECT_NE(w.status().message().find("two groups have the key"), std::string::npos);
@@ -374,13 +372,13 @@ TEST(BcfErrors, KeysMustBeUniqueAndPresent) {
 }
 
 TEST(BcfReader, RefusesWhatIsNotBcf) {
-  const std::string text = Dir().file("not.bcf");
+  const std::string text = ProgramDir().file("not.bcf");
   std::ofstream(text) << "hello";
   auto r = ReadBcf(text);
   ASSERT_FALSE(r.ok());
   EXPECT_NE(r.status().message().find(text), std::string::npos);
   // A zip without bcf.version.
-  const std::string empty = Dir().file("empty.bcf");
+  const std::string empty = ProgramDir().file("empty.bcf");
   ASSERT_TRUE(WriteBcf(ClashRun{}, empty, Fixed(BcfVersion::k2_1)).ok());
   auto ok = ReadBcf(empty);
   ASSERT_TRUE(ok.ok()) << ok.status().ToString();
@@ -389,7 +387,7 @@ TEST(BcfReader, RefusesWhatIsNotBcf) {
 
 // A real store: the duplex's self-clash pairs, a group each, with snapshots rendered from the store.
 TEST(BcfStore, DuplexWithSnapshotsValidates) {
-  auto sr = DuplexRun(Dir(), 6);
+  auto sr = DuplexRun(ProgramDir(), 6);
   if (!sr) GTEST_SKIP() << "../shared/data/buildings/duplex.obj missing";
   ASSERT_EQ(sr->run.groups.size(), 6u);
   for (BcfVersion v : {BcfVersion::k2_1, BcfVersion::k3_0}) {
@@ -399,7 +397,7 @@ TEST(BcfStore, DuplexWithSnapshotsValidates) {
     so.height = 480;
     o.snapshot = StoreSnapshotSource(*sr->reader, so);
     o.max_snapshots = 3;
-    const std::string path = Dir().file(std::string("duplex_") + BcfVersionId(v) + ".bcf");
+    const std::string path = ProgramDir().file(std::string("duplex_") + BcfVersionId(v) + ".bcf");
     auto w = WriteBcf(sr->run, path, o);
     ASSERT_TRUE(w.ok()) << w.status().ToString();
     EXPECT_EQ(w->snapshots, 3u);
@@ -440,7 +438,7 @@ TEST(BcfStore, DuplexWithSnapshotsValidates) {
 
 // A snapshot of a group whose objects are not the store's is refused, naming the store.
 TEST(BcfStore, SnapshotOfForeignObjectsIsRefused) {
-  auto sr = DuplexRun(Dir(), 1);
+  auto sr = DuplexRun(ProgramDir(), 1);
   if (!sr) GTEST_SKIP() << "../shared/data/buildings/duplex.obj missing";
   ClashGroup g = sr->run.groups.at(0);
   auto foreign = std::make_shared<ObjectIdentity>(*g.members[0].b);

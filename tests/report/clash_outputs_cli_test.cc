@@ -18,13 +18,12 @@
 namespace mktree {
 namespace {
 
-const testing::TempDir& Dir() {
-  static const testing::TempDir dir("mktree_clash_outputs_cli");
-  return dir;
-}
-std::string TempPath(const std::string& name) { return Dir().file(name); }
+using testing::ProgramDir;
+using testing::TempPath;
 
-testing::ToolRun Clash(const std::string& args) { return testing::RunMktree("clash " + args, Dir().path()); }
+testing::ToolRun Clash(const std::string& args) {
+  return testing::RunMktree("clash " + args, ProgramDir().path());
+}
 
 std::string ReadText(const std::string& path) {
   std::ifstream in(path, std::ios::binary);

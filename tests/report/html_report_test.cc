@@ -12,16 +12,14 @@
 
 #include "engine/report/group_snapshot.h"
 #include "report/report_fixtures.h"
+#include "test_dirs.h"
 
 namespace mktree {
 namespace {
 
 namespace fs = std::filesystem;
 
-const testing::TempDir& Dir() {
-  static const testing::TempDir dir("mktree_report_html");
-  return dir;
-}
+using testing::ProgramDir;
 
 // A w x h PNG of one colour.
 std::vector<uint8_t> SolidPng(uint32_t w, uint32_t h, uint8_t r, uint8_t g, uint8_t b) {
@@ -69,7 +67,7 @@ TEST(HtmlReport, WorstFirstEscapedBounded) {
   const ClashRun run = HandRun();
   HtmlReportOptions o;
   o.members_per_group = 1;
-  const std::string path = Dir().file("bounded.html");
+  const std::string path = ProgramDir().file("bounded.html");
   auto w = WriteHtmlReport(run, path, o);
   ASSERT_TRUE(w.ok()) << w.status().ToString();
   const std::string page = ReadFileBytes(path);
@@ -113,7 +111,7 @@ TEST(HtmlReport, SnapshotsAreInlineDataUris) {
   HtmlReportOptions o;
   o.snapshot = [&](const ClashGroup&) -> Result<std::vector<uint8_t>> { return png; };
   o.max_snapshots = 2;
-  const std::string path = Dir().file("snapshots.html");
+  const std::string path = ProgramDir().file("snapshots.html");
   auto w = WriteHtmlReport(run, path, o);
   ASSERT_TRUE(w.ok()) << w.status().ToString();
   EXPECT_EQ(w->snapshots, 2u);
@@ -127,12 +125,12 @@ TEST(HtmlReport, SnapshotsAreInlineDataUris) {
 
 TEST(HtmlReport, ErrorsLeaveNothing) {
   const ClashRun run = HandRun();
-  const std::string bad = Dir().file("missing_dir") + "/r.html";
+  const std::string bad = ProgramDir().file("missing_dir") + "/r.html";
   auto w = WriteHtmlReport(run, bad, {});
   ASSERT_FALSE(w.ok());
   EXPECT_NE(w.status().message().find(bad), std::string::npos) << w.status().message();
-  EXPECT_FALSE(fs::exists(Dir().file("missing_dir")));
-  const fs::path dir = Dir() / "snapfail";
+  EXPECT_FALSE(fs::exists(ProgramDir().file("missing_dir")));
+  const fs::path dir = ProgramDir() / "snapfail";
   fs::create_directories(dir);
   HtmlReportOptions o;
   o.snapshot = [](const ClashGroup&) -> Result<std::vector<uint8_t>> {
@@ -146,11 +144,11 @@ TEST(HtmlReport, ErrorsLeaveNothing) {
 
 // Runs chromium headless on `args`; its stdout, stderr in *err.
 std::string Chromium(const std::string& args, std::string* err) {
-  const std::string log = Dir().file("chromium.err");
+  const std::string log = ProgramDir().file("chromium.err");
   const std::string cmd =
       "timeout 120 chromium --headless --no-sandbox --disable-gpu --no-first-run "
       "--user-data-dir='" +
-      Dir().file("profile") + "' " + args + " 2>'" + log + "'";
+      ProgramDir().file("profile") + "' " + args + " 2>'" + log + "'";
   FILE* p = popen(cmd.c_str(), "r");
   std::string out;
   char buf[4096];
@@ -167,7 +165,7 @@ TEST(HtmlReport, LoadsInHeadlessChromium) {
   HtmlReportOptions o;
   const std::vector<uint8_t> png = SolidPng(600, 200, 225, 25, 25);
   o.snapshot = [&](const ClashGroup&) -> Result<std::vector<uint8_t>> { return png; };
-  const std::string path = Dir().file("chromium.html");
+  const std::string path = ProgramDir().file("chromium.html");
   ASSERT_TRUE(WriteHtmlReport(run, path, o).ok());
   const std::string url = "file://" + path;
 
@@ -186,7 +184,7 @@ TEST(HtmlReport, LoadsInHeadlessChromium) {
   EXPECT_EQ(Count(filtered, "hidden=\"\""), 2u);
 
   // The screenshot shows the page: mostly light, with the hard colour of the snapshots and badges.
-  const std::string shot = Dir().file("chromium.png");
+  const std::string shot = ProgramDir().file("chromium.png");
   Chromium("--screenshot='" + shot + "' --window-size=1200,1600 '" + url + "'", &err);
   ASSERT_TRUE(fs::exists(shot)) << err;
   png_image img{};
@@ -222,11 +220,11 @@ TEST(HtmlReport, MemoizedSnapshotsRenderOnce) {
   BcfOptions b;
   b.snapshot = memo;
   b.max_snapshots = 1;  // the first group only
-  ASSERT_TRUE(WriteBcf(run, Dir().file("memo.bcf"), b).ok());
+  ASSERT_TRUE(WriteBcf(run, ProgramDir().file("memo.bcf"), b).ok());
   HtmlReportOptions h;
   h.snapshot = memo;
   h.max_snapshots = 1;  // the worst group: the same one
-  ASSERT_TRUE(WriteHtmlReport(run, Dir().file("memo.html"), h).ok());
+  ASSERT_TRUE(WriteHtmlReport(run, ProgramDir().file("memo.html"), h).ok());
   EXPECT_EQ(calls, (std::map<std::string, int>{{run.groups[0].key, 1}}));
   // Errors are not kept: asked again, the source is asked again.
   EXPECT_FALSE(memo(run.groups[1]).ok());

@@ -26,11 +26,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-const testing::TempDir& Dir() {
-  static const testing::TempDir dir("mktree_clash_render");
-  return dir;
-}
-std::string TempPath(const std::string& name) { return Dir().file(name); }
+using testing::ProgramDir;
+using testing::TempPath;
 
 void WriteFile(const std::string& path, const std::string& text) {
   std::ofstream out(path, std::ios::binary);
@@ -285,7 +282,7 @@ TEST_P(ClashRenderTest, FocusFramesThePair) {
 }
 
 TEST_P(ClashRenderTest, ToolPrintsCountsAndRefusesMalformedPairs) {
-  const fs::path scratch = Dir().path();
+  const fs::path scratch = ProgramDir().path();
   const std::string png = TempPath("tool_" + name_ + ".png");
   auto run = testing::RunMktree(
       "render " + store_ + " --clashes " + pairs_ + " -o " + png + " --size 500x400", scratch);
@@ -422,7 +419,7 @@ TEST_P(ClashRenderTest, ExportColoursVerticesByClass) {
   EXPECT_NE(g.find("mktree export (clashes)"), std::string::npos);
 
   // The tool: counts on stdout; a malformed pairs file leaves no output.
-  const fs::path scratch = Dir().path();
+  const fs::path scratch = ProgramDir().path();
   fs::remove(ply);
   auto run = testing::RunMktree("export " + store_ + " --clashes " + pairs_ + " -o " + ply, scratch);
   ASSERT_EQ(run.code, 0) << run.err;

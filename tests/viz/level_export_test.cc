@@ -24,11 +24,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// In a folder of this program's, removed when it ends.
-std::string TempPath(const std::string& name) {
-  static const testing::TempDir dir("mktree_export");
-  return dir.file(name);
-}
+using testing::TempPath;
 
 struct Expected {
   GroupCounts objects{}, vertices{}, triangles{};

@@ -21,11 +21,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// In a folder of this program's, removed when it ends.
-std::string TempPath(const std::string& name) {
-  static const testing::TempDir dir("mktree_render");
-  return dir.file(name);
-}
+using testing::TempPath;
 
 // Pixels of the picture area (above the legend strip) by dominant hue.
 struct Tally {
