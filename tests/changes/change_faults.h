@@ -79,6 +79,25 @@ class StepFileOps : public FileOps {
   int error_ = EIO;
 };
 
+// What a kill or fault test runs the writer through: a commit; a compaction; a commit whose changes pass
+// the threshold, so that a compaction follows it; the first commit of a built store, whose writer's Open
+// makes the changes folder.
+enum class Operation { kCommit, kCompact, kCommitThenCompaction, kFirstCommit };
+
+inline const char* OperationName(Operation op) {
+  switch (op) {
+    case Operation::kCommit:
+      return "commit";
+    case Operation::kCompact:
+      return "compaction";
+    case Operation::kCommitThenCompaction:
+      return "commit then compaction";
+    case Operation::kFirstCommit:
+      return "first commit";
+  }
+  return "";
+}
+
 // The store file and its changes folder copied to `to`, in a folder of its own that is emptied first.
 inline void CopyStore(const std::string& from, const std::string& to) {
   namespace fs = std::filesystem;

@@ -9,10 +9,10 @@
 namespace mktree {
 namespace {
 
-using PairIds = std::set<std::pair<ObjectId, ObjectId>>;
+using IdPairs = std::set<std::pair<ObjectId, ObjectId>>;
 
-PairIds Ids(const std::vector<ClashPair>& pairs) {
-  PairIds out;
+IdPairs Ids(const std::vector<ClashPair>& pairs) {
+  IdPairs out;
   for (const ClashPair& p : pairs) out.insert({p.a, p.b});
   return out;
 }
@@ -35,7 +35,7 @@ TEST_P(ClashSinceTest, NewAndResolvedTurnTheOldClashIntoTheNew) {
   for (int round = 0; round < 3; ++round) {
     auto then = Database::Open(store);
     ASSERT_TRUE(then.ok());
-    const PairIds before = Ids(testing::SelfClashPairs(**then, o));
+    const IdPairs before = Ids(testing::SelfClashPairs(**then, o));
     for (int b = 0; b < 3; ++b) {
       const ChangeBatch batch = testing::RandomBatch(live, 12, rng, &counter);
       auto done = (*w)->Commit(batch);
@@ -47,8 +47,8 @@ TEST_P(ClashSinceTest, NewAndResolvedTurnTheOldClashIntoTheNew) {
     }
     auto now = Database::Open(store);
     ASSERT_TRUE(now.ok());
-    const PairIds after = Ids(testing::SelfClashPairs(**now, o));
-    PairIds added, resolved;
+    const IdPairs after = Ids(testing::SelfClashPairs(**now, o));
+    IdPairs added, resolved;
     ClashStats stats;
     ClashStats full;
     ASSERT_TRUE((*now)->SelfClash(o, nullptr, &full).ok());
@@ -59,7 +59,7 @@ TEST_P(ClashSinceTest, NewAndResolvedTurnTheOldClashIntoTheNew) {
         },
         &stats);
     ASSERT_TRUE(st.ok()) << st.ToString();
-    PairIds rebuilt = before;
+    IdPairs rebuilt = before;
     for (const auto& p : resolved) {
       EXPECT_TRUE(before.count(p)) << "resolved pair that did not clash before";
       rebuilt.erase(p);

@@ -17,16 +17,9 @@ namespace mktree {
 namespace {
 
 using testing::LiveSet;
+using testing::Operation;
+using testing::OperationName;
 using testing::StepFileOps;
-
-// A commit; a compaction; a commit whose changes pass the threshold, so that a compaction follows it.
-enum class Operation { kCommit, kCompact, kCommitThenCompaction };
-
-const char* OperationName(Operation op) {
-  return op == Operation::kCommit    ? "commit"
-         : op == Operation::kCompact ? "compaction"
-                                     : "commit then compaction";
-}
 
 class KilledWriter : public ::testing::TestWithParam<Backend> {
  protected:

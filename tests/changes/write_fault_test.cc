@@ -16,25 +16,9 @@ namespace mktree {
 namespace {
 
 using testing::LiveSet;
+using testing::Operation;
+using testing::OperationName;
 using testing::StepFileOps;
-
-// A commit; a compaction; a commit whose changes pass the threshold, so that a compaction follows it; the
-// first commit of a built store, whose writer's Open makes the changes folder (failed there too).
-enum class Operation { kCommit, kCompact, kCommitThenCompaction, kFirstCommit };
-
-const char* OperationName(Operation op) {
-  switch (op) {
-    case Operation::kCommit:
-      return "commit";
-    case Operation::kCompact:
-      return "compaction";
-    case Operation::kCommitThenCompaction:
-      return "commit then compaction";
-    case Operation::kFirstCommit:
-      return "first commit";
-  }
-  return "";
-}
 
 class WriteFault : public ::testing::TestWithParam<Backend> {
  protected:

@@ -48,7 +48,7 @@ std::vector<SceneObject> Scene(size_t n, uint64_t seed) {
 }
 
 // Builds the objects (ids by position) into `path` with small pages (many leaves).
-void Build(const std::vector<SceneObject>& objs, const std::string& path, Backend backend) {
+void BuildSmallPages(const std::vector<SceneObject>& objs, const std::string& path, Backend backend) {
   IngestOptions o;
   o.store.backend = backend;
   o.store.params.block_size = 512;
@@ -79,7 +79,7 @@ PartStore BuildPart(const std::vector<SceneObject>& scene, std::vector<ObjectId>
   std::vector<SceneObject> objs;
   for (ObjectId g : ids) objs.push_back(scene[g]);
   const std::string path = TempPath(name + "_" + BackendName(backend));
-  Build(objs, path, backend);
+  BuildSmallPages(objs, path, backend);
   return {Open(path, cache_pages), std::move(ids)};
 }
 

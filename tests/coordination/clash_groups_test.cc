@@ -28,7 +28,7 @@ ObjectIdentity Object(int i, const Vec3d& at, double half = 0.1) {
   return o;
 }
 
-ClashRecord Clash(const ObjectIdentity& a, const ObjectIdentity& b, ClashClass cls, double distance) {
+ClashRecord Record(const ObjectIdentity& a, const ObjectIdentity& b, ClashClass cls, double distance) {
   ClashRecord r;
   r.a = std::make_shared<const ObjectIdentity>(a);
   r.b = std::make_shared<const ObjectIdentity>(b);
@@ -54,9 +54,9 @@ TEST(ClashGroups, OneBeamHitByTwelvePipesIsOneGroup) {
   std::vector<ClashRecord> records;
   const ObjectIdentity beam = Object(100, {0, 0, 0}, 5);
   for (int i = 0; i < 12; ++i)
-    records.push_back(Clash(Object(i, {i * 0.4, 0, 0}), beam, i == 3 ? ClashClass::kHard : ClashClass::kTouch,
-                            i == 3 ? -0.02 : 0));
-  records.push_back(Clash(Object(20, {50, 0, 0}), Object(21, {50.1, 0, 0}), ClashClass::kClearance, 0.01));
+    records.push_back(Record(Object(i, {i * 0.4, 0, 0}), beam,
+                             i == 3 ? ClashClass::kHard : ClashClass::kTouch, i == 3 ? -0.02 : 0));
+  records.push_back(Record(Object(20, {50, 0, 0}), Object(21, {50.1, 0, 0}), ClashClass::kClearance, 0.01));
   const auto groups = coordination::GroupClashes("t", records, ClashGrouping::kElement, 1);
   ASSERT_EQ(groups.size(), 2u);
   EXPECT_EQ(groups[0].members.size(), 12u);  // worst first
@@ -82,8 +82,8 @@ TEST(ClashGroups, ProximityIsSingleLinkageAndOrderFree) {
   for (int i = 0; i < 300; ++i) {
     const Vec3d p{u(rng), u(rng), u(rng) / 10};
     // Two objects whose boxes overlap around p: the clash's place is p.
-    records.push_back(Clash(Object(2 * i, {p.x - 0.05, p.y, p.z}), Object(2 * i + 1, {p.x + 0.05, p.y, p.z}),
-                            ClashClass::kHard, -0.01));
+    records.push_back(Record(Object(2 * i, {p.x - 0.05, p.y, p.z}), Object(2 * i + 1, {p.x + 0.05, p.y, p.z}),
+                             ClashClass::kHard, -0.01));
     at.push_back(p);
   }
   const double d = 0.9;
@@ -124,8 +124,8 @@ TEST(ClashGroups, ProximityIsSingleLinkageAndOrderFree) {
 TEST(ClashGroups, StatusOfAGroup) {
   ClashGroup g;
   g.key = "k";
-  ClashRecord a = Clash(Object(1, {0, 0, 0}), Object(2, {0, 0, 0}), ClashClass::kTouch, 0);
-  ClashRecord b = Clash(Object(3, {0, 0, 0}), Object(4, {0, 0, 0}), ClashClass::kTouch, 0);
+  ClashRecord a = Record(Object(1, {0, 0, 0}), Object(2, {0, 0, 0}), ClashClass::kTouch, 0);
+  ClashRecord b = Record(Object(3, {0, 0, 0}), Object(4, {0, 0, 0}), ClashClass::kTouch, 0);
   a.status = ClashStatus::kActive;
   b.status = ClashStatus::kResolved;
   g.members = {a, b};

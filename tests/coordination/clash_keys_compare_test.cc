@@ -19,7 +19,7 @@ namespace {
 
 using testing::TempPath;
 
-const char* kTests = R"({"tests": [
+const char* kMepAndAll = R"({"tests": [
   {"name": "mep", "a": {"ifc_type": ["IfcDuctSegment", "IfcPipeSegment"]}, "b": {"ifc_type": ["IfcWall*", "IfcBeam"]}},
   {"name": "all", "a": {}, "group": {"proximity": 2.0}}]})";
 const char* kSwapped = R"({"tests": [
@@ -40,7 +40,7 @@ TEST(ClashKeys, StableUnderOrderSidesAndRebuilds) {
   const auto scene = testing::AttributedScene(600, 11);
   testing::BuildScene(scene, TempPath("k1.mkt"));
   auto db = testing::OpenStore(TempPath("k1.mkt"));
-  const ClashRun first = testing::RunTests(*db, testing::Tests(kTests));
+  const ClashRun first = testing::RunTests(*db, testing::Tests(kMepAndAll));
   const auto keyed = Keyed(first);
   ASSERT_GT(keyed.size(), 200u);
   // Reordered input: other ids for every object.
@@ -49,7 +49,7 @@ TEST(ClashKeys, StableUnderOrderSidesAndRebuilds) {
   for (size_t i = 0; i < shuffled.size(); ++i) shuffled[i].id = static_cast<ObjectId>(i);
   testing::BuildScene(shuffled, TempPath("k2.mkt"));
   auto db2 = testing::OpenStore(TempPath("k2.mkt"));
-  const ClashRun reordered = testing::RunTests(*db2, testing::Tests(kTests));
+  const ClashRun reordered = testing::RunTests(*db2, testing::Tests(kMepAndAll));
   EXPECT_EQ(Keyed(reordered), keyed);
   // The ids did change.
   size_t moved = 0;
@@ -63,7 +63,7 @@ TEST(ClashKeys, StableUnderOrderSidesAndRebuilds) {
   testing::BuildScene(scene, TempPath("k3.mkt"), 3);
   auto sharded = testing::OpenStore(TempPath("k3.mkt"));
   ASSERT_EQ(sharded->shard_count(), 3u);
-  const ClashRun over_shards = testing::RunTests(*sharded, testing::Tests(kTests));
+  const ClashRun over_shards = testing::RunTests(*sharded, testing::Tests(kMepAndAll));
   EXPECT_EQ(Keyed(over_shards), keyed);
   // The groups' keys, boxes and order too.
   ASSERT_EQ(over_shards.groups.size(), first.groups.size());

@@ -23,13 +23,11 @@ namespace {
 
 using testing::AddVertex;
 using testing::BoxMesh;
+using testing::Tri;
 using testing::UvSphereMesh;
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-struct Tri {
-  Vec3d v[3];
-};
 std::vector<Tri> Triangles(const Mesh& m) {
   std::vector<Tri> out(m.triangle_count());
   for (size_t t = 0; t < m.triangle_count(); ++t)

@@ -16,15 +16,10 @@ namespace {
 
 using testing::Diagonal;
 using testing::Grown;
+using testing::Queries;
 using testing::RandomIn;
 using testing::SurfaceDistance;
 using testing::VertexOf;
-
-SolidClassifierOptions Queries(size_t n) {
-  SolidClassifierOptions o;
-  o.expected_queries = n;
-  return o;
-}
 
 struct Case {
   const char* file;

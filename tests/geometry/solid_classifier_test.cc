@@ -12,20 +12,9 @@ namespace mktree {
 namespace {
 
 using testing::BoxMesh;
+using testing::MakeBox;
+using testing::Queries;
 using testing::RandomIn;
-
-Box3d MakeBox(double x0, double y0, double z0, double x1, double y1, double z1) {
-  Box3d b;
-  b.min = {x0, y0, z0};
-  b.max = {x1, y1, z1};
-  return b;
-}
-
-SolidClassifierOptions Queries(size_t n) {
-  SolidClassifierOptions o;
-  o.expected_queries = n;
-  return o;
-}
 
 Vec3d Add(const Vec3d& a, const Vec3d& d, double s) { return {a.x + s * d.x, a.y + s * d.y, a.z + s * d.z}; }
 

@@ -175,4 +175,23 @@ inline double Diagonal(const Box3d& b) {
   return std::hypot(b.max[0] - b.min[0], b.max[1] - b.min[1], b.max[2] - b.min[2]);
 }
 
+inline Box3d MakeBox(double x0, double y0, double z0, double x1, double y1, double z1) {
+  Box3d b;
+  b.min = {x0, y0, z0};
+  b.max = {x1, y1, z1};
+  return b;
+}
+
+// A classifier's options for `n` expected queries.
+inline SolidClassifierOptions Queries(size_t n) {
+  SolidClassifierOptions o;
+  o.expected_queries = n;
+  return o;
+}
+
+// A triangle as the triangle-pair functions take it: its three corners.
+struct Tri {
+  Vec3d v[3];
+};
+
 }  // namespace mktree::testing

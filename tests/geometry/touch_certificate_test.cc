@@ -86,12 +86,6 @@ bool InteriorsDisjoint(const std::vector<Mesh>& parts_a, const std::vector<Mesh>
 // The far UTM-like offset of the "far" variant (integers: exact in double).
 constexpr double kFarX = 500000, kFarY = 5700000, kFarZ = 100;
 
-struct Case {
-  const char* what;
-  std::vector<Mesh> a, b;  // convex parts; the object is their union (one mesh given separately)
-  Mesh whole_a, whole_b;
-};
-
 void ExpectTouch(const Mesh& a, const Mesh& b, const char* what) {
   SCOPED_TRACE(what);
   ASSERT_TRUE(IsClosedMesh(a));

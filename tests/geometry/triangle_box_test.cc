@@ -5,15 +5,12 @@
 #include <random>
 #include <vector>
 
+#include "geometry/test_meshes.h"
+
 namespace mktree {
 namespace {
 
-Box3d MakeBox(double x0, double y0, double z0, double x1, double y1, double z1) {
-  Box3d b;
-  b.min = {x0, y0, z0};
-  b.max = {x1, y1, z1};
-  return b;
-}
+using testing::MakeBox;
 
 // Reference: Sutherland-Hodgman clipping of the triangle by the six closed half-spaces of the box;
 // the triangle meets the box iff something is left. A different algorithm from the SAT under test.

@@ -9,6 +9,8 @@
 #include <cmath>
 #include <random>
 
+#include "geometry/test_meshes.h"
+
 namespace mktree {
 namespace {
 
@@ -16,6 +18,8 @@ namespace {
 // point they are, chosen with CGAL's own predicates.
 using K = CGAL::Exact_predicates_exact_constructions_kernel;
 using P3 = K::Point_3;
+
+using testing::Tri;
 
 P3 ToCgal(const Vec3d& v) { return P3(v.x, v.y, v.z); }
 
@@ -108,10 +112,6 @@ double OracleDistance2(const Vec3d a[3], const Vec3d b[3]) {
   }
   return CGAL::to_double(d);
 }
-
-struct Tri {
-  Vec3d v[3];
-};
 
 Tri T(Vec3d a, Vec3d b, Vec3d c) { return Tri{{a, b, c}}; }
 

@@ -8,7 +8,6 @@
 // rename happened, the new store complete).
 #include <gtest/gtest.h>
 #include <unistd.h>
-#include <xxhash.h>
 
 #include <atomic>
 #include <cerrno>
@@ -21,6 +20,7 @@
 #include "engine/ingest/store_builder.h"
 #include "engine/query/store_database.h"
 #include "engine/scene/obj_reader.h"
+#include "ingest/ingest_test_util.h"
 #include "storage/file_ops.h"
 #include "storage/memory_page_store.h"
 #include "test_dirs.h"
@@ -29,6 +29,8 @@ namespace mktree {
 namespace {
 
 namespace fs = std::filesystem;
+
+using testing::FileHash;
 
 // A FileOps that counts calls of each kind and injects one fault at a chosen call. The store writer's
 // leaf and record pages are written on two threads at once (storage/file_ops.h), so the counts are atomic:
@@ -133,12 +135,6 @@ Result<std::vector<std::vector<ObjectId>>> Answers(const Database& db, const std
 Result<std::vector<std::vector<ObjectId>>> AnswersOf(const std::string& path, const std::vector<Query>& qs) {
   MKTREE_ASSIGN_OR_RETURN(auto db, Database::Open(path, {.cache_pages = 0}));
   return Answers(*db, qs, QueryMode::kExact);
-}
-
-uint64_t FileHash(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  const std::string bytes((std::istreambuf_iterator<char>(in)), {});
-  return XXH3_64bits(bytes.data(), bytes.size());
 }
 
 class WriterFaultTest : public ::testing::TestWithParam<Backend> {

@@ -4,19 +4,18 @@
 // call, fails the build with an IOError naming the spill file, and leaves nothing beside the output: the
 // previous store byte for byte, no temporary store, no spill.
 #include <gtest/gtest.h>
-#include <xxhash.h>
 
 #include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <filesystem>
 #include <fstream>
-#include <iterator>
 #include <set>
 
 #include "engine/generator/tanker_generator.h"
 #include "engine/ingest/store_builder.h"
 #include "engine/scene/obj_reader.h"
+#include "ingest/ingest_test_util.h"
 #include "storage/file_ops.h"
 #include "test_dirs.h"
 
@@ -24,6 +23,8 @@ namespace mktree {
 namespace {
 
 namespace fs = std::filesystem;
+
+using testing::FileHash;
 
 // A FileOps that counts the calls of each kind and fails one chosen call with EIO. The spills read on two
 // threads at once (the leaf pages' read-ahead, the object table): the counts are atomic. Each kind's calls
@@ -78,12 +79,6 @@ const char* Name(FailingFileOps::Op op) {
       return "preadv";
   }
   return "?";
-}
-
-uint64_t FileHash(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  const std::string bytes((std::istreambuf_iterator<char>(in)), {});
-  return XXH3_64bits(bytes.data(), bytes.size());
 }
 
 // Which spill a build's FileOps reach.

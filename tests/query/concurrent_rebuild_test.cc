@@ -26,7 +26,7 @@ struct Version {
   std::vector<std::vector<ObjectId>> answers;  // per query, AABB mode, brute force
 };
 
-Status Build(const std::vector<SceneObject>& objs, const std::string& path, Backend backend) {
+Status BuildSmallBlocks(const std::vector<SceneObject>& objs, const std::string& path, Backend backend) {
   IngestOptions o;
   o.store.backend = backend;
   o.store.params.block_size = 1024;  // small pages: many leaves, so queries read several pages
@@ -65,7 +65,7 @@ TEST_P(ConcurrentRebuildTest, ReadersSeeOneWholeVersionWhileTheStoreIsRebuilt) {
 
   const testing::TempDir dir("mktree_rebuild");
   const std::string path = dir.file(std::string(BackendName(GetParam())) + ".mkt");
-  ASSERT_TRUE(Build(versions[0].objects, path, GetParam()).ok());
+  ASSERT_TRUE(BuildSmallBlocks(versions[0].objects, path, GetParam()).ok());
 
   std::atomic<bool> done{false};
   std::atomic<int> opens{0};
@@ -97,7 +97,7 @@ TEST_P(ConcurrentRebuildTest, ReadersSeeOneWholeVersionWhileTheStoreIsRebuilt) {
       }
     });
   for (int i = 1; i <= kRebuilds; ++i) {
-    Status st = Build(versions[i % 2].objects, path, GetParam());
+    Status st = BuildSmallBlocks(versions[i % 2].objects, path, GetParam());
     EXPECT_TRUE(st.ok()) << "rebuild " << i << ": " << st.ToString();
   }
   done = true;

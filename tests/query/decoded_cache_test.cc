@@ -29,7 +29,7 @@ namespace {
 
 using testing::TempPath;
 
-Status Build(const std::vector<SceneObject>& objs, const std::string& path) {
+Status BuildPagedFile(const std::vector<SceneObject>& objs, const std::string& path) {
   IngestOptions o;
   o.store.backend = Backend::kPagedFile;
   o.store.params.block_size = 1024;
@@ -41,7 +41,8 @@ using Brute = testing::BruteForce;
 
 // Points (on box corners, so that float rounding of the query matters) and boxes of mixed sizes, some
 // with faces exactly on object faces and some with coordinates between two floats.
-std::vector<Query> Queries(const std::vector<SceneObject>& objs, size_t n, uint64_t seed, QueryMode mode) {
+std::vector<Query> BoundaryQueries(const std::vector<SceneObject>& objs, size_t n, uint64_t seed,
+                                   QueryMode mode) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> unit(0, 1);
   std::vector<Query> qs;
@@ -73,7 +74,7 @@ class DecodedCacheTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     objs_ = new std::vector<SceneObject>(testing::ClusteredScene(2500, 17));
-    ASSERT_TRUE(Build(*objs_, TempPath("scene.mkt")).ok());
+    ASSERT_TRUE(BuildPagedFile(*objs_, TempPath("scene.mkt")).ok());
     brute_ = new Brute(*objs_);
   }
   static void TearDownTestSuite() {
@@ -91,7 +92,7 @@ Brute* DecodedCacheTest::brute_ = nullptr;
 // first pass for the pages touched, and a whole-store cache reads nothing after the first pass.
 TEST_F(DecodedCacheTest, WarmAnswersMatchBruteForceAtEveryCacheSize) {
   for (QueryMode mode : {QueryMode::kAabb, QueryMode::kExact}) {
-    const auto qs = Queries(*objs_, mode == QueryMode::kAabb ? 600 : 200, 5, mode);
+    const auto qs = BoundaryQueries(*objs_, mode == QueryMode::kAabb ? 600 : 200, 5, mode);
     std::vector<std::vector<ObjectId>> expected;
     size_t answered = 0;
     for (const Query& q : qs) {
@@ -129,7 +130,7 @@ TEST_F(DecodedCacheTest, WarmAnswersMatchBruteForceAtEveryCacheSize) {
 TEST_F(DecodedCacheTest, LimitedQueriesFromDecodedLeavesAreTheAnswersPrefix) {
   auto db = Database::Open(TempPath("scene.mkt"), {.cache_pages = 100000});
   ASSERT_TRUE(db.ok());
-  for (const Query& base : Queries(*objs_, 200, 9, QueryMode::kAabb)) {
+  for (const Query& base : BoundaryQueries(*objs_, 200, 9, QueryMode::kAabb)) {
     std::vector<ObjectId> all;
     ASSERT_TRUE((*db)
                     ->Visit(
@@ -253,8 +254,8 @@ TEST_F(DecodedCacheTest, ConcurrentQueriesShareDecodedLeaves) {
     SCOPED_TRACE("cache " + std::to_string(cache));
     auto db = Database::Open(TempPath("scene.mkt"), {.cache_pages = cache});
     ASSERT_TRUE(db.ok());
-    std::vector<Query> qs = Queries(*objs_, 160, 31, QueryMode::kAabb);
-    for (Query q : Queries(*objs_, 40, 37, QueryMode::kExact)) qs.push_back(q);
+    std::vector<Query> qs = BoundaryQueries(*objs_, 160, 31, QueryMode::kAabb);
+    for (Query q : BoundaryQueries(*objs_, 40, 37, QueryMode::kExact)) qs.push_back(q);
     std::vector<std::vector<ObjectId>> expected;
     for (const Query& q : qs) expected.push_back(brute_->Answer(q));
     std::atomic<int> wrong{0}, failed{0};
@@ -329,7 +330,7 @@ std::vector<Query> LargeQueries(const std::vector<SceneObject>& objs, size_t n, 
 // order. VisitSpans hands over Visit's ids in Visit's order.
 TEST_F(DecodedCacheTest, WindowedLeavesKeepAnswersAndCountsOfOneLeafAtATime) {
   std::vector<Query> qs = LargeQueries(*objs_, 300, 41);
-  for (const Query& q : Queries(*objs_, 200, 43, QueryMode::kAabb)) qs.push_back(q);
+  for (const Query& q : BoundaryQueries(*objs_, 200, 43, QueryMode::kAabb)) qs.push_back(q);
   std::vector<std::vector<ObjectId>> expected;
   size_t big = 0;
   for (const Query& q : qs) {

@@ -52,6 +52,12 @@ inline std::vector<SceneObject> MixedScene(size_t n, uint64_t seed, double offse
   return objs;
 }
 
+// The stores the nearest and ray tests run on: a backend and the page cache's size.
+struct StoreSetup {
+  Backend backend;
+  uint64_t cache_pages;
+};
+
 struct ExpectedNearest {
   ObjectId id;
   double distance;

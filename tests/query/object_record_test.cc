@@ -48,7 +48,8 @@ std::vector<SceneObject> RecordObjects(uint32_t n, uint32_t seed, const Vec3d& s
   return objects;
 }
 
-Status Build(const std::vector<SceneObject>& objects, const std::string& path, Backend backend) {
+Status BuildManyRecordPages(const std::vector<SceneObject>& objects, const std::string& path,
+                            Backend backend) {
   std::vector<SceneOpener> in{[&objects](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
     return std::unique_ptr<SceneSource>(new VectorSceneSource(&objects, first));
   }};
@@ -97,7 +98,7 @@ void ExpectRecords(const Database& db, const std::vector<SceneObject>& objects, 
 TEST_P(ObjectRecordTest, AnyBytesRoundTripThroughIngest) {
   const std::string path = dir_.file("records.mkt");
   const std::vector<SceneObject> objects = RecordObjects(600, 51);
-  ASSERT_TRUE(Build(objects, path, GetParam()).ok());
+  ASSERT_TRUE(BuildManyRecordPages(objects, path, GetParam()).ok());
   auto db = Database::Open(path, {.cache_pages = 8});
   ASSERT_TRUE(db.ok()) << db.status().ToString();
   ASSERT_EQ((*db)->object_count(), objects.size());
@@ -113,7 +114,7 @@ TEST_P(ObjectRecordTest, AnyBytesRoundTripThroughIngest) {
 TEST_P(ObjectRecordTest, WorldBoxAndGeometryCarryTheOrigin) {
   const std::string path = dir_.file("far.mkt");
   const std::vector<SceneObject> objects = RecordObjects(120, 52, {5e5, 5e6, 100});
-  ASSERT_TRUE(Build(objects, path, GetParam()).ok());
+  ASSERT_TRUE(BuildManyRecordPages(objects, path, GetParam()).ok());
   auto db = Database::Open(path);
   ASSERT_TRUE(db.ok()) << db.status().ToString();
   const Vec3d origin = ChooseStoreOrigin(objects[0].mesh.Bounds());
@@ -124,7 +125,7 @@ TEST_P(ObjectRecordTest, WorldBoxAndGeometryCarryTheOrigin) {
 TEST_P(ObjectRecordTest, IdsPastTheEndAreInvalidArguments) {
   const std::string path = dir_.file("ids.mkt");
   const std::vector<SceneObject> objects = RecordObjects(40, 53);
-  ASSERT_TRUE(Build(objects, path, GetParam()).ok());
+  ASSERT_TRUE(BuildManyRecordPages(objects, path, GetParam()).ok());
   auto db = Database::Open(path);
   ASSERT_TRUE(db.ok());
   for (ObjectId id : {ObjectId{40}, ObjectId{41}, ObjectId{UINT32_MAX}}) {
@@ -139,7 +140,7 @@ TEST_P(ObjectRecordTest, IdsPastTheEndAreInvalidArguments) {
 TEST_P(ObjectRecordTest, RecordsAreCountedPageReads) {
   const std::string path = dir_.file("count.mkt");
   const std::vector<SceneObject> objects = RecordObjects(300, 54);
-  ASSERT_TRUE(Build(objects, path, GetParam()).ok());
+  ASSERT_TRUE(BuildManyRecordPages(objects, path, GetParam()).ok());
   auto db = Database::Open(path, {.cache_pages = 64});
   ASSERT_TRUE(db.ok());
   QueryStats s;
@@ -164,7 +165,7 @@ TEST_P(ObjectRecordTest, RecordsAreCountedPageReads) {
 TEST_P(ObjectRecordTest, DamagedRecordPagesFailOnlyTheirRecords) {
   const std::string path = dir_.file("damaged.mkt");
   const std::vector<SceneObject> objects = RecordObjects(200, 55);
-  ASSERT_TRUE(Build(objects, path, GetParam()).ok());
+  ASSERT_TRUE(BuildManyRecordPages(objects, path, GetParam()).ok());
   uint64_t first_record_page = 0, record_pages = 0, mem_page = 0;
   std::vector<std::vector<uint8_t>> pages;
   {
@@ -227,7 +228,7 @@ TEST(ObjectRecordCraftedTest, ResealedRecordPagesWithWrongFieldsAreRefused) {
   TempDir dir;
   const std::string path = dir.file("crafted.mkt");
   const std::vector<SceneObject> objects = RecordObjects(200, 56);
-  ASSERT_TRUE(Build(objects, path, Backend::kPagedFile).ok());
+  ASSERT_TRUE(BuildManyRecordPages(objects, path, Backend::kPagedFile).ok());
   auto r = StoreReader::Open(path);
   ASSERT_TRUE(r.ok());
   const uint64_t mem_page = (*r)->pages().page_bytes(), first = (*r)->leaf_page_count();
@@ -286,7 +287,7 @@ TEST(ObjectRecordCliTest, NamesAndRecordsInTheTool) {
   const std::string path = dir.file("cli.mkt");
   std::vector<SceneObject> objects = RecordObjects(60, 57);
   objects[0].name = "tab\there\nnewline \"q\"";
-  ASSERT_TRUE(Build(objects, path, Backend::kPagedFile).ok());
+  ASSERT_TRUE(BuildManyRecordPages(objects, path, Backend::kPagedFile).ok());
   auto db = Database::Open(path);
   ASSERT_TRUE(db.ok());
   QueryResult all;

@@ -16,12 +16,9 @@
 namespace mktree {
 namespace {
 
-struct Setup {
-  Backend backend;
-  uint64_t cache_pages;
-};
+using testing::StoreSetup;
 
-class RayQueryTest : public ::testing::TestWithParam<Setup> {
+class RayQueryTest : public ::testing::TestWithParam<StoreSetup> {
  protected:
   void SetUp() override {
     objs_ = testing::MixedScene(1500, 43);
@@ -175,8 +172,9 @@ TEST_P(RayQueryTest, BadRaysAreRefusedNamingTheQuery) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Backends, RayQueryTest,
-                         ::testing::Values(Setup{Backend::kHdf5, 0}, Setup{Backend::kPagedFile, 0},
-                                           Setup{Backend::kHdf5, 16}, Setup{Backend::kPagedFile, 4096}),
+                         ::testing::Values(StoreSetup{Backend::kHdf5, 0}, StoreSetup{Backend::kPagedFile, 0},
+                                           StoreSetup{Backend::kHdf5, 16},
+                                           StoreSetup{Backend::kPagedFile, 4096}),
                          [](const auto& info) {
                            return std::string(info.param.backend == Backend::kHdf5 ? "Hdf5" : "PagedFile") +
                                   "Cache" + std::to_string(info.param.cache_pages);

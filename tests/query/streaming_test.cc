@@ -24,7 +24,7 @@ namespace fs = std::filesystem;
 
 using testing::TempPath;
 
-Status Build(const std::vector<SceneObject>& objs, const std::string& path, Backend backend) {
+Status BuildSmallPages(const std::vector<SceneObject>& objs, const std::string& path, Backend backend) {
   IngestOptions o;
   o.store.backend = backend;
   o.store.params.block_size = 1024;
@@ -33,7 +33,7 @@ Status Build(const std::vector<SceneObject>& objs, const std::string& path, Back
 }
 
 // Points inside and beside objects, and boxes from tiny to a fifth of the scene.
-std::vector<Query> RandomQueries(const std::vector<SceneObject>& objs, size_t n, uint64_t seed) {
+std::vector<Query> MixedQueries(const std::vector<SceneObject>& objs, size_t n, uint64_t seed) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> unit(0, 1);
   Box3f all;
@@ -63,7 +63,7 @@ class StreamingTest : public ::testing::TestWithParam<Backend> {
   void SetUp() override {
     objs_ = testing::ClusteredScene(2500, 77);
     path_ = TempPath(std::string("scene_") + (GetParam() == Backend::kHdf5 ? "h5" : "pf") + ".mkt");
-    ASSERT_TRUE(Build(objs_, path_, GetParam()).ok());
+    ASSERT_TRUE(BuildSmallPages(objs_, path_, GetParam()).ok());
   }
   void TearDown() override { fs::remove(path_); }
 
@@ -78,7 +78,7 @@ TEST_P(StreamingTest, StreamedBatchEqualsRunBatchAndRunOnAnyThreads) {
   ASSERT_TRUE(db.ok()) << db.status().ToString();
   const testing::BruteForce brute(objs_);
   for (uint64_t seed : {1u, 2u}) {
-    std::vector<Query> qs = RandomQueries(objs_, 150, seed);
+    std::vector<Query> qs = MixedQueries(objs_, 150, seed);
     for (size_t i = 0; i < qs.size(); i += 7) qs[i].limit = i % 5;  // some limited
     for (QueryMode mode : {QueryMode::kAabb, QueryMode::kExact}) {
       for (Query& q : qs) q.mode = mode;
@@ -119,7 +119,7 @@ TEST_P(StreamingTest, StreamedBatchEqualsRunBatchAndRunOnAnyThreads) {
 TEST_P(StreamingTest, TheWindowBoundsTheResultsHeld) {
   auto db = Database::Open(path_, {.cache_pages = 64});
   ASSERT_TRUE(db.ok());
-  std::vector<Query> qs = RandomQueries(objs_, 300, 9);
+  std::vector<Query> qs = MixedQueries(objs_, 300, 9);
   Box3d whole = (*db)->bounds();
   for (size_t i = 0; i < qs.size(); i += 37) qs[i] = Query::Box(whole);  // slow ones among quick ones
   for (unsigned threads : {1u, 2u, 4u}) {
@@ -209,7 +209,7 @@ TEST_P(StreamingTest, LimitTruncatesAndSaysSo) {
   auto db = Database::Open(path_, {.cache_pages = 100000});
   ASSERT_TRUE(db.ok());
   const testing::BruteForce brute(objs_);
-  std::vector<Query> qs = RandomQueries(objs_, 120, 5);
+  std::vector<Query> qs = MixedQueries(objs_, 120, 5);
   qs.push_back(Query::Box((*db)->bounds()));
   size_t cut = 0;
   for (const Query& base : qs) {
@@ -262,7 +262,7 @@ TEST_P(StreamingTest, ACorruptLeafStopsTheStreamAfterTheAnswersBeforeIt) {
   auto db = OpenStoreDatabase(std::move(*reader), {.cache_pages = 8});
 
   // Queries that do not read the damaged page, then one that does, then more of both.
-  const std::vector<Query> pool = RandomQueries(objs_, 400, 13);
+  const std::vector<Query> pool = MixedQueries(objs_, 400, 13);
   std::vector<Query> good, bad;
   QueryResult r;
   for (const Query& q : pool) {
@@ -302,7 +302,7 @@ TEST_P(StreamingTest, ACorruptLeafStopsTheStreamAfterTheAnswersBeforeIt) {
 TEST_P(StreamingTest, SourceAndReceiverErrorsStopTheBatch) {
   auto db = Database::Open(path_);
   ASSERT_TRUE(db.ok());
-  const std::vector<Query> qs = RandomQueries(objs_, 50, 3);
+  const std::vector<Query> qs = MixedQueries(objs_, 50, 3);
   for (unsigned threads : {1u, 3u}) {
     size_t read = 0, delivered = 0;
     auto source = [&](Query* q) -> Result<bool> {

@@ -14,7 +14,7 @@
 namespace mktree {
 namespace {
 
-std::string Value(const std::vector<ObjectAttribute>& attributes, const std::string& key) {
+std::string AttributeValue(const std::vector<ObjectAttribute>& attributes, const std::string& key) {
   for (const ObjectAttribute& a : attributes)
     if (a.key == key) return a.value;
   return "<missing>";
@@ -30,7 +30,7 @@ TEST(AssimpAttributesTest, IfcNodeNamesSplitIntoTypeNameAndGlobalId) {
                                              {"ifc_global_id", "2O2Fr$t4X7Zf8NOew3F_tn"}}));
   a.clear();
   ASSERT_TRUE(AppendIfcNameAttributes("IfcSlab__0123456789abcdefABCDEF", &a));
-  EXPECT_EQ(Value(a, "ifc_name"), "");
+  EXPECT_EQ(AttributeValue(a, "ifc_name"), "");
   a.clear();
   EXPECT_FALSE(AppendIfcNameAttributes("Wall_0123456789abcdefABCDEF", &a));       // not an Ifc type
   EXPECT_FALSE(AppendIfcNameAttributes("IfcWall_0123456789abcdefABCDE", &a));     // no GlobalId
@@ -76,19 +76,19 @@ TEST_P(IfcAttributesTest, ObjectsCarryTheirProductsTypeGlobalIdAndProperties) {
   size_t walls = 0, mapped = 0;
   for (const SceneObject& o : *r) {
     EXPECT_EQ(o.source, path);
-    const std::string type = Value(o.attributes, "ifc_type");
+    const std::string type = AttributeValue(o.attributes, "ifc_type");
     ASSERT_EQ(type.rfind("Ifc", 0), 0u) << o.name;
-    const std::string id = Value(o.attributes, "ifc_global_id");
+    const std::string id = AttributeValue(o.attributes, "ifc_global_id");
     EXPECT_EQ(id.size(), 22u) << o.name;
     if (o.name == "IfcMappedItem") {
       ++mapped;
     } else {
       EXPECT_TRUE(product_ids.insert(id).second) << "GlobalId " << id << " on two products";
-      EXPECT_EQ(o.name, type + "_" + Value(o.attributes, "ifc_name") + "_" + id);
+      EXPECT_EQ(o.name, type + "_" + AttributeValue(o.attributes, "ifc_name") + "_" + id);
     }
     if (type == "IfcWallStandardCase") {
       ++walls;
-      EXPECT_NE(Value(o.attributes, "LoadBearing"), "<missing>") << o.name;
+      EXPECT_NE(AttributeValue(o.attributes, "LoadBearing"), "<missing>") << o.name;
     }
   }
   EXPECT_GT(walls, 10u);

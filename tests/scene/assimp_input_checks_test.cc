@@ -15,21 +15,13 @@
 namespace mktree {
 namespace {
 
-std::string WriteTemp(const std::string& content, const std::string& name) {
-  return mktree::WriteTemp(content, name, "mktree_input_checks");
-}
-
-Result<std::vector<SceneObject>> ReadAll(const std::string& path) {
-  return ReadAllFrom(OpenAssimpFile(path));
-}
-
 // Reading `content` as `name` fails with a message that starts with the file's path and holds `needle`
 // (in which "@" stands for the path).
 void ExpectRefused(const std::string& content, const std::string& name, std::string needle) {
   const std::string path = WriteTemp(content, name);
   SCOPED_TRACE(name + ": " + content.substr(0, 200));
   if (const size_t at = needle.find('@'); at != std::string::npos) needle.replace(at, 1, path);
-  auto r = ReadAll(path);
+  auto r = ReadAssimp(path);
   ASSERT_FALSE(r.ok()) << "read " << r->size() << " objects";
   EXPECT_EQ(r.status().message().rfind(path + ":", 0), 0u) << r.status().message();
   EXPECT_NE(r.status().message().find(needle), std::string::npos) << r.status().message();
@@ -60,9 +52,9 @@ std::string DeepAc(int levels) {
 }
 
 TEST(Ac3dCheckTest, AWellFormedFileStillReads) {
-  auto r = ReadAll(WriteTemp(std::string(kAcHeader) + "OBJECT world\nkids 2\n" + AcTriangle("a") +
-                                 "OBJECT group\nname \"g\"\nloc 1 2 3\nkids 1\n" + AcTriangle("b"),
-                             "ok.ac"));
+  auto r = ReadAssimp(WriteTemp(std::string(kAcHeader) + "OBJECT world\nkids 2\n" + AcTriangle("a") +
+                                    "OBJECT group\nname \"g\"\nloc 1 2 3\nkids 1\n" + AcTriangle("b"),
+                                "ok.ac"));
   ASSERT_TRUE(r.ok()) << r.status().ToString();
   ASSERT_EQ(r->size(), 2u);
   EXPECT_EQ((*r)[1].name, "b");
@@ -72,7 +64,7 @@ TEST(Ac3dCheckTest, DeepNestingIsRefusedNotACrash) {
   // About 10,000 levels in 200 KB overflowed the stack inside assimp (rc 139).
   ExpectRefused(DeepAc(10000), "deep.ac", "@:2003: objects nested deeper than 1000 levels");
   // The bound itself: kMaxNodeDepth objects nested read; one more is refused.
-  auto r = ReadAll(WriteTemp(DeepAc(kMaxNodeDepth - 1), "deepest.ac"));
+  auto r = ReadAssimp(WriteTemp(DeepAc(kMaxNodeDepth - 1), "deepest.ac"));
   ASSERT_TRUE(r.ok()) << r.status().ToString();
   EXPECT_EQ(r->size(), 1u);
   ExpectRefused(DeepAc(kMaxNodeDepth), "too_deep.ac", "nested deeper than 1000 levels");
@@ -137,13 +129,13 @@ TEST(Ac3dCheckTest, CountsAndReferencesThatAssimpWouldBendAreRefused) {
 
 TEST(OffCheckTest, WellFormedVariantsStillRead) {
   // Comments and blank lines in the header, CRLF, colours after a face, a quad, the counts after OFF.
-  auto r = ReadAll(
+  auto r = ReadAssimp(
       WriteTemp("# made by hand\r\nOFF\r\n\r\n# counts\r\n4 2 0\r\n0 0 0\r\n1 0 0\r\n\r\n1 1 0\r\n0 1 0\r\n"
                 "3 0 1 2 255 0 0\r\n4 0 1 2 3\r\n# end\r\n",
                 "ok.off"));
   ASSERT_TRUE(r.ok()) << r.status().ToString();
   EXPECT_EQ(Triangles(*r), 3u);
-  r = ReadAll(WriteTemp("COFF 3 1 0\n0 0 0 1 0 0 1\n1 0 0 1 0 0 1\n0 1 0 1 0 0 1\n3 0 1 2\n", "coff.off"));
+  r = ReadAssimp(WriteTemp("COFF 3 1 0\n0 0 0 1 0 0 1\n1 0 0 1 0 0 1\n0 1 0 1 0 0 1\n3 0 1 2\n", "coff.off"));
   ASSERT_TRUE(r.ok()) << r.status().ToString();
   EXPECT_EQ(Triangles(*r), 1u);
 }
@@ -200,7 +192,7 @@ std::string BinaryPly(uint32_t faces, const std::vector<float>& xyz, const std::
 
 TEST(PlyCheckTest, DataThatDisagreesWithTheHeaderIsRefused) {
   const std::string v3 = "0 0 0\n1 0 0\n0 1 0\n";
-  ASSERT_TRUE(ReadAll(WriteTemp(Ply("1", v3 + "3 0 1 2\n"), "ok.ply")).ok());
+  ASSERT_TRUE(ReadAssimp(WriteTemp(Ply("1", v3 + "3 0 1 2\n"), "ok.ply")).ok());
   // assimp read a file cut short as a smaller scene, and a list longer than its line as zero indices.
   ExpectRefused(Ply("2", v3 + "3 0 1 2\n"), "short.ply", "element 'face' has 1 of its 2 instances");
   ExpectRefused(Ply("1", v3 + "255 0 1 2\n"), "long_list.ply", "@:13: element 'face' has fewer values");
@@ -208,7 +200,7 @@ TEST(PlyCheckTest, DataThatDisagreesWithTheHeaderIsRefused) {
   ExpectRefused(Ply("1", "0 0 0\n1 0 0\n0 nan 0\n3 0 1 2\n"), "nan.ply", "@:12: 'nan' is not a float");
   ExpectRefused(Ply("1", v3 + "3 0 1 7\n"), "oor.ply", "out of range");
   const std::vector<float> xyz = {0, 0, 0, 1, 0, 0, 0, 1, 0};
-  ASSERT_TRUE(ReadAll(WriteTemp(BinaryPly(1, xyz, {0, 1, 2}), "ok_binary.ply")).ok());
+  ASSERT_TRUE(ReadAssimp(WriteTemp(BinaryPly(1, xyz, {0, 1, 2}), "ok_binary.ply")).ok());
   ExpectRefused(BinaryPly(2, xyz, {0, 1, 2}), "short_binary.ply", "element 'face' has 1 of its 2 instances");
   ExpectRefused(BinaryPly(1, xyz, {0, 1, 2, 0, 1, 2}), "extra_binary.ply", "data after the last element");
   // assimp's JoinIdenticalVertices merged a NaN vertex into another one: the validation runs before it.
@@ -256,7 +248,7 @@ std::string Chain(int n) {
 }
 
 TEST(GltfCheckTest, DeepOrCyclicNodesAndDeepJsonAreRefused) {
-  auto r = ReadAll(WriteTemp(Gltf(Chain(kMaxNodeDepth), "[0]", kTriangle), "deepest.gltf"));
+  auto r = ReadAssimp(WriteTemp(Gltf(Chain(kMaxNodeDepth), "[0]", kTriangle), "deepest.gltf"));
   ASSERT_TRUE(r.ok()) << r.status().ToString();
   EXPECT_EQ(r->size(), 1u);
   // 200,000 levels crashed assimp's recursive importer.
@@ -272,7 +264,7 @@ TEST(GltfCheckTest, DeepOrCyclicNodesAndDeepJsonAreRefused) {
                     std::string(200000, ']') + "}",
                 "deep_json.gltf", "@: JSON nested deeper than 256 levels");
   // Strings and escapes do not count as nesting.
-  r = ReadAll(WriteTemp(Gltf(R"([{"name": "a[{\"]", "mesh": 0}])", "[0]", kTriangle), "names.gltf"));
+  r = ReadAssimp(WriteTemp(Gltf(R"([{"name": "a[{\"]", "mesh": 0}])", "[0]", kTriangle), "names.gltf"));
   ASSERT_TRUE(r.ok()) << r.status().ToString();
   EXPECT_EQ((*r)[0].name, "a[{\"]");
 }

@@ -19,14 +19,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string WriteTemp(const std::string& content, const std::string& name) {
-  return mktree::WriteTemp(content, name, "mktree_assimp");
-}
-
-Result<std::vector<SceneObject>> ReadAll(const std::string& path, ObjectId first_id = 0) {
-  return ReadAllFrom(OpenAssimpFile(path, first_id));
-}
-
 // world > "parent" (loc 10 0 0) > "child" (loc 0 5 0) with one triangle; "wire" holds only a line
 // surface; "two_materials" holds a quad and a triangle in two materials (assimp: two meshes, one node).
 // No `rot`: assimp's AC3D importer applies a poly object's rotation after its translation, which the
@@ -104,7 +96,7 @@ std::vector<std::array<double, 3>> SortedPoints(const Mesh& m) {
 using Points = std::vector<std::array<double, 3>>;
 
 TEST(AssimpReaderTest, AcObjectsWithTrianglesBecomeObjectsInNodeOrder) {
-  auto r = ReadAll(WriteTemp(kNestedAc, "nested.ac"), 40);
+  auto r = ReadAssimp(WriteTemp(kNestedAc, "nested.ac"), 40);
   ASSERT_TRUE(r.ok()) << r.status().ToString();
   const auto& objs = *r;
   ASSERT_EQ(objs.size(), 2u);  // "wire" has only a line surface: no object, no id
@@ -130,7 +122,7 @@ TEST(AssimpReaderTest, AFileOfLinesOnlyGivesNoObjects) {
       ac.substr(0, ac.find("OBJECT world")) + "OBJECT world\nkids 1\n" +
       ac.substr(ac.find("OBJECT poly\nname \"wire\""),
                 ac.find("OBJECT poly\nname \"two_materials\"") - ac.find("OBJECT poly\nname \"wire\""));
-  auto r = ReadAll(WriteTemp(lines_only, "wire.ac"));
+  auto r = ReadAssimp(WriteTemp(lines_only, "wire.ac"));
   ASSERT_TRUE(r.ok()) << r.status().ToString();
   EXPECT_TRUE(r->empty());
 }
@@ -165,7 +157,7 @@ const char kGltf[] = R"({
   ]
 })";
 
-std::string Gltf(const std::string& buffer_base64) {
+std::string GltfWith(const std::string& buffer_base64) {
   std::string s = kGltf;
   s.replace(s.find("BUFFER"), 6, buffer_base64);
   return s;
@@ -175,7 +167,7 @@ const char kNanBuffer[] =
     "AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAwH8AAAAAAAABAAIAAAA=";  // y of vertex 2 = NaN
 
 TEST(AssimpReaderTest, WorldTransformIsAccumulatedAlongTheNodePath) {
-  auto r = ReadAll(WriteTemp(Gltf(kTriangleBuffer), "scene.gltf"));
+  auto r = ReadAssimp(WriteTemp(GltfWith(kTriangleBuffer), "scene.gltf"));
   ASSERT_TRUE(r.ok()) << r.status().ToString();
   const auto& objs = *r;
   ASSERT_EQ(objs.size(), 3u);
@@ -194,15 +186,15 @@ TEST(AssimpReaderTest, WorldTransformIsAccumulatedAlongTheNodePath) {
 }
 
 TEST(AssimpReaderTest, NonFiniteCoordinatesAreErrorsNamingTheFile) {
-  std::string path = WriteTemp(Gltf(kNanBuffer), "nan.gltf");
-  auto r = ReadAll(path);
+  std::string path = WriteTemp(GltfWith(kNanBuffer), "nan.gltf");
+  auto r = ReadAssimp(path);
   ASSERT_FALSE(r.ok());
   EXPECT_NE(r.status().message().find(path), std::string::npos) << r.status().message();
   EXPECT_NE(r.status().message().find("non-finite"), std::string::npos) << r.status().message();
 }
 
 TEST(AssimpReaderTest, AsciiStlAndPly) {
-  auto stl = ReadAll(WriteTemp(
+  auto stl = ReadAssimp(WriteTemp(
       "solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\n"
       "facet normal 0 0 1\nouter loop\nvertex 1 0 0\nvertex 1 1 0\nvertex 0 1 0\nendloop\nendfacet\nendsolid "
       "t\n",
@@ -212,7 +204,7 @@ TEST(AssimpReaderTest, AsciiStlAndPly) {
   EXPECT_EQ((*stl)[0].mesh.triangle_count(), 2u);
   EXPECT_EQ((*stl)[0].mesh.vertex_count(), 4u);  // STL repeats corners; joined by position
 
-  auto ply = ReadAll(WriteTemp(
+  auto ply = ReadAssimp(WriteTemp(
       "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
       "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 "
       "2 3\n",

@@ -192,9 +192,7 @@ std::string RandomObj(uint64_t seed, int objects, bool with_object_lines) {
   return s;
 }
 
-std::string Write(const std::string& content, const std::string& name) {
-  return WriteTemp(content, name, "mktree_objpar");
-}
+std::string Write(const std::string& content, const std::string& name) { return WriteTemp(content, name); }
 
 TEST(ObjParallelTest, GeneratedFilesMatchTheReference) {
   for (uint64_t seed = 1; seed <= 3; ++seed) {

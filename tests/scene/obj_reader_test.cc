@@ -23,24 +23,23 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string WriteTemp(const std::string& content, const std::string& name = "scene.obj") {
-  return mktree::WriteTemp(content, name, "mktree_obj");
-}
+// `content` as scene.obj in the test's folder.
+std::string WriteObj(const std::string& content) { return WriteTemp(content, "scene.obj"); }
 
-Result<std::vector<SceneObject>> ReadAll(const std::string& path, ObjectId first_id = 0) {
+Result<std::vector<SceneObject>> ReadObj(const std::string& path, ObjectId first_id = 0) {
   return ReadAllFrom(OpenObjFile(path, first_id));
 }
 
 std::vector<SceneObject> ReadOk(const std::string& content, ObjectId first_id = 0) {
-  auto r = ReadAll(WriteTemp(content), first_id);
+  auto r = ReadObj(WriteObj(content), first_id);
   EXPECT_TRUE(r.ok()) << r.status().ToString();
   return r.ok() ? std::move(r).value() : std::vector<SceneObject>{};
 }
 
 // Expects reading `content` to fail with a message naming "<file>:<line>:" and containing `what`.
 void ExpectError(const std::string& content, int line, const std::string& what) {
-  std::string path = WriteTemp(content);
-  auto r = ReadAll(path);
+  std::string path = WriteObj(content);
+  auto r = ReadObj(path);
   ASSERT_FALSE(r.ok()) << "expected an error at line " << line << " (" << what << ")";
   const std::string& msg = r.status().message();
   EXPECT_NE(msg.find(path + ":" + std::to_string(line) + ": "), std::string::npos) << msg;
@@ -219,7 +218,7 @@ TEST(ObjReaderTest, VerticesPastTheRamBudgetAreSpilledAndReadBack) {
       obj += "f " + std::to_string(i - 70000 > 0 ? i - 70000 : 3) + " -4 " + std::to_string(i + 1) + "\n";
     }
   }
-  const std::string path = WriteTemp(obj);
+  const std::string path = WriteObj(obj);
   testing::TempDir spill;
   ObjReadOptions small;
   small.vertex_ram_bytes = 1;  // one block
@@ -289,7 +288,7 @@ TEST(ObjReaderTest, OneMeshLargerThanTheRamBudgetReadsItsSpilledVerticesBack) {
     obj +=
         "f " + std::to_string(v[0]) + " " + std::to_string(v[1]) + " -" + std::to_string(n - v[2] + 1) + "\n";
   }
-  const std::string path = WriteTemp(obj);
+  const std::string path = WriteObj(obj);
   testing::TempDir spill;
   ObjReadOptions small;
   small.vertex_ram_bytes = 1;
@@ -401,7 +400,7 @@ TEST(ObjReaderErrorTest, TruncatedLastLine) {
 }
 
 TEST(ObjReaderErrorTest, ErrorsAreStickyAndComeAfterTheObjectsBeforeThem) {
-  std::string path = WriteTemp("o a\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\no b\nf 1 2 9\n");
+  std::string path = WriteObj("o a\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\no b\nf 1 2 9\n");
   auto src = OpenObjFile(path);
   ASSERT_TRUE(src.ok());
   SceneObject o;
@@ -434,7 +433,7 @@ TEST(ObjReaderErrorTest, MutatedFilesNeverCrashAndErrorsNameTheLine) {
       "# test\nmtllib a.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\n"
       "o a\nusemtl m\nf 1/1/1 2/1/1 3/1/1\nf -4//1 -3//1 -2//1 -1//1\ng grp\ns 1\nf 1 2 3 4\n"
       "o b\nv 0 0 1e-3\nf 5 1 2\nl 1 2\n";
-  const std::string path = WriteTemp(valid);
+  const std::string path = WriteObj(valid);
   const char alphabet[] = "0123456789 -+./\n\r\tvfognlsp#e\\x";
   uint64_t state = 12345;
   auto next = [&state]() {
@@ -466,7 +465,7 @@ TEST(ObjReaderErrorTest, MutatedFilesNeverCrashAndErrorsNameTheLine) {
     // A fresh file each round: rewriting one in place makes ext4 flush it to disk every time.
     fs::remove(path);
     std::ofstream(path, std::ios::binary) << text;
-    auto r = ReadAll(path);
+    auto r = ReadObj(path);
     if (!r.ok()) {
       ++failures;
       const std::string& msg = r.status().message();

@@ -11,18 +11,18 @@
 #include <string>
 #include <vector>
 
+#include "engine/scene/assimp_reader.h"
 #include "engine/scene/scene_source.h"
 #include "test_dirs.h"
 
 namespace mktree {
 
-// Writes `content` to `name` in a per-test folder (named after `prefix` and the test, in a folder removed
-// when the program ends) and returns its path.
-inline std::string WriteTemp(const std::string& content, const std::string& name, const std::string& prefix) {
+// Writes `content` to `name` in a per-test folder (named after the test, in the program's folder, removed
+// when it ends) and returns its path.
+inline std::string WriteTemp(const std::string& content, const std::string& name) {
   namespace fs = std::filesystem;
-  static const testing::TempDir root("mktree_scene");
   const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir = root / (prefix + "_" + info->test_suite_name() + "_" + info->name());
+  const fs::path dir = testing::ProgramDir() / (std::string(info->test_suite_name()) + "_" + info->name());
   fs::create_directories(dir);
   fs::path p = dir / name;
   std::ofstream(p, std::ios::binary) << content;
@@ -40,6 +40,11 @@ inline Result<std::vector<SceneObject>> ReadAllFrom(Result<std::unique_ptr<Scene
     if (!*more) return objects;
     objects.push_back(std::move(o));
   }
+}
+
+// Every object of a file read through assimp, or the first error.
+inline Result<std::vector<SceneObject>> ReadAssimp(const std::string& path, ObjectId first_id = 0) {
+  return ReadAllFrom(OpenAssimpFile(path, first_id));
 }
 
 // Real scenes: the file under MKTREE_SHARED_DATA and its expected counts.

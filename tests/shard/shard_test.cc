@@ -52,7 +52,7 @@ std::vector<Query> RandomQueries(const Box3d& bounds, const std::vector<SceneObj
   return qs;
 }
 
-std::vector<ObjectId> Sorted(std::vector<ObjectId> v) {
+std::vector<ObjectId> SortedIds(std::vector<ObjectId> v) {
   std::sort(v.begin(), v.end());
   return v;
 }
@@ -74,7 +74,7 @@ void ExpectSameAnswers(const Database& sharded, const Database& plain, const Bru
     QueryResult rs, rp;
     ASSERT_TRUE(sharded.Run(qs[i], &rs).ok());
     ASSERT_TRUE(plain.Run(qs[i], &rp).ok());
-    const std::vector<ObjectId> truth = Sorted(oracle.Answer(qs[i]));
+    const std::vector<ObjectId> truth = SortedIds(oracle.Answer(qs[i]));
     EXPECT_EQ(rs.hits, truth);
     EXPECT_EQ(rs.hits, rp.hits);
     EXPECT_EQ(rs.stats.hits, truth.size());
@@ -92,7 +92,7 @@ void ExpectSameAnswers(const Database& sharded, const Database& plain, const Bru
         &total, &per);
     ASSERT_TRUE(whole.ok());
     EXPECT_TRUE(*whole);
-    EXPECT_EQ(Sorted(visited), truth);
+    EXPECT_EQ(SortedIds(visited), truth);
     QueryStats sum;
     for (size_t s = 0; s < per.size(); ++s) {
       if (s) {
@@ -122,7 +122,7 @@ void ExpectSameAnswers(const Database& sharded, const Database& plain, const Bru
   std::vector<QueryResult> batch;
   ASSERT_TRUE(sharded.RunBatch(qs, 3, &batch).ok());
   ASSERT_EQ(batch.size(), qs.size());
-  for (size_t i = 0; i < qs.size(); ++i) EXPECT_EQ(batch[i].hits, Sorted(oracle.Answer(qs[i]))) << i;
+  for (size_t i = 0; i < qs.size(); ++i) EXPECT_EQ(batch[i].hits, SortedIds(oracle.Answer(qs[i]))) << i;
   BatchOptions cold;
   cold.threads = 2;
   cold.cold = true;
@@ -332,7 +332,7 @@ TEST(ShardErrors, DamagedLeafPageIsAnErrorNeverAWrongAnswer) {
       EXPECT_NE(st.message().find("s.mkts.shard-0.mkt"), std::string::npos) << st.ToString();
       continue;
     }
-    EXPECT_EQ(r.hits, Sorted(oracle.Answer(q)));
+    EXPECT_EQ(r.hits, SortedIds(oracle.Answer(q)));
   }
   EXPECT_GT(errors, 0);
 }

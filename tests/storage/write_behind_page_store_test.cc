@@ -13,18 +13,18 @@
 namespace mktree {
 namespace {
 
-constexpr uint64_t kPage = 512;
+constexpr uint64_t kSmallPage = 512;
 
 std::vector<uint8_t> PageOf(uint64_t index, uint8_t salt = 0) {
-  std::vector<uint8_t> p(kPage);
-  for (uint64_t i = 0; i < kPage; ++i) p[i] = static_cast<uint8_t>(index * 31 + i + salt);
+  std::vector<uint8_t> p(kSmallPage);
+  for (uint64_t i = 0; i < kSmallPage; ++i) p[i] = static_cast<uint8_t>(index * 31 + i + salt);
   return p;
 }
 
 // Records the calls the base receives (and from which thread); fails the `fail_at`-th write.
 class RecordingStore : public PageStore {
  public:
-  uint64_t page_bytes() const override { return kPage; }
+  uint64_t page_bytes() const override { return kSmallPage; }
   uint64_t page_count() const override { return memory.page_count(); }
   Status ReadPage(uint64_t index, uint8_t* out) const override { return memory.ReadPage(index, out); }
   Status WritePage(uint64_t index, const uint8_t* data) override {
@@ -40,7 +40,7 @@ class RecordingStore : public PageStore {
   }
   const std::string& name() const override { return memory.name(); }
 
-  MemoryPageStore memory{kPage, "base"};
+  MemoryPageStore memory{kSmallPage, "base"};
   std::mutex mu;
   std::vector<uint64_t> order;
   std::vector<std::thread::id> threads;
@@ -51,14 +51,14 @@ class RecordingStore : public PageStore {
 TEST(WriteBehindPageStoreTest, BaseGetsEveryPageInOrderFromOneThread) {
   RecordingStore base;
   {
-    WriteBehindPageStore pages(&base, 4 * kPage);  // batches of 4 pages: 250 pages cross many batches
+    WriteBehindPageStore pages(&base, 4 * kSmallPage);  // batches of 4 pages: 250 pages cross many batches
     for (uint64_t i = 0; i < 250; ++i) ASSERT_TRUE(pages.WritePage(i, PageOf(i).data()).ok());
     ASSERT_TRUE(pages.WritePage(7, PageOf(7, 1).data()).ok());  // a rewrite, as the contract allows
     ASSERT_TRUE(pages.WritePage(250, PageOf(250).data()).ok());
     EXPECT_EQ(pages.page_count(), 251u);
     ASSERT_TRUE(pages.Sync().ok());
     EXPECT_EQ(base.syncs, 1);
-    std::vector<uint8_t> got(kPage);
+    std::vector<uint8_t> got(kSmallPage);
     ASSERT_TRUE(pages.ReadPage(7, got.data()).ok());
     EXPECT_EQ(got, PageOf(7, 1));
   }
@@ -68,7 +68,7 @@ TEST(WriteBehindPageStoreTest, BaseGetsEveryPageInOrderFromOneThread) {
   EXPECT_EQ(base.order[251], 250u);
   for (const auto& t : base.threads) EXPECT_EQ(t, base.threads.front());
   EXPECT_NE(base.threads.front(), std::this_thread::get_id());
-  std::vector<uint8_t> got(kPage);
+  std::vector<uint8_t> got(kSmallPage);
   for (uint64_t i : {0u, 100u, 249u, 250u}) {
     ASSERT_TRUE(base.memory.ReadPage(i, got.data()).ok());
     EXPECT_EQ(got, PageOf(i)) << i;
@@ -89,11 +89,11 @@ class CountingOps : public FileOps {
 TEST(WriteBehindPageStoreTest, PagedFileGetsRunsOfPagesInOneWriteEach) {
   testing::TempDir dir;
   CountingOps ops;
-  auto file = PagedFileStore::Create(dir.file("p.pages"), kPage, ops);
+  auto file = PagedFileStore::Create(dir.file("p.pages"), kSmallPage, ops);
   ASSERT_TRUE(file.ok()) << file.status().ToString();
   const int created = ops.writes;  // the empty header
   {
-    WriteBehindPageStore pages(file->get(), 8 * kPage);
+    WriteBehindPageStore pages(file->get(), 8 * kSmallPage);
     for (uint64_t i = 0; i < 30; ++i) ASSERT_TRUE(pages.WritePage(i, PageOf(i).data()).ok());
     ASSERT_TRUE(pages.WritePage(3, PageOf(3, 9).data()).ok());  // a rewrite
     ASSERT_TRUE(pages.WritePage(30, PageOf(30).data()).ok());
@@ -103,7 +103,7 @@ TEST(WriteBehindPageStoreTest, PagedFileGetsRunsOfPagesInOneWriteEach) {
   // Batches of 8: 0..7, 8..15, 16..23 one write each; then 24..29, 3, 30 (three runs); then 31.
   EXPECT_EQ(ops.writes - created, 3 + 3 + 1);
   EXPECT_EQ((*file)->page_count(), 32u);
-  std::vector<uint8_t> got(kPage);
+  std::vector<uint8_t> got(kSmallPage);
   for (uint64_t i = 0; i < 32; ++i) {
     ASSERT_TRUE((*file)->ReadPage(i, got.data()).ok());
     EXPECT_EQ(got, PageOf(i, i == 3 ? 9 : 0)) << i;
@@ -114,10 +114,10 @@ TEST(WriteBehindPageStoreTest, PagedFileGetsRunsOfPagesInOneWriteEach) {
 // on, both at once, each in order and limited to its own pages.
 TEST(WriteBehindPageStoreTest, TwoStreamsFillOnePagedFileAtOnce) {
   testing::TempDir dir;
-  auto file = PagedFileStore::Create(dir.file("p.pages"), kPage, DefaultFileOps());
+  auto file = PagedFileStore::Create(dir.file("p.pages"), kSmallPage, DefaultFileOps());
   ASSERT_TRUE(file.ok()) << file.status().ToString();
-  WriteBehindPageStore leaves(file->get(), 4 * kPage);
-  WriteBehindPageStore records(file->get(), 20, 4 * kPage);
+  WriteBehindPageStore leaves(file->get(), 4 * kSmallPage);
+  WriteBehindPageStore records(file->get(), 20, 4 * kSmallPage);
   leaves.SetLimit(20);
   std::thread other([&] {
     for (uint64_t i = 0; i < 15; ++i) ASSERT_TRUE(records.WritePage(i, PageOf(20 + i).data()).ok());
@@ -131,7 +131,7 @@ TEST(WriteBehindPageStoreTest, TwoStreamsFillOnePagedFileAtOnce) {
   other.join();
   EXPECT_EQ(records.page_count(), 15u);
   EXPECT_EQ((*file)->page_count(), 35u);
-  std::vector<uint8_t> got(kPage);
+  std::vector<uint8_t> got(kSmallPage);
   for (uint64_t i = 0; i < 35; ++i) {
     ASSERT_TRUE((*file)->ReadPage(i, got.data()).ok());
     EXPECT_EQ(got, PageOf(i)) << i;
@@ -142,7 +142,7 @@ TEST(WriteBehindPageStoreTest, TwoStreamsFillOnePagedFileAtOnce) {
 
 TEST(WriteBehindPageStoreTest, SmallStoreIsWrittenAtFlushWithoutAThread) {
   RecordingStore base;
-  WriteBehindPageStore pages(&base, 64 * kPage);
+  WriteBehindPageStore pages(&base, 64 * kSmallPage);
   for (uint64_t i = 0; i < 10; ++i) ASSERT_TRUE(pages.WritePage(i, PageOf(i).data()).ok());
   EXPECT_EQ(base.writes, 0u);  // still in the batch
   ASSERT_TRUE(pages.Flush().ok());
@@ -152,7 +152,7 @@ TEST(WriteBehindPageStoreTest, SmallStoreIsWrittenAtFlushWithoutAThread) {
 
 TEST(WriteBehindPageStoreTest, OutOfOrderWriteIsRefusedAtOnce) {
   RecordingStore base;
-  WriteBehindPageStore pages(&base, 4 * kPage);
+  WriteBehindPageStore pages(&base, 4 * kSmallPage);
   ASSERT_TRUE(pages.WritePage(0, PageOf(0).data()).ok());
   const Status st = pages.WritePage(2, PageOf(2).data());
   EXPECT_EQ(st.code(), Status::Code::kInvalidArgument) << st.ToString();
@@ -166,7 +166,7 @@ TEST(WriteBehindPageStoreTest, FailedWriteIsStickyAndStopsLaterWrites) {
     SCOPED_TRACE(fail_at);
     RecordingStore base;
     base.fail_at = fail_at;
-    WriteBehindPageStore pages(&base, 4 * kPage);
+    WriteBehindPageStore pages(&base, 4 * kSmallPage);
     Status first;
     uint64_t i = 0;
     for (; i < 200 && first.ok(); ++i) first = pages.WritePage(i, PageOf(i).data());
@@ -188,7 +188,7 @@ TEST(WriteBehindPageStoreTest, FailedWriteIsStickyAndStopsLaterWrites) {
 TEST(WriteBehindPageStoreTest, DestroyedUnflushedDropsPendingPages) {
   RecordingStore base;
   {
-    WriteBehindPageStore pages(&base, 4 * kPage);
+    WriteBehindPageStore pages(&base, 4 * kSmallPage);
     for (uint64_t i = 0; i < 100; ++i) ASSERT_TRUE(pages.WritePage(i, PageOf(i).data()).ok());
   }
   // Whatever reached the base is a prefix, in order.

@@ -61,8 +61,8 @@ class FileSizeLimit {
   sighandler_t old_ = SIG_DFL;
 };
 
-// Open HDF5 identifiers of every kind the store code creates.
-std::vector<int64_t> Hdf5Ids() {
+// Open HDF5 identifiers of every kind the store code creates, and the objects open in any file.
+std::vector<int64_t> Hdf5IdsAndOpenObjects() {
   std::vector<int64_t> n;
   for (H5I_type_t t :
        {H5I_FILE, H5I_GROUP, H5I_DATATYPE, H5I_DATASPACE, H5I_DATASET, H5I_ATTR, H5I_GENPROP_LST}) {
@@ -136,7 +136,7 @@ TEST_P(FullDiskTest, EveryPhaseFailsCleanlyAndThePreviousStoreSurvives) {
   ASSERT_TRUE(Write(probe, new_objects).ok());  // the size the new store needs
   const uint64_t full = std::filesystem::file_size(probe);
   const std::set<std::string> listing = Listing(dir_.path());
-  const std::vector<int64_t> ids = Hdf5Ids();
+  const std::vector<int64_t> ids = Hdf5IdsAndOpenObjects();
 
   std::set<uint64_t> limits = {0, 1, 100, 4096, BuildParams().mem_page() + 1};
   for (uint64_t l = 0; l < full; l += full / 48) limits.insert(l);
@@ -159,7 +159,7 @@ TEST_P(FullDiskTest, EveryPhaseFailsCleanlyAndThePreviousStoreSurvives) {
     EXPECT_NE(st.message().find(std::strerror(EFBIG)), std::string::npos) << st.message();
     EXPECT_EQ(Listing(dir_.path()), listing) << "temporary or lock file left behind";
     ASSERT_EQ(ReadBytes(path), old_bytes) << "the previous store changed";
-    ASSERT_EQ(Hdf5Ids(), ids) << "HDF5 identifiers left open";
+    ASSERT_EQ(Hdf5IdsAndOpenObjects(), ids) << "HDF5 identifiers left open";
   }
   std::printf("[full disk, %s] %zu limits: failed at create %d, pages %d, commit %d\n",
               BackendName(GetParam()), limits.size(), failed_at[1], failed_at[2], failed_at[3]);
@@ -170,7 +170,7 @@ TEST_P(FullDiskTest, EveryPhaseFailsCleanlyAndThePreviousStoreSurvives) {
   // The process goes on: the same build, without the limit, succeeds and replaces the store.
   ASSERT_TRUE(Write(path, new_objects).ok());
   ExpectStoreHolds(path, new_objects);
-  EXPECT_EQ(Hdf5Ids(), ids);
+  EXPECT_EQ(Hdf5IdsAndOpenObjects(), ids);
 }
 
 // A writer destroyed before Commit, and one that fails at Commit, release every HDF5 identifier.
@@ -178,7 +178,7 @@ TEST_P(FullDiskTest, AbortAndFailedCommitReleaseEveryHdf5Id) {
   const std::string path = dir_.file("a.mkt");
   const std::vector<SceneObject> objects = testing::MakeObjects(120, 23);
   ASSERT_TRUE(Write(dir_.file("warm.mkt"), objects).ok());  // HDF5's lazily created ids exist from here
-  const std::vector<int64_t> ids = Hdf5Ids();
+  const std::vector<int64_t> ids = Hdf5IdsAndOpenObjects();
   {
     auto w = StoreWriter::Create(path, Options());
     ASSERT_TRUE(w.ok());
@@ -186,10 +186,10 @@ TEST_P(FullDiskTest, AbortAndFailedCommitReleaseEveryHdf5Id) {
     ASSERT_TRUE(
         testing::BuildTestStore(objects, Options().codec, Options().params, &(*w)->pages(), &built).ok());
     if (GetParam() == Backend::kHdf5) {
-      EXPECT_NE(Hdf5Ids(), ids);  // (an HDF5 writer holds its file open)
+      EXPECT_NE(Hdf5IdsAndOpenObjects(), ids);  // (an HDF5 writer holds its file open)
     }
   }
-  EXPECT_EQ(Hdf5Ids(), ids);
+  EXPECT_EQ(Hdf5IdsAndOpenObjects(), ids);
   {
     auto w = StoreWriter::Create(path, Options());
     ASSERT_TRUE(w.ok());
@@ -200,7 +200,7 @@ TEST_P(FullDiskTest, AbortAndFailedCommitReleaseEveryHdf5Id) {
     tree.leaves.back().page_count += 1;  // refused before the backend writes
     EXPECT_FALSE((*w)->Commit(tree, "").ok());
   }
-  EXPECT_EQ(Hdf5Ids(), ids);
+  EXPECT_EQ(Hdf5IdsAndOpenObjects(), ids);
   EXPECT_FALSE(std::filesystem::exists(path));
   ASSERT_TRUE(Write(path, objects).ok());
   ExpectStoreHolds(path, objects);

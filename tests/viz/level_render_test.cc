@@ -77,7 +77,7 @@ std::vector<SceneObject> TwoClusters(bool bars) {
   return objs;
 }
 
-std::unique_ptr<StoreReader> BuildStore(const std::vector<SceneObject>& objs, const std::string& path) {
+std::unique_ptr<StoreReader> BuildReader(const std::vector<SceneObject>& objs, const std::string& path) {
   IngestOptions o;
   o.store.backend = Backend::kPagedFile;
   o.store.params.block_size = 1024;
@@ -85,7 +85,7 @@ std::unique_ptr<StoreReader> BuildStore(const std::vector<SceneObject>& objs, co
   std::vector<SceneOpener> in{[&objs](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
     return std::unique_ptr<SceneSource>(new VectorSceneSource(&objs, first));
   }};
-  auto r = mktree::BuildStore(in, path, o);
+  auto r = BuildStore(in, path, o);
   EXPECT_TRUE(r.ok()) << r.status().ToString();
   auto reader = StoreReader::Open(path);
   EXPECT_TRUE(reader.ok()) << reader.status().ToString();
@@ -103,7 +103,7 @@ constexpr uint32_t kW = 600, kH = 300, kPictureRows = kH - 60;  // the legend li
 TEST(LevelRenderTest, TwoClustersAtLevelZeroAreBlueAndRed) {
   const std::string store = TempPath("two.mkt"), png = TempPath("two.png");
   const auto objs = TwoClusters(false);
-  auto reader = BuildStore(objs, store);
+  auto reader = BuildReader(objs, store);
   ASSERT_TRUE(reader);
   ASSERT_FALSE(reader->tree().nodes[0].is_leaf());
   RenderOptions o;
@@ -150,7 +150,7 @@ TEST(LevelRenderTest, TwoClustersAtLevelZeroAreBlueAndRed) {
 TEST(LevelRenderTest, BarsAcrossTheSplitAreGreenAndDeepLevelsGrey) {
   const std::string store = TempPath("bars.mkt"), png = TempPath("bars.png");
   const auto objs = TwoClusters(true);
-  auto reader = BuildStore(objs, store);
+  auto reader = BuildReader(objs, store);
   ASSERT_TRUE(reader);
   RenderOptions o;
   o.width = kW;
@@ -182,7 +182,7 @@ TEST(LevelRenderTest, BarsAcrossTheSplitAreGreenAndDeepLevelsGrey) {
 TEST(LevelRenderTest, ErrorsLeaveNothing) {
   const std::string store = TempPath("err.mkt");
   const auto objs = TwoClusters(false);
-  auto reader = BuildStore(objs, store);
+  auto reader = BuildReader(objs, store);
   ASSERT_TRUE(reader);
   const std::string png = TempPath("err.png");
   RenderOptions o;
