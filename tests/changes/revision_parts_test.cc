@@ -16,7 +16,8 @@ TEST(RevisionPartsChosen, EachOpenedPartIsAsWhenAllAreOpen) {
   std::mt19937_64 rng(52);
   const std::vector<SceneObject> scene = testing::ClusteredScene(300, 8);
   const std::string store = dir.file("s.mkts");
-  ASSERT_TRUE(testing::BuildShardedFromObjects(scene, store, testing::SmallPages(Backend::kPagedFile), 3).ok());
+  ASSERT_TRUE(
+      testing::BuildShardedFromObjects(scene, store, testing::SmallPages(Backend::kPagedFile), 3).ok());
   testing::LiveSet live;
   for (const SceneObject& o : scene) live[o.id] = o;
   {

@@ -16,7 +16,8 @@ uint32_t RankRevision::part_count() const {
 
 int RankRevision::OwnerOf(uint32_t index, int ranks) const {
   const uint32_t k = shard_count();
-  return index < k ? RankOfShard(index, k, ranks) : static_cast<int>((index - k) % static_cast<uint32_t>(ranks));
+  return index < k ? RankOfShard(index, k, ranks)
+                   : static_cast<int>((index - k) % static_cast<uint32_t>(ranks));
 }
 
 std::string RankRevision::DeltaNote() const {
@@ -72,7 +73,7 @@ Result<RankRevision> HoldRankRevision(const std::string& manifest_path, std::opt
 }
 
 Result<std::vector<RankStore>> OpenRankStores(const RankRevision& r, const std::vector<uint8_t>& open,
-                                            uint64_t cache_pages) {
+                                              uint64_t cache_pages) {
   return Guarded(r.manifest_path, [&]() -> Result<std::vector<RankStore>> {
     std::vector<RankStore> out;
     OpenOptions options;

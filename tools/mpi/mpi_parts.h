@@ -55,7 +55,7 @@ Result<RankRevision> HoldRankRevision(const std::string& manifest_path, std::opt
 // The parts `open` marks (by index, part_count() of them), each with its share of cache_pages over all the
 // revision's parts, as the one-process Database, checked as it checks them.
 Result<std::vector<RankStore>> OpenRankStores(const RankRevision& r, const std::vector<uint8_t>& open,
-                                            uint64_t cache_pages);
+                                              uint64_t cache_pages);
 
 // Collective: Corruption on every rank unless the live objects of the parts each rank owns sum to the
 // revision's (every object answered by exactly one rank).
