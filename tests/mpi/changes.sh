@@ -10,24 +10,12 @@ set -euo pipefail
 ranks=$1 k=$2 mpi=$3 m=$4 mpiexec=$5
 dir=$(mktemp -d)
 trap 'rm -rf "$dir"' EXIT
-run_on() {
-  local n=$1
-  shift
-  "$mpiexec" -n "$n" --allow-run-as-root --oversubscribe "$@"
-}
-run() { run_on "$ranks" "$@"; }
+source "$(dirname "$0")/common.sh"
 hits() {  # each query's hits, one line a query
   python3 -c '
 import json, sys
 for l in open(sys.argv[1]):
     print(json.loads(l)["hits"])' "$1"
-}
-by_pair() {  # the pair lines of $1 sorted by (a, b) as numbers
-  python3 -c '
-import json, sys
-lines = [l for l in open(sys.argv[1]) if "\"a\": " in l[:8]]
-lines.sort(key=lambda l: (json.loads(l)["a"], json.loads(l)["b"]))
-sys.stdout.write("".join(lines))' "$1"
 }
 s="$dir/c.mkts"
 "$m" build tanker:6000:3 -o "$s" --shards $k -q

@@ -11,12 +11,7 @@ set -euo pipefail
 ranks=$1 mpi=$2 m=$3 mpiexec=$4
 dir=$(mktemp -d)
 trap 'rm -rf "$dir"' EXIT
-run_on() {
-  local n=$1
-  shift
-  "$mpiexec" -n "$n" --allow-run-as-root --oversubscribe "$@"
-}
-run() { run_on "$ranks" "$@"; }
+source "$(dirname "$0")/common.sh"
 "$m" build tanker:12000:5 -o "$dir/plain.mkt" -q
 counts() {  # the summary's pair counts
   tail -1 "$1" | python3 -c '
@@ -24,13 +19,6 @@ import json, sys
 j = json.load(sys.stdin)
 print([j[k] for k in ("pairs", "hard", "touch", "clearance", "reported_pairs", "capped_pairs",
                       "unreported_touches", "candidate_pairs", "excluded_pairs")])'
-}
-by_pair() {  # the pair lines of $1 (its summary line dropped with --summary), sorted by (a, b) as numbers
-  python3 -c '
-import json, sys
-lines = [l for l in open(sys.argv[1]) if "\"a\": " in l[:8]]
-lines.sort(key=lambda l: (json.loads(l)["a"], json.loads(l)["b"]))
-sys.stdout.write("".join(lines))' "$1"
 }
 for k in $((ranks + 1)) $((ranks - 1)); do
   "$m" build tanker:12000:5 -o "$dir/s$k.mkts" --shards $k -q
