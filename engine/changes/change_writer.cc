@@ -104,9 +104,11 @@ class Writer final : public ChangeWriter {
 
   Status Start();
   Result<CommitReport> Commit(const ChangeBatch& batch) override {
+    MKTREE_RETURN_IF_ERROR(Usable());
     return Guarded(store_, [&] { return CommitUnguarded(batch); });
   }
   Result<CompactReport> Compact() override {
+    MKTREE_RETURN_IF_ERROR(Usable());
     return Guarded(store_, [&] { return CompactUnguarded(); });
   }
   Status SetKeep(uint32_t keep) override {
@@ -117,6 +119,17 @@ class Writer final : public ChangeWriter {
   uint64_t revision() const override { return head_.revision; }
 
  private:
+  // The head's parts are open: an error while opening them again (after a commit, or after a compaction
+  // that closed them to lower its peak) leaves a writer that must not go on.
+  Status Usable() const {
+    for (const RevisionPartDb& p : parts_)
+      if (!p.db) return Status::Internal(store_ + ": this writer lost its open revision after an error");
+    if (parts_.empty())
+      return Status::IOError(store_ +
+                             ": this writer could not open its revision again after an error: open "
+                             "a new writer");
+    return Status::Ok();
+  }
   Status Initialize();
   Status OpenHead();
   Result<CommitReport> CommitUnguarded(const ChangeBatch& batch);
@@ -507,17 +520,36 @@ Result<CompactReport> Writer::CompactUnguarded() {
     } else {
       std::vector<const RevisionPartDb*> all;
       for (const RevisionPartDb& p : parts_) all.push_back(&p);
-      LiveObjectStream live(all, BasePartCount(parts_), folder_, ops_);
-      IdOrderedObjects next = [&](SceneObject* out) { return live.Next(out); };
+      std::optional<LiveObjectStream> live(std::in_place, all, BasePartCount(parts_), folder_, ops_);
+      // The base's objects keep their entries, under its frame and dictionary: copied, not re-encoded.
+      live->CopyEntriesOf(1);
+      IdOrderedObjects next = [&](SceneObject* out) { return live->Next(out); };
       PartBuild b = Part(NewPartName("base", rev), rev);
       b.identity_ids = true;
-      MKTREE_ASSIGN_OR_RETURN(m.base, BuildRevisionPart(b, next));
+      b.ingest.stored_entries =
+          IngestOptions::StoredEntries{parts_[0].db->reader().options().codec.dictionary};
+      // Once every object is read, the parts are closed before the tree is built (the build's peak), which
+      // then holds no more than a fresh build's; they are opened again below, or at the new head.
+      b.ingest.expected_objects = head_.live;
+      b.ingest.after_read = [&] {
+        live.reset();
+        parts_.clear();
+      };
+      auto built = BuildRevisionPart(b, next);
+      if (!built.ok()) {
+        if (parts_.empty()) (void)OpenHead();  // Usable() says so if that failed too
+        return built.status();
+      }
+      m.base = std::move(*built);
     }
     report.folded = head_.deltas.size() + head_.removals.size();
     m.deltas.clear();
     m.removals.clear();
   }
-  MKTREE_RETURN_IF_ERROR(WriteRevisionFile(folder_, m, ops_));
+  if (Status st = WriteRevisionFile(folder_, m, ops_); !st.ok()) {
+    if (parts_.empty()) (void)OpenHead();  // closed by the build; the head is still the old revision
+    return st;
+  }
   head_ = std::move(m);
   MKTREE_RETURN_IF_ERROR(OpenHead());
   MKTREE_RETURN_IF_ERROR(RelinkStore());

@@ -211,6 +211,7 @@ struct LiveObjectStream::Cursor {
     out->name = r->name;
     out->attributes = r->attributes;
     out->mesh = Mesh();
+    out->stored_entry.clear();
     if (scratch_fd >= 0) return ReadSpilled(local, &out->mesh, &out->stored_shape);
     const uint32_t leaf = r->leaf;
     MKTREE_ASSIGN_OR_RETURN(const Leaf* l, LeafOf(leaf));
@@ -220,8 +221,13 @@ struct LiveObjectStream::Cursor {
                                 ": its record puts it in leaf " + std::to_string(leaf) +
                                 ", which does not hold it");
     const ObjectEntryView& entry = l->pinned.view.entry(at->second);
-    MKTREE_RETURN_IF_ERROR(part.db->leaves().DecodeMesh(entry, &out->mesh));
     out->stored_shape = entry.shape_flags;
+    if (copy_entries) {  // the header is just before the geometry (ParseObjectEntry)
+      const uint8_t* begin = entry.geometry.data() - kObjectEntryHeaderBytes;
+      out->stored_entry.assign(begin, begin + entry.entry_bytes());
+      return Status::Ok();
+    }
+    MKTREE_RETURN_IF_ERROR(part.db->leaves().DecodeMesh(entry, &out->mesh));
     const Vec3d& o = reader.tree().origin;
     for (size_t v = 0; v < out->mesh.vertices.size(); ++v) out->mesh.vertices[v] += o[v % 3];
     return Status::Ok();
@@ -229,8 +235,9 @@ struct LiveObjectStream::Cursor {
 
   static constexpr uint64_t kNowhere = ~uint64_t{0};
   const RevisionPartDb& part;
-  uint64_t next = 0;    // the next local id to look at
-  int scratch_fd = -1;  // spilled: the meshes, and where each local id's is
+  bool copy_entries = false;  // CopyEntriesOf
+  uint64_t next = 0;          // the next local id to look at
+  int scratch_fd = -1;        // spilled: the meshes, and where each local id's is
   std::vector<uint64_t> where;
   PageCache record_pages;
   RecordReader records;
@@ -287,6 +294,10 @@ Result<bool> LiveObjectStream::Next(SceneObject* out) {
     out->id = best_id;
     return true;
   }
+}
+
+void LiveObjectStream::CopyEntriesOf(size_t parts) {
+  for (size_t p = 0; p < cursors_.size(); ++p) cursors_[p]->copy_entries = p < parts && p < spill_from_;
 }
 
 void LiveObjectStream::Rewind() {

@@ -56,6 +56,10 @@ class LiveObjectStream {
   // decoding their geometry. Null: every live object.
   using RecordFilter = std::function<bool(const Box3d& record_box, double slack)>;
   void SetFilter(RecordFilter keep) { filter_ = std::move(keep); }
+  // The objects of the first `parts` parts (before `spill_from`) come as their stored leaf entries
+  // (SceneObject::stored_entry, an empty mesh), for a build that keeps those parts' frame and dictionary
+  // (IngestOptions::stored_entries), which copies them rather than decoding and encoding them again.
+  void CopyEntriesOf(size_t parts);
 
  private:
   struct Cursor;

@@ -43,6 +43,18 @@ void EncodeBatch(const EncoderOptions& options, Batch* b) {
   b->error_at = std::numeric_limits<size_t>::max();
   for (size_t i = 0; i < b->count; ++i) {
     const SceneObject& obj = b->objects[i];
+    if (options.copy_stored_entries && !obj.stored_entry.empty()) {
+      auto copied = CopyObjectEntry(obj.stored_entry, obj.id, &b->entries);
+      if (!copied.ok()) {
+        b->error = Status::Corruption("object " + std::to_string(obj.id) + " ('" + obj.name.substr(0, 100) +
+                                      "'): its stored entry: " + copied.status().message());
+        b->error_at = i;
+        return;
+      }
+      b->entry_end.push_back(b->entries.size());
+      b->boxes.push_back(copied->box);
+      continue;
+    }
     uint8_t shape = 0;
     if (options.keep_stored_shape && (obj.stored_shape & kShapeKnown) &&
         obj.stored_shape <= (kShapeKnown | kShapeEvenEdges | kShapeClosed)) {
@@ -82,6 +94,8 @@ Status DrainBatch(Batch* b, const EncodedSink& sink) {
     MKTREE_RETURN_IF_ERROR(sink(b->objects[i], e));
     Mesh& m = b->objects[i].mesh;
     if (8 * m.vertices.capacity() + 4 * m.triangles.capacity() > kKeepMeshBytes) m = Mesh{};
+    std::vector<uint8_t>& stored = b->objects[i].stored_entry;
+    if (stored.capacity() > kKeepMeshBytes) stored = {};
   }
   if (b->entries.capacity() > 2 * kBatchRawBytes) b->entries = {};
   b->count = 0;
@@ -100,7 +114,7 @@ bool FillBatch(const ObjectReader& read, Batch* b, Status* read_error) {
       if (!more.ok()) *read_error = more.status();
       return false;
     }
-    raw += b->objects[b->count].mesh.RawGeometryBytes();
+    raw += b->objects[b->count].mesh.RawGeometryBytes() + b->objects[b->count].stored_entry.size();
     ++b->count;
   }
   return true;

@@ -126,8 +126,15 @@ class ObjectSpiller {
     if (auto st = out_->records->Append(record_bytes_.data(), record_bytes_.size()); !st.ok())
       return st.status();
     out_->objects.push_back(rec);
-    report_->triangles += obj.mesh.triangle_count();
-    report_->raw_geometry_bytes += obj.mesh.RawGeometryBytes();
+    if (obj.mesh.vertices.empty() && !obj.stored_entry.empty()) {  // a copied entry (IngestOptions)
+      ObjectEntryView e;
+      MKTREE_RETURN_IF_ERROR(ParseObjectEntry(encoded.entry.data(), encoded.entry.size(), &e));
+      report_->triangles += e.triangle_count;
+      report_->raw_geometry_bytes += 8 + uint64_t{e.raw_bytes};
+    } else {
+      report_->triangles += obj.mesh.triangle_count();
+      report_->raw_geometry_bytes += obj.mesh.RawGeometryBytes();
+    }
     report_->encoded_bytes += rec.encoded_bytes;
     return Status::Ok();
   }
@@ -227,8 +234,22 @@ Result<ReadAndSpillOutput> ReadAndSpill(const std::vector<SceneOpener>& inputs, 
   encoder.keep_stored_shape = options.keep_stored_shape;
   // The objects read ahead to train the dictionary, handed to the encoder after `first`.
   std::deque<SceneObject> ahead;
-  if (first_pending && encoder.codec.codec == Codec::kZstd)
+  if (options.stored_entries) {
+    // Copied entries are valid only in their own store's frame, under its dictionary.
+    if (!options.origin) return Status::Internal("a build that copies stored entries has no origin given");
+    encoder.copy_stored_entries = true;
+    encoder.codec.dictionary = options.stored_entries->dictionary;
+    if (encoder.codec.dictionary && !encoder.codec.dictionary->cdict() &&
+        encoder.codec.codec == Codec::kZstd) {
+      // A reader's dictionary only decompresses: the objects encoded here need it loaded to compress.
+      MKTREE_ASSIGN_OR_RETURN(
+          encoder.codec.dictionary,
+          CodecDictionary::Load(encoder.codec.dictionary->bytes(), encoder.codec.zstd_level));
+    }
+    report->dictionary_bytes = encoder.codec.dictionary ? encoder.codec.dictionary->bytes().size() : 0;
+  } else if (first_pending && encoder.codec.codec == Codec::kZstd) {
     MKTREE_RETURN_IF_ERROR(TrainStoreDictionary(first, &reader, &ahead, &encoder, report));
+  }
   // Training's buffers (the sample, zstd's tables) are free: hand them back before encoding.
   TrimMalloc();
   out.dictionary = encoder.codec.dictionary;
@@ -243,6 +264,7 @@ Result<ReadAndSpillOutput> ReadAndSpill(const std::vector<SceneOpener>& inputs, 
     ahead.pop_front();
     return true;
   };
+  if (options.expected_objects > 0) spilled.objects.reserve(options.expected_objects);
   ObjectSpiller spiller(&spilled, report);
   MKTREE_RETURN_IF_ERROR(
       EncodeObjects(encoder, read_all,

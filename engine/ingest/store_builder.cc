@@ -94,6 +94,7 @@ Result<IngestReport> BuildStoreUnguarded(const std::vector<SceneOpener>& inputs,
 
   // 1. Read and spill.
   MKTREE_ASSIGN_OR_RETURN(ReadAndSpillOutput read, ReadAndSpill(inputs, options, place, &report));
+  if (options.after_read) options.after_read();
   writer->SetCodecDictionary(read.dictionary);
   SpilledObjects& spilled = read.spilled;
   if (report.objects == 0)

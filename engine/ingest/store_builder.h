@@ -58,6 +58,19 @@ struct IngestOptions {
   // The objects are a store's, re-encoded (a merge of changes, a compaction): SceneObject::stored_shape,
   // when known, is their shape, as judged on the input they were first stored from.
   bool keep_stored_shape = false;
+  // A compaction copies the leaf entries of the objects that carry one (SceneObject::stored_entry) rather
+  // than encoding their meshes again: the store then takes the dictionary they were encoded with (null:
+  // none) instead of training one, and `origin` must be their store's. Objects without one are encoded.
+  struct StoredEntries {
+    std::shared_ptr<const CodecDictionary> dictionary;
+  };
+  std::optional<StoredEntries> stored_entries;
+  // Called once every input object is spilled, before the tree is built: a compaction closes the stores
+  // it read from there, so that the build's peak (the tree) does not hold them too. Unset: nothing.
+  std::function<void()> after_read;
+  // How many objects the inputs hold, when the caller knows (a compaction): their records' array is sized
+  // once, not grown by doubling (which holds the old array beside the new one). 0: unknown.
+  uint64_t expected_objects = 0;
 };
 
 struct IngestReport {

@@ -350,6 +350,21 @@ uint32_t EncodeObjectEntry(const SceneObject& obj, const CodecOptions& opts, std
   return n.ok() ? *n : 0;
 }
 
+Result<ObjectEntryView> CopyObjectEntry(std::span<const uint8_t> entry, ObjectId id,
+                                        std::vector<uint8_t>* out) {
+  ObjectEntryView e;
+  MKTREE_RETURN_IF_ERROR(ParseObjectEntry(entry.data(), entry.size(), &e));
+  if (e.entry_bytes() != entry.size())
+    return Status::Corruption("object entry (id " + std::to_string(e.id) +
+                              "): " + std::to_string(entry.size() - e.entry_bytes()) + " bytes past its end");
+  const size_t start = out->size();
+  out->insert(out->end(), entry.begin(), entry.end());
+  Put<uint32_t>(out->data() + start, id);
+  e.id = id;
+  e.geometry = std::span<const uint8_t>(out->data() + start + kObjectEntryHeaderBytes, e.geometry.size());
+  return e;
+}
+
 Result<ObjectEntryView> ParseObjectEntry(const uint8_t* data, size_t n) {
   ObjectEntryView e;
   MKTREE_RETURN_IF_ERROR(ParseObjectEntry(data, n, &e));

@@ -158,6 +158,13 @@ Result<ObjectEntryView> ParseObjectEntry(const uint8_t* data, size_t n);
 // build and copy per entry).
 Status ParseObjectEntry(const uint8_t* data, size_t n, ObjectEntryView* out);
 
+// Appends a copy of `entry` (one whole entry, as ParseObjectEntry reads it) to *out under the id `id`,
+// its geometry bytes as they are: for a store with the frame and dictionary of the store it came from (a
+// compaction keeps both). Returns the parsed copy (its geometry points into *out until *out grows).
+// Corruption, appending nothing, when the header is inconsistent or its size is not entry.size().
+Result<ObjectEntryView> CopyObjectEntry(std::span<const uint8_t> entry, ObjectId id,
+                                        std::vector<uint8_t>* out);
+
 // How far a vertex inside `box` (the entry's AABB) may lie from where the input put it: per axis one
 // float32 ulp of its local coordinate plus the double arithmetic of encoding and decoding. Two objects
 // whose input surfaces touch exactly are at most the sum of their resolutions apart once stored.

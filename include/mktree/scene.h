@@ -51,6 +51,9 @@ struct SceneObject {
   // input's coordinates, not one made on float32-rounded ones. 0: judged from `mesh`; builds from callers'
   // objects ignore it.
   uint8_t stored_shape = 0;
+  // Internal: the object's leaf entry as a store holds it, for a compaction that copies entries rather than
+  // encoding meshes again (`mesh` is then empty); builds from callers' objects ignore it.
+  std::vector<uint8_t> stored_entry;
   // Bounds() rounded outward to float32, in world coordinates (a store keeps boxes in its own frame).
   Box3f Aabb() const { return RoundOutward(mesh.Bounds()); }
 };
