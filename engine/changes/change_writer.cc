@@ -163,6 +163,15 @@ class Writer final : public ChangeWriter {
     b.ingest.input_name = "change batch";
     return b;
   }
+  // A part built from stored objects (a merge, a compaction): the entries `live` gives that are valid in
+  // the part (every part shares the base's frame and, since parts stopped training their own, its
+  // dictionary) are copied, not decoded and encoded again.
+  PartBuild CopyingPart(const std::string& name, uint64_t made_at, LiveObjectStream* live) const {
+    PartBuild b = Part(name, made_at);
+    b.ingest.copy_stored_entries = true;
+    live->CopyEntriesFor(b.ingest.dictionary->get(), *b.ingest.origin);
+    return b;
+  }
   std::string NewPartName(const char* kind, uint64_t revision) {
     return std::string(kind) + "-" + std::to_string(revision) + "-" + std::to_string(++part_seq_);
   }
@@ -414,6 +423,7 @@ Result<CommitReport> Writer::CommitUnguarded(const ChangeBatch& batch) {
       *out = *written[at].object;  // the one copy the build takes
       out->id = written[at++].id;
       out->stored_shape = 0;  // judged on the caller's coordinates
+      out->stored_entry.clear();
       return true;
     };
     MKTREE_ASSIGN_OR_RETURN(RevisionPart delta,
@@ -474,8 +484,8 @@ Status Writer::MergeDeltas(RevisionManifest* m) {
                                 parts[n - 1].db->object_count() - parts[n - 1].hidden_count;
     m->deltas.resize(m->deltas.size() - 2);
     if (live_count > 0) {
-      MKTREE_ASSIGN_OR_RETURN(RevisionPart merged,
-                              BuildRevisionPart(Part(NewPartName("merged", m->revision), m->revision), next));
+      const PartBuild b = CopyingPart(NewPartName("merged", m->revision), m->revision, &live);
+      MKTREE_ASSIGN_OR_RETURN(RevisionPart merged, BuildRevisionPart(b, next));
       m->deltas.push_back(merged);
     }
     for (RevisionPartDb& p : parts) parts_.push_back(std::move(p));  // open stores, for the next opening
@@ -521,13 +531,9 @@ Result<CompactReport> Writer::CompactUnguarded() {
       std::vector<const RevisionPartDb*> all;
       for (const RevisionPartDb& p : parts_) all.push_back(&p);
       std::optional<LiveObjectStream> live(std::in_place, all, BasePartCount(parts_), folder_, ops_);
-      // The base's objects keep their entries, under its frame and dictionary: copied, not re-encoded.
-      live->CopyEntriesOf(1);
       IdOrderedObjects next = [&](SceneObject* out) { return live->Next(out); };
-      PartBuild b = Part(NewPartName("base", rev), rev);
+      PartBuild b = CopyingPart(NewPartName("base", rev), rev, &*live);
       b.identity_ids = true;
-      b.ingest.stored_entries =
-          IngestOptions::StoredEntries{parts_[0].db->reader().options().codec.dictionary};
       // Once every object is read, the parts are closed before the tree is built (the build's peak), which
       // then holds no more than a fresh build's; they are opened again below, or at the new head.
       b.ingest.expected_objects = head_.live;
@@ -592,16 +598,22 @@ Result<RevisionPart> Writer::BuildShardedBase(uint64_t rev) {
     }
   } discard{manifest_path, old.shards.size()};
   // One stream for every pass: the deltas are read into its scratch file once. The first pass samples
-  // every live object's bounds; each shard's pass then decodes only the objects whose record box may
-  // route to it.
+  // every live object's bounds; each shard's pass then reads only the objects whose record box may
+  // route to it. Entries under the shards' dictionary (shard 0's, which every part since has shared) are
+  // copied, and routed by their stored box; the others (the shards of a build trained their own) are
+  // decoded and encoded again, routed by their mesh's bounds: either way, the same box in every pass.
   LiveObjectStream live(all, spill_from, folder_, ops_);
+  IngestOptions ingest = base_ingest_;
+  ingest.copy_stored_entries = true;
+  live.CopyEntriesFor(ingest.dictionary->get(), old.origin);
+  const ObjectBounds bounds = [&](const SceneObject& o) { return StreamedBounds(o, old.origin); };
   {
     ShardSample sample;
     SceneObject o;
     for (;;) {
       MKTREE_ASSIGN_OR_RETURN(const bool more, live.Next(&o));
       if (!more) break;
-      sample.Add(o.id, o.mesh.Bounds());
+      sample.Add(o.id, bounds(o));
     }
     const std::vector<ShardSample::Item> items = sample.Items();
     Result<TopLevels> top = Status::Internal("no shard count tried");
@@ -612,7 +624,6 @@ Result<RevisionPart> Writer::BuildShardedBase(uint64_t rev) {
     if (!top.ok()) return top.status();
     nm.top = std::move(*top);
   }
-  IngestOptions ingest = base_ingest_;
   ingest.store.file_ops = &ops_;
   ingest.spill_file_ops = &ops_;
   ingest.input_name = "compaction";
@@ -624,7 +635,7 @@ Result<RevisionPart> Writer::BuildShardedBase(uint64_t rev) {
                                               [&]() -> Result<std::unique_ptr<SceneSource>> {
                                                 live.Rewind();
                                                 return ShardObjectsOf(std::make_unique<StreamSource>(&live),
-                                                                      nm.top, s);
+                                                                      nm.top, s, bounds);
                                               },
                                               manifest_path, nm, s, ingest, &report));
     built += e.objects;

@@ -150,7 +150,9 @@ struct LiveObjectStream::Cursor {
     if (scratch_fd >= 0) ::close(scratch_fd);
   }
 
-  // Every live object's mesh, leaf by leaf, into an unnamed file of `dir`; `where` says where each went.
+  // Every live object's mesh (or its entry, when Copies), leaf by leaf, into an unnamed file of `dir`;
+  // `where` says where each went. A record: three counts (vertices, triangles, shape flags; or kEntry, the
+  // entry's bytes, its shape flags), then the doubles and the triangles, or the entry.
   Status Spill(const std::string& dir, FileOps& ops) {
     MKTREE_ASSIGN_OR_RETURN(const storage_internal::UnnamedFile scratch,
                             storage_internal::OpenUnnamedFile(dir, "merge", "a merge's scratch file"));
@@ -170,10 +172,18 @@ struct LiveObjectStream::Cursor {
       MKTREE_ASSIGN_OR_RETURN(PinnedLeaf pinned, part.db->leaves().Read(leaf, nullptr));
       for (const ObjectEntryView& e : pinned.view.entries()) {
         if (part.hidden[e.id]) continue;
+        where[e.id] = at + buf.size();
+        if (Copies(e)) {
+          const uint64_t counts[3] = {kEntry, e.entry_bytes(), e.shape_flags};
+          const uint8_t* c = reinterpret_cast<const uint8_t*>(counts);
+          buf.insert(buf.end(), c, c + sizeof counts);
+          buf.insert(buf.end(), EntryBegin(e), EntryBegin(e) + e.entry_bytes());
+          if (buf.size() >= (1u << 20)) MKTREE_RETURN_IF_ERROR(flush());
+          continue;
+        }
         Mesh mesh;
         MKTREE_RETURN_IF_ERROR(part.db->leaves().DecodeMesh(e, &mesh));
         for (size_t v = 0; v < mesh.vertices.size(); ++v) mesh.vertices[v] += o[v % 3];
-        where[e.id] = at + buf.size();
         const uint64_t counts[3] = {mesh.vertices.size(), mesh.triangles.size(), e.shape_flags};
         auto put = [&](const void* p, size_t n) {
           buf.insert(buf.end(), static_cast<const uint8_t*>(p), static_cast<const uint8_t*>(p) + n);
@@ -187,7 +197,7 @@ struct LiveObjectStream::Cursor {
     return flush();
   }
 
-  Status ReadSpilled(ObjectId local, Mesh* mesh, uint8_t* shape) {
+  Status ReadSpilled(ObjectId local, SceneObject* out) {
     const uint64_t at = where[local];
     if (at == kNowhere)
       return Status::Corruption(part.db->reader().path() + ": object " + std::to_string(local) +
@@ -195,9 +205,15 @@ struct LiveObjectStream::Cursor {
     uint64_t counts[3];
     const std::string& path = part.db->reader().path();
     MKTREE_RETURN_IF_ERROR(storage_internal::PreadFull(scratch_fd, counts, sizeof counts, at, path));
+    out->stored_shape = static_cast<uint8_t>(counts[2]);
+    if (counts[0] == kEntry) {
+      out->stored_entry.resize(counts[1]);
+      return storage_internal::PreadFull(scratch_fd, out->stored_entry.data(), counts[1], at + sizeof counts,
+                                         path);
+    }
+    Mesh* mesh = &out->mesh;
     mesh->vertices.resize(counts[0]);
     mesh->triangles.resize(counts[1]);
-    *shape = static_cast<uint8_t>(counts[2]);
     MKTREE_RETURN_IF_ERROR(storage_internal::PreadFull(scratch_fd, mesh->vertices.data(), 8 * counts[0],
                                                        at + sizeof counts, path));
     return storage_internal::PreadFull(scratch_fd, mesh->triangles.data(), 4 * counts[1],
@@ -212,7 +228,7 @@ struct LiveObjectStream::Cursor {
     out->attributes = r->attributes;
     out->mesh = Mesh();
     out->stored_entry.clear();
-    if (scratch_fd >= 0) return ReadSpilled(local, &out->mesh, &out->stored_shape);
+    if (scratch_fd >= 0) return ReadSpilled(local, out);
     const uint32_t leaf = r->leaf;
     MKTREE_ASSIGN_OR_RETURN(const Leaf* l, LeafOf(leaf));
     auto at = l->position.find(local);
@@ -222,8 +238,8 @@ struct LiveObjectStream::Cursor {
                                 ", which does not hold it");
     const ObjectEntryView& entry = l->pinned.view.entry(at->second);
     out->stored_shape = entry.shape_flags;
-    if (copy_entries) {  // the header is just before the geometry (ParseObjectEntry)
-      const uint8_t* begin = entry.geometry.data() - kObjectEntryHeaderBytes;
+    if (Copies(entry)) {
+      const uint8_t* begin = EntryBegin(entry);
       out->stored_entry.assign(begin, begin + entry.entry_bytes());
       return Status::Ok();
     }
@@ -234,10 +250,20 @@ struct LiveObjectStream::Cursor {
   }
 
   static constexpr uint64_t kNowhere = ~uint64_t{0};
+  static constexpr uint64_t kEntry = ~uint64_t{0};  // a spilled record's first count: an entry follows
+  // An entry's header is just before its geometry (ParseObjectEntry).
+  static const uint8_t* EntryBegin(const ObjectEntryView& e) {
+    return e.geometry.data() - kObjectEntryHeaderBytes;
+  }
   const RevisionPartDb& part;
-  bool copy_entries = false;  // CopyEntriesOf
-  uint64_t next = 0;          // the next local id to look at
-  int scratch_fd = -1;        // spilled: the meshes, and where each local id's is
+  // CopyEntriesFor: entries without a dictionary are copied when the frame is the build's, the others
+  // when the dictionary is the build's too.
+  bool copy_frame = false, copy_dictionary = false;
+  bool Copies(const ObjectEntryView& e) const {
+    return copy_frame && (e.codec != Codec::kZstdDict || copy_dictionary);
+  }
+  uint64_t next = 0;    // the next local id to look at
+  int scratch_fd = -1;  // spilled: the meshes, and where each local id's is
   std::vector<uint64_t> where;
   PageCache record_pages;
   RecordReader records;
@@ -296,8 +322,15 @@ Result<bool> LiveObjectStream::Next(SceneObject* out) {
   }
 }
 
-void LiveObjectStream::CopyEntriesOf(size_t parts) {
-  for (size_t p = 0; p < cursors_.size(); ++p) cursors_[p]->copy_entries = p < parts && p < spill_from_;
+void LiveObjectStream::CopyEntriesFor(const CodecDictionary* dictionary, const Vec3d& origin) {
+  for (auto& c : cursors_) {
+    const StoreReader& reader = c->part.db->reader();
+    const CodecDictionary* own = reader.options().codec.dictionary.get();
+    const Vec3d& o = reader.tree().origin;
+    c->copy_frame = o.x == origin.x && o.y == origin.y && o.z == origin.z;
+    c->copy_dictionary =
+        c->copy_frame && (own && dictionary ? own->bytes() == dictionary->bytes() : own == dictionary);
+  }
 }
 
 void LiveObjectStream::Rewind() {
@@ -307,10 +340,23 @@ void LiveObjectStream::Rewind() {
   }
 }
 
+Box3d StreamedBounds(const SceneObject& o, const Vec3d& origin) {
+  if (o.stored_entry.empty()) return o.mesh.Bounds();
+  ObjectEntryView e;
+  if (!ParseObjectEntry(o.stored_entry.data(), o.stored_entry.size(), &e).ok()) return o.mesh.Bounds();
+  Box3d b;
+  for (int a = 0; a < 3; ++a) {
+    b.min[a] = double{e.box.min[a]} + origin[a];
+    b.max[a] = double{e.box.max[a]} + origin[a];
+  }
+  return b;
+}
+
 IngestOptions PartIngestOptions(const StoreDatabase& base, unsigned threads) {
   IngestOptions o;
   o.store = base.reader().options();
   o.store.codec.dictionary.reset();
+  o.dictionary = base.reader().options().codec.dictionary;  // no training per part, and copyable entries
   o.store.file_ops = nullptr;
   o.store.direct_io = false;
   o.origin = base.reader().tree().origin;

@@ -56,10 +56,11 @@ class LiveObjectStream {
   // decoding their geometry. Null: every live object.
   using RecordFilter = std::function<bool(const Box3d& record_box, double slack)>;
   void SetFilter(RecordFilter keep) { filter_ = std::move(keep); }
-  // The objects of the first `parts` parts (before `spill_from`) come as their stored leaf entries
-  // (SceneObject::stored_entry, an empty mesh), for a build that keeps those parts' frame and dictionary
-  // (IngestOptions::stored_entries), which copies them rather than decoding and encoding them again.
-  void CopyEntriesOf(size_t parts);
+  // For a build in the frame `origin` under `dictionary` (null: none) that copies stored entries
+  // (IngestOptions::copy_stored_entries): each object whose entry is valid there (its part has that frame,
+  // and the entry needs no dictionary or its part's is the same) comes as that entry
+  // (SceneObject::stored_entry, an empty mesh), not decoded. Call before the first Next.
+  void CopyEntriesFor(const CodecDictionary* dictionary, const Vec3d& origin);
 
  private:
   struct Cursor;
@@ -70,6 +71,10 @@ class LiveObjectStream {
   bool spilled_ = false;
   RecordFilter filter_;
 };
+
+// The world bounds an object of a LiveObjectStream is routed by: its mesh's, or for a stored entry (no
+// mesh) the entry's box (float32, rounded outward in the frame of `origin`) in world coordinates.
+Box3d StreamedBounds(const SceneObject& o, const Vec3d& origin);
 
 // The ingest options that build a part like the store `base`: its backend, codec (a dictionary of its
 // own), page size, split parameters and frame.

@@ -30,7 +30,7 @@ struct EncoderOptions {
   uint32_t threads = 0;
   Vec3d origin;                    // the store frame's origin (engine/store_format/object_codec.h)
   bool keep_stored_shape = false;  // IngestOptions::keep_stored_shape
-  // IngestOptions::stored_entries: an object's stored entry is copied under its id, not encoded.
+  // IngestOptions::copy_stored_entries: an object's stored entry is copied under its id, not encoded.
   bool copy_stored_entries = false;
 };
 

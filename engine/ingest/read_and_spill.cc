@@ -234,11 +234,12 @@ Result<ReadAndSpillOutput> ReadAndSpill(const std::vector<SceneOpener>& inputs, 
   encoder.keep_stored_shape = options.keep_stored_shape;
   // The objects read ahead to train the dictionary, handed to the encoder after `first`.
   std::deque<SceneObject> ahead;
-  if (options.stored_entries) {
-    // Copied entries are valid only in their own store's frame, under its dictionary.
-    if (!options.origin) return Status::Internal("a build that copies stored entries has no origin given");
-    encoder.copy_stored_entries = true;
-    encoder.codec.dictionary = options.stored_entries->dictionary;
+  // Copied entries are valid only in their own store's frame, under its dictionary.
+  if (options.copy_stored_entries && !(options.origin && options.dictionary))
+    return Status::Internal("a build that copies stored entries has no frame or dictionary given");
+  encoder.copy_stored_entries = options.copy_stored_entries;
+  if (options.dictionary) {
+    encoder.codec.dictionary = *options.dictionary;
     if (encoder.codec.dictionary && !encoder.codec.dictionary->cdict() &&
         encoder.codec.codec == Codec::kZstd) {
       // A reader's dictionary only decompresses: the objects encoded here need it loaded to compress.

@@ -27,13 +27,13 @@ double Seconds(Clock::time_point since) {
 // The objects of one shard (those of `all` that route to it), in order.
 class FilterShard final : public SceneSource {
  public:
-  FilterShard(std::unique_ptr<SceneSource> all, const TopLevels& top, uint32_t shard)
-      : all_(std::move(all)), top_(top), shard_(shard) {}
+  FilterShard(std::unique_ptr<SceneSource> all, const TopLevels& top, uint32_t shard, ObjectBounds bounds)
+      : all_(std::move(all)), top_(top), shard_(shard), bounds_(std::move(bounds)) {}
   Result<bool> Next(SceneObject* out) override {
     for (;;) {
       MKTREE_ASSIGN_OR_RETURN(const bool more, all_->Next(out));
       if (!more) return false;
-      if (top_.ShardOf(out->mesh.Bounds()) == shard_) return true;
+      if (top_.ShardOf(bounds_ ? bounds_(*out) : out->mesh.Bounds()) == shard_) return true;
     }
   }
   // The input's warnings were reported by the scan (ScanForShards), not once per shard.
@@ -42,6 +42,7 @@ class FilterShard final : public SceneSource {
   std::unique_ptr<SceneSource> all_;
   const TopLevels& top_;
   uint32_t shard_;
+  ObjectBounds bounds_;
 };
 
 // A shard's objects renumbered from first_id; their global ids go to *ids (increasing, else Internal).
@@ -147,8 +148,8 @@ std::unique_ptr<SceneSource> ChainInputs(const std::vector<SceneOpener>& inputs)
 }
 
 std::unique_ptr<SceneSource> ShardObjectsOf(std::unique_ptr<SceneSource> all, const TopLevels& top,
-                                            uint32_t shard) {
-  return std::make_unique<FilterShard>(std::move(all), top, shard);
+                                            uint32_t shard, ObjectBounds bounds) {
+  return std::make_unique<FilterShard>(std::move(all), top, shard, std::move(bounds));
 }
 
 Result<ShardScan> ScanPart(SceneSource* part, const IngestOptions& options) {

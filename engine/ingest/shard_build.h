@@ -43,9 +43,11 @@ Result<ShardScan> ScanForShards(const std::vector<SceneOpener>& inputs,
 Result<ShardScan> ScanPart(SceneSource* part, const IngestOptions& options);
 // Every input in order as one source, numbered globally from 0 (as BuildStore numbers them).
 std::unique_ptr<SceneSource> ChainInputs(const std::vector<SceneOpener>& inputs);
-// The objects of `all` that route to shard `shard` of `top`, in order (`top` must outlive it).
+// The objects of `all` that route to shard `shard` of `top`, in order (`top` must outlive it), each by
+// `bounds` of it (unset: its mesh's bounds).
+using ObjectBounds = std::function<Box3d(const SceneObject&)>;
 std::unique_ptr<SceneSource> ShardObjectsOf(std::unique_ptr<SceneSource> all, const TopLevels& top,
-                                            uint32_t shard);
+                                            uint32_t shard, ObjectBounds bounds = nullptr);
 // 2. Shard s of m (top levels, origin and build id set) under its staging names; the entry names the
 //    final files. On error nothing of it is left.
 Result<ShardEntry> BuildShard(const std::vector<SceneOpener>& inputs, const std::string& manifest_path,

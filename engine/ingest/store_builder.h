@@ -58,13 +58,14 @@ struct IngestOptions {
   // The objects are a store's, re-encoded (a merge of changes, a compaction): SceneObject::stored_shape,
   // when known, is their shape, as judged on the input they were first stored from.
   bool keep_stored_shape = false;
-  // A compaction copies the leaf entries of the objects that carry one (SceneObject::stored_entry) rather
-  // than encoding their meshes again: the store then takes the dictionary they were encoded with (null:
-  // none) instead of training one, and `origin` must be their store's. Objects without one are encoded.
-  struct StoredEntries {
-    std::shared_ptr<const CodecDictionary> dictionary;
-  };
-  std::optional<StoredEntries> stored_entries;
+  // The dictionary to encode with, which the store keeps, instead of one trained on the input (a null one
+  // inside: none). The parts of a changed store share their base's, so that a merge or a compaction can
+  // copy their entries.
+  std::optional<std::shared_ptr<const CodecDictionary>> dictionary;
+  // A merge of changes or a compaction: an object that carries its stored leaf entry
+  // (SceneObject::stored_entry), encoded in this build's frame (`origin`, required) under `dictionary`
+  // (required), is copied with its id patched, not encoded again. Off: stored entries are ignored.
+  bool copy_stored_entries = false;
   // Called once every input object is spilled, before the tree is built: a compaction closes the stores
   // it read from there, so that the build's peak (the tree) does not hold them too. Unset: nothing.
   std::function<void()> after_read;
