@@ -76,8 +76,9 @@ class LiveObjectStream {
 // mesh) the entry's box (float32, rounded outward in the frame of `origin`) in world coordinates.
 Box3d StreamedBounds(const SceneObject& o, const Vec3d& origin);
 
-// The ingest options that build a part like the store `base`: its backend, codec (a dictionary of its
-// own), page size, split parameters and frame.
+// The ingest options that build a part like the store `base`: its backend, codec and dictionary (every
+// part of a changed store encodes with the base's, so that merges and compactions copy entries), page
+// size, split parameters and frame.
 IngestOptions PartIngestOptions(const StoreDatabase& base, unsigned threads);
 
 }  // namespace mktree
