@@ -126,15 +126,12 @@ class ObjectSpiller {
     if (auto st = out_->records->Append(record_bytes_.data(), record_bytes_.size()); !st.ok())
       return st.status();
     out_->objects.push_back(rec);
-    if (obj.mesh.vertices.empty() && !obj.stored_entry.empty()) {  // a copied entry (IngestOptions)
-      ObjectEntryView e;
-      MKTREE_RETURN_IF_ERROR(ParseObjectEntry(encoded.entry.data(), encoded.entry.size(), &e));
-      report_->triangles += e.triangle_count;
-      report_->raw_geometry_bytes += 8 + uint64_t{e.raw_bytes};
-    } else {
-      report_->triangles += obj.mesh.triangle_count();
-      report_->raw_geometry_bytes += obj.mesh.RawGeometryBytes();
-    }
+    // From the entry's header, which a copied entry (IngestOptions::copy_stored_entries) has without a mesh:
+    // its raw bytes are Mesh::RawGeometryBytes but the two counts.
+    ObjectEntryView e;
+    MKTREE_RETURN_IF_ERROR(ParseObjectEntry(encoded.entry.data(), encoded.entry.size(), &e));
+    report_->triangles += e.triangle_count;
+    report_->raw_geometry_bytes += 8 + uint64_t{e.raw_bytes};
     report_->encoded_bytes += rec.encoded_bytes;
     return Status::Ok();
   }
