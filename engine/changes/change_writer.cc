@@ -417,18 +417,31 @@ Result<CommitReport> Writer::CommitUnguarded(const ChangeBatch& batch) {
   for (size_t i = 0; i < batch.add.size(); ++i)
     report.added_ids.push_back(static_cast<ObjectId>(head_.next_id + i));
   if (!written.empty()) {
-    size_t at = 0;
-    IdOrderedObjects next = [&](SceneObject* out) -> Result<bool> {
-      if (at == written.size()) return false;
-      *out = *written[at].object;  // the one copy the build takes
-      out->id = written[at++].id;
-      out->stored_shape = 0;  // judged on the caller's coordinates
-      out->stored_entry.clear();
-      return true;
-    };
-    MKTREE_ASSIGN_OR_RETURN(RevisionPart delta,
-                            BuildRevisionPart(Part(NewPartName("delta", rev), rev), next));
-    m.deltas.push_back(delta);
+    // A sharded store routes each written object by its box through the base's top levels, as a build
+    // routes it: one delta per shard the batch touches, so that a delta's box is its shard's (a query
+    // outside it reads none of its pages) and a rank of mktree-mpi owns the deltas of its shards.
+    std::vector<uint32_t> shard_of(written.size(), kNoShard);
+    if (sharded_) {
+      MKTREE_ASSIGN_OR_RETURN(const Manifest base, ReadManifest(ChangesFile(folder_, head_.base.store.name)));
+      for (size_t i = 0; i < written.size(); ++i)
+        shard_of[i] = base.top.ShardOf(written[i].object->mesh.Bounds());
+    }
+    for (const uint32_t shard : std::set<uint32_t>(shard_of.begin(), shard_of.end())) {
+      size_t at = 0;
+      IdOrderedObjects next = [&](SceneObject* out) -> Result<bool> {
+        while (at < written.size() && shard_of[at] != shard) ++at;
+        if (at == written.size()) return false;
+        *out = *written[at].object;  // the one copy the build takes
+        out->id = written[at++].id;
+        out->stored_shape = 0;  // judged on the caller's coordinates
+        out->stored_entry.clear();
+        return true;
+      };
+      MKTREE_ASSIGN_OR_RETURN(RevisionPart delta,
+                              BuildRevisionPart(Part(NewPartName("delta", rev), rev), next));
+      delta.shard = shard;
+      m.deltas.push_back(delta);
+    }
   }
   std::vector<ObjectId> touched = removed;
   for (const Written& w : written) touched.push_back(w.id);
@@ -468,27 +481,42 @@ Result<CommitReport> Writer::CommitUnguarded(const ChangeBatch& batch) {
   return report;
 }
 
-// Merges the newest deltas while the one before the newest is at most kMergeRatio times its size (live
-// objects only are carried over). m's parts are opened to read them.
+// Merges the newest two deltas of a shard (of the store: unsharded) while the older is at most kMergeRatio
+// times the newer's size; live objects only are carried over, into a delta placed last. That keeps every
+// id's newest copy newest: an object the merge carries is hidden in no part after the older delta, so no
+// part after the newer holds its id; one that a part between them supersedes is hidden, so not carried.
+// m's parts are opened to read them.
 Status Writer::MergeDeltas(RevisionManifest* m) {
-  while (m->deltas.size() >= 2 &&
-         m->deltas[m->deltas.size() - 2].objects <= kMergeRatio * m->deltas.back().objects) {
-    OpenOptions o;
-    o.cache_pages = kWriterCachePages;
-    MKTREE_ASSIGN_OR_RETURN(std::vector<RevisionPartDb> parts,
-                            OpenRevisionParts(store_, *m, o, &parts_, false));
-    const size_t n = parts.size();
-    LiveObjectStream live({&parts[n - 2], &parts[n - 1]}, 0, folder_, ops_);
-    IdOrderedObjects next = [&](SceneObject* out) { return live.Next(out); };
-    const uint64_t live_count = parts[n - 2].db->object_count() - parts[n - 2].hidden_count +
-                                parts[n - 1].db->object_count() - parts[n - 1].hidden_count;
-    m->deltas.resize(m->deltas.size() - 2);
-    if (live_count > 0) {
-      const PartBuild b = CopyingPart(NewPartName("merged", m->revision), m->revision, &live);
-      MKTREE_ASSIGN_OR_RETURN(RevisionPart merged, BuildRevisionPart(b, next));
-      m->deltas.push_back(merged);
+  std::set<uint32_t> shards;
+  for (const RevisionPart& d : m->deltas) shards.insert(d.shard);
+  for (const uint32_t shard : shards) {
+    for (;;) {
+      std::vector<size_t> of;  // the shard's deltas, oldest first
+      for (size_t i = 0; i < m->deltas.size(); ++i)
+        if (m->deltas[i].shard == shard) of.push_back(i);
+      if (of.size() < 2) break;
+      const size_t older = of[of.size() - 2], newer = of.back();
+      if (m->deltas[older].objects > kMergeRatio * m->deltas[newer].objects) break;
+      OpenOptions o;
+      o.cache_pages = kWriterCachePages;
+      MKTREE_ASSIGN_OR_RETURN(std::vector<RevisionPartDb> parts,
+                              OpenRevisionParts(store_, *m, o, &parts_, false));
+      RevisionPartDb& a = parts[BasePartCount(parts) + older];
+      RevisionPartDb& b = parts[BasePartCount(parts) + newer];
+      LiveObjectStream live({&a, &b}, 0, folder_, ops_);
+      IdOrderedObjects next = [&](SceneObject* out) { return live.Next(out); };
+      const uint64_t live_count =
+          a.db->object_count() - a.hidden_count + b.db->object_count() - b.hidden_count;
+      m->deltas.erase(m->deltas.begin() + static_cast<ptrdiff_t>(newer));
+      m->deltas.erase(m->deltas.begin() + static_cast<ptrdiff_t>(older));
+      if (live_count > 0) {
+        const PartBuild build = CopyingPart(NewPartName("merged", m->revision), m->revision, &live);
+        MKTREE_ASSIGN_OR_RETURN(RevisionPart merged, BuildRevisionPart(build, next));
+        merged.shard = shard;
+        m->deltas.push_back(merged);
+      }
+      for (RevisionPartDb& p : parts) parts_.push_back(std::move(p));  // open stores, for the next opening
     }
-    for (RevisionPartDb& p : parts) parts_.push_back(std::move(p));  // open stores, for the next opening
   }
   return Status::Ok();
 }

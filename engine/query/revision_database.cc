@@ -287,6 +287,12 @@ Result<std::vector<RevisionPartDb>> OpenRevisionParts(const std::string& store_p
       return Status::Corruption(base_path + ": " + std::to_string(sharded->objects) +
                                 " objects, the revision says " + std::to_string(m.base.objects));
   }
+  for (const RevisionPart& d : m.deltas)
+    if (d.shard != kNoShard && (!sharded || d.shard >= sharded->shards.size()))
+      return Status::Corruption(
+          ChangesFile(folder, RevisionFileName(m.revision)) + ": delta " + d.store.name +
+          " is routed to shard " + std::to_string(d.shard) + ", its base " +
+          (sharded ? "has " + std::to_string(sharded->shards.size()) + " shards" : "is not sharded"));
   const uint64_t k = RevisionPartCount(m, sharded ? sharded->shards.size() : 0);
   if (open && open->size() != k)
     return Status::InvalidArgument(store_path + ": parts to open given for " + std::to_string(open->size()) +

@@ -2,6 +2,7 @@
 
 #include <xxhash.h>
 
+#include <algorithm>
 #include <charconv>
 #include <cinttypes>
 #include <cstdio>
@@ -95,7 +96,9 @@ bool ParseRevisionFileName(const std::string& name, uint64_t* revision) {
 
 std::string EncodeRevisionManifest(const RevisionManifest& m) {
   std::string s;
-  s += std::string(kMagicLine) + ' ' + std::to_string(kRevisionFormat) + '\n';
+  const bool routed = std::any_of(m.deltas.begin(), m.deltas.end(),
+                                  [](const RevisionPart& d) { return d.shard != kNoShard; });
+  s += std::string(kMagicLine) + ' ' + (routed ? "2" : "1") + '\n';
   s += "history " + Hex(m.history) + '\n';
   s += "revision " + std::to_string(m.revision) + '\n';
   s += "time " + std::to_string(m.time) + '\n';
@@ -109,7 +112,10 @@ std::string EncodeRevisionManifest(const RevisionManifest& m) {
     s += key + (' ' + std::to_string(p.made_at));
     PutFile(&s, p.store);
     PutFile(&s, p.ids);
-    s += ' ' + std::to_string(p.objects) + '\n';
+    s += ' ' + std::to_string(p.objects);
+    if (routed && &p != &m.base)
+      s += ' ' + (p.shard == kNoShard ? std::string("-") : std::to_string(p.shard));
+    s += '\n';
   };
   auto list = [&](const char* key, const RevisionIdList& l) {
     s += key + (' ' + std::to_string(l.made_at));
@@ -147,8 +153,8 @@ Result<RevisionManifest> DecodeRevisionManifest(const std::string& text, const s
     if (line_no == 1) {
       if (key != kMagicLine || w.size() != 2) return p.Bad("not a revision file of an mktree store");
       MKTREE_RETURN_IF_ERROR(p.U64(w[1], &format));
-      if (format != kRevisionFormat)
-        return p.Bad("revision format " + std::to_string(format) + ", this mktree reads format " +
+      if (format != 1 && format != 2)
+        return p.Bad("revision format " + std::to_string(format) + ", this mktree reads formats 1 to " +
                      std::to_string(kRevisionFormat));
       continue;
     }
@@ -205,7 +211,8 @@ Result<RevisionManifest> DecodeRevisionManifest(const std::string& text, const s
       if (w[4] != "0" && w[4] != "1") return p.Bad("batch: compaction flag is not 0 or 1");
       m.compaction = w[4] == "1";
     } else if (key == "base" || key == "delta") {
-      MKTREE_RETURN_IF_ERROR(want(9));
+      const bool routed = key == "delta" && format == 2;  // its shard, or "-"
+      MKTREE_RETURN_IF_ERROR(want(routed ? 10 : 9));
       RevisionPart part;
       MKTREE_RETURN_IF_ERROR(p.U64(w[1], &part.made_at));
       MKTREE_RETURN_IF_ERROR(p.File(w, 2, &part.store));
@@ -218,6 +225,12 @@ Result<RevisionManifest> DecodeRevisionManifest(const std::string& text, const s
         m.base = part;
       } else {
         if (part.ids.name.empty()) return p.Bad("delta: no id file");
+        if (routed && w[9] != "-") {
+          uint64_t shard = 0;
+          MKTREE_RETURN_IF_ERROR(p.U64(w[9], &shard));
+          if (shard >= kMaxShards) return p.Bad("delta: shard " + w[9] + " out of range");
+          part.shard = static_cast<uint32_t>(shard);
+        }
         m.deltas.push_back(part);
       }
     } else if (key == "removal" || key == "touched") {

@@ -14,12 +14,15 @@
 #include <vector>
 
 #include "engine/shard/manifest.h"
+#include "engine/shard/top_levels.h"
 #include "mktree/scene.h"
 #include "mktree/status.h"
 
 namespace mktree {
 
-inline constexpr uint32_t kRevisionFormat = 1;
+// Format 2 gives each delta the shard it was routed to; a revision with no routed delta is written in
+// format 1, which every mktree that takes changes reads.
+inline constexpr uint32_t kRevisionFormat = 2;
 
 // A file of the changes folder, by name, with the size and fingerprint it had when committed
 // (FingerprintFile: a file replaced or damaged since is refused).
@@ -31,6 +34,9 @@ struct RevisionPart {
   RevisionFile store;
   RevisionFile ids;  // local id -> global id (increasing); no name: local ids are the global ids
   uint64_t objects = 0;
+  // A delta of a sharded store: the shard of the base whose top levels its objects route to (kNoShard: a
+  // delta of a store file, or one written before changes were routed). Not for the base.
+  uint32_t shard = kNoShard;
 };
 
 // An id file of the folder kept for what it lists: the ids a batch removed, or every id it touched.

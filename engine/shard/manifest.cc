@@ -23,7 +23,6 @@ namespace {
 constexpr char kIdsMagic[8] = {'M', 'K', 'T', 'S', 'H', 'I', 'D', 'S'};
 constexpr uint32_t kIdsVersion = 1;
 constexpr uint64_t kMaxManifestBytes = uint64_t{1} << 28;
-constexpr uint32_t kMaxShards = 1u << 20;
 constexpr uint32_t kMaxName = 4096;
 constexpr uint64_t kFingerprintSpan = 64 * 1024;
 

@@ -14,6 +14,8 @@
 namespace mktree {
 
 inline constexpr uint32_t kNoShard = 0xffffffffu;
+// Shards a manifest may have at most: a bound for files read from disk.
+inline constexpr uint32_t kMaxShards = 1u << 20;
 // Objects in the sample at most. The cuts are sample quantiles: their rank error is about 1/sqrt(size)
 // of the objects (0.2 %), which moves shard sizes, never correctness. 48 bytes an object: 12.6 MB on
 // the one process (MPI: rank 0) that chooses the cuts.

@@ -16,7 +16,11 @@ uint32_t RankRevision::part_count() const {
 
 int RankRevision::OwnerOf(uint32_t index, int ranks) const {
   const uint32_t k = shard_count();
-  return index < k ? RankOfShard(index, k, ranks)
+  if (index < k) return RankOfShard(index, k, ranks);
+  // A delta routed to a shard goes with it (the reader refuses a shard the base has not); one written
+  // before changes were routed goes round the ranks.
+  const uint32_t shard = hold->manifest().deltas[index - k].shard;
+  return shard < k ? RankOfShard(shard, k, ranks)
                    : static_cast<int>((index - k) % static_cast<uint32_t>(ranks));
 }
 

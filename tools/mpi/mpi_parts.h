@@ -40,8 +40,8 @@ struct RankRevision {
 
   uint32_t shard_count() const { return static_cast<uint32_t>(base.shards.size()); }
   uint32_t part_count() const;
-  // The rank answering for part `index`: a shard's is where the build wrote it (RankOfShard), the deltas
-  // go round the ranks.
+  // The rank answering for part `index`: a shard's is where the build wrote it (RankOfShard), a delta's
+  // its shard's rank (unrouted deltas go round the ranks).
   int OwnerOf(uint32_t index, int ranks) const;
   // " and D delta stores (revision R)" for a revision, empty as built: for the closing lines.
   std::string DeltaNote() const;
