@@ -287,10 +287,18 @@ Result<ShardedBuildReport> BuildShardedStore(const std::vector<SceneOpener>& inp
       for (uint32_t s = 0; s < built && !keep; ++s) DiscardShard(path, s);
     }
   } discard{manifest_path};
+  IngestOptions shard_options = options;
   for (uint32_t s = 0; s < shards; ++s) {
     IngestReport shard_report;
-    MKTREE_ASSIGN_OR_RETURN(ShardEntry e, BuildShard(inputs, manifest_path, m, s, options, &shard_report));
+    MKTREE_ASSIGN_OR_RETURN(ShardEntry e,
+                            BuildShard(inputs, manifest_path, m, s, shard_options, &shard_report));
     ++discard.built;
+    if (s == 0 && !options.dictionary) {
+      // The later shards encode with shard 0's dictionary (or none, as it has none): every part of the
+      // store then shares one, so that a compaction after changes copies every entry (docs/changes.md).
+      MKTREE_ASSIGN_OR_RETURN(auto reader, StoreReader::Open(ShardStorePath(manifest_path, 0) + ".new"));
+      shard_options.dictionary = reader->options().codec.dictionary;
+    }
     for (std::string& w : shard_report.warnings)
       report.warnings.push_back("shard " + std::to_string(s) + ": " + w);
     report.store_bytes += e.store.bytes + e.ids.bytes;

@@ -22,7 +22,8 @@ class RoutedDeltas : public ::testing::TestWithParam<Backend> {};
 // Every live object of every delta of the store's newest revision routes to the delta's shard by the box
 // it has in `live`; a shard's deltas are ordered by size as merging leaves them. Returns the shards that
 // have deltas.
-std::set<uint32_t> ExpectRouted(const std::string& store, const testing::LiveSet& live, const std::string& what) {
+std::set<uint32_t> ExpectRouted(const std::string& store, const testing::LiveSet& live,
+                                const std::string& what) {
   std::set<uint32_t> shards;
   auto at = OpenStoreRevision(store, std::nullopt);
   EXPECT_TRUE(at.ok() && at->hold) << what << ": " << at.status().ToString();
@@ -133,7 +134,8 @@ TEST_P(RoutedDeltas, AReplaceIntoAnotherShardsRegionMovesTheObject) {
     EXPECT_TRUE(shards.count(top.ShardOf(moved.mesh.Bounds()))) << "round " << round;
     auto db = Database::Open(store);
     ASSERT_TRUE(db.ok()) << db.status().ToString();
-    testing::ExpectAnswers(**db, live, origin, testing::RandomQueries(25, rng), "round " + std::to_string(round));
+    testing::ExpectAnswers(**db, live, origin, testing::RandomQueries(25, rng),
+                           "round " + std::to_string(round));
     auto record = (*db)->Object(a);
     ASSERT_TRUE(record.ok()) << record.status().ToString();
     EXPECT_EQ(record->name, moved.name);
@@ -187,7 +189,8 @@ TEST(RoutedDeltasFile, FormatOneUnlessADeltaIsRoutedAndTheShardRoundTrips) {
   bad.replace(bad.find(" 1\n"), 3, " 2\n");
   auto refused = DecodeRevisionManifest(bad, "rev.rev");
   ASSERT_FALSE(refused.ok());
-  EXPECT_NE(refused.status().message().find("rev.rev line "), std::string::npos) << refused.status().ToString();
+  EXPECT_NE(refused.status().message().find("rev.rev line "), std::string::npos)
+      << refused.status().ToString();
   bad = one;
   bad.replace(bad.find(" 1\n"), 3, " 3\n");
   refused = DecodeRevisionManifest(bad, "rev.rev");
