@@ -418,6 +418,18 @@ py::dict BuildStatsDict(const BuildStats& s) {
   return d;
 }
 
+// Scene inputs as build takes them: one path (str, bytes or path-like) or an iterable of them.
+std::vector<std::string> FileList(const py::object& files) {
+  std::vector<std::string> inputs;
+  if (py::isinstance<py::str>(files) || py::isinstance<py::bytes>(files) ||
+      py::hasattr(files, "__fspath__")) {
+    inputs.push_back(PathText(files));
+  } else {
+    for (py::handle f : files) inputs.push_back(PathText(f));
+  }
+  return inputs;
+}
+
 py::dict Build(const py::object& path, const py::object& objects, const py::object& files,
                const std::string& backend, const std::string& codec, int zstd_level, uint32_t block_size,
                uint32_t blocks_per_page, double balance_r, uint32_t split_budget,
@@ -457,13 +469,7 @@ py::dict Build(const py::object& path, const py::object& objects, const py::obje
 
   Result<BuildStats> stats = Status::Internal("not run");
   if (!files.is_none()) {
-    std::vector<std::string> inputs;
-    if (py::isinstance<py::str>(files) || py::isinstance<py::bytes>(files) ||
-        py::hasattr(files, "__fspath__")) {
-      inputs.push_back(PathText(files));
-    } else {
-      for (py::handle f : files) inputs.push_back(PathText(f));
-    }
+    const std::vector<std::string> inputs = FileList(files);
     py::gil_scoped_release nogil;
     stats = BuildFromFiles(inputs, store, opts);
   } else {
@@ -524,6 +530,9 @@ py::dict CommitDict(const CommitReport& r) {
   d["compaction_error"] =
       r.compaction_error.empty() ? py::object(py::none()) : py::object(Text(r.compaction_error));
   d["seconds"] = r.seconds;
+  py::list warnings;
+  for (const std::string& w : r.warnings) warnings.append(Text(w));
+  d["warnings"] = warnings;
   return d;
 }
 
@@ -546,11 +555,12 @@ class PyWriter {
 
   // replace: objects with an "id" replace that object; objects without one replace the one live object of
   // their name.
-  py::dict Commit(const py::object& add, const py::object& remove, const py::object& remove_names,
-                  const py::object& replace, const std::string& message) {
+  py::dict Commit(const py::object& add, const py::object& add_files, const py::object& remove,
+                  const py::object& remove_names, const py::object& replace, const std::string& message) {
     ChangeWriter& w = Open();
     ChangeBatch batch;
     batch.add = SceneObjects(add, "add");
+    if (!add_files.is_none()) batch.add_files = FileList(add_files);
     std::vector<bool> by_id;
     std::vector<SceneObject> replacing = SceneObjects(replace, "replace", &by_id);
     for (size_t i = 0; i < replacing.size(); ++i)
@@ -899,13 +909,14 @@ void DefineOpenAndBuild(py::module_& m) {
 void DefineChanges(py::module_& m) {
   py::class_<PyWriter>(m, "Writer", "The one writer of a store (mktree.open_writer); one thread at a time")
       .def("commit", &PyWriter::Commit, py::kw_only(), py::arg("add") = py::none(),
-           py::arg("remove") = py::none(), py::arg("remove_names") = py::none(),
-           py::arg("replace") = py::none(), py::arg("message") = "",
+           py::arg("add_files") = py::none(), py::arg("remove") = py::none(),
+           py::arg("remove_names") = py::none(), py::arg("replace") = py::none(), py::arg("message") = "",
            "Commits one batch, all or nothing, as one new revision: `add` objects (as build takes them) get "
-           "new ids; `remove` ids and every live object of each of `remove_names` go; each object of "
+           "new ids, then the objects of `add_files` (a path or a list, as build's `files`; streamed, never "
+           "all in memory); `remove` ids and every live object of each of `remove_names` go; each object of "
            "`replace` replaces the object of its 'id', or without one the one live object of its name. "
            "Returns a dict: revision, added, removed, replaced, added_ids, objects, compacted, "
-           "compaction_error, seconds")
+           "compaction_error, seconds, warnings (the readers' of add_files)")
       .def("compact", &PyWriter::Compact, py::kw_only(), py::arg("keep") = py::none(),
            "Folds every change into a new base now (after set_keep(keep) if given). Returns a dict: "
            "revision, objects, folded, retired, bytes_freed, seconds")

@@ -91,7 +91,7 @@ Status ReadNames(const std::string& path, std::vector<std::string>* out) {
 Result<ChangeBatch> ReadBatch(const UpdateArgs& a) {
   ChangeBatch batch;
   batch.message = a.message;
-  for (const std::string& in : a.add) MKTREE_RETURN_IF_ERROR(ReadSceneInput(in, &batch.add));
+  batch.add_files = a.add;  // streamed by the commit, never all in memory
   for (const std::string& in : a.replace) MKTREE_RETURN_IF_ERROR(ReadSceneInput(in, &batch.replace_by_name));
   MKTREE_RETURN_IF_ERROR(ParseIds(a.remove_ids, &batch.remove));
   if (a.has_remove_names) MKTREE_RETURN_IF_ERROR(ReadNames(a.remove_names, &batch.remove_names));
@@ -100,7 +100,8 @@ Result<ChangeBatch> ReadBatch(const UpdateArgs& a) {
 
 int RunUpdate(const UpdateArgs& a) {
   if (!(a.compact_threshold >= 0)) return Fail("--compact-threshold must be >= 0");
-  // The whole batch is read (and every input checked) before the store is opened for writing.
+  // The replacing scenes are read (and checked) before the store is opened for writing; the added ones
+  // are read by the commit, twice (checked and counted, then built), before anything is written.
   auto batch = ReadBatch(a);
   if (!batch.ok()) return Fail(batch.status().message());
   ChangeOptions options;
@@ -110,6 +111,7 @@ int RunUpdate(const UpdateArgs& a) {
   auto report = (*writer)->Commit(*batch);
   if (!report.ok()) return Fail(report.status().message());
   const CommitReport& r = *report;
+  for (const std::string& w : r.warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
   if (!r.compaction_error.empty()) std::fprintf(stderr, "warning: %s\n", r.compaction_error.c_str());
   std::string out;
   auto u = [](uint64_t v) { return std::to_string(v); };

@@ -18,7 +18,9 @@
 #include "engine/changes/part_builder.h"
 #include "engine/core/guarded.h"
 #include "engine/ingest/caller_object_check.h"
+#include "engine/ingest/scene_inputs.h"
 #include "engine/ingest/shard_build.h"
+#include "engine/query/ordered_batch.h"  // Prefixed
 #include "engine/query/revision_database.h"
 #include "engine/revision/change_folder.h"
 #include "engine/shard/manifest.h"
@@ -141,6 +143,15 @@ class Writer final : public ChangeWriter {
   };
   Status ResolveBatch(const ChangeBatch& batch, std::vector<ObjectId>* removed, std::vector<Written>* written,
                       uint64_t* replaced) const;
+  // The objects of ChangeBatch::add_files, read once before anything is written: each checked, counted
+  // and routed (`top`: a sharded store's top levels, else null).
+  struct AddedFiles {
+    std::vector<SceneOpener> openers;
+    uint64_t objects = 0;
+    std::map<uint32_t, uint64_t> per_shard;  // objects each delta takes (kNoShard: the one of a store file)
+    std::vector<std::string> warnings;
+  };
+  Result<AddedFiles> ScanAddFiles(const ChangeBatch& batch, uint64_t first_id, const TopLevels* top) const;
   Result<std::unordered_map<std::string, std::vector<ObjectId>>> LiveNames(
       const std::set<std::string>& wanted) const;
   Result<RevisionIdList> WriteIdList(const std::string& name, uint64_t made_at, std::vector<ObjectId> ids);
@@ -382,6 +393,33 @@ Status Writer::ResolveBatch(const ChangeBatch& batch, std::vector<ObjectId>* rem
   return Status::Ok();
 }
 
+Result<Writer::AddedFiles> Writer::ScanAddFiles(const ChangeBatch& batch, uint64_t first_id,
+                                                const TopLevels* top) const {
+  AddedFiles f;
+  SceneReadOptions read;
+  read.spill_dir = folder_;  // a reader's scratch file: removed by the next writer if it is left
+  for (const std::string& input : batch.add_files) {
+    MKTREE_ASSIGN_OR_RETURN(SceneOpener opener, OpenerForInput(input, read));
+    f.openers.push_back(std::move(opener));
+  }
+  if (f.openers.empty()) return f;
+  SceneInputs inputs(f.openers);
+  SceneObject o;
+  for (;;) {
+    MKTREE_ASSIGN_OR_RETURN(const bool more, inputs.Next(&o));
+    if (!more) break;
+    if (first_id + f.objects >= uint64_t{1} << 32)
+      return Status::InvalidArgument(store_ + ": the batch would pass 2^32 object ids");
+    MKTREE_RETURN_IF_ERROR(CheckCallerObject(o, store_ + ": add " + (o.source.empty() ? "" : o.source + " ") +
+                                                    "object " + std::to_string(f.objects) + " '" + o.name +
+                                                    "'"));
+    ++f.per_shard[top ? top->ShardOf(o.mesh.Bounds()) : kNoShard];
+    ++f.objects;
+  }
+  f.warnings = inputs.TakeWarnings();
+  return f;
+}
+
 Result<RevisionIdList> Writer::WriteIdList(const std::string& name, uint64_t made_at,
                                            std::vector<ObjectId> ids) {
   std::sort(ids.begin(), ids.end());
@@ -401,50 +439,86 @@ Result<CommitReport> Writer::CommitUnguarded(const ChangeBatch& batch) {
   std::vector<Written> written;
   uint64_t replaced = 0;
   MKTREE_RETURN_IF_ERROR(ResolveBatch(batch, &removed, &written, &replaced));
+  // A sharded store routes each written object by its box through the base's top levels, as a build
+  // routes it: one delta per shard the batch touches, so that a delta's box is its shard's (a query
+  // outside it reads none of its pages) and a rank of mktree-mpi owns the deltas of its shards.
+  std::optional<TopLevels> top;
+  if (sharded_) {
+    MKTREE_ASSIGN_OR_RETURN(Manifest base, ReadManifest(ChangesFile(folder_, head_.base.store.name)));
+    top = std::move(base.top);
+  }
+  const uint64_t files_first = head_.next_id + batch.add.size();  // ids of add_files' objects from here
+  auto scanned = ScanAddFiles(batch, files_first, top ? &*top : nullptr);
+  if (!scanned.ok()) {  // a reader's error names the file and line; the store is named too
+    const Status& st = scanned.status();
+    if (st.message().rfind(store_ + ": ", 0) == 0) return st;
+    return Prefixed(st, store_ + ": add: ");
+  }
+  const AddedFiles& files = *scanned;
+  const uint64_t added = batch.add.size() + files.objects;
   const uint64_t rev = std::max(head_.revision, skip_to_revision_) + 1;
   RevisionManifest m = head_;
   m.revision = rev;
   m.time = std::time(nullptr);
   m.message = batch.message;
   m.compaction = false;
-  m.added = batch.add.size();
+  m.added = added;
   m.removed = removed.size();
   m.replaced = replaced;
-  m.next_id = head_.next_id + batch.add.size();
+  m.next_id = head_.next_id + added;
   m.live = head_.live + m.added - m.removed;
   if (keep_) m.keep = *keep_;
   CommitReport report;
-  for (size_t i = 0; i < batch.add.size(); ++i)
-    report.added_ids.push_back(static_cast<ObjectId>(head_.next_id + i));
-  if (!written.empty()) {
-    // A sharded store routes each written object by its box through the base's top levels, as a build
-    // routes it: one delta per shard the batch touches, so that a delta's box is its shard's (a query
-    // outside it reads none of its pages) and a rank of mktree-mpi owns the deltas of its shards.
-    std::vector<uint32_t> shard_of(written.size(), kNoShard);
-    if (sharded_) {
-      MKTREE_ASSIGN_OR_RETURN(const Manifest base, ReadManifest(ChangesFile(folder_, head_.base.store.name)));
-      for (size_t i = 0; i < written.size(); ++i)
-        shard_of[i] = base.top.ShardOf(written[i].object->mesh.Bounds());
-    }
-    for (const uint32_t shard : std::set<uint32_t>(shard_of.begin(), shard_of.end())) {
-      size_t at = 0;
-      IdOrderedObjects next = [&](SceneObject* out) -> Result<bool> {
-        while (at < written.size() && shard_of[at] != shard) ++at;
-        if (at == written.size()) return false;
+  report.warnings = files.warnings;
+  for (uint64_t i = 0; i < added; ++i) report.added_ids.push_back(static_cast<ObjectId>(head_.next_id + i));
+  std::vector<uint32_t> shard_of(written.size(), kNoShard);
+  if (top)
+    for (size_t i = 0; i < written.size(); ++i) shard_of[i] = top->ShardOf(written[i].object->mesh.Bounds());
+  std::set<uint32_t> shards(shard_of.begin(), shard_of.end());
+  for (const auto& [shard, count] : files.per_shard) shards.insert(shard);
+  for (const uint32_t shard : shards) {
+    // The batch's objects in increasing id: the caller's (sorted), then add_files' streamed, whose ids are
+    // above every other.
+    size_t at = 0;
+    std::optional<SceneInputs> stream;
+    uint64_t streamed = 0;  // of add_files' objects, those routed to this shard
+    IdOrderedObjects next = [&](SceneObject* out) -> Result<bool> {
+      while (at < written.size() && shard_of[at] != shard) ++at;
+      if (at < written.size()) {
         *out = *written[at].object;  // the one copy the build takes
         out->id = written[at++].id;
         out->stored_shape = 0;  // judged on the caller's coordinates
         out->stored_entry.clear();
         return true;
-      };
-      MKTREE_ASSIGN_OR_RETURN(RevisionPart delta,
-                              BuildRevisionPart(Part(NewPartName("delta", rev), rev), next));
-      delta.shard = shard;
-      m.deltas.push_back(delta);
-    }
+      }
+      if (files.openers.empty()) return false;
+      if (!stream) stream.emplace(files.openers);
+      for (;;) {
+        MKTREE_ASSIGN_OR_RETURN(const bool more, stream->Next(out));
+        const auto wanted = files.per_shard.find(shard);
+        if (!more) {
+          // The inputs are read twice: one that changed in between is refused, not half taken.
+          if (stream->objects_read() != files.objects ||
+              streamed != (wanted == files.per_shard.end() ? 0 : wanted->second))
+            return Status::IOError(store_ + ": the files added changed while the commit read them");
+          return false;
+        }
+        if (top && top->ShardOf(out->mesh.Bounds()) != shard) continue;
+        ++streamed;
+        out->id = static_cast<ObjectId>(files_first + stream->objects_read() - 1);
+        out->stored_shape = 0;
+        out->stored_entry.clear();
+        return true;
+      }
+    };
+    MKTREE_ASSIGN_OR_RETURN(RevisionPart delta,
+                            BuildRevisionPart(Part(NewPartName("delta", rev), rev), next));
+    delta.shard = shard;
+    m.deltas.push_back(delta);
   }
   std::vector<ObjectId> touched = removed;
   for (const Written& w : written) touched.push_back(w.id);
+  for (uint64_t i = 0; i < files.objects; ++i) touched.push_back(static_cast<ObjectId>(files_first + i));
   if (!removed.empty()) {
     MKTREE_ASSIGN_OR_RETURN(RevisionIdList l,
                             WriteIdList(NewPartName("removed", rev) + ".ids", rev, removed));
@@ -458,7 +532,7 @@ Result<CommitReport> Writer::CommitUnguarded(const ChangeBatch& batch) {
   MKTREE_RETURN_IF_ERROR(MergeDeltas(&m));
   MKTREE_RETURN_IF_ERROR(CommitRevision(std::move(m)));
   report.revision = rev;
-  report.added = batch.add.size();
+  report.added = added;
   report.removed = removed.size();
   report.replaced = replaced;
   report.objects = head_.live;

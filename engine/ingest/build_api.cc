@@ -12,6 +12,7 @@
 #include "engine/generator/tanker_generator.h"
 #include "engine/generator/tanker_spec.h"
 #include "engine/ingest/caller_object_check.h"
+#include "engine/ingest/scene_inputs.h"
 #include "engine/ingest/shard_build.h"
 #include "engine/ingest/store_builder.h"
 #include "mktree/build.h"
@@ -124,23 +125,6 @@ Result<BuildStats> BuildSharded(const std::vector<SceneOpener>& openers, const s
   return s;
 }
 
-// "tanker:N[:SEED]" builds straight from the generator, without a scene file. A scene reader's scratch
-// file goes to `read.spill_dir`, with the build's.
-Result<SceneOpener> OpenerFor(const std::string& input, const SceneReadOptions& read) {
-  if (IsTankerSpec(input)) {
-    const std::optional<TankerSpec> spec = ParseTankerSpec(input);
-    if (!spec)
-      return Status::InvalidArgument(input +
-                                     ": expected tanker:N or tanker:N:SEED in decimal, 1 <= N <= 2^32");
-    return SceneOpener([spec = *spec](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
-      return MakeTankerSource(spec.objects, spec.seed, first);
-    });
-  }
-  // Refused before anything is read (the scene reader would say the same, but only once it got there).
-  MKTREE_RETURN_IF_ERROR(storage_internal::CheckInputFile(input));
-  return SceneOpener([input, read](ObjectId first) { return OpenSceneFile(input, first, read); });
-}
-
 // The caller's objects as a scene stream: numbered in order, checked as a reader checks a file.
 class CallerSource final : public SceneSource {
  public:
@@ -165,6 +149,21 @@ class CallerSource final : public SceneSource {
 
 }  // namespace
 
+Result<SceneOpener> OpenerForInput(const std::string& input, const SceneReadOptions& read) {
+  if (IsTankerSpec(input)) {
+    const std::optional<TankerSpec> spec = ParseTankerSpec(input);
+    if (!spec)
+      return Status::InvalidArgument(input +
+                                     ": expected tanker:N or tanker:N:SEED in decimal, 1 <= N <= 2^32");
+    return SceneOpener([spec = *spec](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
+      return MakeTankerSource(spec.objects, spec.seed, first);
+    });
+  }
+  // Refused before anything is read (the scene reader would say the same, but only once it got there).
+  MKTREE_RETURN_IF_ERROR(storage_internal::CheckInputFile(input));
+  return SceneOpener([input, read](ObjectId first) { return OpenSceneFile(input, first, read); });
+}
+
 const char* BuildStageName(BuildStage stage) { return IngestStageName(static_cast<IngestStage>(stage)); }
 
 Result<BuildStats> BuildFromFiles(const std::vector<std::string>& inputs, const std::string& store_path,
@@ -177,7 +176,7 @@ Result<BuildStats> BuildFromFiles(const std::vector<std::string>& inputs, const 
   read.chord_tolerance = options.chord_tolerance;
   read.angular_deflection = options.angular_deflection;
   for (const std::string& in : inputs) {
-    MKTREE_ASSIGN_OR_RETURN(SceneOpener opener, OpenerFor(in, read));
+    MKTREE_ASSIGN_OR_RETURN(SceneOpener opener, OpenerForInput(in, read));
     openers.push_back(std::move(opener));
   }
   MKTREE_RETURN_IF_ERROR(storage_internal::CheckOutputFile(store_path, inputs));

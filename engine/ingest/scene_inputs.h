@@ -13,6 +13,11 @@
 
 namespace mktree {
 
+// An input as BuildFromFiles takes it: a scene file (refused at once when missing or not a regular file)
+// or "tanker:N[:SEED]", which builds straight from the generator. A scene reader's scratch file goes to
+// `read.spill_dir`.
+Result<SceneOpener> OpenerForInput(const std::string& input, const SceneReadOptions& read);
+
 class SceneInputs final : public SceneSource {
  public:
   // `inputs` must outlive this source.

@@ -38,6 +38,11 @@ class Database;
 struct ChangeBatch {
   // New objects; ids are given at commit, above every id the store ever used, in this order.
   std::vector<SceneObject> add;
+  // More new objects, after those of `add`, in order: the objects of inputs as BuildFromFiles takes them
+  // (scene files, "tanker:N[:SEED]"), streamed as the commit needs them, never all in memory. They are read
+  // once to check and count them before anything is written, then once to build (a sharded store: once
+  // per shard they reach). A bad input is an error naming the file (and line) and nothing is committed.
+  std::vector<std::string> add_files;
   // Objects removed by id, and every live object of each of these names.
   std::vector<ObjectId> remove;
   std::vector<std::string> remove_names;
@@ -51,9 +56,10 @@ struct ChangeBatch {
 struct CommitReport {
   uint64_t revision = 0;
   uint64_t added = 0, removed = 0, replaced = 0;
-  std::vector<ObjectId> added_ids;  // the ids of ChangeBatch::add, in its order
-  uint64_t objects = 0;             // live objects after the commit
-  bool compacted = false;           // the commit passed the threshold and compaction ran after it
+  std::vector<ObjectId> added_ids;    // the ids of ChangeBatch::add, then of add_files, in their order
+  uint64_t objects = 0;               // live objects after the commit
+  bool compacted = false;             // the commit passed the threshold and compaction ran after it
+  std::vector<std::string> warnings;  // the readers' of add_files, as a build reports them
   // Why that compaction failed (the commit stands; the changes stay beside the base); empty: it did not.
   std::string compaction_error;
   double seconds = 0;

@@ -169,3 +169,34 @@ def test_sharded_store_takes_changes(tmp_path):
     assert_answers(mktree.open(path), live, queries)
     assert_answers(db, built, queries)  # the snapshot opened before still answers revision 0
     assert [e["revision"] for e in mktree.log(path)] == [0, 1, 2]
+
+
+def test_add_files_streams_objects_after_the_batch_ones(store, tmp_path):
+    """add_files takes scene files as build's `files` does: their objects get the ids after `add`'s, in
+    order; a malformed file commits nothing and names the file and line."""
+    path, live = store
+    objects, boxes = random_boxes(30, 21)
+    obj = tmp_path / "more.obj"
+    base = 1
+    with open(obj, "w") as f:
+        for o in objects[10:]:
+            f.write(f"o file_{o['name']}\n")
+            for v in o["vertices"]:
+                f.write("v %r %r %r\n" % tuple(float(c) for c in v))
+            for t in o["faces"]:
+                f.write("f %d %d %d\n" % tuple(int(i) + base for i in t))
+            base += len(o["vertices"])
+    bad = tmp_path / "bad.obj"
+    bad.write_text("o a\nv 0 0 0\nv 1 0 0\nv nan 1 0\nf 1 2 3\n")
+    with mktree.open_writer(path, compact_threshold=0) as w:
+        with pytest.raises(mktree.Error, match=r"bad\.obj:4"):
+            w.commit(add=objects[:10], add_files=[obj, bad])
+        assert w.revision == 0
+        r = w.commit(add=objects[:10], add_files=obj)
+        assert r["added"] == 30 and r["warnings"] == []
+        np.testing.assert_array_equal(r["added_ids"], np.arange(300, 330, dtype=np.uint32))
+    for k in range(30):
+        live[300 + k] = boxes[k]
+    db = mktree.open(path)
+    assert db.object(310)["name"] == "file_" + objects[10]["name"]
+    assert_answers(db, live, random_queries(200, 23))

@@ -1,9 +1,10 @@
 // Bad input to a store that takes changes, each a clear error naming the thing, and the store unchanged
 // (same revision, same answers, nothing left in its folder): a replace by a name that is missing or not
 // unique, a remove of an unknown id or of one removed earlier, an id changed twice in one batch, NaN
-// coordinates in an added or a replacing object, a second writer (in this process and in another), a
-// revision never committed or retired, a store that does not exist, a sharded store; and damaged files of
-// the changes folder (a revision file, a delta store, an id file): Corruption naming the file.
+// coordinates in an added or a replacing object, an added file that is missing or malformed, a second writer
+// (in this process and in another), a revision never committed or retired, a store that does not exist, a
+// sharded store; and damaged files of the changes folder (a revision file, a delta store, an id file):
+// Corruption naming the file.
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -155,6 +156,46 @@ TEST_P(BadChange, NanCoordinatesInAnAddedOrAReplacingObject) {
   by_name.replace_by_name.push_back(Moved(id, store_.live.at(id).name));
   by_name.replace_by_name.back().mesh.vertices[2] = std::numeric_limits<double>::infinity();
   ExpectRefused(by_name, {"'" + store_.live.at(id).name + "'"});
+}
+
+// Files added by name (ChangeBatch::add_files) are read and checked before anything is written: a bad one
+// is an error naming the store, the file and the line, whichever input of the batch it is.
+TEST_P(BadChange, AnAddedFileThatIsMissingMalformedOrNotFinite) {
+  const std::string good = (dir_ / "good.obj").string(), nan = (dir_ / "nan.obj").string();
+  const std::string index = (dir_ / "index.obj").string();
+  std::ofstream(good) << "o fine\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+  std::ofstream(nan) << "o a\nv 0 0 0\nv 1 0 0\nv nan 1 0\nf 1 2 3\n";
+  std::ofstream(index) << "o a\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\no b\nf 1 2 9\n";
+  ChangeBatch b;
+  b.add.push_back(Moved(store_.live.begin()->first, "fine"));
+  // A reader's error keeps its code (a malformed file is Corruption, as in a build).
+  auto refused = [&](const std::vector<std::string>& names) {
+    auto done = w_->Commit(b);
+    ASSERT_FALSE(done.ok()) << "committed as revision " << done->revision;
+    for (const std::string& name : names)
+      EXPECT_TRUE(Contains(done.status(), name)) << done.status().ToString();
+    ExpectUnchanged();
+  };
+  b.add_files = {good, nan};
+  refused({store_.path, nan + ":4", "non-finite"});
+  b.add_files = {index, good};
+  refused({store_.path, index + ":7", "out of range"});
+  b.add_files = {good, "tanker:0"};
+  refused({store_.path, "tanker:0"});
+  b.add_files = {(dir_ / "missing.obj").string()};
+  refused({store_.path, "missing.obj"});
+  // The good file alone goes in, after the batch's own object.
+  b.add_files = {good};
+  auto done = w_->Commit(b);
+  ASSERT_TRUE(done.ok()) << done.status().ToString();
+  EXPECT_EQ(done->added, 2u);
+  ASSERT_EQ(done->added_ids.size(), 2u);
+  auto db = Database::Open(store_.path);
+  ASSERT_TRUE(db.ok()) << db.status().ToString();
+  auto record = (*db)->Object(done->added_ids[1]);
+  ASSERT_TRUE(record.ok()) << record.status().ToString();
+  EXPECT_EQ(record->name, "fine");
+  EXPECT_EQ(record->source, good);
 }
 
 TEST_P(BadChange, ASecondWriterFailsAtOnceInThisProcessAndAnother) {
