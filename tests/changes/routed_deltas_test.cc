@@ -142,6 +142,42 @@ TEST_P(RoutedDeltas, AReplaceIntoAnotherShardsRegionMovesTheObject) {
   }
 }
 
+// Hundreds of small batches on a sharded store (objects moving across shards, an automatic compaction now
+// and then): merges of every size within each shard, each revision checked against brute force and for
+// its routing.
+TEST_P(RoutedDeltas, HundredsOfSmallBatchesMergeWithinTheirShards) {
+  testing::TempDir dir("mktree_routed_deltas");
+  std::mt19937_64 rng(911);
+  const std::vector<SceneObject> scene = testing::ClusteredScene(240, 19);
+  const std::string store = dir.file("s.mkts");
+  ASSERT_TRUE(testing::BuildShardedFromObjects(scene, store, testing::SmallPages(GetParam()), 3).ok());
+  const Vec3d origin = ChooseStoreOrigin(scene[0].mesh.Bounds());
+  testing::LiveSet live;
+  for (const SceneObject& o : scene) live[o.id] = o;
+  auto w = ChangeWriter::Open(store, {.compact_threshold = 0.6, .threads = 1});
+  ASSERT_TRUE(w.ok()) << w.status().ToString();
+  uint64_t counter = 0, compactions = 0;
+  size_t most_deltas = 0;
+  for (int step = 0; step < 200; ++step) {
+    const std::string what = "step " + std::to_string(step);
+    const ChangeBatch batch = testing::RandomBatch(live, 1 + rng() % 8, rng, &counter);
+    auto done = (*w)->Commit(batch);
+    ASSERT_TRUE(done.ok()) << done.status().ToString();
+    ASSERT_EQ(done->compaction_error, "");
+    compactions += done->compacted;
+    testing::Apply(batch, *done, &live);
+    if (step % 5 == 0) ExpectRouted(store, live, what);
+    auto db = Database::Open(store, {.cache_pages = 16});
+    ASSERT_TRUE(db.ok()) << db.status().ToString();
+    testing::ExpectAnswers(**db, live, origin, testing::RandomQueries(6, rng), what);
+    const RevisionManifest* m = RevisionManifestOf(**db);
+    ASSERT_NE(m, nullptr);
+    most_deltas = std::max(most_deltas, m->deltas.size());
+  }
+  EXPECT_GE(compactions, 1u);
+  EXPECT_GE(most_deltas, 6u) << "several deltas a shard, so that merges ran within shards";
+}
+
 INSTANTIATE_TEST_SUITE_P(Backends, RoutedDeltas, ::testing::Values(Backend::kHdf5, Backend::kPagedFile),
                          [](const auto& info) { return std::string(BackendName(info.param)); });
 
