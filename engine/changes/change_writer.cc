@@ -717,7 +717,7 @@ Result<RevisionPart> Writer::BuildShardedBase(uint64_t rev) {
       if (!more) break;
       sample.Add(o.id, bounds(o));
     }
-    const std::vector<ShardSample::Item> items = sample.Items();
+    const std::vector<ShardSample::Item> items = std::move(sample).Items();
     Result<TopLevels> top = Status::Internal("no shard count tried");
     for (uint32_t k = static_cast<uint32_t>(old.shards.size()); k >= 1; k = k / 2) {
       top = ChooseTopLevels(items, k);

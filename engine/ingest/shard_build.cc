@@ -273,7 +273,7 @@ Result<ShardedBuildReport> BuildShardedStore(const std::vector<SceneOpener>& inp
                                    ": empty scene, no object with geometry in the input");
   m.origin = options.origin ? *options.origin : ChooseStoreOrigin(scan.first);
   report.sample_objects = scan.sample.size();
-  MKTREE_ASSIGN_OR_RETURN(m.top, ChooseTopLevels(scan.sample.Items(), shards));
+  MKTREE_ASSIGN_OR_RETURN(m.top, ChooseTopLevels(std::move(scan.sample).Items(), shards));
   report.sample_seconds = Seconds(start);
   // The id files carry it, so a shard of another build is refused even if its store fingerprints alike.
   m.build_id = NewBuildId();

@@ -142,8 +142,11 @@ void ShardSample::Merge(const ShardSample& other) {
   }
 }
 
-std::vector<ShardSample::Item> ShardSample::Items() const {
-  std::vector<Item> out(heap_);
+std::vector<ShardSample::Item> ShardSample::Items() const& { return ShardSample(*this).Items(); }
+
+std::vector<ShardSample::Item> ShardSample::Items() && {
+  std::vector<Item> out = std::move(heap_);
+  heap_ = {};
   std::sort(out.begin(), out.end(), [](const Item& a, const Item& b) { return a.id < b.id; });
   return out;
 }
