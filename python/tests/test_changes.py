@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import mktree
-from test_mktree import brute_force, random_boxes, random_queries
+from test_mktree import brute_force, random_boxes, random_queries, write_obj
 
 
 def live_answers(live, queries):
@@ -177,15 +177,7 @@ def test_add_files_streams_objects_after_the_batch_ones(store, tmp_path):
     path, live = store
     objects, boxes = random_boxes(30, 21)
     obj = tmp_path / "more.obj"
-    base = 1
-    with open(obj, "w") as f:
-        for o in objects[10:]:
-            f.write(f"o file_{o['name']}\n")
-            for v in o["vertices"]:
-                f.write("v %r %r %r\n" % tuple(float(c) for c in v))
-            for t in o["faces"]:
-                f.write("f %d %d %d\n" % tuple(int(i) + base for i in t))
-            base += len(o["vertices"])
+    write_obj([dict(o, name="file_" + o["name"]) for o in objects[10:]], obj)
     bad = tmp_path / "bad.obj"
     bad.write_text("o a\nv 0 0 0\nv 1 0 0\nv nan 1 0\nf 1 2 3\n")
     with mktree.open_writer(path, compact_threshold=0) as w:

@@ -3,11 +3,9 @@
 // batch's own, in file order), a sharded store routes them to their shards' deltas, and a commit of files
 // with many times the build's memory budget of geometry peaks within that budget.
 #include <gtest/gtest.h>
-#include <sys/resource.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include "change_fixtures.h"
+#include "child_peak_rss.h"
 #include "engine/generator/tanker_generator.h"
 #include "engine/revision/change_folder.h"
 
@@ -46,8 +44,7 @@ TEST_P(AddedFiles, AnswerAsTheSameObjectsAddedFromMemory) {
   else
     ASSERT_TRUE(testing::BuildFromObjects(scene, store, opts).ok());
   const Vec3d origin = ChooseStoreOrigin(scene[0].mesh.Bounds());
-  testing::LiveSet live;
-  for (const SceneObject& o : scene) live[o.id] = o;
+  testing::LiveSet live = testing::LiveOf(scene);
   auto w = ChangeWriter::Open(store, {.compact_threshold = 0, .threads = 1});
   ASSERT_TRUE(w.ok()) << w.status().ToString();
   uint64_t counter = 0;
@@ -110,22 +107,17 @@ TEST(BoundedMemory, FilesOfTwiceTheBudgetCommitWithinIt) {
   ASSERT_TRUE(testing::BuildFromObjects(testing::ClusteredScene(50, 2), store,
                                         testing::SmallPages(Backend::kPagedFile))
                   .ok());
-  const pid_t child = ::fork();
-  ASSERT_GE(child, 0);
-  if (child == 0) {
+  const testing::ChildRun run = testing::RunForPeakRss([&] {
     auto w = ChangeWriter::Open(store, {.compact_threshold = 0, .threads = 1});
-    if (!w.ok()) ::_exit(2);
+    if (!w.ok()) return 2;
     ChangeBatch batch;
     batch.add_files = {"tanker:300000:2"};
     auto done = (*w)->Commit(batch);
-    ::_exit(done.ok() && done->added == 300000 ? 0 : 3);
-  }
-  int status = 0;
-  struct rusage ru {};
-  ASSERT_EQ(::wait4(child, &status, 0, &ru), child);
-  ASSERT_TRUE(WIFEXITED(status));
-  ASSERT_EQ(WEXITSTATUS(status), 0);
-  const uint64_t peak = static_cast<uint64_t>(ru.ru_maxrss) * 1024;
+    return done.ok() && done->added == 300000 ? 0 : 3;
+  });
+  ASSERT_TRUE(run.exited);
+  ASSERT_EQ(run.code, 0);
+  const uint64_t peak = run.peak_rss;
   EXPECT_LE(peak, kBudget) << "peak RSS " << (peak >> 20) << " MiB";
   auto db = Database::Open(store);
   ASSERT_TRUE(db.ok()) << db.status().ToString();

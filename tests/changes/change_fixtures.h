@@ -27,6 +27,13 @@ namespace mktree::testing {
 // The live objects of one revision, by id.
 using LiveSet = std::map<ObjectId, SceneObject>;
 
+// A built scene's live set: every object under its id.
+inline LiveSet LiveOf(const std::vector<SceneObject>& scene) {
+  LiveSet live;
+  for (const SceneObject& o : scene) live[o.id] = o;
+  return live;
+}
+
 inline IngestOptions SmallPages(Backend backend) {
   IngestOptions o;
   o.store.backend = backend;

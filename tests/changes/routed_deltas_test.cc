@@ -68,8 +68,7 @@ TEST_P(RoutedDeltas, EveryChangeGoesToTheShardThatOwnsItsBox) {
   const IngestOptions opts = testing::SmallPages(GetParam());
   ASSERT_TRUE(testing::BuildShardedFromObjects(scene, store, opts, 4).ok());
   const Vec3d origin = ChooseStoreOrigin(scene[0].mesh.Bounds());
-  testing::LiveSet live;
-  for (const SceneObject& o : scene) live[o.id] = o;
+  testing::LiveSet live = testing::LiveOf(scene);
   auto w = ChangeWriter::Open(store, {.compact_threshold = 0, .threads = 1});
   ASSERT_TRUE(w.ok()) << w.status().ToString();
   uint64_t counter = 0;
@@ -116,8 +115,7 @@ TEST_P(RoutedDeltas, AReplaceIntoAnotherShardsRegionMovesTheObject) {
   for (; b < scene.size(); ++b)
     if (top.ShardOf(scene[b].mesh.Bounds()) != top.ShardOf(scene[a].mesh.Bounds())) break;
   ASSERT_LT(b, scene.size());
-  testing::LiveSet live;
-  for (const SceneObject& o : scene) live[o.id] = o;
+  testing::LiveSet live = testing::LiveOf(scene);
   auto w = ChangeWriter::Open(store, {.compact_threshold = 0, .threads = 1});
   ASSERT_TRUE(w.ok()) << w.status().ToString();
   for (int round = 0; round < 2; ++round) {
@@ -152,8 +150,7 @@ TEST_P(RoutedDeltas, HundredsOfSmallBatchesMergeWithinTheirShards) {
   const std::string store = dir.file("s.mkts");
   ASSERT_TRUE(testing::BuildShardedFromObjects(scene, store, testing::SmallPages(GetParam()), 3).ok());
   const Vec3d origin = ChooseStoreOrigin(scene[0].mesh.Bounds());
-  testing::LiveSet live;
-  for (const SceneObject& o : scene) live[o.id] = o;
+  testing::LiveSet live = testing::LiveOf(scene);
   auto w = ChangeWriter::Open(store, {.compact_threshold = 0.6, .threads = 1});
   ASSERT_TRUE(w.ok()) << w.status().ToString();
   uint64_t counter = 0, compactions = 0;

@@ -1,13 +1,11 @@
 // Ingest keeps only per-object records in RAM: a scene whose geometry is ten times a memory budget
 // builds within that budget. The build runs in a child process so that its peak RSS is its own.
 #include <gtest/gtest.h>
-#include <sys/resource.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <cmath>
 #include <filesystem>
 
+#include "child_peak_rss.h"
 #include "engine/ingest/store_builder.h"
 #include "mktree/database.h"
 #include "test_dirs.h"
@@ -68,23 +66,18 @@ TEST(BoundedMemory, GeometryTenTimesTheBudgetBuildsWithinIt) {
 
   const testing::TempDir dir("mktree_bounded");
   const std::string store = dir.file("scene.mkt");
-  const pid_t child = ::fork();
-  ASSERT_GE(child, 0);
-  if (child == 0) {
+  const testing::ChildRun run = testing::RunForPeakRss([&] {
     IngestOptions opts;
     opts.store.backend = Backend::kPagedFile;
     auto r = BuildStore({[&](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
                           return std::unique_ptr<SceneSource>(new HeavyPrisms(kObjects, kSides, first));
                         }},
                         store, opts);
-    ::_exit(r.ok() && r->objects == kObjects ? 0 : 3);
-  }
-  int status = 0;
-  struct rusage ru {};
-  ASSERT_EQ(::wait4(child, &status, 0, &ru), child);
-  ASSERT_TRUE(WIFEXITED(status));
-  ASSERT_EQ(WEXITSTATUS(status), 0);
-  const uint64_t peak = static_cast<uint64_t>(ru.ru_maxrss) * 1024;
+    return r.ok() && r->objects == kObjects ? 0 : 3;
+  });
+  ASSERT_TRUE(run.exited);
+  ASSERT_EQ(run.code, 0);
+  const uint64_t peak = run.peak_rss;
   EXPECT_LE(peak, kBudget) << "peak RSS " << (peak >> 20) << " MiB for "
                            << ((raw_per_object * kObjects) >> 20) << " MiB of geometry";
   auto db = Database::Open(store);
