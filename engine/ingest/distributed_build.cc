@@ -456,30 +456,81 @@ bool ExchangeObjects(RankBuild* b) {
   return true;
 }
 
+// Shard s's objects on this rank, its own and those the other ranks sent, in increasing id.
+ShardObjects ShardObjectsOnRank(RankBuild* b, uint32_t s) {
+  const int rank = b->exchange->rank(), ranks = b->exchange->ranks();
+  const std::string& output = b->options.manifest_path;
+  std::vector<ShardObjects> streams;
+  for (int from = 0; from < ranks; ++from) {
+    if (from == rank) {
+      streams.push_back([b, s]() -> Result<std::unique_ptr<SceneSource>> {
+        return ShardObjectsOf(b->part.open(), b->manifest.top, s);
+      });
+    } else if (std::filesystem::exists(ExchangeSpillPath(output, s, from))) {
+      streams.push_back([path = ExchangeSpillPath(output, s, from)] { return OpenExchangeSpill(path); });
+    }
+  }
+  return [streams]() -> Result<std::unique_ptr<SceneSource>> {
+    return std::unique_ptr<SceneSource>(std::make_unique<Concat>(streams));
+  };
+}
+
+// Collective: the dictionary every shard encodes with, as the single-process build gives it
+// (TrainShardDictionary): rank 0, which owns shard 0, trains it and sends it to every rank. Byte 0 says
+// whether rank 0 succeeded, byte 1 whether there is a dictionary; its bytes follow.
+bool ShareShardDictionary(RankBuild* b, IngestOptions* ingest) {
+  RankExchange& x = *b->exchange;
+  std::vector<uint8_t> message{0, 0};
+  if (x.rank() == 0 && b->errors.ok()) {
+    auto trained = TrainShardDictionary(ShardObjectsOnRank(b, 0), b->manifest, b->options.ingest);
+    if (!trained.ok()) {
+      b->errors.Fail(trained.status());
+    } else {
+      message[0] = 1;
+      if (*trained) {
+        message[1] = 1;
+        message.insert(message.end(), (*trained)->bytes().begin(), (*trained)->bytes().end());
+      }
+      ingest->dictionary = *trained;
+    }
+  }
+  x.Broadcast(&message);
+  if (message[0] != 1) {
+    if (x.rank() != 0) b->errors.Fail(Status::Internal("rank 0 could not train the shards' dictionary"));
+    return false;
+  }
+  if (x.rank() != 0) {
+    std::shared_ptr<const CodecDictionary> dictionary;
+    if (message[1] == 1) {
+      auto loaded = CodecDictionary::Load(std::vector<uint8_t>(message.begin() + 2, message.end()),
+                                          ingest->store.codec.zstd_level);
+      if (!loaded.ok()) {
+        b->errors.Fail(loaded.status());
+        return false;
+      }
+      dictionary = *loaded;
+    }
+    ingest->dictionary = dictionary;
+  }
+  return true;
+}
+
 bool BuildRankShards(RankBuild* b) {
   RankExchange& x = *b->exchange;
   const int rank = x.rank(), ranks = x.ranks();
   const std::string& output = b->options.manifest_path;
   const Manifest& m = b->manifest;
   const auto start = Clock::now();
+  IngestOptions ingest = b->options.ingest;
+  const bool shared = ingest.dictionary.has_value() || ShareShardDictionary(b, &ingest);
+  if (!b->errors.AllOk() || !shared) {
+    DiscardRankFiles(*b);
+    return false;
+  }
   std::vector<uint8_t> entries;
   for (uint32_t s : b->own) {
-    std::vector<ShardObjects> streams;
-    for (int from = 0; from < ranks; ++from) {
-      if (from == rank) {
-        streams.push_back([b, s]() -> Result<std::unique_ptr<SceneSource>> {
-          return ShardObjectsOf(b->part.open(), b->manifest.top, s);
-        });
-      } else if (std::filesystem::exists(ExchangeSpillPath(output, s, from))) {
-        streams.push_back([path = ExchangeSpillPath(output, s, from)] { return OpenExchangeSpill(path); });
-      }
-    }
     IngestReport report;
-    auto e = BuildShardFrom(
-        [&]() -> Result<std::unique_ptr<SceneSource>> {
-          return std::unique_ptr<SceneSource>(std::make_unique<Concat>(streams));
-        },
-        output, m, s, b->options.ingest, &report);
+    auto e = BuildShardFrom(ShardObjectsOnRank(b, s), output, m, s, ingest, &report);
     for (int from = 0; from < ranks; ++from) {
       std::error_code ec;
       std::filesystem::remove(ExchangeSpillPath(output, s, from), ec);

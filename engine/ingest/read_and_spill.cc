@@ -145,39 +145,55 @@ class ObjectSpiller {
   CoarseBoxes coarse_;
 };
 
+// A dictionary's training sample: objects packed as the encoder will pack them, whole objects only, up to
+// kDictionarySampleBytes. An object that cannot be packed ends it (the encoder reports it in order).
+class DictionarySample {
+ public:
+  DictionarySample(const Vec3d& origin, const CodecOptions& codec) : origin_(origin), codec_(codec) {}
+  // False when the sample is full (or `obj` cannot be packed): read no more for it.
+  bool Add(const SceneObject& obj) {
+    const size_t before = sample_.size();
+    if (!PackObjectGeometry(obj, origin_, codec_.shuffle, &sample_).ok()) return false;
+    if (sample_.size() > kDictionarySampleBytes) {
+      sample_.resize(before);
+      return false;
+    }
+    sizes_.push_back(sample_.size() - before);
+    return true;
+  }
+  // Null when zstd trains none on it.
+  Result<std::shared_ptr<const CodecDictionary>> Train() const {
+    std::vector<uint8_t> dictionary = TrainDictionary(sample_, sizes_, codec_.zstd_level);
+    if (dictionary.empty()) return std::shared_ptr<const CodecDictionary>();
+    auto loaded = CodecDictionary::Load(std::move(dictionary), codec_.zstd_level);
+    if (!loaded.ok())
+      return Status::Internal("the dictionary just trained does not load: " + loaded.status().message());
+    return std::shared_ptr<const CodecDictionary>(*loaded);
+  }
+
+ private:
+  Vec3d origin_;
+  const CodecOptions& codec_;
+  std::vector<uint8_t> sample_;
+  std::vector<size_t> sizes_;
+};
+
 // Trains the store's dictionary (object_codec.h) on `first` and the objects after it, read ahead into
-// *ahead and packed as the encoder will pack them, and hands it to the encoder. An object that cannot be
-// packed ends the sample; the encoder reports it in order.
+// *ahead, and hands it to the encoder.
 Status TrainStoreDictionary(const SceneObject& first, SceneReader* reader, std::deque<SceneObject>* ahead,
                             EncoderOptions* encoder, IngestReport* report) {
   const auto train_start = Clock::now();
-  std::vector<uint8_t> sample;
-  std::vector<size_t> sizes;
-  auto add = [&](const SceneObject& obj) {
-    const size_t before = sample.size();
-    if (!PackObjectGeometry(obj, encoder->origin, encoder->codec.shuffle, &sample).ok()) return false;
-    if (sample.size() > kDictionarySampleBytes) {  // whole objects only
-      sample.resize(before);
-      return false;
-    }
-    sizes.push_back(sample.size() - before);
-    return true;
-  };
-  for (bool more = add(first); more;) {
+  DictionarySample sample(encoder->origin, encoder->codec);
+  for (bool more = sample.Add(first); more;) {
     SceneObject obj;
     auto got = reader->Next(&obj);
     if (!got.ok()) return got.status();
     if (!*got) break;
     ahead->push_back(std::move(obj));
-    more = add(ahead->back());
+    more = sample.Add(ahead->back());
   }
-  std::vector<uint8_t> dictionary = TrainDictionary(sample, sizes, encoder->codec.zstd_level);
-  if (!dictionary.empty()) {
-    auto loaded = CodecDictionary::Load(std::move(dictionary), encoder->codec.zstd_level);
-    if (!loaded.ok())
-      return Status::Internal("the dictionary just trained does not load: " + loaded.status().message());
-    encoder->codec.dictionary = *loaded;
-  }
+  MKTREE_ASSIGN_OR_RETURN(auto dictionary, sample.Train());
+  if (dictionary) encoder->codec.dictionary = std::move(dictionary);
   report->dictionary_bytes = encoder->codec.dictionary ? encoder->codec.dictionary->bytes().size() : 0;
   report->dictionary_seconds = Seconds(train_start);
   return Status::Ok();
@@ -190,6 +206,23 @@ void TrimMalloc() {
 }
 
 }  // namespace
+
+Result<std::shared_ptr<const CodecDictionary>> TrainBuildDictionary(const std::vector<SceneOpener>& inputs,
+                                                                    const IngestOptions& options,
+                                                                    const Vec3d& origin) {
+  if (options.store.codec.codec != Codec::kZstd) return std::shared_ptr<const CodecDictionary>();
+  std::vector<std::string> warnings;  // the build that reads the inputs again reports them
+  IngestOptions quiet = options;
+  quiet.progress = nullptr;  // the build's own reading reports progress
+  SceneReader reader(inputs, quiet, &warnings);
+  DictionarySample sample(origin, options.store.codec);
+  for (;;) {
+    SceneObject obj;
+    MKTREE_ASSIGN_OR_RETURN(const bool more, reader.Next(&obj));
+    if (!more || !sample.Add(obj)) break;
+  }
+  return sample.Train();
+}
 
 void RemoveStaleSpills(const std::string& dir, const std::string& stem) {
   namespace fs = std::filesystem;

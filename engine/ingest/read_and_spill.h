@@ -37,6 +37,12 @@ struct ReadAndSpillOutput {
 Result<ReadAndSpillOutput> ReadAndSpill(const std::vector<SceneOpener>& inputs, const IngestOptions& options,
                                         const SpillPlace& place, IngestReport* report);
 
+// The dictionary ReadAndSpill would train on `inputs` in the frame of `origin` (null: none, or a codec
+// without one), trained on the same first objects: a sharded build gives shard 0's to every shard.
+Result<std::shared_ptr<const CodecDictionary>> TrainBuildDictionary(const std::vector<SceneOpener>& inputs,
+                                                                    const IngestOptions& options,
+                                                                    const Vec3d& origin);
+
 // Removes "<dir>/.<stem>.{geometry,record,name}-spill.XXXXXX" (the names stage 1's spills get; "name" was
 // the record spill's name before format 4): spills that were still named when their build was killed
 // (spill_file.h). REQUIRES: the store's writer lock.

@@ -12,6 +12,7 @@
 #include <random>
 #include <string_view>
 
+#include "engine/ingest/read_and_spill.h"
 #include "engine/ingest/scene_inputs.h"
 #include "engine/store_format/store_file.h"
 
@@ -199,6 +200,25 @@ Status PublishShard(const std::string& manifest_path, uint32_t s) {
   return Rename(ids + ".new", ids);
 }
 
+Result<std::shared_ptr<const CodecDictionary>> TrainShardDictionary(const ShardObjects& shard0,
+                                                                    const Manifest& m,
+                                                                    const IngestOptions& options) {
+  std::vector<ObjectId> ids;  // numbered from 0 as the shard's build numbers them
+  const SceneOpener opener = [&](ObjectId first) -> Result<std::unique_ptr<SceneSource>> {
+    MKTREE_ASSIGN_OR_RETURN(auto source, shard0());
+    return std::unique_ptr<SceneSource>(std::make_unique<Renumber>(std::move(source), first, &ids));
+  };
+  return TrainBuildDictionary({opener}, options, m.origin);
+}
+
+Result<std::shared_ptr<const CodecDictionary>> TrainShardDictionary(const std::vector<SceneOpener>& inputs,
+                                                                    const Manifest& m,
+                                                                    const IngestOptions& options) {
+  return TrainShardDictionary(
+      [&]() -> Result<std::unique_ptr<SceneSource>> { return ShardObjectsOf(ChainInputs(inputs), m.top, 0); },
+      m, options);
+}
+
 Result<ShardEntry> BuildShard(const std::vector<SceneOpener>& inputs, const std::string& manifest_path,
                               const Manifest& m, uint32_t s, const IngestOptions& options,
                               IngestReport* report) {
@@ -287,18 +307,18 @@ Result<ShardedBuildReport> BuildShardedStore(const std::vector<SceneOpener>& inp
       for (uint32_t s = 0; s < built && !keep; ++s) DiscardShard(path, s);
     }
   } discard{manifest_path};
+  // Every shard encodes with the dictionary shard 0's build would train (or none, as it would train
+  // none): the parts of the store then share one, so that a compaction after changes copies every entry
+  // (docs/changes.md); the distributed build trains the same one on rank 0.
   IngestOptions shard_options = options;
+  if (!options.dictionary) {
+    MKTREE_ASSIGN_OR_RETURN(shard_options.dictionary, TrainShardDictionary(inputs, m, options));
+  }
   for (uint32_t s = 0; s < shards; ++s) {
     IngestReport shard_report;
     MKTREE_ASSIGN_OR_RETURN(ShardEntry e,
                             BuildShard(inputs, manifest_path, m, s, shard_options, &shard_report));
     ++discard.built;
-    if (s == 0 && !options.dictionary) {
-      // The later shards encode with shard 0's dictionary (or none, as it has none): every part of the
-      // store then shares one, so that a compaction after changes copies every entry (docs/changes.md).
-      MKTREE_ASSIGN_OR_RETURN(auto reader, StoreReader::Open(ShardStorePath(manifest_path, 0) + ".new"));
-      shard_options.dictionary = reader->options().codec.dictionary;
-    }
     for (std::string& w : shard_report.warnings)
       report.warnings.push_back("shard " + std::to_string(s) + ": " + w);
     report.store_bytes += e.store.bytes + e.ids.bytes;

@@ -60,6 +60,15 @@ using ShardObjects = std::function<Result<std::unique_ptr<SceneSource>>()>;
 Result<ShardEntry> BuildShardFrom(const ShardObjects& objects, const std::string& manifest_path,
                                   const Manifest& m, uint32_t s, const IngestOptions& options,
                                   IngestReport* report);
+// The dictionary every shard of m encodes with, so that the parts of the store share one (null: none): the
+// one shard 0's own build would train, on its first objects in m's frame. From the inputs, or from a
+// source of shard 0's objects (as BuildShardFrom's).
+Result<std::shared_ptr<const CodecDictionary>> TrainShardDictionary(const std::vector<SceneOpener>& inputs,
+                                                                    const Manifest& m,
+                                                                    const IngestOptions& options);
+Result<std::shared_ptr<const CodecDictionary>> TrainShardDictionary(const ShardObjects& shard0,
+                                                                    const Manifest& m,
+                                                                    const IngestOptions& options);
 // 3. Shard s's staged files renamed into place, or removed.
 Status PublishShard(const std::string& manifest_path, uint32_t s);
 void DiscardShard(const std::string& manifest_path, uint32_t s);
