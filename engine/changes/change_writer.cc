@@ -482,6 +482,8 @@ Result<CommitReport> Writer::CommitUnguarded(const ChangeBatch& batch) {
     size_t at = 0;
     std::optional<SceneInputs> stream;
     uint64_t streamed = 0;  // of add_files' objects, those routed to this shard
+    const auto scanned_here = files.per_shard.find(shard);
+    const uint64_t routed_here = scanned_here == files.per_shard.end() ? 0 : scanned_here->second;
     IdOrderedObjects next = [&](SceneObject* out) -> Result<bool> {
       while (at < written.size() && shard_of[at] != shard) ++at;
       if (at < written.size()) {
@@ -495,11 +497,9 @@ Result<CommitReport> Writer::CommitUnguarded(const ChangeBatch& batch) {
       if (!stream) stream.emplace(files.openers);
       for (;;) {
         MKTREE_ASSIGN_OR_RETURN(const bool more, stream->Next(out));
-        const auto wanted = files.per_shard.find(shard);
         if (!more) {
           // The inputs are read twice: one that changed in between is refused, not half taken.
-          if (stream->objects_read() != files.objects ||
-              streamed != (wanted == files.per_shard.end() ? 0 : wanted->second))
+          if (stream->objects_read() != files.objects || streamed != routed_here)
             return Status::IOError(store_ + ": the files added changed while the commit read them");
           return false;
         }

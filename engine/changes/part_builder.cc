@@ -116,7 +116,7 @@ Result<RevisionPart> BuildRevisionPart(const PartBuild& b, const IdOrderedObject
 // One part's place in the stream, its record cache and its recently parsed leaves.
 struct LiveObjectStream::Cursor {
   static constexpr size_t kLeaves = 16;
-  static constexpr size_t kRecordPages = 4;
+  static constexpr size_t kRecordPages = 4;  // ids come in increasing order: each record group loads once
   struct Leaf {
     uint32_t leaf = 0;
     PinnedLeaf pinned;
