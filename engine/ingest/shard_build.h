@@ -1,8 +1,8 @@
 // The sharded build (docs/shards.md), single process: one pass over the inputs samples the objects' boxes
 // and chooses the top levels (engine/shard/top_levels.h); then each shard is an ordinary store built by
 // BuildStore from the objects routed to it (one more pass over the inputs per shard, keeping the objects
-// of that shard), in the scene's frame, with its id file (shard 0 trains the zstd dictionary, the others
-// encode with it, so that the parts of the store share one); the manifest is written last. Shards and id
+// of that shard), in the scene's frame, with its id file (every shard encodes with one zstd dictionary,
+// trained on shard 0's first objects before any shard is built); the manifest is written last. Shards and id
 // files are built under "<name>.new" and renamed into place just before the manifest is committed, so that a
 // failed build leaves neither a manifest nor a shard file of its own, and the previous sharded store at
 // the path stays until the renames.

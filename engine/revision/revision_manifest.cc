@@ -98,7 +98,7 @@ std::string EncodeRevisionManifest(const RevisionManifest& m) {
   std::string s;
   const bool routed = std::any_of(m.deltas.begin(), m.deltas.end(),
                                   [](const RevisionPart& d) { return d.shard != kNoShard; });
-  s += std::string(kMagicLine) + ' ' + (routed ? "2" : "1") + '\n';
+  s += std::string(kMagicLine) + ' ' + std::to_string(routed ? kRevisionFormat : 1) + '\n';
   s += "history " + Hex(m.history) + '\n';
   s += "revision " + std::to_string(m.revision) + '\n';
   s += "time " + std::to_string(m.time) + '\n';
@@ -153,7 +153,7 @@ Result<RevisionManifest> DecodeRevisionManifest(const std::string& text, const s
     if (line_no == 1) {
       if (key != kMagicLine || w.size() != 2) return p.Bad("not a revision file of an mktree store");
       MKTREE_RETURN_IF_ERROR(p.U64(w[1], &format));
-      if (format != 1 && format != 2)
+      if (format < 1 || format > kRevisionFormat)
         return p.Bad("revision format " + std::to_string(format) + ", this mktree reads formats 1 to " +
                      std::to_string(kRevisionFormat));
       continue;
@@ -211,7 +211,7 @@ Result<RevisionManifest> DecodeRevisionManifest(const std::string& text, const s
       if (w[4] != "0" && w[4] != "1") return p.Bad("batch: compaction flag is not 0 or 1");
       m.compaction = w[4] == "1";
     } else if (key == "base" || key == "delta") {
-      const bool routed = key == "delta" && format == 2;  // its shard, or "-"
+      const bool routed = key == "delta" && format >= 2;  // its shard, or "-"
       MKTREE_RETURN_IF_ERROR(want(routed ? 10 : 9));
       RevisionPart part;
       MKTREE_RETURN_IF_ERROR(p.U64(w[1], &part.made_at));
